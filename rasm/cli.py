@@ -1,0 +1,193 @@
+"""The ``rasm`` command line: a thin face over the Python API.
+
+Each ``_cmd_*`` function parses nothing itself: it receives the parsed arguments, calls the API of
+one sub-package and formats the result. Exit codes (SPEC §3): 0 ok; 1 a property violated, rules
+inconsistent or lint errors; 2 bad input or usage, with ``file:line:col: message`` where one exists.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from rasm.errors import RasmError, SourceError, SourceErrors
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+
+
+class UsageError(RasmError):
+    """Bad command-line usage that argparse cannot see (a missing file, a bad combination)."""
+
+
+def _open_output(path: str | None):
+    if path is None or path == "-":
+        return sys.stdout
+    return open(path, "w", encoding="utf-8")
+
+
+# --------------------------------------------------------------------------- statecharts
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from rasm.statechart.simulate import format_steps, read_events, simulate
+
+    events = read_events(args.events) if args.events else []
+    steps = simulate(args.chart, events)
+    sys.stdout.write(format_steps(steps, args.format))
+    return EXIT_OK
+
+
+def _cmd_lint(args: argparse.Namespace) -> int:
+    from rasm.lint import lint_paths
+
+    problems = lint_paths(args.paths)
+    for problem in problems:
+        print(problem, file=sys.stdout)
+    return EXIT_FAILED if problems else EXIT_OK
+
+
+def _cmd_graph(args: argparse.Namespace) -> int:
+    from rasm.statechart import export, load_statechart
+
+    chart = load_statechart(args.chart)
+    sys.stdout.write(export(chart, args.format))
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- properties
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    raise UsageError("rasm check is not implemented yet")
+
+
+def _cmd_monitor(args: argparse.Namespace) -> int:
+    raise UsageError("rasm monitor is not implemented yet")
+
+
+# --------------------------------------------------------------------------- rules
+
+
+def _cmd_verify_rules(args: argparse.Namespace) -> int:
+    raise UsageError("rasm verify-rules is not implemented yet")
+
+
+# --------------------------------------------------------------------------- platform
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    raise UsageError("rasm run is not implemented yet")
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    raise UsageError("rasm report is not implemented yet")
+
+
+def _cmd_new(args: argparse.Namespace) -> int:
+    raise UsageError("rasm new is not implemented yet")
+
+
+def _cmd_package(args: argparse.Namespace) -> int:
+    raise UsageError("rasm package is not implemented yet")
+
+
+def _cmd_deploy(args: argparse.Namespace) -> int:
+    raise UsageError("rasm deploy is not implemented yet")
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rasm",
+        description="rasm: trustworthy self-adaptive robots (MAPLE-K), statechart-first.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name: str, func: Callable[[argparse.Namespace], int], help: str):
+        p = sub.add_parser(name, help=help, description=help)
+        p.set_defaults(func=func)
+        return p
+
+    p = command("run", _cmd_run, "run an application's MAPLE-K loop")
+    p.add_argument("app", help="application folder (with app.yaml)")
+    p.add_argument("--duration", type=float, default=None, help="seconds to run")
+    p.add_argument("--transport", default=None, help="local | mqtt://host:port")
+    p.add_argument("--trace", default=None, help="write the adaptation trace (JSONL) here")
+    p.add_argument("--clock", choices=["wall", "simulated"], default=None)
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--role", choices=["all", "managing", "managed"], default="all")
+    p.add_argument("--dashboard", nargs="?", const=8050, type=int, default=None, metavar="PORT")
+
+    p = command("simulate", _cmd_simulate, "execute one statechart on a simulated clock")
+    p.add_argument("chart", help="statechart YAML file")
+    p.add_argument("--events", default=None, help="JSONL events file, or - for standard input")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+
+    p = command("check", _cmd_check, "check properties on a trace offline")
+    p.add_argument("props", help="property file (.rv)")
+    p.add_argument("trace", help="trace file (JSONL)")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.add_argument("--verdicts", action="store_true", help="print every verdict as JSONL")
+
+    p = command("verify-rules", _cmd_verify_rules, "check legitimacy rules for consistency")
+    p.add_argument("rules", help="rules file (YAML)")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.add_argument("--against", default=None, metavar="PROPS.rv")
+
+    p = command("lint", _cmd_lint, "check statecharts, properties, rules and manifests")
+    p.add_argument("paths", nargs="+", metavar="PATH")
+
+    p = command("graph", _cmd_graph, "draw a statechart")
+    p.add_argument("chart")
+    p.add_argument("--format", choices=["mermaid", "plantuml", "dot"], default="mermaid")
+
+    p = command("monitor", _cmd_monitor, "attach monitors to a live loop")
+    p.add_argument("props")
+    p.add_argument("--transport", required=True)
+    p.add_argument("--topics", default=None, metavar="MAP.yaml")
+
+    p = command("report", _cmd_report, "render a trace as a self-contained HTML page")
+    p.add_argument("trace")
+    p.add_argument("-o", "--output", required=True)
+
+    p = command("new", _cmd_new, "create an application skeleton")
+    p.add_argument("name")
+    p.add_argument("--from", dest="model", default=None, metavar="MODEL.yaml")
+
+    p = command("package", _cmd_package, "build a deployment package")
+    p.add_argument("app")
+    p.add_argument("-o", "--output", required=True)
+
+    p = command("deploy", _cmd_deploy, "verify and install one compute unit of a package")
+    p.add_argument("package")
+    p.add_argument("--unit", required=True)
+    p.add_argument("--to", required=True, dest="target")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except SourceErrors as exc:
+        for error in exc.errors:
+            print(f"rasm: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except SourceError as exc:
+        print(f"rasm: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (RasmError, OSError) as exc:
+        print(f"rasm: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

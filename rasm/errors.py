@@ -1,0 +1,88 @@
+"""One exception hierarchy for rasm.
+
+Users catch :class:`RasmError`; each subclass says which layer failed. Errors that come from a
+user's file carry its name, line and column (1-based) and print as ``file:line:col: message``,
+the form editors and CI logs understand.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class RasmError(Exception):
+    """Base class of every error rasm raises on purpose."""
+
+
+@dataclass(frozen=True)
+class Location:
+    """A place in a user's file. ``line`` and ``col`` are 1-based; 0 means unknown."""
+
+    file: str
+    line: int = 0
+    col: int = 0
+
+    def __str__(self) -> str:
+        if self.line <= 0:
+            return self.file
+        if self.col <= 0:
+            return f"{self.file}:{self.line}"
+        return f"{self.file}:{self.line}:{self.col}"
+
+
+class SourceError(RasmError):
+    """A problem in something the user wrote: a chart, a property file, rules, a manifest, a trace.
+
+    The command line prints it as ``file:line:col: message`` and exits with code 2.
+    ``excerpt`` is an optional marked copy of the offending line (``^`` under the column).
+    """
+
+    def __init__(self, message: str, location: Location, excerpt: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.location = location
+        self.excerpt = excerpt
+
+    def __str__(self) -> str:
+        text = f"{self.location}: {self.message}"
+        if self.excerpt:
+            text += "\n" + self.excerpt
+        return text
+
+
+class SourceErrors(RasmError):
+    """Several :class:`SourceError` found in one pass (linting reports all, not just the first)."""
+
+    def __init__(self, errors: list[SourceError]) -> None:
+        super().__init__("\n".join(str(e) for e in errors))
+        self.errors = list(errors)
+
+
+def mark(text: str, line: int, col: int, width: int = 1) -> str | None:
+    """Return the ``line``-th line of ``text`` with a ``^^^`` marker under ``col`` (1-based)."""
+    lines = text.splitlines()
+    if not 1 <= line <= len(lines):
+        return None
+    source = lines[line - 1]
+    pad = "".join(c if c == "\t" else " " for c in source[: max(col - 1, 0)])
+    return f"    {source}\n    {pad}{'^' * max(width, 1)}"
+
+
+class StatechartError(RasmError):
+    """The statechart layer failed (loading, validating or executing a chart)."""
+
+
+class ExecutionError(StatechartError):
+    """An exception was raised inside a step; the step was rolled back."""
+
+
+class SpecError(RasmError):
+    """The property language layer failed."""
+
+
+class RulesError(RasmError):
+    """The rules layer failed."""
+
+
+class PlatformError(RasmError):
+    """A building block or the loop failed."""

@@ -1,0 +1,1 @@
+"""The rasm pytest plugin (registered through the ``pytest11`` entry point)."""

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Create .venv and install rasm into it (editable, with the test extras when asked: setup.sh test).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+    "$PY" -m venv .venv
+    .venv/bin/pip install -q --upgrade pip
+fi
+if [ "${1:-}" = "test" ]; then
+    .venv/bin/pip install -q -e '.[test]'
+else
+    .venv/bin/pip install -q -e .
+fi
