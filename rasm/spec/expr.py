@@ -1,0 +1,165 @@
+"""Evaluating the non-temporal expression sub-language (shared with legitimacy rules).
+
+Undefined values: ``x / 0``, and arithmetic on an undefined value, give *undefined*, represented
+as ``float("nan")``. Every comparison with an undefined operand is **false** (also ``!=``), so a
+rule or property built on it fails rather than crashing the caller. Division by zero therefore
+never raises. Values of the wrong type in ``env`` (e.g. a string where a number is needed) raise
+:class:`~rasm.errors.SpecError` naming the expression's location.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+
+from rasm.errors import SpecError
+from rasm.spec.ast import Binary, Call, Expr, Literal, Name, Not, Unary
+
+__all__ = ["NAN", "compile_expression", "evaluate", "python_source", "HELPERS"]
+
+NAN = math.nan
+
+
+def _div(a, b):
+    try:
+        return a / b
+    except ZeroDivisionError:
+        return NAN
+    except OverflowError:  # int / int too large for a float
+        return NAN
+
+
+def _ne(a, b) -> bool:
+    # undefined (nan) compares false under every operator, != included
+    return a == a and b == b and a != b
+
+
+def _min2(a, b):
+    if a != a or b != b:
+        return NAN
+    return a if a <= b else b
+
+
+def _max2(a, b):
+    if a != a or b != b:
+        return NAN
+    return a if a >= b else b
+
+
+HELPERS: dict[str, object] = {"_div": _div, "_ne": _ne, "_min2": _min2, "_max2": _max2, "NAN": NAN}
+
+_ARITH = {
+    "+": lambda a, b: a + b,
+    "-": lambda a, b: a - b,
+    "*": lambda a, b: a * b,
+    "/": _div,
+}
+_COMPARE = {
+    "==": lambda a, b: a == b,
+    "!=": _ne,
+    "<": lambda a, b: a < b,
+    "<=": lambda a, b: a <= b,
+    ">": lambda a, b: a > b,
+    ">=": lambda a, b: a >= b,
+}
+
+
+def evaluate(expr: Expr, env: Mapping[str, object]) -> object:
+    """Evaluate a non-temporal expression directly (slow, plain; see :func:`compile_expression`)."""
+    try:
+        return _eval(expr, env)
+    except (TypeError, ValueError) as exc:
+        raise SpecError(f"{expr.location}: cannot evaluate: {exc}") from None
+
+
+def _eval(node: Expr, env: Mapping[str, object]) -> object:  # noqa: C901 - one case per node
+    if isinstance(node, Literal):
+        return node.value
+    if isinstance(node, Name):
+        try:
+            return env[node.name]
+        except KeyError:
+            raise SpecError(f"{node.location}: no value for {node.name!r}") from None
+    if isinstance(node, Not):
+        return not _eval(node.operand, env)
+    if isinstance(node, Unary):
+        return -_eval(node.operand, env)
+    if isinstance(node, Binary):
+        op = node.op
+        if op == "and":
+            return bool(_eval(node.left, env)) and bool(_eval(node.right, env))
+        if op == "or":
+            return bool(_eval(node.left, env)) or bool(_eval(node.right, env))
+        if op == "->":
+            return (not _eval(node.left, env)) or bool(_eval(node.right, env))
+        left, right = _eval(node.left, env), _eval(node.right, env)
+        if op in _ARITH:
+            return _ARITH[op](left, right)
+        return _COMPARE[op](left, right)
+    if isinstance(node, Call):
+        args = [_eval(a, env) for a in node.args]
+        if node.func == "abs" and len(args) == 1:
+            return abs(args[0])
+        if node.func == "min" and len(args) == 2:
+            return _min2(*args)
+        if node.func == "max" and len(args) == 2:
+            return _max2(*args)
+        raise SpecError(f"{node.location}: unknown function {node.func!r}")
+    raise SpecError(f"{node.location}: temporal operator not allowed here")
+
+
+def python_source(node: Expr, name: Callable[[str], str]) -> str:
+    """Python source computing ``node``; ``name(signal)`` gives the source reading a signal."""
+    if isinstance(node, Literal):
+        return repr(node.value)
+    if isinstance(node, Name):
+        return name(node.name)
+    if isinstance(node, Not):
+        return f"(not {python_source(node.operand, name)})"
+    if isinstance(node, Unary):
+        return f"(-{python_source(node.operand, name)})"
+    if isinstance(node, Binary):
+        left, right = python_source(node.left, name), python_source(node.right, name)
+        op = node.op
+        if op == "and":
+            return f"({left} and {right})"
+        if op == "or":
+            return f"({left} or {right})"
+        if op == "->":
+            return f"((not {left}) or {right})"
+        if op == "/":
+            return f"_div({left}, {right})"
+        if op == "!=":
+            return f"_ne({left}, {right})"
+        return f"({left} {op} {right})"
+    if isinstance(node, Call):
+        args = ", ".join(python_source(a, name) for a in node.args)
+        if node.func == "abs" and len(node.args) == 1:
+            return f"abs({args})"
+        if node.func in ("min", "max") and len(node.args) == 2:
+            return f"_{node.func}2({args})"
+        raise SpecError(f"{node.location}: unknown function {node.func!r}")
+    raise SpecError(f"{node.location}: temporal operator not allowed here")
+
+
+def compile_expression(expr: Expr) -> Callable[[Mapping[str, object]], object]:
+    """Compile a non-temporal expression once into a fast function of an environment.
+
+    Same results as :func:`evaluate`; a missing name or a badly typed value raises
+    :class:`~rasm.errors.SpecError`.
+    """
+    body = python_source(expr, lambda n: f"env[{n!r}]")
+    source = (
+        "def _compiled(env):\n"
+        "    try:\n"
+        f"        return {body}\n"
+        "    except KeyError as exc:\n"
+        "        raise SpecError(f'{LOCATION}: no value for {exc.args[0]!r}') from None\n"
+        "    except (TypeError, ValueError) as exc:\n"
+        "        raise SpecError(f'{LOCATION}: cannot evaluate: {exc}') from None\n"
+    )
+    namespace = dict(HELPERS, SpecError=SpecError, LOCATION=str(expr.location))
+    exec(compile(source, f"<rasm expression at {expr.location}>", "exec"), namespace)
+    function = namespace["_compiled"]
+    function.__doc__ = f"Compiled from {expr.location}."
+    return function
