@@ -35,15 +35,22 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from rasm.statechart.simulate import format_steps, read_events, simulate
 
     events = read_events(args.events) if args.events else []
-    steps = simulate(args.chart, events)
+    steps = simulate(args.chart, events, until=args.until)
     sys.stdout.write(format_steps(steps, args.format))
-    return EXIT_OK
+    failed = [step for step in steps if step.error]
+    for step in failed:
+        print(f"rasm: step rolled back at time {step.time:g}: {step.error}", file=sys.stderr)
+    return EXIT_FAILED if failed else EXIT_OK
 
 
 def _cmd_lint(args: argparse.Namespace) -> int:
-    from rasm.lint import lint_paths
+    from rasm.lint import LintUsageError, lint_paths
 
-    problems = lint_paths(args.paths)
+    try:
+        problems = lint_paths(args.paths)
+    except LintUsageError as exc:
+        print(f"rasm: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     for problem in problems:
         print(problem, file=sys.stdout)
     return EXIT_FAILED if problems else EXIT_OK
@@ -127,6 +134,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("chart", help="statechart YAML file")
     p.add_argument("--events", default=None, help="JSONL events file, or - for standard input")
     p.add_argument("--format", choices=["text", "json"], default="text")
+    p.add_argument(
+        "--until",
+        type=float,
+        default=None,
+        help="after the last event, advance the clock to this time (timers fire)",
+    )
 
     p = command("check", _cmd_check, "check properties on a trace offline")
     p.add_argument("props", help="property file (.rv)")

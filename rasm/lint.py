@@ -1,0 +1,145 @@
+"""``rasm lint``: check statecharts, property files, rule files and app manifests.
+
+Each file is recognised by its content (a YAML mapping with ``statechart``, ``rules``/``variables``
+or an ``app.yaml``) or its suffix (``.rv``); a folder is searched for such files. Every problem is
+one ``file:line:col: message`` line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from rasm.errors import Location, RasmError, SourceError, SourceErrors
+
+__all__ = ["lint_file", "lint_paths", "LintUsageError"]
+
+YAML_SUFFIXES = {".yaml", ".yml"}
+LINTED_SUFFIXES = YAML_SUFFIXES | {".rv"}
+
+
+class LintUsageError(RasmError):
+    """A path that does not exist or cannot be linted (a usage error: exit 2)."""
+
+
+def _one_line(error: SourceError) -> str:
+    return f"{error.location}: {error.message}"
+
+
+def _errors_of(exc: BaseException) -> list[str]:
+    if isinstance(exc, SourceErrors):
+        return [_one_line(e) for e in exc.errors]
+    if isinstance(exc, SourceError):
+        return [_one_line(exc)]
+    return [str(exc)]
+
+
+def _lint_statechart(path: Path, text: str) -> list[str]:
+    from rasm.statechart.load import check_statechart
+
+    _, problems = check_statechart(text, str(path))
+    return [p.one_line() for p in problems]
+
+
+def _lint_properties(path: Path, text: str) -> list[str]:
+    try:
+        from rasm.spec import compile as compile_properties
+    except ImportError:  # pragma: no cover - the property language ships with rasm
+        return [f"{path}: cannot lint property files: rasm.spec is not available"]
+    try:
+        compile_properties(text, source=str(path))
+    except (SourceError, SourceErrors) as exc:
+        return _errors_of(exc)
+    return []
+
+
+def _lint_rules(path: Path, text: str) -> list[str]:
+    try:
+        from rasm.rules import load_rules
+    except ImportError:  # pragma: no cover
+        return [f"{path}: cannot lint rule files: rasm.rules is not available"]
+    try:
+        load_rules(text=text, source=str(path))
+    except (SourceError, SourceErrors) as exc:
+        return _errors_of(exc)
+    return []
+
+
+def _lint_manifest(path: Path, text: str) -> list[str]:
+    try:
+        from rasm.platform.manifest import load_manifest
+    except ImportError:
+        return []  # manifests are checked once the runtime is installed
+    try:
+        load_manifest(path)
+    except (SourceError, SourceErrors) as exc:
+        return _errors_of(exc)
+    return []
+
+
+def _yaml_kind(path: Path, text: str) -> Callable[[Path, str], list[str]] | None:
+    """Which linter a YAML file needs, from its top-level keys (cheap: no full parse)."""
+    keys = set()
+    for line in text.splitlines():
+        if line and not line[0].isspace() and not line.startswith(("#", "-", "---")):
+            keys.add(line.split(":", 1)[0].strip())
+    if "statechart" in keys:
+        return _lint_statechart
+    if "rules" in keys or "variables" in keys:
+        return _lint_rules
+    if path.name in ("app.yaml", "app.yml"):
+        return _lint_manifest
+    return None
+
+
+def lint_file(path: Path) -> list[str]:
+    """Problems in one file, as ``file:line:col: message`` strings."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        return [_one_line(SourceError("not a UTF-8 text file", Location(str(path), 1, 1)))]
+    if path.suffix == ".rv":
+        return _lint_properties(path, text)
+    kind = _yaml_kind(path, text)
+    if kind is None:
+        return [
+            _one_line(
+                SourceError(
+                    "not a statechart, rules file or app manifest "
+                    "(expected a top-level 'statechart', 'rules' or an app.yaml)",
+                    Location(str(path), 1, 1),
+                )
+            )
+        ]
+    return kind(path, text)
+
+
+def _files(paths: Iterable[str]) -> list[Path]:
+    out: list[Path] = []
+    for name in paths:
+        path = Path(name)
+        if path.is_dir():
+            found = sorted(
+                p for p in path.rglob("*") if p.is_file() and p.suffix in LINTED_SUFFIXES
+            )
+            out.extend(p for p in found if p.suffix == ".rv" or _yaml_kind(p, _read(p)))
+        elif path.is_file():
+            out.append(path)
+        else:
+            raise LintUsageError(f"{name}: no such file or folder")
+    return out
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return ""
+
+
+def lint_paths(paths: Iterable[str]) -> list[str]:
+    """Problems in every file named or found in the folders named."""
+    problems: list[str] = []
+    for path in _files(paths):
+        problems.extend(lint_file(path))
+    return problems

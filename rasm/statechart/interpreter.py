@@ -1,0 +1,229 @@
+"""Executing a chart: sismic's semantics, with atomic steps and a known next deadline.
+
+Two things stock sismic lacks and the platform needs (NOTES.md):
+
+* **Atomic steps.** An exception inside a step (an action, a guard, a contract, a property
+  statechart) leaves sismic half-applied: old state exited, new one not entered, event consumed.
+  :class:`AtomicStepMixin` snapshots the interpreter's mutable state before each step and restores
+  it when the step raises, then re-raises the original exception (sismic's own types, so existing
+  code that catches them keeps working) after recording it in :attr:`last_failure`. The event that
+  caused the failure is discarded, so the next step does not fail on it again. Meta-events for
+  ordinary listeners (``bind``, ``attach``) are delivered only when the step succeeds, so a bound
+  interpreter never receives an event sent by a step that was rolled back.
+* **The next deadline.** ``after()``/``idle()`` guards and delayed events are only looked at when a
+  step runs, and sismic offers no "when should I run next". :meth:`Interpreter.next_deadline`
+  answers it, so a live runner sleeps until then (or until an event arrives) instead of polling.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from sismic.code import PythonEvaluator
+from sismic.interpreter import Interpreter as SismicInterpreter
+from sismic.interpreter.listener import PropertyStatechartListener
+from sismic.model import Event
+
+try:  # the fast path is being built alongside; stock sismic until it lands
+    from rasm.statechart.fast import FastInterpreter
+except ImportError:  # pragma: no cover
+    FastInterpreter = SismicInterpreter  # type: ignore[misc,assignment]
+
+__all__ = ["AtomicStepMixin", "DeadlineEvaluator", "Interpreter", "StepFailure"]
+
+_IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
+
+
+def _copy_value(value: Any) -> Any:
+    if isinstance(value, _IMMUTABLE):
+        return value
+    if isinstance(value, tuple) and all(isinstance(v, _IMMUTABLE) for v in value):
+        return value
+    try:
+        return copy.deepcopy(value)
+    except Exception:  # modules, locks, …: cannot be copied; rebinding is still restored
+        return value
+
+
+@dataclass(frozen=True)
+class StepFailure:
+    """What went wrong in the last failed step: the event it was processing and the exception."""
+
+    time: float
+    event: Event | None
+    exception: BaseException
+
+
+class DeadlineEvaluator(PythonEvaluator):
+    """sismic's Python evaluator that also records when ``after()``/``idle()`` guards turn true.
+
+    A guard is evaluated at every step while its source state is active, so the deadlines recorded
+    during the last step are exactly those that can fire a transition without a new event.
+    """
+
+    def __init__(self, interpreter=None, *, initial_context=None) -> None:
+        super().__init__(interpreter, initial_context=initial_context)
+        self.deadlines: list[float] = []
+
+    def evaluate_guard(self, transition, event=None) -> bool:
+        guard = getattr(transition, "guard", None)
+        if guard is None:
+            return True
+        interp = self._interpreter
+        source = transition.source
+
+        def after(seconds: float) -> bool:
+            due = interp._entry_time[source] + seconds
+            if interp.time - seconds >= interp._entry_time[source]:
+                return True
+            self.deadlines.append(due)
+            return False
+
+        def idle(seconds: float) -> bool:
+            due = interp._idle_time[source] + seconds
+            if interp.time - seconds >= interp._idle_time[source]:
+                return True
+            self.deadlines.append(due)
+            return False
+
+        return self._evaluate_code(
+            guard, additional_context={"after": after, "idle": idle, "event": event}
+        )
+
+
+_STATE_ATTRIBUTES = (
+    "_initialized",
+    "_time",
+    "_memory",
+    "_configuration",
+    "_entry_time",
+    "_idle_time",
+    "_sent_events",
+    "_internal_queue",
+    "_external_queue",
+)
+
+
+class AtomicStepMixin:
+    """Makes ``execute_once`` all-or-nothing; see the module docstring."""
+
+    last_failure: StepFailure | None = None
+
+    def _property_interpreters(self) -> list[Any]:
+        return [
+            listener._interpreter
+            for listener in self._listeners
+            if isinstance(listener, PropertyStatechartListener)
+        ]
+
+    def _snapshot(self) -> tuple:
+        state = tuple(
+            getattr(self, name).copy()
+            if hasattr(getattr(self, name), "copy")
+            else getattr(self, name)
+            for name in _STATE_ATTRIBUTES
+        )
+        evaluator = self._evaluator
+        context = {k: _copy_value(v) for k, v in evaluator._context.items()}
+        memory = dict(getattr(evaluator, "_memory", {}))
+        props = tuple((p, AtomicStepMixin._snapshot(p)) for p in self._property_interpreters())
+        return state, context, memory, props
+
+    def _restore(self, snapshot: tuple) -> None:
+        state, context, memory, props = snapshot
+        for name, value in zip(_STATE_ATTRIBUTES, state, strict=True):
+            setattr(self, name, value)
+        self._evaluator._context.clear()
+        self._evaluator._context.update(context)
+        if hasattr(self._evaluator, "_memory"):
+            self._evaluator._memory = memory
+        for interp, snap in props:
+            AtomicStepMixin._restore(interp, snap)
+
+    def execute_once(self):
+        snapshot = self._snapshot()
+        pending = self._select_event(consume=False) if self._initialized else None
+        listeners = self._listeners
+        deferred: list[Any] = []
+        ordinary = [li for li in listeners if not isinstance(li, PropertyStatechartListener)]
+        if ordinary:
+            # Hold meta-events for ordinary listeners until the step has succeeded.
+            self._listeners = [
+                li for li in listeners if isinstance(li, PropertyStatechartListener)
+            ] + [deferred.append]
+        try:
+            step = super().execute_once()
+        except Exception as exc:
+            self._listeners = listeners
+            queued = self._internal_queue + self._external_queue
+            consumed = pending is not None and not any(ev is pending for _, ev in queued)
+            self._restore(snapshot)
+            # Discard the event that made the step fail, or the next step fails on it again.
+            event = self._select_event(consume=True) if consumed else None
+            self.last_failure = StepFailure(self.time, event, exc)
+            raise
+        if ordinary:
+            self._listeners = listeners
+            for meta_event in deferred:
+                for listener in ordinary:
+                    listener(meta_event)
+        return step
+
+    def bind_property_statechart(self, statechart, *, interpreter_klass=None):
+        # Property statecharts run on the same (fast, atomic) interpreter by default.
+        return super().bind_property_statechart(
+            statechart, interpreter_klass=interpreter_klass or type(self)
+        )
+
+
+class Interpreter(AtomicStepMixin, FastInterpreter):
+    """The platform's interpreter: sismic's semantics, faster, with atomic steps and deadlines.
+
+    Same constructor and API as ``sismic.interpreter.Interpreter``; the evaluator defaults to
+    :class:`DeadlineEvaluator` so that :meth:`next_deadline` knows the timers.
+    """
+
+    def __init__(
+        self,
+        statechart,
+        *,
+        evaluator_klass=DeadlineEvaluator,
+        initial_context=None,
+        clock=None,
+        ignore_contract: bool = False,
+    ) -> None:
+        super().__init__(
+            statechart,
+            evaluator_klass=evaluator_klass,
+            initial_context=initial_context,
+            clock=clock,
+            ignore_contract=ignore_contract,
+        )
+
+    def execute_once(self):
+        deadlines = getattr(self._evaluator, "deadlines", None)
+        if deadlines is not None:
+            deadlines.clear()
+        return super().execute_once()
+
+    def next_deadline(self) -> float | None:
+        """The earliest time at which a step could do something without a new external event.
+
+        ``None`` means never (only an event can wake the chart); a time not after ``self.time``
+        means a step is due now. Valid after :meth:`execute` returned (the last step evaluated the
+        timed guards of the current configuration).
+        """
+        if not self._initialized:
+            return self.time
+        candidates = [t for t, _ in self._internal_queue[:1]] + [
+            t for t, _ in self._external_queue[:1]
+        ]
+        candidates.extend(getattr(self._evaluator, "deadlines", ()))
+        due = min(candidates, default=math.inf)
+        return None if due == math.inf else due
+
+
+assert issubclass(Interpreter, SismicInterpreter)

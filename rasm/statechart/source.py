@@ -1,0 +1,121 @@
+"""YAML read with positions: every mapping, key and scalar can be traced to its line and column.
+
+sismic reads YAML without keeping positions, so its errors cannot say where a problem is. We read
+the same YAML 1.2 with ruamel's round-trip loader, which records them, and turn YAML syntax errors
+into :class:`~rasm.errors.SourceError` instead of letting raw ruamel exceptions escape.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.scalarstring import FoldedScalarString, LiteralScalarString
+
+from rasm.errors import Location, SourceError, mark
+
+__all__ = ["YamlSource", "load_yaml", "plain"]
+
+
+@dataclass
+class YamlSource:
+    """A parsed YAML document with the text and file name it came from."""
+
+    data: Any
+    text: str
+    file: str
+
+    def location(self, line0: int, col0: int) -> Location:
+        """A location from ruamel's 0-based line and column."""
+        return Location(self.file, line0 + 1, col0 + 1)
+
+    def node(self, node: Any) -> Location:
+        """Where a mapping or sequence starts."""
+        lc = getattr(node, "lc", None)
+        if lc is None or lc.line is None:
+            return Location(self.file)
+        return self.location(lc.line, lc.col)
+
+    def key(self, mapping: Any, key: str) -> Location:
+        """Where ``key`` is written in ``mapping``."""
+        try:
+            line, col = mapping.lc.key(key)
+        except (AttributeError, KeyError, TypeError):
+            return self.node(mapping)
+        return self.location(line, col)
+
+    def value(self, mapping: Any, key: str) -> Location:
+        """Where the value of ``key`` starts in ``mapping`` (for a block scalar, its indicator)."""
+        try:
+            line, col = mapping.lc.value(key)
+        except (AttributeError, KeyError, TypeError):
+            return self.key(mapping, key)
+        return self.location(line, col)
+
+    def item(self, seq: Any, index: int) -> Location:
+        try:
+            line, col = seq.lc.item(index)
+        except (AttributeError, KeyError, TypeError, IndexError):
+            return self.node(seq)
+        return self.location(line, col)
+
+    def code_location(self, mapping: Any, key: str, code_line: int, code_col: int) -> Location:
+        """Where line ``code_line``, column ``code_col`` (1-based) of the code in ``key`` is.
+
+        Handles literal/folded block scalars (content starts on the next line, indented), quoted
+        scalars (content starts one column after the quote) and plain scalars.
+        """
+        value = mapping[key]
+        start = self.value(mapping, key)
+        lines = self.text.splitlines()
+        if isinstance(value, LiteralScalarString | FoldedScalarString):
+            line = start.line + code_line
+            if 1 <= line <= len(lines):
+                content = lines[line - 1]
+                indent = len(content) - len(content.lstrip(" "))
+                return Location(self.file, line, indent + max(code_col, 1))
+            return Location(self.file, start.line)
+        col = start.col
+        if 1 <= start.line <= len(lines):
+            source_line = lines[start.line - 1]
+            if start.col - 1 < len(source_line) and source_line[start.col - 1] in "'\"":
+                col += 1
+        if code_line <= 1:
+            return Location(self.file, start.line, col + max(code_col, 1) - 1)
+        return Location(self.file, start.line + code_line - 1, max(code_col, 1))
+
+    def error(self, message: str, location: Location, width: int = 1) -> SourceError:
+        return SourceError(message, location, mark(self.text, location.line, location.col, width))
+
+
+def load_yaml(text: str, file: str) -> YamlSource:
+    """Parse YAML 1.2 text, keeping positions; syntax errors become :class:`SourceError`."""
+    yaml = YAML(typ="rt")
+    try:
+        data = yaml.load(text)
+    except MarkedYAMLError as exc:
+        mark_ = exc.problem_mark or exc.context_mark
+        problem = exc.problem or exc.context or "invalid YAML"
+        if mark_ is None:
+            raise SourceError(f"YAML syntax error: {problem}", Location(file)) from None
+        location = Location(file, mark_.line + 1, mark_.column + 1)
+        raise SourceError(
+            f"YAML syntax error: {problem}", location, mark(text, location.line, location.col)
+        ) from None
+    except YAMLError as exc:
+        raise SourceError(f"YAML error: {exc}", Location(file)) from None
+    return YamlSource(data, text, file)
+
+
+def plain(value: Any) -> Any:
+    """A copy of ruamel's commented containers as plain dicts, lists and strings."""
+    if isinstance(value, CommentedMap | dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, CommentedSeq | list):
+        return [plain(v) for v in value]
+    if isinstance(value, str):
+        return str(value)
+    return value
