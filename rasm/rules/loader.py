@@ -1,0 +1,417 @@
+"""Read a rules file (SPEC §7) into :class:`~rasm.rules.model.Rules`, checking everything.
+
+Every problem names the file, line and column where it is: YAML syntax, the file's shape,
+variable domains, duplicate rule names, expression syntax (the property language's own parser,
+pointed at the place in this file where the expression starts), unknown variables and type
+errors. All independent problems are collected and raised together.
+"""
+
+from __future__ import annotations
+
+import keyword
+import math
+from pathlib import Path
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.scalarstring import (
+    DoubleQuotedScalarString,
+    FoldedScalarString,
+    LiteralScalarString,
+    SingleQuotedScalarString,
+)
+
+from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.rules.model import TYPES, Rule, Rules, Variable
+from rasm.rules.typing import check_rule_expression
+
+_TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}
+_VARIABLE_KEYS = {"type", "min", "max", "values", "description"}
+_RULE_KEYS = {"name", "when", "require", "description"}
+_TOP_KEYS = {"variables", "rules"}
+# Names the expression language gives a meaning of its own: a variable cannot take them.
+_RESERVED = {
+    "true", "false", "and", "or", "not", "abs", "min", "max", "prev", "time", "inf", "count", "sum",
+    "avg", "once", "historically", "eventually", "always", "since", "until", "input", "event", "let",
+    "property",
+}
+
+
+def load_rules(path: str | Path) -> Rules:
+    """Read and validate the rules file at ``path`` (SourceError/SourceErrors on bad input)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SourceError(f"cannot read rules file: {exc}", Location(str(path))) from None
+    return parse_rules(text, source=str(path))
+
+
+def parse_rules(text: str, *, source: str = "<rules>") -> Rules:
+    """Validate the rules file ``text``; ``source`` names it in error messages."""
+    return _Loader(text, source).load()
+
+
+class _Loader:
+    def __init__(self, text: str, source: str) -> None:
+        self.text = text
+        self.source = source
+        self.lines = text.splitlines()
+        self.errors: list[SourceError] = []
+
+    # ------------------------------------------------------------------ helpers
+
+    def error(self, message: str, line0: int, col0: int, width: int = 1) -> None:
+        """Record a problem at 0-based ``line0``/``col0`` (ruamel's convention)."""
+        line, col = line0 + 1, col0 + 1
+        self.errors.append(
+            SourceError(message, Location(self.source, line, col), mark(self.text, line, col, width))
+        )
+
+    def where(self, parent: Any, key: Any, *, value: bool = True) -> tuple[int, int]:
+        """0-based position of ``parent[key]`` (its value, or its key)."""
+        try:
+            if isinstance(parent, CommentedMap):
+                return parent.lc.value(key) if value else parent.lc.key(key)
+            if isinstance(parent, CommentedSeq):
+                return parent.lc.item(key)
+        except (KeyError, IndexError, TypeError, AttributeError):
+            pass
+        return (parent.lc.line, parent.lc.col) if hasattr(parent, "lc") else (0, 0)
+
+    def raise_errors(self) -> None:
+        if len(self.errors) == 1:
+            raise self.errors[0]
+        if self.errors:
+            raise SourceErrors(self.errors)
+
+    # ------------------------------------------------------------------ reading
+
+    def load(self) -> Rules:
+        yaml = YAML(typ="rt")
+        yaml.preserve_quotes = True
+        try:
+            data = yaml.load(self.text)
+        except MarkedYAMLError as exc:
+            mark_ = exc.problem_mark or exc.context_mark
+            line0, col0 = (mark_.line, mark_.column) if mark_ is not None else (0, 0)
+            problem = exc.problem or exc.context or "invalid YAML"
+            self.error(f"YAML syntax error: {problem}", line0, col0)
+            self.raise_errors()
+        except YAMLError as exc:
+            self.error(f"YAML syntax error: {exc}", 0, 0)
+            self.raise_errors()
+        if not isinstance(data, CommentedMap):
+            found = "an empty file" if data is None else f"a {_kind(data)}"
+            self.error(f"a rules file is a mapping with 'variables' and 'rules', not {found}", 0, 0)
+            self.raise_errors()
+        for key in data:
+            if key not in _TOP_KEYS:
+                line0, col0 = self.where(data, key, value=False)
+                self.error(
+                    f"unknown key {key!r} (a rules file has 'variables' and 'rules')",
+                    line0, col0, len(str(key)),
+                )
+        variables = self.variables(data)
+        rules = self.rules(data, variables)
+        self.raise_errors()
+        return Rules(variables=variables, rules=tuple(rules), source=self.source)
+
+    def variables(self, data: CommentedMap) -> dict[str, Variable]:
+        section = data.get("variables")
+        if section is None:
+            return {}
+        if not isinstance(section, CommentedMap):
+            self.error(
+                f"'variables' must be a mapping of name to domain, not a {_kind(section)}",
+                *self.where(data, "variables"),
+            )
+            return {}
+        result: dict[str, Variable] = {}
+        for name, spec in section.items():
+            kline, kcol = self.where(section, name, value=False)
+            if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
+                self.error(f"variable name {name!r} is not an identifier", kline, kcol)
+                continue
+            if name in _RESERVED:
+                self.error(
+                    f"variable name {name!r} is reserved by the expression language",
+                    kline, kcol, len(name),
+                )
+                continue
+            variable = self.variable(name, spec, section, Location(self.source, kline + 1, kcol + 1))
+            if variable is not None:
+                result[name] = variable
+        return result
+
+    def variable(
+        self, name: str, spec: Any, section: CommentedMap, location: Location
+    ) -> Variable | None:
+        if not isinstance(spec, CommentedMap):
+            self.error(
+                f"variable {name!r}: expected a mapping like {{type: real, min: 0, max: 1}}, "
+                f"not a {_kind(spec)}",
+                *self.where(section, name),
+            )
+            return None
+        ok = True
+        for key in spec:
+            if key not in _VARIABLE_KEYS:
+                self.error(
+                    f"variable {name!r}: unknown key {key!r} (use type, min, max, values)",
+                    *self.where(spec, key, value=False), len(str(key)),
+                )
+                ok = False
+        if "type" not in spec:
+            self.error(
+                f"variable {name!r}: missing 'type' (one of {', '.join(TYPES)})",
+                *self.where(section, name),
+            )
+            return None
+        type_ = spec["type"]
+        type_ = _TYPE_ALIASES.get(type_, type_) if isinstance(type_, str) else type_
+        if type_ not in TYPES:
+            self.error(
+                f"variable {name!r}: unknown type {spec['type']!r} (use one of {', '.join(TYPES)})",
+                *self.where(spec, "type"), len(str(spec["type"])),
+            )
+            return None
+        if type_ in ("real", "int"):
+            return self.numeric(name, type_, spec, location) if ok else None
+        for key in ("min", "max"):
+            if key in spec:
+                self.error(
+                    f"variable {name!r}: '{key}' applies only to real and int variables",
+                    *self.where(spec, key, value=False), len(key),
+                )
+                ok = False
+        if type_ == "bool":
+            if "values" in spec:
+                self.error(
+                    f"variable {name!r}: 'values' applies only to enum variables",
+                    *self.where(spec, "values", value=False), len("values"),
+                )
+                ok = False
+            return Variable(name, "bool", location=location) if ok else None
+        values = self.enum_values(name, spec)
+        if values is None or not ok:
+            return None
+        return Variable(name, "enum", values=values, location=location)
+
+    def numeric(self, name: str, type_: str, spec: CommentedMap, location: Location) -> Variable | None:
+        if "values" in spec:
+            self.error(
+                f"variable {name!r}: 'values' applies only to enum variables",
+                *self.where(spec, "values", value=False), len("values"),
+            )
+            return None
+        bounds: dict[str, int | float | None] = {"min": None, "max": None}
+        ok = True
+        for key in ("min", "max"):
+            if key not in spec:
+                continue
+            value = spec[key]
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+                value
+            ):
+                self.error(
+                    f"variable {name!r}: '{key}' must be a finite number, not {value!r}",
+                    *self.where(spec, key), len(str(value)),
+                )
+                ok = False
+            elif type_ == "int" and not isinstance(value, int):
+                self.error(
+                    f"variable {name!r}: '{key}' of an int variable must be an integer, not {value!r}",
+                    *self.where(spec, key), len(str(value)),
+                )
+                ok = False
+            else:
+                bounds[key] = int(value) if isinstance(value, int) else float(value)
+        low, high = bounds["min"], bounds["max"]
+        if ok and low is not None and high is not None and low > high:
+            self.error(
+                f"variable {name!r}: empty domain, min {low!r} is greater than max {high!r}",
+                *self.where(spec, "min"),
+            )
+            ok = False
+        return Variable(name, type_, minimum=low, maximum=high, location=location) if ok else None
+
+    def enum_values(self, name: str, spec: CommentedMap) -> tuple[str, ...] | None:
+        values = spec.get("values")
+        if not isinstance(values, CommentedSeq) or not values:
+            where = self.where(spec, "values") if "values" in spec else self.where(spec, "type")
+            self.error(
+                f"variable {name!r}: an enum needs 'values', a non-empty list like [dock, idle]",
+                *where,
+            )
+            return None
+        result: list[str] = []
+        ok = True
+        for index, value in enumerate(values):
+            line0, col0 = self.where(values, index)
+            if not isinstance(value, str) or not value:
+                self.error(
+                    f"variable {name!r}: enum value {value!r} must be a non-empty string "
+                    f"(quote it: '{value}')",
+                    line0, col0, len(str(value)),
+                )
+                ok = False
+            elif value in result:
+                self.error(f"variable {name!r}: duplicate enum value {value!r}", line0, col0,
+                           len(value))
+                ok = False
+            else:
+                result.append(value)
+        return tuple(result) if ok else None
+
+    def rules(self, data: CommentedMap, variables: dict[str, Variable]) -> list[Rule]:
+        if "rules" not in data:
+            self.error("missing 'rules': a list of {name, when, require}", 0, 0)
+            return []
+        section = data["rules"]
+        if section is None:
+            return []
+        if not isinstance(section, CommentedSeq):
+            self.error(
+                f"'rules' must be a list of {{name, when, require}}, not a {_kind(section)}",
+                *self.where(data, "rules"),
+            )
+            return []
+        result: list[Rule] = []
+        seen: dict[str, Location] = {}
+        for index, item in enumerate(section):
+            rule = self.rule(index, item, section, variables, seen)
+            if rule is not None:
+                result.append(rule)
+        return result
+
+    def rule(
+        self,
+        index: int,
+        item: Any,
+        section: CommentedSeq,
+        variables: dict[str, Variable],
+        seen: dict[str, Location],
+    ) -> Rule | None:
+        line0, col0 = self.where(section, index)
+        if not isinstance(item, CommentedMap):
+            self.error(f"rule #{index + 1}: expected a mapping with name and require, "
+                       f"not a {_kind(item)}", line0, col0)
+            return None
+        ok = True
+        for key in item:
+            if key not in _RULE_KEYS:
+                self.error(
+                    f"rule #{index + 1}: unknown key {key!r} (use name, when, require, description)",
+                    *self.where(item, key, value=False), len(str(key)),
+                )
+                ok = False
+        name = item.get("name")
+        if "name" not in item:
+            self.error(f"rule #{index + 1}: missing 'name'", line0, col0)
+            ok = False
+        elif not isinstance(name, str) or not name.strip():
+            self.error(f"rule #{index + 1}: 'name' must be a non-empty string",
+                       *self.where(item, "name"))
+            ok = False
+        else:
+            nline, ncol = self.where(item, "name")
+            if name in seen:
+                self.error(f"duplicate rule name {name!r} (first defined at {seen[name]})",
+                           nline, ncol, len(name))
+                ok = False
+            else:
+                seen[name] = Location(self.source, nline + 1, ncol + 1)
+        label = f"rule {name!r}" if isinstance(name, str) else f"rule #{index + 1}"
+        if "require" not in item:
+            self.error(f"{label}: missing 'require' (the condition the rule imposes)", line0, col0)
+            ok = False
+        reads: set[str] = set()
+        exprs: dict[str, tuple[Any, str]] = {}
+        for key in ("when", "require"):
+            if key not in item:
+                continue
+            parsed = self.expression(label, key, item, variables)
+            if parsed is None:
+                ok = False
+            else:
+                exprs[key] = parsed[0], parsed[1]
+                reads |= parsed[2]
+        description = item.get("description", "")
+        if not ok:
+            return None
+        when, when_text = exprs.get("when", (None, "true"))
+        require, require_text = exprs["require"]
+        return Rule(
+            name=name,
+            require=require,
+            when=when,
+            require_text=require_text,
+            when_text=when_text,
+            description=str(description or ""),
+            location=Location(self.source, line0 + 1, col0 + 1),
+            reads=frozenset(reads),
+        )
+
+    def expression(
+        self, label: str, key: str, item: CommentedMap, variables: dict[str, Variable]
+    ) -> tuple[Any, str, set[str]] | None:
+        from rasm.spec import parse_expression
+
+        value = item[key]
+        line0, col0 = self.where(item, key)
+        if isinstance(value, bool):
+            value = "true" if value else "false"
+        elif isinstance(value, int | float) or not isinstance(value, str):
+            self.error(
+                f"{label}: '{key}' must be a condition like velocity <= 0.5, not {value!r}",
+                line0, col0, len(str(value)),
+            )
+            return None
+        line, col = self.expression_start(value, line0, col0)
+        text = str(value).strip()
+        if not text:
+            self.error(f"{label}: '{key}' is empty", line0, col0)
+            return None
+        try:
+            expr = parse_expression(str(value), source=self.source, line=line, col=col)
+        except SourceErrors as exc:
+            self.errors.extend(exc.errors)
+            return None
+        except SourceError as exc:
+            self.errors.append(exc)
+            return None
+        try:
+            reads = check_rule_expression(expr, variables, self.source, self.text, what=key)
+        except SourceErrors as exc:
+            self.errors.extend(exc.errors)
+            return None
+        return expr, " ".join(text.split()), reads
+
+    def expression_start(self, value: Any, line0: int, col0: int) -> tuple[int, int]:
+        """1-based line and column of the expression's first character inside the scalar."""
+        if isinstance(value, DoubleQuotedScalarString | SingleQuotedScalarString):
+            return line0 + 1, col0 + 2  # skip the opening quote
+        if isinstance(value, LiteralScalarString | FoldedScalarString):
+            # A block scalar's content starts on the next non-blank line, after its indentation.
+            for number in range(line0 + 1, len(self.lines)):
+                content = self.lines[number]
+                if content.strip():
+                    return number + 1, len(content) - len(content.lstrip()) + 1
+        return line0 + 1, col0 + 1
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, dict):
+        return "mapping"
+    if isinstance(value, list):
+        return "list"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, int | float):
+        return "number"
+    return type(value).__name__

@@ -1,0 +1,189 @@
+"""Rule expressions as z3 formulas over the declared variables.
+
+``real`` variables become z3 reals, ``int`` integers, ``bool`` booleans; an ``enum`` becomes an
+integer that ranges over the ids of its values (ids are shared by every enum and string literal,
+so ``a == b`` on two enums compares their values by name). The declared ranges are constraints
+returned by :meth:`Encoder.domain`, never baked into the variables, so a solver can also be asked
+about points outside them.
+
+z3 reasons over exact rationals: ``0.1`` is 1/10. The run-time engine evaluates the same rules
+over Python floats, so the two can disagree only on values within rounding of a boundary.
+Division by zero is undefined and, as in the property language, makes the comparison that reads
+it false: :meth:`Encoder.condition` conjoins "every divisor is non-zero" to each comparison.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import Any
+
+import z3
+
+from rasm.rules.model import Rule, Rules, Variable
+from rasm.spec import ast
+
+
+class Encoder:
+    """Translate the expressions of one rule set into z3 terms (one encoder per rule set)."""
+
+    def __init__(self, variables: dict[str, Variable]) -> None:
+        self.variables = variables
+        self.ids: dict[str, int] = {}
+        self.terms: dict[str, z3.ExprRef] = {}
+        for name, variable in variables.items():
+            if variable.type == "real":
+                self.terms[name] = z3.Real(name)
+            elif variable.type == "bool":
+                self.terms[name] = z3.Bool(name)
+            else:
+                self.terms[name] = z3.Int(name)
+                for value in variable.values:
+                    self.id(value)
+
+    def id(self, value: str) -> int:
+        """The integer standing for an enum value or string literal."""
+        return self.ids.setdefault(value, len(self.ids))
+
+    def domain(self, names: Any = None) -> list[z3.BoolRef]:
+        """The declared domains of ``names`` (default: every variable) as constraints."""
+        result: list[z3.BoolRef] = []
+        for name in self.variables if names is None else names:
+            variable, term = self.variables[name], self.terms[name]
+            if variable.type == "enum":
+                result.append(z3.Or(*[term == self.ids[v] for v in variable.values]))
+            elif variable.type in ("real", "int"):
+                if variable.minimum is not None:
+                    result.append(term >= _number(variable.minimum))
+                if variable.maximum is not None:
+                    result.append(term <= _number(variable.maximum))
+        return result
+
+    def rule(self, rule: Rule) -> tuple[z3.BoolRef, z3.BoolRef]:
+        """The rule's ``when`` (True when left out) and ``require`` as z3 booleans."""
+        when = z3.BoolVal(True) if rule.when is None else self.condition(rule.when)
+        return when, self.condition(rule.require)
+
+    def condition(self, expr: ast.Expr) -> z3.BoolRef:
+        """A boolean expression as a z3 formula."""
+        if isinstance(expr, ast.Literal):
+            return z3.BoolVal(bool(expr.value))
+        if isinstance(expr, ast.Name):
+            return self.terms[expr.name]
+        if isinstance(expr, ast.Not):
+            return z3.Not(self.condition(expr.operand))
+        if isinstance(expr, ast.Binary):
+            if expr.op == "and":
+                return z3.And(self.condition(expr.left), self.condition(expr.right))
+            if expr.op == "or":
+                return z3.Or(self.condition(expr.left), self.condition(expr.right))
+            if expr.op == "->":
+                return z3.Implies(self.condition(expr.left), self.condition(expr.right))
+            return self.comparison(expr)
+        raise TypeError(f"not a rule condition: {expr!r}")  # the type checker rules this out
+
+    def comparison(self, expr: ast.Binary) -> z3.BoolRef:
+        guards: list[z3.BoolRef] = []
+        left, right = self.value(expr.left, guards), self.value(expr.right, guards)
+        op = expr.op
+        if z3.is_bool(left) or z3.is_bool(right):
+            left, right = self.as_bool(expr.left, left), self.as_bool(expr.right, right)
+        if op == "==":
+            result = left == right
+        elif op == "!=":
+            result = left != right
+        elif op == "<":
+            result = left < right
+        elif op == "<=":
+            result = left <= right
+        elif op == ">":
+            result = left > right
+        else:
+            result = left >= right
+        return z3.And(*guards, result) if guards else result
+
+    def as_bool(self, expr: ast.Expr, term: z3.ExprRef) -> z3.BoolRef:
+        return term if z3.is_bool(term) else self.condition(expr)
+
+    def value(self, expr: ast.Expr, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        """A numeric, enum or boolean value; divisors' non-zero conditions go to ``guards``."""
+        if isinstance(expr, ast.Literal):
+            value = expr.value
+            if isinstance(value, bool):
+                return z3.BoolVal(value)
+            if isinstance(value, str):
+                return z3.IntVal(self.id(value))
+            return _number(value)
+        if isinstance(expr, ast.Name):
+            return self.terms[expr.name]
+        if isinstance(expr, ast.Unary):
+            return -self.value(expr.operand, guards)
+        if isinstance(expr, ast.Call):
+            args = [self.value(arg, guards) for arg in expr.args]
+            if expr.func == "abs":
+                return z3.If(args[0] >= 0, args[0], -args[0])
+            a, b = _same_sort(args[0], args[1])
+            if expr.func == "min":
+                return z3.If(a <= b, a, b)
+            return z3.If(a >= b, a, b)
+        if isinstance(expr, ast.Binary) and expr.op in ast.ARITHMETIC:
+            left, right = self.value(expr.left, guards), self.value(expr.right, guards)
+            if expr.op == "+":
+                return left + right
+            if expr.op == "-":
+                return left - right
+            if expr.op == "*":
+                return left * right
+            left, right = z3.ToReal(left) if _is_int(left) else left, right
+            right = z3.ToReal(right) if _is_int(right) else right
+            guards.append(right != 0)
+            return left / right
+        return self.condition(expr)
+
+    def decode(self, model: z3.ModelRef, names: Any) -> dict[str, Any]:
+        """Python values of ``names`` in ``model`` (enums by name, reals as floats)."""
+        back = {i: v for v, i in self.ids.items()}
+        result: dict[str, Any] = {}
+        for name in names:
+            variable, value = self.variables[name], model.eval(self.terms[name], True)
+            if variable.type == "bool":
+                result[name] = z3.is_true(value)
+            elif variable.type == "int":
+                result[name] = value.as_long()
+            elif variable.type == "enum":
+                result[name] = back.get(value.as_long(), variable.values[0])
+            else:
+                result[name] = _to_float(value)
+        return result
+
+
+def _number(value: int | float) -> z3.ArithRef:
+    if isinstance(value, int):
+        return z3.IntVal(value)
+    # Fraction(float) is the float's exact binary value; str() gives the decimal the user wrote.
+    return z3.RealVal(str(Fraction(repr(value))))
+
+
+def _is_int(term: z3.ExprRef) -> bool:
+    return z3.is_arith(term) and term.sort() == z3.IntSort()
+
+
+def _same_sort(a: z3.ExprRef, b: z3.ExprRef) -> tuple[z3.ExprRef, z3.ExprRef]:
+    if _is_int(a) and not _is_int(b):
+        return z3.ToReal(a), b
+    if _is_int(b) and not _is_int(a):
+        return a, z3.ToReal(b)
+    return a, b
+
+
+def _to_float(value: z3.ExprRef) -> float:
+    if z3.is_rational_value(value):
+        return float(Fraction(value.numerator_as_long(), value.denominator_as_long()))
+    if z3.is_algebraic_value(value):  # an irrational root from nonlinear arithmetic
+        return float(value.approx(20).as_fraction())
+    return float(value.as_fraction())
+
+
+def encode_rules(rules: Rules) -> tuple[Encoder, list[tuple[z3.BoolRef, z3.BoolRef]]]:
+    """An encoder for ``rules`` and each rule's (when, require) formulas, in file order."""
+    encoder = Encoder(rules.variables)
+    return encoder, [encoder.rule(rule) for rule in rules.rules]

@@ -1,0 +1,171 @@
+"""Static checks of a rule expression against the declared variables.
+
+The expression language is shared with the property files (:mod:`rasm.spec`); rules use its
+non-temporal part over four types: ``real`` and ``int`` (numbers; ``int`` mixes into ``real``),
+``bool``, and ``enum`` values, which are written as strings (``mode == "dock"``). This module
+finds unknown variables, enum values outside a declaration, arithmetic or ordering on enums and
+booleans, comparisons across types and temporal operators, each at its line and column.
+"""
+
+from __future__ import annotations
+
+import difflib
+
+from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.rules.model import Variable
+from rasm.spec import ast
+
+_NUMERIC = ("int", "real")
+
+
+class _Checker:
+    def __init__(self, variables: dict[str, Variable], source: str, text: str) -> None:
+        self.variables = variables
+        self.source = source
+        self.text = text
+        self.errors: list[SourceError] = []
+        self.reads: set[str] = set()
+
+    def fail(self, message: str, node: ast.Expr, width: int = 1) -> None:
+        loc = getattr(node, "location", None) or Location(self.source)
+        excerpt = mark(self.text, loc.line, loc.col, width) if loc.file == self.source else None
+        self.errors.append(SourceError(message, loc, excerpt))
+
+    def type_of(self, node: ast.Expr) -> str | None:
+        """The node's type: int, real, bool, or enum (strings); None after an error."""
+        if isinstance(node, ast.Literal):
+            value = node.value
+            if isinstance(value, bool):
+                return "bool"
+            if isinstance(value, int):
+                return "int"
+            if isinstance(value, float):
+                return "real"
+            return "enum"
+        if isinstance(node, ast.Name):
+            return self.name(node)
+        if isinstance(node, ast.Unary):
+            operand = self.type_of(node.operand)
+            if operand is not None and operand not in _NUMERIC:
+                self.fail(f"arithmetic on {_a(operand)}: '-' needs a number", node)
+                return None
+            return operand
+        if isinstance(node, ast.Not):
+            operand = self.type_of(node.operand)
+            if operand is not None and operand != "bool":
+                self.fail(f"'not' needs a condition, not {_a(operand)}", node, 3)
+            return "bool"
+        if isinstance(node, ast.Binary):
+            return self.binary(node)
+        if isinstance(node, ast.Call):
+            return self.call(node)
+        if isinstance(node, ast.Time | ast.Prev):
+            word = "time" if isinstance(node, ast.Time) else "prev()"
+            self.fail(f"{word} reads a trace: a rule judges one plan, so it cannot use it", node)
+            return None
+        self.fail("temporal operators are not allowed in a rule (it judges one plan)", node)
+        return None
+
+    def name(self, node: ast.Name) -> str | None:
+        variable = self.variables.get(node.name)
+        if variable is None:
+            self.fail(self.unknown(node.name), node, len(node.name))
+            return None
+        self.reads.add(node.name)
+        return variable.type
+
+    def unknown(self, name: str) -> str:
+        owners = [v.name for v in self.variables.values() if name in v.values]
+        if owners:
+            return (f"unknown variable {name!r}: enum values are written as strings, "
+                    f'e.g. {owners[0]} == "{name}"')
+        close = difflib.get_close_matches(name, list(self.variables), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        declared = ", ".join(self.variables) or "none"
+        return f"unknown variable {name!r}{hint}; declared variables: {declared}"
+
+    def binary(self, node: ast.Binary) -> str | None:
+        left, right = self.type_of(node.left), self.type_of(node.right)
+        op = node.op
+        if left is None or right is None:
+            return "bool" if op in ast.COMPARISONS + ast.BOOLEAN else None
+        if op in ast.ARITHMETIC:
+            for side in (left, right):
+                if side not in _NUMERIC:
+                    self.fail(f"arithmetic on {_a(side)}: '{op}' needs numbers", node, len(op))
+                    return None
+            return "real" if op == "/" or "real" in (left, right) else "int"
+        if op in ast.BOOLEAN:
+            for side in (left, right):
+                if side != "bool":
+                    self.fail(f"'{op}' needs conditions on both sides, not {_a(side)}", node,
+                              len(op))
+            return "bool"
+        if op in ("==", "!="):
+            if (left in _NUMERIC) != (right in _NUMERIC) or (
+                left not in _NUMERIC and left != right
+            ):
+                self.fail(f"cannot compare {_a(left)} with {_a(right)}", node, len(op))
+            elif left == "enum":
+                self.enum_values(node)
+            return "bool"
+        if left not in _NUMERIC or right not in _NUMERIC:
+            odd = left if left not in _NUMERIC else right
+            self.fail(f"'{op}' orders numbers only, not {_a(odd)}", node, len(op))
+        return "bool"
+
+    def enum_values(self, node: ast.Binary) -> None:
+        """``mode == "fly"`` when fly is not a declared value of mode: an error, not false."""
+        for var_side, lit_side in ((node.left, node.right), (node.right, node.left)):
+            if isinstance(var_side, ast.Name) and isinstance(lit_side, ast.Literal):
+                variable = self.variables.get(var_side.name)
+                if variable is not None and lit_side.value not in variable.values:
+                    self.fail(
+                        f"{lit_side.value!r} is not a value of {variable.name} "
+                        f"({variable.describe()})",
+                        lit_side,
+                        len(str(lit_side.value)) + 2,
+                    )
+
+    def call(self, node: ast.Call) -> str | None:
+        arity = {"abs": 1, "min": 2, "max": 2}.get(node.func)
+        if node.func == "prev":
+            self.fail("prev() reads a trace: a rule judges one plan, so it cannot use it", node)
+            return None
+        if arity is None:
+            self.fail(f"unknown function {node.func!r} (use abs, min or max)", node,
+                      len(node.func))
+            return None
+        if len(node.args) != arity:
+            self.fail(f"{node.func}() takes {arity} argument{'s' if arity > 1 else ''}, "
+                      f"not {len(node.args)}", node, len(node.func))
+            return None
+        types = [self.type_of(arg) for arg in node.args]
+        if None in types:
+            return None
+        for t in types:
+            if t not in _NUMERIC:
+                self.fail(f"{node.func}() needs numbers, not {_a(t)}", node, len(node.func))
+                return None
+        return "int" if all(t == "int" for t in types) else "real"
+
+
+def _a(type_: str) -> str:
+    return {"int": "a number", "real": "a number", "bool": "a condition",
+            "enum": "an enum value"}.get(type_, type_)
+
+
+def check_rule_expression(
+    expr: ast.Expr, variables: dict[str, Variable], source: str, text: str, *, what: str
+) -> set[str]:
+    """Check ``expr`` (the rule's ``what``: when/require); return the variables it reads.
+
+    Raises :class:`SourceErrors` with every problem found, each at its line and column.
+    """
+    checker = _Checker(variables, source, text)
+    result = checker.type_of(expr)
+    if result is not None and result != "bool" and not checker.errors:
+        checker.fail(f"'{what}' must be a condition (true or false), not {_a(result)}", expr)
+    if checker.errors:
+        raise SourceErrors(checker.errors)
+    return checker.reads

@@ -1,0 +1,214 @@
+"""``rasm verify-rules``: prove, before deployment, that a rule set makes sense (SPEC §7).
+
+Definitions (over the declared domains; a rule *holds* at a point unless its ``when`` holds and
+its ``require`` does not):
+
+* **dead**: the rule's ``when`` holds nowhere;
+* **unsatisfiable**: its ``when`` holds somewhere, but nowhere together with its ``require``;
+* **conflict**: a minimal set of two or more rules whose ``when`` conditions hold together
+  somewhere, while nowhere do all their ``when`` and ``require`` conditions hold together
+  (:mod:`rasm.rules.mus`); it never contains a dead or unsatisfiable rule;
+* **redundant**: a rule implied by other rules that can hold where it applies: some set K of
+  the other rules implies it, and K holds together with the rule's ``when`` somewhere. (An
+  inconsistent set implies anything: without the second condition every rule that applies
+  where a conflict does would be "redundant".) Dead and unsatisfiable rules are reported as
+  such only, and take no part in implying others.
+
+Rules that share no variable cannot conflict or imply each other (except through an empty
+domain, which the loader rejects), so each group of rules linked by shared variables is solved
+on its own: that keeps large, loosely coupled rule sets near linear.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import z3
+
+from rasm.rules.model import Rules
+from rasm.rules.mus import ConflictFinder, check
+from rasm.rules.report import Conflict, Report
+from rasm.rules.smt import Encoder, encode_rules
+
+#: Solver calls spent making one redundant rule's "implied by" set minimal, at most.
+IMPLIED_BY_BUDGET = 40
+
+
+def verify(rules: Rules, *, redundancy: bool = True) -> Report:
+    """Check ``rules`` for dead, unsatisfiable, conflicting and (optionally) redundant rules."""
+    return _Verifier(rules).run(redundancy=redundancy)
+
+
+def is_consistent(rules: Rules) -> Report:
+    """The report of :func:`verify` without the redundancy analysis (what a swap needs)."""
+    return verify(rules, redundancy=False)
+
+
+class _Verifier:
+    def __init__(self, rules: Rules) -> None:
+        self.rules = rules
+        self.encoder: Encoder
+        self.encoder, self.formulas = encode_rules(rules)
+        self.names = rules.names
+
+    def run(self, *, redundancy: bool) -> Report:
+        report = Report(source=self.rules.source, rule_count=len(self.rules.rules))
+        dead, unsat = set(), set()
+        for index, rule in enumerate(self.rules.rules):
+            when, require = self.formulas[index]
+            solver = self.solver(rule.reads)
+            if not check(solver, [when]):
+                dead.add(index)
+                continue
+            witness = self.encoder.decode(solver.model(), self.ordered(rule.reads))
+            if not check(solver, [z3.And(when, require)]):
+                unsat.add(index)
+                report.unsatisfiable_contexts[rule.name] = witness
+        in_conflict: set[int] = set()
+        for group in self.groups():
+            candidates = [i for i in group if i not in dead and i not in unsat]
+            for conflict in self.conflicts(candidates):
+                report.conflicts.append(conflict[1])
+                in_conflict.update(conflict[0])
+        report.conflicts.sort(key=lambda c: [self.names.index(n) for n in c.rules])
+        report.dead = [self.names[i] for i in sorted(dead)]
+        report.unsatisfiable = [self.names[i] for i in sorted(unsat)]
+        report.unsatisfiable_contexts = {
+            n: report.unsatisfiable_contexts[n] for n in report.unsatisfiable
+        }
+        if redundancy:
+            sound = set(range(len(self.names))) - dead - unsat
+            for group in self.groups():
+                members = [i for i in group if i in sound]
+                for index, implied_by in self.redundant(members):
+                    report.redundant.append(self.names[index])
+                    report.implied_by[self.names[index]] = [self.names[i] for i in implied_by]
+            order = {n: i for i, n in enumerate(self.names)}
+            report.redundant.sort(key=order.__getitem__)
+            report.implied_by = {n: report.implied_by[n] for n in report.redundant}
+        return report
+
+    # ------------------------------------------------------------------ pieces
+
+    def ordered(self, names: Sequence[str] | set[str] | frozenset[str]) -> list[str]:
+        """``names`` in declaration order (witnesses read like the file)."""
+        return [n for n in self.rules.variables if n in names]
+
+    def solver(self, names: set[str] | frozenset[str]) -> z3.Solver:
+        solver = z3.Solver()
+        solver.add(*self.encoder.domain(self.ordered(names)))
+        return solver
+
+    def groups(self) -> list[list[int]]:
+        """Rule indices grouped by shared variables (connected components), in file order."""
+        parent = list(range(len(self.names)))
+
+        def find(i: int) -> int:
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+
+        owner: dict[str, int] = {}
+        for index, rule in enumerate(self.rules.rules):
+            for name in rule.reads:
+                if name in owner:
+                    parent[find(index)] = find(owner[name])
+                else:
+                    owner[name] = index
+        groups: dict[int, list[int]] = {}
+        for index in range(len(self.names)):
+            groups.setdefault(find(index), []).append(index)
+        return list(groups.values())
+
+    def reads(self, indices: Sequence[int]) -> set[str]:
+        return set().union(*(self.rules.rules[i].reads for i in indices)) if indices else set()
+
+    def conflicts(self, candidates: list[int]) -> list[tuple[list[int], Conflict]]:
+        if len(candidates) < 2:
+            return []
+        reads = self.reads(candidates)
+        domain = self.encoder.domain(self.ordered(reads))
+        whens = [self.formulas[i][0] for i in candidates]
+        bodies = [z3.And(*self.formulas[i]) for i in candidates]
+        finder = ConflictFinder(domain, whens, bodies)
+        result = []
+        for local in finder.conflicts():
+            members = [candidates[i] for i in local]
+            result.append((members, self.conflict(members)))
+        return result
+
+    def conflict(self, members: list[int]) -> Conflict:
+        """The conflict's witness: a point where all its ``when``s hold (so some rule breaks)."""
+        reads = self.reads(members)
+        solver = self.solver(reads)
+        solver.add(*[self.formulas[i][0] for i in members])
+        check(solver)
+        model = solver.model()
+        broken = tuple(
+            self.names[i] for i in members
+            if not z3.is_true(model.eval(self.formulas[i][1], True))
+        )
+        return Conflict(
+            rules=tuple(self.names[i] for i in members),
+            context=self.encoder.decode(model, self.ordered(reads)),
+            broken=broken,
+        )
+
+    def redundant(self, members: list[int]) -> list[tuple[int, list[int]]]:
+        """Each member genuinely implied by other members, with a small set that implies it.
+
+        "Implied by the others" alone would flag every rule that applies where a conflict does
+        (no point there is admitted anyway). So a rule r counts as redundant when some set K of
+        other rules implies it *and K can hold where r applies*. Such a K exists iff some point
+        q where r's ``when`` holds has K_q (the rules holding at q) implying r: an exists-forall
+        question, answered by counterexample-guided search (each failed q yields a point p
+        where K_q holds and r breaks; later q must make some rule broken at p hold).
+        """
+        if len(members) < 1:
+            return []
+        reads = self.reads(members)
+        solver = self.solver(reads)
+        keep = {i: z3.Bool(f"__keep_{i}") for i in members}
+        broken = {i: z3.Bool(f"__broken_{i}") for i in members}
+        holds = {i: z3.Implies(*self.formulas[i]) for i in members}
+        for i in members:
+            when, require = self.formulas[i]
+            solver.add(z3.Implies(keep[i], holds[i]))
+            solver.add(z3.Implies(broken[i], z3.And(when, z3.Not(require))))
+        result = []
+        for i in members:
+            others = [j for j in members if j != i]
+            if check(solver, [broken[i]] + [keep[j] for j in others]):
+                continue  # not implied even by all the others together
+            chooser = self.solver(reads)
+            chooser.add(self.formulas[i][0])
+            while check(chooser):
+                q = chooser.model()
+                support = [j for j in others if z3.is_true(q.eval(holds[j], True))]
+                if not check(solver, [broken[i]] + [keep[j] for j in support]):
+                    core = {str(c) for c in solver.unsat_core()}
+                    used = [j for j in support if str(keep[j]) in core]
+                    result.append((i, self.minimise(solver, broken[i], keep, used)))
+                    break
+                p = solver.model()
+                refuted = [holds[j] for j in others if not z3.is_true(p.eval(holds[j], True))]
+                chooser.add(z3.Or(*refuted) if refuted else z3.BoolVal(False))
+        return result
+
+    def minimise(
+        self, solver: z3.Solver, broken: z3.BoolRef, keep: dict[int, z3.BoolRef], used: list[int]
+    ) -> list[int]:
+        """Drop rules from ``used`` while the rest still imply the rule (within a budget)."""
+        needed: list[int] = []
+        rest = list(used)
+        budget = IMPLIED_BY_BUDGET
+        while rest and budget > 0:
+            budget -= 1
+            candidate, rest = rest[0], rest[1:]
+            if check(solver, [broken] + [keep[j] for j in needed + rest]):
+                needed.append(candidate)
+            else:
+                core = {str(c) for c in solver.unsat_core()}
+                rest = [j for j in rest if str(keep[j]) in core]
+        return sorted(needed + rest)
