@@ -1,0 +1,169 @@
+"""A building block: a Python object driven through its operation modes by its statechart.
+
+The chart decides which mode the block is in; the block does the work of a mode when the chart
+enters it and reports back with a done signal (sismic has no done-events), following the lifecycle
+convention of docs/statecharts.md:
+
+    instantiated --configure--> configuration --configuration_done--> initialization
+    --initialization_done--> initialized (core task) ; failed -> fault --reset|terminate-->
+
+Subclasses override :meth:`on_configuration`, :meth:`on_initialization`, :meth:`on_termination`
+and :meth:`on_fault`; an exception in the first two becomes the ``failed`` event. A sub-state ``s``
+of the core task entered by the chart calls ``on_enter_s()`` when the block defines it.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ClassVar
+
+from sismic.clock import Clock, SimulatedClock
+from sismic.model import MacroStep, Statechart
+
+from rasm.errors import PlatformError
+from rasm.resources import platform_chart
+from rasm.statechart import Interpreter, load_statechart
+
+__all__ = ["MODES", "Block", "ModeListener"]
+
+MODES = ("instantiated", "configuration", "initialization", "initialized", "fault", "terminated")
+
+ModeListener = Callable[["Block", str], Any]
+
+_log = logging.getLogger("rasm.platform")
+_CHARTS: dict[str, Statechart] = {}
+_CHARTS_LOCK = threading.Lock()
+
+
+def _chart(name: str | Path) -> Statechart:
+    key = str(name)
+    with _CHARTS_LOCK:
+        if key not in _CHARTS:  # a loaded chart is immutable: share it between instances
+            path = Path(name) if str(name).endswith((".yaml", ".yml")) else platform_chart(key)
+            _CHARTS[key] = load_statechart(path)
+        return _CHARTS[key]
+
+
+class Block:
+    """Base class of every building block. ``chart_name`` names its chart in ``statecharts/``."""
+
+    chart_name: ClassVar[str] = ""
+    short_name: ClassVar[str] = ""
+
+    def __init__(
+        self,
+        name: str | None = None,
+        *,
+        depends_on: tuple[str, ...] = (),
+        clock: Clock | None = None,
+        chart: str | Path | Statechart | None = None,
+        context: dict[str, Any] | None = None,
+    ) -> None:
+        self.name = name or self.short_name or type(self).__name__
+        self.depends_on = tuple(depends_on)
+        statechart = chart if isinstance(chart, Statechart) else _chart(chart or self.chart_name)
+        self.clock = clock or SimulatedClock()
+        self.interpreter = Interpreter(statechart, clock=self.clock, initial_context=context)
+        self.failure_reason: str | None = None
+        self._lock = threading.RLock()
+        self._running = False
+        self._listeners: list[ModeListener] = []
+        self._mode = "instantiated"
+        self.send(None)  # the initial step: enter `instantiated`
+
+    # ------------------------------------------------------------------ hooks
+
+    def on_configuration(self) -> None:
+        """Configure the block (read its parameters). Raise to fail."""
+
+    def on_initialization(self) -> None:
+        """Acquire resources and start the core task. Raise to fail."""
+
+    def on_termination(self) -> None:
+        """Release resources. Called once, on entering ``terminated``."""
+
+    def on_fault(self, reason: str | None) -> None:
+        """Called on entering ``fault``."""
+
+    # ------------------------------------------------------------------ driving
+
+    @property
+    def mode(self) -> str:
+        """The block's operation mode: one of :data:`MODES`."""
+        return self._mode
+
+    @property
+    def configuration(self) -> list[str]:
+        return self.interpreter.configuration
+
+    def add_mode_listener(self, listener: ModeListener) -> None:
+        """Call ``listener(block, mode)`` whenever the block changes mode."""
+        self._listeners.append(listener)
+
+    def post(self, event: str, **data: Any) -> None:
+        """Queue an event for the chart without running it (safe from inside a hook)."""
+        self.interpreter.queue(event, **data)
+
+    def send(self, event: str | None, **data: Any) -> list[MacroStep]:
+        """Queue ``event`` (if any) and run the chart until it is stable, doing each mode's work."""
+        with self._lock:
+            if event is not None:
+                self.interpreter.queue(event, **data)
+            if self._running:  # re-entrant call from a hook: the outer loop will run it
+                return []
+            self._running = True
+            try:
+                return self._run()
+            finally:
+                self._running = False
+
+    def _run(self) -> list[MacroStep]:
+        steps: list[MacroStep] = []
+        while True:
+            step = self.interpreter.execute_once()
+            if step is None:
+                return steps
+            steps.append(step)
+            for state in step.entered_states:
+                self._entered(state)
+
+    def _entered(self, state: str) -> None:
+        if state in MODES:
+            self._mode = state
+            for listener in list(self._listeners):
+                listener(self, state)
+        if state == "configuration":
+            self._do(self.on_configuration, "configuration_done")
+        elif state == "initialization":
+            self._do(self.on_initialization, "initialization_done")
+        elif state == "fault":
+            self.failure_reason = self.interpreter.context.get("failure_reason")
+            self.on_fault(self.failure_reason)
+        elif state == "terminated":
+            try:
+                self.on_termination()
+            except Exception:  # shutting down must go on; the failure is logged
+                _log.exception("%s: error while terminating", self.name)
+        else:
+            hook = getattr(self, f"on_enter_{state}", None)
+            if hook is not None:
+                hook()
+
+    def _do(self, work: Callable[[], None], done: str) -> None:
+        try:
+            work()
+        except Exception as exc:
+            _log.exception("%s: %s failed", self.name, work.__name__)
+            self.post("failed", reason=f"{type(exc).__name__}: {exc}")
+        else:
+            self.post(done)
+
+    def require_mode(self, *modes: str) -> None:
+        if self._mode not in modes:
+            raise PlatformError(f"{self.name} is in mode {self._mode!r}, not {' or '.join(modes)}")
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} mode={self._mode}>"
