@@ -79,7 +79,15 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def _cmd_verify_rules(args: argparse.Namespace) -> int:
-    raise UsageError("rasm verify-rules is not implemented yet")
+    from rasm.rules import format_json, format_text, load_rules, verify
+    from rasm.rules.against import check_against
+
+    rules = load_rules(args.rules)
+    report = verify(rules)
+    if args.against:
+        report.against = check_against(rules, args.against)
+    sys.stdout.write(format_json(report) if args.format == "json" else format_text(report))
+    return EXIT_OK if report.consistent and not report.admits_violations else EXIT_FAILED
 
 
 # --------------------------------------------------------------------------- platform

@@ -33,9 +33,9 @@ _RULE_KEYS = {"name", "when", "require", "description"}
 _TOP_KEYS = {"variables", "rules"}
 # Names the expression language gives a meaning of its own: a variable cannot take them.
 _RESERVED = {
-    "true", "false", "and", "or", "not", "abs", "min", "max", "prev", "time", "inf", "count", "sum",
-    "avg", "once", "historically", "eventually", "always", "since", "until", "input", "event", "let",
-    "property",
+    "true", "false", "and", "or", "not", "abs", "min", "max", "prev", "time", "inf", "count",
+    "sum", "avg", "once", "historically", "eventually", "always", "since", "until", "input",
+    "event", "let", "property",
 }
 
 
@@ -66,9 +66,8 @@ class _Loader:
     def error(self, message: str, line0: int, col0: int, width: int = 1) -> None:
         """Record a problem at 0-based ``line0``/``col0`` (ruamel's convention)."""
         line, col = line0 + 1, col0 + 1
-        self.errors.append(
-            SourceError(message, Location(self.source, line, col), mark(self.text, line, col, width))
-        )
+        excerpt = mark(self.text, line, col, width)
+        self.errors.append(SourceError(message, Location(self.source, line, col), excerpt))
 
     def where(self, parent: Any, key: Any, *, value: bool = True) -> tuple[int, int]:
         """0-based position of ``parent[key]`` (its value, or its key)."""
@@ -141,7 +140,8 @@ class _Loader:
                     kline, kcol, len(name),
                 )
                 continue
-            variable = self.variable(name, spec, section, Location(self.source, kline + 1, kcol + 1))
+            location = Location(self.source, kline + 1, kcol + 1)
+            variable = self.variable(name, spec, section, location)
             if variable is not None:
                 result[name] = variable
         return result
@@ -200,7 +200,9 @@ class _Loader:
             return None
         return Variable(name, "enum", values=values, location=location)
 
-    def numeric(self, name: str, type_: str, spec: CommentedMap, location: Location) -> Variable | None:
+    def numeric(
+        self, name: str, type_: str, spec: CommentedMap, location: Location
+    ) -> Variable | None:
         if "values" in spec:
             self.error(
                 f"variable {name!r}: 'values' applies only to enum variables",
@@ -223,7 +225,8 @@ class _Loader:
                 ok = False
             elif type_ == "int" and not isinstance(value, int):
                 self.error(
-                    f"variable {name!r}: '{key}' of an int variable must be an integer, not {value!r}",
+                    f"variable {name!r}: '{key}' of an int variable must be an integer, "
+                    f"not {value!r}",
                     *self.where(spec, key), len(str(value)),
                 )
                 ok = False
@@ -304,7 +307,8 @@ class _Loader:
         for key in item:
             if key not in _RULE_KEYS:
                 self.error(
-                    f"rule #{index + 1}: unknown key {key!r} (use name, when, require, description)",
+                    f"rule #{index + 1}: unknown key {key!r} "
+                    "(use name, when, require, description)",
                     *self.where(item, key, value=False), len(str(key)),
                 )
                 ok = False

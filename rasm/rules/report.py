@@ -27,6 +27,7 @@ class Violation:
     property: str
     expression: str
     witness: dict[str, Any] | None  # None: every admitted plan satisfies the property
+    skipped: str | None = None  # why the property could not be judged on one plan
 
 
 @dataclass
@@ -86,6 +87,7 @@ class Report:
             data["against"] = [
                 {"property": v.property, "expression": v.expression,
                  "admitted_violation": v.witness is not None, "witness": v.witness}
+                | ({"skipped": v.skipped} if v.skipped else {})
                 for v in self.against
             ]
         return data
@@ -131,7 +133,9 @@ def format_text(report: Report) -> str:
     for name in report.dead:
         lines.append(f"dead: {name}: its 'when' can never hold")
     for violation in report.against or ():
-        if violation.witness is None:
+        if violation.skipped:
+            lines.append(f"property {violation.property}: not checked: {violation.skipped}")
+        elif violation.witness is None:
             lines.append(f"property {violation.property}: every plan the rules admit satisfies it")
         else:
             lines.append(f"property {violation.property}: the rules admit a plan that violates "

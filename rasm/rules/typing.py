@@ -19,8 +19,11 @@ _NUMERIC = ("int", "real")
 
 
 class _Checker:
-    def __init__(self, variables: dict[str, Variable], source: str, text: str) -> None:
+    def __init__(
+        self, variables: dict[str, Variable], source: str, text: str, strict_enums: bool = True
+    ) -> None:
         self.variables = variables
+        self.strict_enums = strict_enums
         self.source = source
         self.text = text
         self.errors: list[SourceError] = []
@@ -106,7 +109,7 @@ class _Checker:
                 left not in _NUMERIC and left != right
             ):
                 self.fail(f"cannot compare {_a(left)} with {_a(right)}", node, len(op))
-            elif left == "enum":
+            elif left == "enum" and self.strict_enums:
                 self.enum_values(node)
             return "bool"
         if left not in _NUMERIC or right not in _NUMERIC:
@@ -156,13 +159,21 @@ def _a(type_: str) -> str:
 
 
 def check_rule_expression(
-    expr: ast.Expr, variables: dict[str, Variable], source: str, text: str, *, what: str
+    expr: ast.Expr,
+    variables: dict[str, Variable],
+    source: str,
+    text: str,
+    *,
+    what: str,
+    strict_enums: bool = True,
 ) -> set[str]:
     """Check ``expr`` (the rule's ``what``: when/require); return the variables it reads.
 
     Raises :class:`SourceErrors` with every problem found, each at its line and column.
+    ``strict_enums=False`` lets an enum be compared with a string outside its values (a
+    property may name a mode the rules do not know: the comparison is then simply false).
     """
-    checker = _Checker(variables, source, text)
+    checker = _Checker(variables, source, text, strict_enums)
     result = checker.type_of(expr)
     if result is not None and result != "bool" and not checker.errors:
         checker.fail(f"'{what}' must be a condition (true or false), not {_a(result)}", expr)

@@ -1,0 +1,144 @@
+"""``rasm verify-rules --against PROPS.rv``: can a plan the rules admit violate a property?
+
+Only invariants can be judged on a single plan: properties of the form ``always (E)`` where
+``E`` has no temporal operator, no ``prev``/``time`` and reads only rule variables (``let``
+names are expanded first). For each, z3 looks for a point of the declared domains where every
+rule holds and ``E`` does not; such a point is the witness. Other properties are listed as
+skipped, with the reason.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import z3
+
+from rasm.errors import Location, SourceError, SourceErrors
+from rasm.rules.model import Rules
+from rasm.rules.mus import check
+from rasm.rules.report import Violation
+from rasm.rules.smt import Encoder
+from rasm.rules.typing import check_rule_expression
+from rasm.spec import ast
+from rasm.spec.parser import parse_declarations
+
+_TEMPORAL = (ast.Time, ast.Prev, ast.Past, ast.Future, ast.Since, ast.Until, ast.Aggregate)
+
+
+def check_against(rules: Rules, path: str | Path) -> list[Violation]:
+    """One :class:`Violation` per property of the file at ``path`` (``witness`` None: safe)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SourceError(f"cannot read property file: {exc}", Location(str(path))) from None
+    return check_properties(rules, text, source=str(path))
+
+
+def check_properties(rules: Rules, text: str, *, source: str = "<properties>") -> list[Violation]:
+    """:func:`check_against` on the text of a property file."""
+    declarations = parse_declarations(text, source=source)
+    lets: dict[str, ast.Expr] = {}
+    encoder = Encoder(rules.variables)
+    admitted = z3.Solver()
+    admitted.add(*encoder.domain())
+    for rule in rules.rules:
+        admitted.add(z3.Implies(*encoder.rule(rule)))
+    result: list[Violation] = []
+    for item in declarations:
+        if isinstance(item, ast.Let):
+            lets[item.name] = _expand(item.expr, lets)
+        elif isinstance(item, ast.Property):
+            result.append(_judge(item, lets, rules, encoder, admitted, text, source))
+    return result
+
+
+def _judge(
+    prop: ast.Property,
+    lets: dict[str, ast.Expr],
+    rules: Rules,
+    encoder: Encoder,
+    admitted: z3.Solver,
+    text: str,
+    source: str,
+) -> Violation:
+    formula = prop.formula
+    if not (isinstance(formula, ast.Future) and formula.op == "always"
+            and formula.bound.low == 0 and formula.bound.high == ast.INF):
+        return Violation(prop.name, "", None, skipped="not of the form always (E)")
+    body = _expand(formula.operand, lets)
+    if _temporal(body):
+        return Violation(prop.name, "", None, skipped="E is temporal: a plan is one point")
+    unknown = sorted(_names(body) - set(rules.variables))
+    if unknown:
+        return Violation(prop.name, "", None,
+                         skipped="reads non-rule variables: " + ", ".join(unknown))
+    try:
+        check_rule_expression(body, rules.variables, source, text, what="property",
+                              strict_enums=False)
+    except SourceErrors as exc:
+        return Violation(prop.name, "", None, skipped="; ".join(e.message for e in exc.errors))
+    expression = _show(body)
+    violated = z3.Not(encoder.condition(body))
+    if not check(admitted, [violated]):
+        return Violation(prop.name, expression, None)
+    model = admitted.model()
+    return Violation(prop.name, expression, encoder.decode(model, list(rules.variables)))
+
+
+def _expand(expr: ast.Expr, lets: dict[str, ast.Expr]) -> ast.Expr:
+    """``expr`` with every ``let`` name replaced by its (already expanded) definition."""
+    import dataclasses
+
+    if isinstance(expr, ast.Name) and expr.name in lets:
+        return lets[expr.name]
+    changes: dict[str, Any] = {}
+    for field in dataclasses.fields(expr):
+        value = getattr(expr, field.name)
+        if isinstance(value, tuple) and value and all(_is_expr(v) for v in value):
+            changes[field.name] = tuple(_expand(v, lets) for v in value)
+        elif _is_expr(value):
+            changes[field.name] = _expand(value, lets)
+    return dataclasses.replace(expr, **changes) if changes else expr
+
+
+def _is_expr(value: Any) -> bool:
+    return isinstance(value, (ast.Literal, ast.Name, ast.Unary, ast.Not, ast.Binary, ast.Call)
+                      + _TEMPORAL)
+
+
+def _temporal(expr: ast.Expr) -> bool:
+    return isinstance(expr, _TEMPORAL) or any(_temporal(c) for c in ast.children(expr))
+
+
+def _names(expr: ast.Expr) -> set[str]:
+    found = {expr.name} if isinstance(expr, ast.Name) else set()
+    for child in ast.children(expr):
+        found |= _names(child)
+    return found
+
+
+def _show(expr: ast.Expr) -> str:
+    """The expression as text (fully parenthesised where it matters)."""
+    if isinstance(expr, ast.Literal):
+        value = expr.value
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        return f'"{value}"' if isinstance(value, str) else repr(value)
+    if isinstance(expr, ast.Name):
+        return expr.name
+    if isinstance(expr, ast.Not):
+        return f"not {_wrap(expr.operand)}"
+    if isinstance(expr, ast.Unary):
+        return f"-{_wrap(expr.operand)}"
+    if isinstance(expr, ast.Binary):
+        return f"{_wrap(expr.left)} {expr.op} {_wrap(expr.right)}"
+    if isinstance(expr, ast.Call):
+        return f"{expr.func}(" + ", ".join(_show(a) for a in expr.args) + ")"
+    return "?"
+
+
+def _wrap(expr: ast.Expr) -> str:
+    text = _show(expr)
+    return f"({text})" if isinstance(expr, ast.Binary) else text
