@@ -40,12 +40,15 @@ class ChartRunner:
         self._stopping = False
         self._thread: threading.Thread | None = None
         self.steps = 0
+        self.wakeups = 0  # passes of the loop: stays put while the chart has nothing to do
+        self.errors: list[BaseException] = []
+        self._sleeping_forever = False  # asleep with no timeout: only an event can wake it
 
     def send(self, name: str, **data: Any) -> None:
         """Queue an external event (from any thread) and wake the runner."""
         with self._wake:
             self._inbox.append((name, data))
-            self._wake.notify()
+            self._wake.notify_all()
 
     def start(self) -> ChartRunner:
         self._thread = threading.Thread(target=self.run, name="chart-runner", daemon=True)
@@ -55,15 +58,26 @@ class ChartRunner:
     def stop(self, timeout: float | None = 5.0) -> None:
         with self._wake:
             self._stopping = True
-            self._wake.notify()
+            self._wake.notify_all()
         if self._thread is not None:
             self._thread.join(timeout)
+
+    def wait_until_idle(self, timeout: float | None = None, *, after_wakeups: int = 0) -> bool:
+        """Block until the runner sleeps with nothing queued and no timer pending (and has made
+        more than ``after_wakeups`` passes); False on timeout."""
+        with self._wake:
+            return self._wake.wait_for(
+                lambda: self._sleeping_forever and not self._inbox
+                and self.wakeups > after_wakeups,
+                timeout,
+            )
 
     def run(self) -> None:
         """The loop: take queued events, execute until stable, sleep until the next deadline."""
         interp = self.interpreter
         while True:
             with self._wake:
+                self.wakeups += 1
                 if self._stopping:
                     return
                 inbox, self._inbox = self._inbox, []
@@ -78,7 +92,10 @@ class ChartRunner:
                 deadline = None if stalled else interp.next_deadline()
                 timeout = None if deadline is None else max(deadline - interp.clock.time, 0.0)
                 if timeout != 0.0:
+                    self._sleeping_forever = timeout is None
+                    self._wake.notify_all()  # for wait_until_idle
                     self._wake.wait(timeout)
+                    self._sleeping_forever = False
 
     def _execute(self) -> bool:
         """Execute until stable; True when an eventless step failed (only an event can help)."""
@@ -87,6 +104,7 @@ class ChartRunner:
             try:
                 step = interp.execute_once()
             except Exception as exc:  # rolled back by the interpreter; report and go on
+                self.errors.append(exc)
                 if self.on_error is not None:
                     self.on_error(exc)
                 failure = interp.last_failure

@@ -1,0 +1,134 @@
+"""A step that raises leaves the configuration and context exactly as they were."""
+
+from __future__ import annotations
+
+import pytest
+from sismic.clock import SimulatedClock
+from sismic.exceptions import CodeEvaluationError, PropertyStatechartError
+from sismic.interpreter import Interpreter as StockInterpreter
+
+from rasm.statechart import Interpreter, load_statechart
+
+CHART = """
+statechart:
+  name: fragile
+  preamble: |
+    items = [1, 2]
+    level = 0
+  root state:
+    name: root
+    initial: a
+    states:
+      - name: a
+        transitions:
+          - target: b
+            event: go
+            action: |
+              level = 10
+              items.append(3)
+              send('went')
+              level = level / divisor
+      - name: b
+        transitions:
+          - target: a
+            event: back
+"""
+
+
+def chart():
+    return load_statechart(text=CHART, source="fragile.yaml")
+
+
+def test_stock_sismic_is_left_half_applied():
+    interp = StockInterpreter(chart())
+    interp.execute()
+    interp.queue("go")
+    with pytest.raises(CodeEvaluationError):
+        interp.execute()
+    # the documented corruption: `a` exited, `b` not entered, context half-updated
+    assert interp.configuration == ["root"]
+    assert interp.context["level"] == 10
+
+
+def test_rasm_rolls_the_step_back_and_discards_the_event():
+    interp = Interpreter(chart())
+    interp.execute()
+    interp.queue("go").queue("back")
+    with pytest.raises(CodeEvaluationError, match="divisor"):
+        interp.execute_once()
+    assert interp.configuration == ["root", "a"]
+    assert interp.context["level"] == 0
+    assert interp.context["items"] == [1, 2]  # in-place mutation undone too
+    assert interp.last_failure.event.name == "go"
+    assert [e.name for _, e in interp._internal_queue] == []  # `went` was not kept
+    # the failing event is gone: the next step handles `back` (nothing to do in `a`)
+    step = interp.execute_once()
+    assert step.event.name == "back" and step.transitions == []
+    interp._evaluator._context["divisor"] = 5
+    interp.queue("go")
+    interp.execute()
+    assert interp.configuration == ["root", "b"]
+    assert interp.context["level"] == 2
+
+
+def test_bound_interpreters_only_receive_events_of_successful_steps():
+    sender = Interpreter(chart())
+    received = []
+    sender.bind(lambda event: received.append(event.name))
+    sender.execute()
+    sender.queue("go")
+    with pytest.raises(CodeEvaluationError):
+        sender.execute()
+    assert received == []
+    sender._evaluator._context["divisor"] = 1
+    sender.queue("go")
+    sender.execute()
+    assert received == ["went"]
+
+
+PROPERTY = """
+statechart:
+  name: never_b
+  root state:
+    name: watching
+    initial: ok
+    states:
+      - name: ok
+        transitions:
+          - target: broken
+            event: state entered
+            guard: event.state == 'b'
+      - name: broken
+        type: final
+"""
+
+
+def test_a_violated_property_statechart_rolls_the_step_back():
+    interp = Interpreter(chart(), initial_context={"divisor": 1})
+    interp.bind_property_statechart(load_statechart(text=PROPERTY))
+    interp.execute()
+    interp.queue("go")
+    with pytest.raises(PropertyStatechartError):
+        interp.execute()
+    assert interp.configuration == ["root", "a"]
+    # the property chart itself is restored as well: it can catch the next violation
+    interp.queue("go")
+    with pytest.raises(PropertyStatechartError):
+        interp.execute()
+
+
+def test_an_exception_in_the_initial_step_leaves_the_chart_uninitialised():
+    bad = load_statechart(
+        text="""
+statechart:
+  name: bad_entry
+  root state:
+    name: root
+    on entry: x = 1 / 0
+"""
+    )
+    interp = Interpreter(bad, clock=SimulatedClock())
+    with pytest.raises(CodeEvaluationError):
+        interp.execute_once()
+    assert interp.configuration == []
+    assert interp.last_failure.event is None
