@@ -1,5 +1,8 @@
 """rasm.spec: the temporal property language (SPEC §5, §6).
 
+``compile(text)`` turns a property file into an incremental :class:`Monitor`;
+``load_specification`` gives the checked syntax tree.
+
 ``parse_expression``, ``infer_types``, ``evaluate`` and ``compile_expression`` form the
 non-temporal expression sub-language that the legitimacy rules share.
 """
@@ -22,6 +25,8 @@ from rasm.spec.ast import (
     Until,
 )
 from rasm.spec.expr import compile_expression, evaluate
+from rasm.spec.loader import load_specification
+from rasm.spec.monitor import Monitor, PropertyRun, Rejection, Verdict, compile
 from rasm.spec.parser import parse_expression
 from rasm.spec.types import Typing, infer_types
 
@@ -33,17 +38,23 @@ __all__ = [
     "Expr",
     "Future",
     "Literal",
+    "Monitor",
     "Name",
     "Not",
     "Past",
     "Prev",
+    "PropertyRun",
+    "Rejection",
     "Since",
     "Time",
     "Typing",
     "Unary",
     "Until",
+    "Verdict",
+    "compile",
     "compile_expression",
     "evaluate",
     "infer_types",
+    "load_specification",
     "parse_expression",
 ]

@@ -1,0 +1,409 @@
+"""Compiling a checked specification to Python source: one step function for all properties.
+
+Sub-formulas that only look at the past are *immediate*: their value at record i is known at
+record i, and they become straight-line code with their state in closure variables (a last
+witness time, a deque of not-yet-old-enough witnesses). Anything above a future operator is a
+*stream* (``rasm.spec.streams``) whose values come late; the generated code feeds the streams
+their immediate inputs and reads the property's verdicts off the top stream.
+
+The same body is generated twice: in ``step(t, record)`` (verdict objects, one call per record)
+and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm check``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from rasm.spec.ast import (
+    INF,
+    Aggregate,
+    Binary,
+    Call,
+    Expr,
+    Future,
+    Literal,
+    Name,
+    Not,
+    Past,
+    Prev,
+    Since,
+    Specification,
+    Time,
+    Unary,
+    Until,
+)
+from rasm.spec.expr import _ARITH, _COMPARE, HELPERS, _max2, _min2
+from rasm.spec.loader import signals_of
+from rasm.spec.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
+from rasm.spec.streams import (
+    AggregateStream,
+    PointwiseStream,
+    PrevStream,
+    Stream,
+    TemporalStream,
+    kleene_function,
+)
+from rasm.spec.types import TypeScope
+
+__all__ = ["Program", "generate"]
+
+
+@dataclass
+class Program:
+    """What :func:`generate` produces: the source and the objects it closes over."""
+
+    source: str
+    constants: dict[str, object]
+    state: dict[str, object]
+    streams: list[list[Stream]] = field(default_factory=list)  # per property, bottom-up
+    roots: list[Stream | None] = field(default_factory=list)  # per property, or None
+    reads: list[tuple[str, ...]] = field(default_factory=list)  # warm-up signals per property
+
+
+def normalise(node: Expr) -> Expr:
+    """Rewrite historically/always via once/eventually: ``historically φ = not once not φ``."""
+    if isinstance(node, Past) and node.op == "historically":
+        inner = Past("once", node.bound, Not(normalise(node.operand), location=node.location),
+                     location=node.location)
+        return Not(inner, location=node.location)
+    if isinstance(node, Future) and node.op == "always":
+        inner = Future("eventually", node.bound,
+                       Not(normalise(node.operand), location=node.location),
+                       location=node.location)
+        return Not(inner, location=node.location)
+    if isinstance(node, (Unary, Not, Prev, Past, Future, Aggregate)):
+        return type(node)(**{**_fields(node), "operand": normalise(node.operand)})
+    if isinstance(node, (Binary, Since, Until)):
+        return type(node)(**{**_fields(node), "left": normalise(node.left),
+                             "right": normalise(node.right)})
+    if isinstance(node, Call):
+        return Call(node.func, tuple(normalise(a) for a in node.args), location=node.location)
+    return node
+
+
+def _fields(node) -> dict:
+    return {name: getattr(node, name) for name in node.__dataclass_fields__}
+
+
+def _number(x: float) -> str:
+    return "INF" if x == INF else repr(float(x))
+
+
+class _Generator:
+    def __init__(self, spec: Specification) -> None:
+        self.spec = spec
+        self.types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
+        self.constants: dict[str, object] = {"deque": deque, "INF": INF, "NAN": math.nan}
+        self.constants.update(HELPERS)
+        self.state: dict[str, object] = {}
+        self.count = 0
+        self.lines: list[str] = []
+        self.streams: list[Stream] = []
+
+    def fresh(self, prefix: str) -> str:
+        self.count += 1
+        return f"{prefix}{self.count}"
+
+    def constant(self, prefix: str, value: object) -> str:
+        name = self.fresh(prefix)
+        self.constants[name] = value
+        return name
+
+    def variable(self, prefix: str, initial: object) -> str:
+        name = self.fresh(prefix)
+        self.state[name] = initial
+        return name
+
+    # ----------------------------------------------------------------- nodes
+    def emit(self, node: Expr):
+        """Return ``("imm", python_expression)`` or ``("stream", Stream)`` for ``node``."""
+        if isinstance(node, Literal):
+            return "imm", repr(node.value)
+        if isinstance(node, Name):
+            return "imm", signal_variable(node.name)
+        if isinstance(node, Time):
+            return "imm", "t"
+        if isinstance(node, Future):  # only eventually, after normalise()
+            (kind, value) = self.emit(node.operand)
+            core = EventuallyCore(node.bound.low, node.bound.high)
+            return self.stream(TemporalStream, [(kind, value)], core)
+        if isinstance(node, Until):
+            left, right = self.emit(node.left), self.emit(node.right)
+            core = UntilCore(node.bound.low, node.bound.high)
+            return self.stream(TemporalStream, [left, right], core)
+        parts = [self.emit(c) for c in _operands(node)]
+        if any(kind == "stream" for kind, _ in parts):
+            return self.stream_of(node, parts)
+        values = [value for _, value in parts]
+        if isinstance(node, Not):
+            return "imm", f"(not {values[0]})"
+        if isinstance(node, Unary):
+            return "imm", f"(-{values[0]})"
+        if isinstance(node, Binary):
+            return "imm", _binary(node.op, values[0], values[1])
+        if isinstance(node, Call):
+            return "imm", f"{_call(node.func)}({', '.join(values)})"
+        if isinstance(node, Prev):
+            held = self.variable("p", self.undefined(node.operand))
+            out = self.fresh("v")
+            self.lines += [f"{out} = {held}", f"{held} = {values[0]}"]
+            return "imm", out
+        if isinstance(node, Past):  # once, after normalise()
+            return "imm", self.once(node.bound.low, node.bound.high, values[0])
+        if isinstance(node, Since):
+            return "imm", self.since(node.bound.low, node.bound.high, values[0], values[1])
+        if isinstance(node, Aggregate):
+            core = self.constant("w", WindowCore(node.op, node.bound.low, node.bound.high))
+            out = self.fresh("v")
+            self.lines.append(f"{out} = {core}.push(t, {values[0]})")
+            return "imm", out
+        raise TypeError(f"cannot compile {node!r}")
+
+    def undefined(self, node: Expr) -> object:
+        # prev(φ) at a property's first record: a boolean is false, anything else undefined
+        return False if self.types.check(node) == "bool" else math.nan
+
+    def once(self, a: float, b: float, value: str) -> str:
+        last = self.variable("l", None)
+        out = self.fresh("v")
+        if a == 0 and b == INF:
+            self.lines.append(f"if {value}: {last} = True")
+            self.lines.append(f"{out} = {last} is not None")
+            return out
+        if a == 0:
+            self.lines.append(f"if {value}: {last} = t")
+        else:
+            pending = self.constant("q", deque())
+            self.lines += [
+                f"if {value}: {pending}.append(t)",
+                f"while {pending} and t - {pending}[0] >= {_number(a)}: "
+                f"{last} = {pending}.popleft()",
+            ]
+        self.lines.append(f"{out} = {self.within(last, b)}")
+        return out
+
+    def since(self, a: float, b: float, left: str, right: str) -> str:
+        last = self.variable("l", None)
+        out = self.fresh("v")
+        if a == 0:
+            self.lines += [f"if not {left}: {last} = None", f"if {right}: {last} = t"]
+        else:
+            pending = self.constant("q", deque())
+            self.lines += [
+                f"if not {left}:",
+                f"    {last} = None",
+                f"    {pending}.clear()",
+                f"if {right}: {pending}.append(t)",
+                f"while {pending} and t - {pending}[0] >= {_number(a)}: "
+                f"{last} = {pending}.popleft()",
+            ]
+        self.lines.append(f"{out} = {self.within(last, b)}")
+        return out
+
+    @staticmethod
+    def within(last: str, b: float) -> str:
+        if b == INF:
+            return f"{last} is not None"
+        return f"{last} is not None and t - {last} <= {_number(b)}"
+
+    # ----------------------------------------------------------------- streams
+    def stream_of(self, node: Expr, parts):
+        if isinstance(node, Not):
+            return self.stream(PointwiseStream, parts, kleene_function("not", None))
+        if isinstance(node, Unary):
+            return self.stream(PointwiseStream, parts, kleene_function("-", lambda a: -a))
+        if isinstance(node, Binary):
+            plain = _ARITH.get(node.op) or _COMPARE.get(node.op)
+            return self.stream(PointwiseStream, parts, kleene_function(node.op, plain))
+        if isinstance(node, Call):
+            plain = {"abs": abs, "min": _min2, "max": _max2}[node.func]
+            return self.stream(PointwiseStream, parts, kleene_function(node.func, plain))
+        if isinstance(node, Prev):
+            return self.stream(PrevStream, parts, self.undefined(node.operand))
+        if isinstance(node, Past):
+            return self.stream(TemporalStream, parts, OnceCore(node.bound.low, node.bound.high))
+        if isinstance(node, Since):
+            core = SinceCore(node.bound.low, node.bound.high)
+            return self.stream(TemporalStream, parts, core)
+        if isinstance(node, Aggregate):
+            return self.stream(AggregateStream, parts, node.op, node.bound.low, node.bound.high)
+        raise TypeError(f"cannot compile {node!r}")
+
+    def stream(self, cls, parts, *args):
+        inputs = [value if kind == "stream" else None for kind, value in parts]
+        stream = cls(inputs, *args)
+        self.streams.append(stream)
+        name = self.constant("s", stream)
+        immediate = [value for kind, value in parts if kind == "imm"]
+        self.lines.append(f"{name}.step(i, t{''.join(', ' + v for v in immediate)})")
+        return "stream", stream
+
+
+def _operands(node: Expr) -> list[Expr]:
+    if isinstance(node, (Unary, Not, Prev, Past, Aggregate)):
+        return [node.operand]
+    if isinstance(node, (Binary, Since)):
+        return [node.left, node.right]
+    if isinstance(node, Call):
+        return list(node.args)
+    return []
+
+
+def _binary(op: str, left: str, right: str) -> str:
+    if op == "and":
+        return f"({left} and {right})"
+    if op == "or":
+        return f"({left} or {right})"
+    if op == "->":
+        return f"((not {left}) or {right})"
+    if op == "/":
+        return f"_div({left}, {right})"
+    if op == "!=":
+        return f"_ne({left}, {right})"
+    return f"({left} {op} {right})"
+
+
+def _call(func: str) -> str:
+    return {"abs": "abs", "min": "_min2", "max": "_max2"}[func]
+
+
+def signal_variable(name: str) -> str:
+    """The generated code's variable holding signal ``name``'s current value."""
+    return f"g_{name}"
+
+
+# --------------------------------------------------------------------------- whole programs
+
+UNSET = type("Unset", (), {"__repr__": lambda self: "<unset>"})()
+
+
+def generate(spec: Specification) -> Program:
+    """Generate the step and run functions' source for every property of ``spec``.
+
+    The source defines ``factory()`` returning ``(step, run)``; it reads the names in
+    ``Program.constants`` plus ``STATE`` (initial values), ``VERDICT``, ``NAMES``, ``STARTS``,
+    ``VALUES``, ``REJECT_STEP`` and ``REJECT_RUN``, which the monitor provides.
+    """
+    gen = _Generator(spec)
+    defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
+    events = {item.name for item in spec.events}
+    blocks: list[list] = []
+    program = Program("", gen.constants, gen.state)
+    for number, prop in enumerate(spec.properties):
+        gen.lines, gen.streams = [], []
+        kind, value = gen.emit(normalise(prop.formula))
+        reads = tuple(
+            name for name in signals_of(prop.formula) if name not in events and name not in defaults
+        )
+        program.reads.append(reads)
+        program.streams.append(gen.streams)
+        program.roots.append(value if kind == "stream" else None)
+        body: list = list(gen.lines)
+        if kind == "imm":
+            body.append(("EMIT", number, "i", "t", value))
+        else:
+            root = gen.constant("r", value.out)
+            body += [f"while {root}:", f"    _j, _tj, _v = {root}.popleft()"]
+            body.append(("EMIT", number, "_j", "_tj", "_v", "    "))
+        if reads:
+            started = gen.variable("started", False)
+            ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in reads)
+            block: list = [f"if not {started} and {ready}:", f"    {started} = True"]
+            block.append(f"    STARTS[{number}] = i")
+            block.append(f"if {started}:")
+            block += [_indent(line) for line in body]
+        else:
+            block = [f"if i == 0: STARTS[{number}] = 0", *body]
+        blocks.append(block)
+    program.source = _assemble(spec, gen, blocks, defaults, events)
+    return program
+
+
+def _indent(line):
+    if isinstance(line, tuple):
+        return (*line[:5], (line[5] if len(line) > 5 else "") + "    ")
+    return "    " + line
+
+
+def _render(line, mode: str) -> str:
+    if isinstance(line, str):
+        return line
+    _, number, index, time, value, *indent = line
+    pad = indent[0] if indent else ""
+    if mode == "step":
+        return f"{pad}out.append(VERDICT((NAMES[{number}], {index}, {time}, {value})))"
+    return f"{pad}values_{number}({value})"
+
+
+def _assemble(spec, gen: _Generator, blocks, defaults, events) -> str:
+    for name in spec.signals:
+        if name in events:
+            gen.state[signal_variable(name)] = False
+        else:
+            gen.state[signal_variable(name)] = defaults.get(name, UNSET)
+    cells = sorted(gen.state) + ["i", "last_t"]
+    update = _update_lines(spec, events)
+    properties = [line for block in blocks for line in block]
+
+    def function(header: str, mode: str) -> list[str]:
+        lines = [header, "    nonlocal " + ", ".join(cells)]
+        if mode == "run":
+            lines.append("    for t, rec in records:")
+            indent = "        "
+            reject = "REJECT_RUN"
+        else:
+            lines.append("    out = []")
+            indent = "    "
+            reject = "REJECT_STEP"
+        for line in [*update, "i += 1", *properties]:
+            text = _render(line, mode).replace("REJECT(", reject + "(")
+            lines.append(indent + text)
+        lines.append("    return out" if mode == "step" else "    return None")
+        return lines
+
+    factory = ["def factory():"]
+    for name in sorted(gen.state):
+        factory.append(f"    {name} = STATE[{name!r}]")
+    factory += ["    i = -1", "    last_t = -INF"]
+    for number in range(len(blocks)):
+        factory.append(f"    values_{number} = VALUES[{number}].append")
+    factory += ["    " + line for line in function("def step(t, rec):", "step")]
+    factory += ["    " + line for line in function("def run(records):", "run")]
+    factory.append("    return step, run")
+    return "\n".join(factory) + "\n"
+
+
+def _update_lines(spec: Specification, events: set[str]) -> list[str]:
+    """Validate a record's time and values, then update the held signals (all or nothing)."""
+    lines = [
+        "if t.__class__ not in NUMERIC or t != t: return REJECT(i + 1, t, rec, None, 'time')",
+        "if t < last_t: return REJECT(i + 1, t, rec, None, 'backwards')",
+    ]
+    assigns = []
+    for name, kind in spec.signals.items():
+        var = signal_variable(name)
+        tmp = f"n_{name}"
+        if name in events:
+            lines.append(f"{tmp} = rec.get({name!r}, False)")
+            lines.append(
+                f"if {tmp} is not True and {tmp} is not False: "
+                f"return REJECT(i + 1, t, rec, {name!r}, 'bool')"
+            )
+            assigns.append(f"{var} = {tmp}")
+            continue
+        lines.append(f"{tmp} = rec.get({name!r}, UNSET)")
+        check = {
+            "float": f"{tmp}.__class__ not in NUMERIC",
+            "int": f"{tmp}.__class__ is not int",
+            "bool": f"{tmp}.__class__ is not bool",
+            "str": f"{tmp}.__class__ is not str",
+            "any": f"{tmp}.__class__ not in SCALAR",
+        }[kind]
+        lines.append(
+            f"if {tmp} is not UNSET and {check}: "
+            f"return REJECT(i + 1, t, rec, {name!r}, {kind!r})"
+        )
+        assigns.append(f"if {tmp} is not UNSET: {var} = {tmp}")
+    return lines + assigns + ["last_t = t"]

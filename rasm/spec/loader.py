@@ -1,0 +1,188 @@
+"""From a property file to a checked :class:`~rasm.spec.ast.Specification`.
+
+Resolves ``let`` names (each use stands for the definition above it), strips the outermost
+unbounded ``always`` of each property, rejects any other unbounded ``always``, and type-checks
+all properties together so that a signal has one type in the whole file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from rasm.errors import SourceError, mark
+from rasm.spec.ast import (
+    INF,
+    Aggregate,
+    Binary,
+    Call,
+    Event,
+    Expr,
+    Future,
+    Input,
+    Let,
+    Name,
+    Not,
+    Past,
+    Prev,
+    Property,
+    Since,
+    Specification,
+    Unary,
+    Until,
+    children,
+)
+from rasm.spec.parser import parse_declarations
+from rasm.spec.types import TypeScope
+
+__all__ = ["load_specification", "signals_of"]
+
+
+def load_specification(text: str, *, source: str = "<text>") -> Specification:
+    """Parse and check a property file; raises :class:`SourceError` at the first problem."""
+    try:
+        return _load(text, source)
+    except SourceError as error:
+        if error.excerpt is None and error.location.file == source:
+            error.excerpt = mark(text, error.location.line, error.location.col)
+        raise
+
+
+def _load(text: str, source: str) -> Specification:
+    declarations = parse_declarations(text, source=source)
+    inputs: list[Input] = []
+    events: list[Event] = []
+    lets: dict[str, Let] = {}
+    properties: list[Property] = []
+    defined: dict[str, object] = {}  # every declared name -> its declaration
+    used_as_signal: dict[str, Name] = {}
+
+    def define(name: str, item) -> None:
+        if name in defined:
+            raise SourceError(
+                f"{name!r} is already defined at {defined[name].location}", item.location
+            )
+        if name in used_as_signal and not isinstance(item, (Input, Event)):
+            raise SourceError(
+                f"{name!r} is defined here but was already used as a signal at "
+                f"{used_as_signal[name].location}; define it before its first use",
+                item.location,
+            )
+        defined[name] = item
+
+    def expand(node: Expr) -> Expr:
+        if isinstance(node, Name):
+            if node.name in lets:
+                return lets[node.name].expr
+            used_as_signal.setdefault(node.name, node)
+            return node
+        return _rebuild(node, [expand(c) for c in children(node)])
+
+    scope_declared: dict[str, str] = {}
+    for item in declarations:
+        if isinstance(item, Input):
+            define(item.name, item)
+            inputs.append(item)
+            scope_declared[item.name] = item.type
+        elif isinstance(item, Event):
+            define(item.name, item)
+            events.append(item)
+            scope_declared[item.name] = "bool"
+    scope = TypeScope(scope_declared)
+
+    property_names: dict[str, Property] = {}
+    for item in declarations:
+        if isinstance(item, Let):
+            define(item.name, item)
+            body = expand(item.expr)
+            _check_always(body, outermost=False)
+            scope.check(body)
+            lets[item.name] = replace(item, expr=body)
+        elif isinstance(item, Property):
+            if item.name in property_names:
+                raise SourceError(
+                    f"property {item.name!r} is already defined at "
+                    f"{property_names[item.name].location}",
+                    item.location,
+                )
+            formula = expand(item.formula)
+            formula = _strip_always(formula)
+            _check_always(formula, outermost=False)
+            scope.check(formula, "bool")
+            properties.append(replace(item, formula=formula))
+            property_names[item.name] = item
+    if not properties:
+        raise SourceError(
+            "no property in this file (write: property NAME: FORMULA)", _origin(source)
+        )
+    signals = {
+        name: kind
+        for name, kind in scope.signals().items()
+        if name not in lets
+    }
+    for item in inputs:
+        signals.setdefault(item.name, item.type)
+    for item in events:
+        signals[item.name] = "bool"
+    return Specification(
+        source=source,
+        inputs=tuple(inputs),
+        events=tuple(events),
+        lets=tuple(lets.values()),
+        properties=tuple(properties),
+        signals=signals,
+    )
+
+
+def _origin(source: str):
+    from rasm.errors import Location
+
+    return Location(source, 1, 1)
+
+
+def _strip_always(formula: Expr) -> Expr:
+    # "always φ" outermost, unbounded: φ is judged at every record anyway
+    while (
+        isinstance(formula, Future)
+        and formula.op == "always"
+        and formula.bound.low == 0
+        and formula.bound.high == INF
+    ):
+        formula = formula.operand
+    return formula
+
+
+def _check_always(node: Expr, *, outermost: bool) -> None:
+    if isinstance(node, Future) and node.bound.high == INF:
+        raise SourceError(
+            "an unbounded 'always' is allowed only as the outermost operator of a property; "
+            "give it a bound, always[a, b]",
+            node.location,
+        )
+    for child in children(node):
+        _check_always(child, outermost=False)
+
+
+def _rebuild(node: Expr, new: list[Expr]) -> Expr:
+    if not new:
+        return node
+    if isinstance(node, (Unary, Not, Prev, Past, Future, Aggregate)):
+        return replace(node, operand=new[0])
+    if isinstance(node, (Binary, Since, Until)):
+        return replace(node, left=new[0], right=new[1])
+    if isinstance(node, Call):
+        return replace(node, args=tuple(new))
+    return node
+
+
+def signals_of(node: Expr) -> list[str]:
+    """The signal names ``node`` reads, in order of first appearance."""
+    seen: dict[str, None] = {}
+
+    def walk(n: Expr) -> None:
+        if isinstance(n, Name):
+            seen.setdefault(n.name, None)
+        for c in children(n):
+            walk(c)
+
+    walk(node)
+    return list(seen)

@@ -1,0 +1,177 @@
+"""The online monitor of SPEC §6: ``compile(text)``, ``Monitor.step``, ``Monitor.finish``."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from functools import partial
+from typing import NamedTuple
+
+from rasm.errors import SpecError
+from rasm.spec.ast import Specification
+from rasm.spec.codegen import UNSET, generate
+from rasm.spec.loader import load_specification
+
+__all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile"]
+
+NUMERIC = frozenset((int, float))
+SCALAR = frozenset((int, float, str, bool))
+_WANT = {
+    "float": "a number",
+    "int": "an integer",
+    "bool": "true or false",
+    "str": "a string",
+    "any": "a number, string or boolean",
+}
+
+
+class Verdict(NamedTuple):
+    """A property's value at one record: True, False, or None (inconclusive, at the end)."""
+
+    property: str
+    index: int
+    time: float
+    value: bool | None
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """A record the monitor refused (it changed nothing): which one and why."""
+
+    index: int
+    time: object
+    reason: str
+
+
+@dataclass
+class PropertyRun:
+    """A property's verdicts over a whole trace: ``values[k]`` is the verdict at ``start + k``."""
+
+    name: str
+    start: int | None
+    values: list
+
+
+def describe_rejection(time, record, signal: str | None, kind: str) -> str:
+    """Why a record was rejected, in words (shared with the trace reader)."""
+    if kind == "time":
+        return f"'time' must be a number, not {time!r}"
+    if kind == "backwards":
+        return f"time {time!r} goes back in time"
+    value = record.get(signal)
+    return f"{signal!r} must be {_WANT[kind]}, not {json_repr(value)}"
+
+
+def json_repr(value) -> str:
+    import json
+
+    try:
+        return json.dumps(value)
+    except (TypeError, ValueError):
+        return repr(value)
+
+
+class Monitor:
+    """Incremental monitor of every property of one file.
+
+    ``step(time, values)`` takes one record (the signals it updates) and returns the verdicts it
+    decided (past-only properties: the one for this record; bounded-future ones: each verdict no
+    later than the first record beyond its window). ``finish()`` returns the remaining verdicts,
+    ``None`` where the trace ended too early to decide. A bad record (a time going back, a value
+    of the wrong type) is refused, counted in ``rejected`` and changes nothing; ``step`` then
+    returns no verdicts.
+    """
+
+    def __init__(self, spec: Specification) -> None:
+        self.spec = spec
+        self.names = [p.name for p in spec.properties]
+        self.program = generate(spec)
+        self.starts: list[int | None] = [None] * len(self.names)
+        self.rejected: list[Rejection] = []
+        self._values: list[list] = [[] for _ in self.names]
+        self._finished = False
+        namespace = dict(self.program.constants)
+        namespace.update(
+            STATE=self.program.state,
+            VERDICT=partial(tuple.__new__, Verdict),
+            NAMES=self.names,
+            STARTS=self.starts,
+            VALUES=self._values,
+            REJECT_STEP=self._reject_step,
+            REJECT_RUN=self._reject_run,
+            NUMERIC=NUMERIC,
+            SCALAR=SCALAR,
+            UNSET=UNSET,
+        )
+        code = compile_source(self.program.source, spec.source)
+        exec(code, namespace)
+        self._step, self._run = namespace["factory"]()
+        self.records = 0
+
+    # ----------------------------------------------------------------- online
+    @property
+    def properties(self) -> list[str]:
+        """The property names, in file order."""
+        return list(self.names)
+
+    def step(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
+        """Feed one record; return the verdicts it decided."""
+        if self._finished:
+            raise SpecError("this monitor has finished; compile a new one for a new trace")
+        return self._step(time, values)
+
+    def _reject_step(self, index, time, record, signal, kind) -> list:
+        self.rejected.append(Rejection(index, time, describe_rejection(time, record, signal, kind)))
+        return []
+
+    def _reject_run(self, index, time, record, signal, kind):
+        raise SpecError(f"record {index}: {describe_rejection(time, record, signal, kind)}")
+
+    def finish(self) -> list[Verdict]:
+        """End of the trace: settle what is still open (``None``: inconclusive)."""
+        if self._finished:
+            return []
+        self._finished = True
+        verdicts: list[Verdict] = []
+        for number, name in enumerate(self.names):
+            root = self.program.roots[number]
+            if root is None:
+                continue
+            for stream in self.program.streams[number]:
+                stream.finish()
+            out = root.out
+            while out:
+                i, t, v = out.popleft()
+                verdicts.append(Verdict(name, i, t, v))
+        return verdicts
+
+    # ----------------------------------------------------------------- offline
+    def run(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> list[PropertyRun]:
+        """Check a whole trace of ``(time, values)`` pairs; faster than ``step`` per record.
+
+        A bad record raises :class:`SpecError` (read traces with :mod:`rasm.spec.trace` to get
+        line numbers). Returns each property's verdicts, in record order.
+        """
+        if self._finished:
+            raise SpecError("this monitor has finished; compile a new one for a new trace")
+        self._run(records)
+        for verdict in self.finish():
+            self._values[self.names.index(verdict.property)].append(verdict.value)
+        return [
+            PropertyRun(name, self.starts[k], self._values[k]) for k, name in enumerate(self.names)
+        ]
+
+
+def compile_source(source: str, origin: str):
+    import builtins
+
+    return builtins.compile(source, f"<rasm monitor for {origin}>", "exec")
+
+
+def compile(text: str, *, source: str = "<text>") -> Monitor:  # noqa: A001 - SPEC §6 name
+    """Parse, check and compile a property file into a fresh :class:`Monitor`."""
+    return Monitor(load_specification(text, source=source))
+
+
+INF = math.inf

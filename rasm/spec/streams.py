@@ -1,0 +1,166 @@
+"""Sub-formulas whose values arrive late: anything above a future operator.
+
+A stream node's values are ``(index, time, value)`` triples appended to ``out`` in index order,
+as soon as they are decided. Its inputs are other streams (read from their ``out``) or
+*immediate* values, which the generated code passes to :meth:`Stream.step` at each record.
+Values are three-valued (``None``: inconclusive) because streams are where inconclusive values
+appear when an offline trace ends.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from rasm.spec.operators import Kleene, WindowCore
+
+__all__ = [
+    "AggregateStream",
+    "PointwiseStream",
+    "PrevStream",
+    "Stream",
+    "TemporalStream",
+    "kleene_function",
+]
+
+
+class Stream:
+    """Aligns its inputs by record and hands each complete record to :meth:`consume`."""
+
+    __slots__ = ("out", "buffers", "immediate")
+
+    def __init__(self, inputs: list[Stream | None]) -> None:
+        self.out: deque = deque()
+        self.buffers = [s.out if s is not None else deque() for s in inputs]
+        self.immediate = [self.buffers[k] for k, s in enumerate(inputs) if s is None]
+
+    def step(self, i: int, t: float, *values) -> None:
+        for buffer, value in zip(self.immediate, values, strict=True):
+            buffer.append((i, t, value))
+        self.drain()
+
+    def drain(self) -> None:
+        buffers = self.buffers
+        if len(buffers) == 1:
+            only = buffers[0]
+            while only:
+                i, t, v = only.popleft()
+                self.consume(i, t, (v,))
+            return
+        while all(buffers):
+            items = [b.popleft() for b in buffers]
+            self.consume(items[0][0], items[0][1], tuple(item[2] for item in items))
+
+    def consume(self, i: int, t: float, values: tuple) -> None:
+        raise NotImplementedError
+
+    def finish(self) -> None:
+        """Process what the inputs decided while finishing; settle open windows."""
+        self.drain()
+
+
+class PointwiseStream(Stream):
+    """A non-temporal operator applied record by record (three-valued)."""
+
+    __slots__ = ("function",)
+
+    def __init__(self, inputs, function) -> None:
+        super().__init__(inputs)
+        self.function = function
+
+    def consume(self, i, t, values) -> None:
+        self.out.append((i, t, self.function(*values)))
+
+
+class PrevStream(Stream):
+    """``prev(e)`` over a stream: the previous record's value (``undefined`` at the first)."""
+
+    __slots__ = ("previous",)
+
+    def __init__(self, inputs, undefined) -> None:
+        super().__init__(inputs)
+        self.previous = undefined
+
+    def consume(self, i, t, values) -> None:
+        self.out.append((i, t, self.previous))
+        self.previous = values[0]
+
+
+class TemporalStream(Stream):
+    """A boolean temporal operator (past or future) through :class:`Kleene`."""
+
+    __slots__ = ("kleene",)
+
+    def __init__(self, inputs, core) -> None:
+        super().__init__(inputs)
+        self.kleene = Kleene(core)
+        self.out = self.kleene.out
+
+    def consume(self, i, t, values) -> None:
+        self.kleene.push(i, t, *values)
+
+    def finish(self) -> None:
+        self.drain()
+        self.kleene.flush()
+
+
+class AggregateStream(Stream):
+    """An aggregate over a stream (inconclusive while an inconclusive value is in its window)."""
+
+    __slots__ = ("core",)
+
+    def __init__(self, inputs, op: str, a: float, b: float) -> None:
+        super().__init__(inputs)
+        self.core = WindowCore(op, a, b)
+
+    def consume(self, i, t, values) -> None:
+        self.out.append((i, t, self.core.push(t, values[0])))
+
+
+# --------------------------------------------------------------------------- Kleene logic
+
+
+def _and(a, b):
+    if a is False or b is False:
+        return False
+    if a is None or b is None:
+        return None
+    return bool(a and b)
+
+
+def _or(a, b):
+    if a is True or b is True:
+        return True
+    if a is None or b is None:
+        return None
+    return bool(a or b)
+
+
+def _implies(a, b):
+    return _or(_not(a), b)
+
+
+def _not(a):
+    return None if a is None else not a
+
+
+def kleene_function(op: str, plain):
+    """The three-valued version of operator ``op`` whose two-valued version is ``plain``."""
+    if op == "and":
+        return _and
+    if op == "or":
+        return _or
+    if op == "->":
+        return _implies
+    if op == "not":
+        return _not
+
+    def lifted(*values):
+        if None in values:
+            return None
+        return plain(*values)
+
+    return lifted
+
+
+UNDEFINED = math.nan

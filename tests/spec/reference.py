@@ -1,0 +1,212 @@
+"""A reference evaluator written straight from SPEC §5: slow, quadratic, obviously correct.
+
+Values are three-valued: True, False, None (inconclusive: depends on records after the end).
+Numbers may be ``nan`` (undefined: prev at the first record, an empty window, x / 0).
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+from rasm.spec.ast import (
+    Aggregate,
+    Binary,
+    Call,
+    Future,
+    Literal,
+    Name,
+    Not,
+    Past,
+    Prev,
+    Since,
+    Specification,
+    Time,
+    Unary,
+    Until,
+)
+from rasm.spec.loader import signals_of
+from rasm.spec.types import TypeScope
+
+NAN = math.nan
+
+
+def held_values(spec: Specification, records):
+    """The value of every signal at every record (sample-and-hold; events only where set)."""
+    events = {e.name for e in spec.events}
+    current = {i.name: i.default for i in spec.inputs if i.default is not None}
+    held = []
+    for _, rec in records:
+        for name in events:
+            current[name] = False
+        for key, value in rec.items():
+            current[key] = value
+        held.append(dict(current))
+    return held
+
+
+def k_and(a, b):
+    if a is False or b is False:
+        return False
+    if a is None or b is None:
+        return None
+    return True
+
+
+def k_or(a, b):
+    if a is True or b is True:
+        return True
+    if a is None or b is None:
+        return None
+    return False
+
+
+def k_not(a):
+    return None if a is None else (not a)
+
+
+def k_any(values):
+    result = False
+    for v in values:
+        result = k_or(result, v)
+    return result
+
+
+def k_all(values):
+    result = True
+    for v in values:
+        result = k_and(result, v)
+    return result
+
+
+class Reference:
+    def __init__(self, spec: Specification, records) -> None:
+        self.spec = spec
+        self.times = [t for t, _ in records]
+        self.env = held_values(spec, records)
+        self.n = len(records)
+        self.types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
+        self.memo: dict = {}
+        self.start = 0
+
+    def verdicts(self, prop):
+        """{index: value} for every judged record of ``prop``."""
+        reads = [s for s in signals_of(prop.formula)]
+        start = None
+        for i in range(self.n):
+            if all(s in self.env[i] for s in reads):
+                start = i
+                break
+        if start is None:
+            return {}
+        self.start = start
+        self.memo = {}
+        return {i: self.value(prop.formula, i) for i in range(start, self.n)}
+
+    def value(self, node, i):
+        key = (id(node), i)
+        if key not in self.memo:
+            self.memo[key] = self._value(node, i)
+        return self.memo[key]
+
+    def _value(self, node, i):  # noqa: C901
+        t = self.times
+        if isinstance(node, Literal):
+            return node.value
+        if isinstance(node, Name):
+            return self.env[i][node.name]
+        if isinstance(node, Time):
+            return t[i]
+        if isinstance(node, Not):
+            return k_not(self.value(node.operand, i))
+        if isinstance(node, Unary):
+            v = self.value(node.operand, i)
+            return None if v is None else -v
+        if isinstance(node, Binary):
+            a, b = self.value(node.left, i), self.value(node.right, i)
+            if node.op == "and":
+                return k_and(a, b)
+            if node.op == "or":
+                return k_or(a, b)
+            if node.op == "->":
+                return k_or(k_not(a), b)
+            if a is None or b is None:
+                return None
+            if node.op in ("+", "-", "*", "/"):
+                if node.op == "/":
+                    return NAN if b == 0 else a / b
+                return {"+": a + b, "-": a - b, "*": a * b}[node.op]
+            if a != a or b != b:  # undefined: every comparison is false
+                return False
+            return {
+                "==": a == b, "!=": a != b, "<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b,
+            }[node.op]
+        if isinstance(node, Call):
+            args = [self.value(x, i) for x in node.args]
+            if None in args:
+                return None
+            if any(x != x for x in args):
+                return NAN
+            return {"abs": lambda: abs(args[0]), "min": lambda: min(args),
+                    "max": lambda: max(args)}[node.func]()
+        if isinstance(node, Prev):
+            if i == self.start:
+                return False if self.types.check(node.operand) == "bool" else NAN
+            return self.value(node.operand, i - 1)
+        a, b = (node.bound.low, node.bound.high) if hasattr(node, "bound") else (0, 0)
+        past = range(self.start, i + 1)
+        future = range(i, self.n)
+        if isinstance(node, Past):
+            window = [self.value(node.operand, j) for j in past if a <= t[i] - t[j] <= b]
+            if node.op == "once":
+                return k_any(window)
+            return k_all(window)
+        if isinstance(node, Since):
+            terms = []
+            for j in past:
+                if a <= t[i] - t[j] <= b:
+                    term = self.value(node.right, j)
+                    for k in range(j + 1, i + 1):
+                        term = k_and(term, self.value(node.left, k))
+                    terms.append(term)
+            return k_any(terms)
+        if isinstance(node, Future):
+            window = [self.value(node.operand, j) for j in future if a <= t[j] - t[i] <= b]
+            open_ = t[-1] - t[i] <= b  # a later record could still fall in the window
+            if node.op == "eventually":
+                return k_or(k_any(window), None if open_ else False)
+            return k_and(k_all(window), None if open_ else True)
+        if isinstance(node, Until):
+            terms = []
+            for j in future:
+                if a <= t[j] - t[i] <= b:
+                    term = self.value(node.right, j)
+                    for k in range(i, j):
+                        term = k_and(term, self.value(node.left, k))
+                    terms.append(term)
+            if t[-1] - t[i] <= b:
+                # a later record could be the witness, if left holds on all records from i on
+                lefts = k_all(self.value(node.left, k) for k in range(i, self.n))
+                terms.append(k_and(None, lefts))
+            return k_any(terms)
+        if isinstance(node, Aggregate):
+            window = [self.value(node.operand, j) for j in past if a <= t[i] - t[j] <= b]
+            if None in window:
+                return None
+            if node.op == "count":
+                return sum(1 for v in window if v)
+            if any(v != v for v in window):
+                return NAN
+            if node.op == "sum":
+                return float(sum(Fraction(v) for v in window)) if window else 0
+            if not window:
+                return NAN
+            if node.op == "avg":
+                return float(sum(Fraction(v) for v in window) / len(window))
+            return min(window) if node.op == "min" else max(window)
+        raise TypeError(node)
+
+
+def reference_verdicts(spec: Specification, records) -> dict[str, dict[int, object]]:
+    ref = Reference(spec, records)
+    return {prop.name: ref.verdicts(prop) for prop in spec.properties}

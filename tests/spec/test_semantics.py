@@ -1,0 +1,68 @@
+"""The compiled monitors against the reference evaluator, on random formulas and traces."""
+
+from __future__ import annotations
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rasm.spec import compile
+from rasm.spec.loader import load_specification
+
+from .reference import reference_verdicts
+from .strategies import HEADER, formulas, traces
+
+
+def online(text: str, records):
+    monitor = compile(text)
+    got: dict[str, dict[int, object]] = {name: {} for name in monitor.properties}
+    emitted_at: dict[tuple[str, int], int] = {}
+    for k, (t, rec) in enumerate(records):
+        for v in monitor.step(t, rec):
+            assert v.index not in got[v.property], "a verdict was given twice"
+            got[v.property][v.index] = v.value
+            emitted_at[(v.property, v.index)] = k
+            assert v.time == records[v.index][0]
+            assert v.value in (True, False)
+    for v in monitor.finish():
+        assert v.index not in got[v.property]
+        got[v.property][v.index] = v.value
+    return got, emitted_at
+
+
+def offline(text: str, records):
+    monitor = compile(text)
+    runs = monitor.run(records)
+    return {
+        run.name: {run.start + k: v for k, v in enumerate(run.values)} if run.values else {}
+        for run in runs
+    }
+
+
+@settings(max_examples=300, deadline=None)
+@given(formulas(3), traces())
+def test_monitor_agrees_with_reference(formula, records):
+    text = HEADER + f"property p0: {formula}\n"
+    spec = load_specification(text)
+    expected = reference_verdicts(spec, records)
+    got, _ = online(text, records)
+    assert got == expected, formula
+    assert offline(text, records) == expected
+
+
+@settings(max_examples=150, deadline=None)
+@given(formulas(3, future=False), traces())
+def test_past_only_verdicts_come_at_once(formula, records):
+    text = HEADER + f"property p0: {formula}\n"
+    got, emitted_at = online(text, records)
+    for (_, index), at in emitted_at.items():
+        assert at == index
+    assert len(emitted_at) == len(got["p0"])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(formulas(2), min_size=2, max_size=4), traces())
+def test_several_properties_in_one_file(formulas_, records):
+    text = HEADER + "".join(f"property p{k}: {f}\n" for k, f in enumerate(formulas_))
+    spec = load_specification(text)
+    got, _ = online(text, records)
+    assert got == reference_verdicts(spec, records)
