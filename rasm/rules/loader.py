@@ -26,6 +26,7 @@ from ruamel.yaml.scalarstring import (
 from rasm.errors import Location, SourceError, SourceErrors, mark
 from rasm.rules.model import TYPES, Rule, Rules, Variable
 from rasm.rules.typing import check_rule_expression
+from rasm.spec import parse_expression
 
 _TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}
 _VARIABLE_KEYS = {"type", "min", "max", "values", "description"}
@@ -362,8 +363,6 @@ class _Loader:
     def expression(
         self, label: str, key: str, item: CommentedMap, variables: dict[str, Variable]
     ) -> tuple[Any, str, set[str]] | None:
-        from rasm.spec import parse_expression
-
         value = item[key]
         line0, col0 = self.where(item, key)
         if isinstance(value, bool):
@@ -374,13 +373,13 @@ class _Loader:
                 line0, col0, len(str(value)),
             )
             return None
-        line, col = self.expression_start(value, line0, col0)
         text = str(value).strip()
         if not text:
             self.error(f"{label}: '{key}' is empty", line0, col0)
             return None
+        source_text, line, col = self.expression_source(value, line0, col0)
         try:
-            expr = parse_expression(str(value), source=self.source, line=line, col=col)
+            expr = parse_expression(source_text, source=self.source, line=line, col=col)
         except SourceErrors as exc:
             self.errors.extend(exc.errors)
             return None
@@ -394,17 +393,27 @@ class _Loader:
             return None
         return expr, " ".join(text.split()), reads
 
-    def expression_start(self, value: Any, line0: int, col0: int) -> tuple[int, int]:
-        """1-based line and column of the expression's first character inside the scalar."""
+    def expression_source(self, value: Any, line0: int, col0: int) -> tuple[str, int, int]:
+        """The text to parse and the 1-based line and column where it starts in the file.
+
+        A block scalar (``|`` or ``>``) is parsed from the file's own lines, indentation and
+        all, so that positions on its second and later lines are right too.
+        """
         if isinstance(value, DoubleQuotedScalarString | SingleQuotedScalarString):
-            return line0 + 1, col0 + 2  # skip the opening quote
+            return str(value), line0 + 1, col0 + 2  # skip the opening quote
         if isinstance(value, LiteralScalarString | FoldedScalarString):
-            # A block scalar's content starts on the next non-blank line, after its indentation.
-            for number in range(line0 + 1, len(self.lines)):
-                content = self.lines[number]
-                if content.strip():
-                    return number + 1, len(content) - len(content.lstrip()) + 1
-        return line0 + 1, col0 + 1
+            first = next((n for n in range(line0 + 1, len(self.lines)) if self.lines[n].strip()),
+                         None)
+            if first is not None:
+                indent = len(self.lines[first]) - len(self.lines[first].lstrip())
+                last = first
+                for number in range(first + 1, len(self.lines)):
+                    content = self.lines[number]
+                    if content.strip() and len(content) - len(content.lstrip()) < indent:
+                        break
+                    last = number
+                return "\n".join(self.lines[first : last + 1]), first + 1, 1
+        return str(value), line0 + 1, col0 + 1
 
 
 def _kind(value: Any) -> str:

@@ -1,0 +1,61 @@
+"""Hypothesis strategies: rules files over small finite domains, as YAML text."""
+
+from __future__ import annotations
+
+import json
+
+from hypothesis import strategies as st
+
+VARIABLES = """variables:
+  x: {type: int, min: 0, max: 3}
+  y: {type: int, min: -2, max: 2}
+  m: {type: enum, values: [a, b, c]}
+  f: {type: bool}
+"""
+
+_OPS = st.sampled_from(["<", "<=", ">", ">=", "==", "!="])
+_K = st.integers(-2, 4)
+
+
+def _cmp(term: str):
+    return st.builds(lambda op, k: f"{term} {op} {k}", _OPS, _K)
+
+
+atoms = st.one_of(
+    _cmp("x"),
+    _cmp("y"),
+    _cmp("x + y"),
+    _cmp("y * 2 - x"),
+    _cmp("abs(y)"),
+    _cmp("min(x, y)"),
+    _cmp("max(x, y) / 2"),
+    _cmp("x / y"),  # y may be 0: undefined, so the comparison is false
+    st.builds(lambda op, v: f'm {op} "{v}"', st.sampled_from(["==", "!="]),
+              st.sampled_from("abc")),
+    st.sampled_from(["f", "not f", "f == (x > 1)", "true", "false"]),
+)
+
+
+def _combine(children):
+    return st.one_of(
+        st.builds(lambda a, b: f"({a}) and ({b})", children, children),
+        st.builds(lambda a, b: f"({a}) or ({b})", children, children),
+        st.builds(lambda a, b: f"({a}) -> ({b})", children, children),
+        st.builds(lambda a: f"not ({a})", children),
+    )
+
+
+conditions = st.recursive(atoms, _combine, max_leaves=3)
+
+
+@st.composite
+def rules_files(draw, min_rules: int = 1, max_rules: int = 6) -> str:
+    """The text of a rules file with 1..6 rules named r0, r1, ..."""
+    count = draw(st.integers(min_rules, max_rules))
+    lines = [VARIABLES, "rules:"]
+    for index in range(count):
+        lines.append(f"  - name: r{index}")
+        if draw(st.booleans()):
+            lines.append(f"    when: {json.dumps(draw(conditions))}")
+        lines.append(f"    require: {json.dumps(draw(conditions))}")
+    return "\n".join(lines) + "\n"
