@@ -41,7 +41,7 @@ from rasm.spec.streams import (
     AggregateStream,
     PointwiseStream,
     PrevStream,
-    Stream,
+    Source,
     TemporalStream,
     kleene_function,
 )
@@ -57,8 +57,7 @@ class Program:
     source: str
     constants: dict[str, object]
     state: dict[str, object]
-    streams: list[list[Stream]] = field(default_factory=list)  # per property, bottom-up
-    roots: list[Stream | None] = field(default_factory=list)  # per property, or None
+    roots: list[Source | None] = field(default_factory=list)  # per property, or None
     reads: list[tuple[str, ...]] = field(default_factory=list)  # warm-up signals per property
 
 
@@ -100,7 +99,7 @@ class _Generator:
         self.state: dict[str, object] = {}
         self.count = 0
         self.lines: list[str] = []
-        self.streams: list[Stream] = []
+        self.finish_lines: list[str] = []
 
     def fresh(self, prefix: str) -> str:
         self.count += 1
@@ -127,14 +126,21 @@ class _Generator:
             return "imm", "t"
         if isinstance(node, Future):  # only eventually, after normalise()
             (kind, value) = self.emit(node.operand)
+            if kind == "imm":
+                return self.inline_future(node.bound.low, node.bound.high, None, value)
             core = EventuallyCore(node.bound.low, node.bound.high)
             return self.stream(TemporalStream, [(kind, value)], core)
         if isinstance(node, Until):
             left, right = self.emit(node.left), self.emit(node.right)
+            if left[0] == right[0] == "imm":
+                return self.inline_future(node.bound.low, node.bound.high, left[1], right[1])
             core = UntilCore(node.bound.low, node.bound.high)
             return self.stream(TemporalStream, [left, right], core)
         parts = [self.emit(c) for c in _operands(node)]
-        if any(kind == "stream" for kind, _ in parts):
+        streams = [k for k, (kind, _) in enumerate(parts) if kind == "stream"]
+        if len(streams) == 1 and isinstance(node, (Not, Unary, Binary, Call)):
+            return self.inline_pointwise(node, parts, streams[0])
+        if streams:
             return self.stream_of(node, parts)
         values = [value for _, value in parts]
         if isinstance(node, Not):
@@ -234,11 +240,105 @@ class _Generator:
     def stream(self, cls, parts, *args):
         inputs = [value if kind == "stream" else None for kind, value in parts]
         stream = cls(inputs, *args)
-        self.streams.append(stream)
         name = self.constant("s", stream)
         immediate = [value for kind, value in parts if kind == "imm"]
         self.lines.append(f"{name}.step(i, t{''.join(', ' + v for v in immediate)})")
+        self.finish_lines.append(f"{name}.finish()")
         return "stream", stream
+
+    # ----------------------------------------------------------------- inline streams
+    def inline_future(self, a: float, b: float, left: str | None, right: str):
+        """``eventually[a,b] right`` (left None) or ``left until[a,b] right``, both immediate.
+
+        Same algorithm as :class:`EventuallyCore`/:class:`UntilCore`, written into the step
+        function: open records wait in ``pending``; decided ones go to the output queue.
+        """
+        source = Source()
+        out = self.constant("o", source.out)
+        pending = self.constant("w", deque())
+        lines = [
+            f"{pending}.append((i, t))",
+            f"while t - {pending}[0][1] > {_number(b)}:",
+            f"    _j, _tj = {pending}.popleft()",
+            f"    {out}.append((_j, _tj, False))",
+            f"if {right}:",
+        ]
+        if a == 0:
+            lines += [f"    while {pending}:"]
+        else:
+            lines += [f"    while {pending} and t - {pending}[0][1] >= {_number(a)}:"]
+        lines += [f"        _j, _tj = {pending}.popleft()", f"        {out}.append((_j, _tj, True))"]
+        if left is not None:
+            lines += [
+                f"if not {left}:",
+                f"    while {pending}:",
+                f"        _j, _tj = {pending}.popleft()",
+                f"        {out}.append((_j, _tj, False))",
+            ]
+        self.lines += lines
+        # at the end of the trace the still-open windows are inconclusive
+        self.finish_lines += [
+            f"while {pending}:",
+            f"    _j, _tj = {pending}.popleft()",
+            f"    {out}.append((_j, _tj, None))",
+        ]
+        return "stream", source
+
+    def inline_pointwise(self, node: Expr, parts, position: int):
+        """A non-temporal operator over one stream and immediate values, in Kleene logic."""
+        source = Source()
+        out = self.constant("o", source.out)
+        child = self.constant("c", parts[position][1].out)
+        names = []
+        held = None
+        immediate = [value for kind, value in parts if kind == "imm"]
+        if immediate:
+            held = self.constant("b", deque())
+            if len(immediate) == 1:
+                self.lines.append(f"{held}.append({immediate[0]})")
+            else:
+                self.lines.append(f"{held}.append(({', '.join(immediate)},))")
+        k = 0
+        for kind, _ in parts:
+            if kind == "stream":
+                names.append("_v")
+            elif len(immediate) == 1:
+                names.append("_w")
+            else:
+                names.append(f"_w[{k}]")
+                k += 1
+        drain = [f"while {child}:", f"    _j, _tj, _v = {child}.popleft()"]
+        if held is not None:
+            drain.append(f"    _w = {held}.popleft()")
+        drain.append(f"    {out}.append((_j, _tj, {_kleene(node, names, position)}))")
+        self.lines += drain
+        self.finish_lines += drain
+        return "stream", source
+
+
+def _kleene(node: Expr, names: list[str], position: int) -> str:
+    """Source of ``node`` over ``names`` where ``names[position]`` may be None (inconclusive).
+
+    Python's ``and``/``or`` are Kleene's when their left operand is two-valued, so the
+    immediate operand goes first.
+    """
+    v = names[position]
+    if isinstance(node, Not):
+        return f"(None if {v} is None else not {v})"
+    if isinstance(node, Binary) and node.op in ("and", "or"):
+        other = names[1 - position]
+        return f"({other} {node.op} {v})"
+    if isinstance(node, Binary) and node.op == "->":
+        if position == 1:
+            return f"((not {names[0]}) or {v})"
+        return f"({names[1]} or (None if {v} is None else not {v}))"
+    if isinstance(node, Unary):
+        plain = f"(-{v})"
+    elif isinstance(node, Binary):
+        plain = _binary(node.op, names[0], names[1])
+    else:
+        plain = f"{_call(node.func)}({', '.join(names)})"
+    return f"(None if {v} is None else {plain})"
 
 
 def _operands(node: Expr) -> list[Expr]:
@@ -290,23 +390,26 @@ def generate(spec: Specification) -> Program:
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     events = {item.name for item in spec.events}
     blocks: list[list] = []
+    finishes: list[list] = []
     program = Program("", gen.constants, gen.state)
     for number, prop in enumerate(spec.properties):
-        gen.lines, gen.streams = [], []
+        gen.lines, gen.finish_lines = [], []
         kind, value = gen.emit(normalise(prop.formula))
         reads = tuple(
             name for name in signals_of(prop.formula) if name not in events and name not in defaults
         )
         program.reads.append(reads)
-        program.streams.append(gen.streams)
         program.roots.append(value if kind == "stream" else None)
         body: list = list(gen.lines)
+        finish: list = list(gen.finish_lines)
         if kind == "imm":
             body.append(("EMIT", number, "i", "t", value))
         else:
             root = gen.constant("r", value.out)
-            body += [f"while {root}:", f"    _j, _tj, _v = {root}.popleft()"]
-            body.append(("EMIT", number, "_j", "_tj", "_v", "    "))
+            drain = [f"while {root}:", f"    _j, _tj, _v = {root}.popleft()"]
+            drain.append(("EMIT", number, "_j", "_tj", "_v", "    "))
+            body += drain
+            finish += drain
         if reads:
             started = gen.variable("started", False)
             ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in reads)
@@ -315,9 +418,12 @@ def generate(spec: Specification) -> Program:
             block.append(f"if {started}:")
             block += [_indent(line) for line in body]
         else:
+            started = "i >= 0"
             block = [f"if i == 0: STARTS[{number}] = 0", *body]
         blocks.append(block)
-    program.source = _assemble(spec, gen, blocks, defaults, events)
+        if kind == "stream":
+            finishes.append([f"if {started}:", *(_indent(line) for line in finish)])
+    program.source = _assemble(spec, gen, blocks, finishes, defaults, events)
     return program
 
 
@@ -337,7 +443,7 @@ def _render(line, mode: str) -> str:
     return f"{pad}values_{number}({value})"
 
 
-def _assemble(spec, gen: _Generator, blocks, defaults, events) -> str:
+def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
     for name in spec.signals:
         if name in events:
             gen.state[signal_variable(name)] = False
@@ -371,7 +477,10 @@ def _assemble(spec, gen: _Generator, blocks, defaults, events) -> str:
         factory.append(f"    values_{number} = VALUES[{number}].append")
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
     factory += ["    " + line for line in function("def run(records):", "run")]
-    factory.append("    return step, run")
+    factory += ["    def finish():", "        nonlocal " + ", ".join(cells), "        out = []"]
+    for block in finishes:
+        factory += ["        " + _render(line, "step") for line in block]
+    factory += ["        return out", "    return step, run, finish"]
     return "\n".join(factory) + "\n"
 
 

@@ -106,7 +106,7 @@ class Monitor:
         )
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
-        self._step, self._run = namespace["factory"]()
+        self._step, self._run, self._finish = namespace["factory"]()
         self.records = 0
 
     # ----------------------------------------------------------------- online
@@ -133,18 +133,7 @@ class Monitor:
         if self._finished:
             return []
         self._finished = True
-        verdicts: list[Verdict] = []
-        for number, name in enumerate(self.names):
-            root = self.program.roots[number]
-            if root is None:
-                continue
-            for stream in self.program.streams[number]:
-                stream.finish()
-            out = root.out
-            while out:
-                i, t, v = out.popleft()
-                verdicts.append(Verdict(name, i, t, v))
-        return verdicts
+        return self._finish()
 
     # ----------------------------------------------------------------- offline
     def run(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> list[PropertyRun]:

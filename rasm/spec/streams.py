@@ -18,10 +18,20 @@ __all__ = [
     "AggregateStream",
     "PointwiseStream",
     "PrevStream",
+    "Source",
     "Stream",
     "TemporalStream",
     "kleene_function",
 ]
+
+
+class Source:
+    """Anything with an ``out`` deque of decided ``(index, time, value)`` triples."""
+
+    __slots__ = ("out",)
+
+    def __init__(self) -> None:
+        self.out: deque = deque()
 
 
 class Stream:
@@ -29,7 +39,7 @@ class Stream:
 
     __slots__ = ("out", "buffers", "immediate")
 
-    def __init__(self, inputs: list[Stream | None]) -> None:
+    def __init__(self, inputs: list[Source | Stream | None]) -> None:
         self.out: deque = deque()
         self.buffers = [s.out if s is not None else deque() for s in inputs]
         self.immediate = [self.buffers[k] for k, s in enumerate(inputs) if s is None]
