@@ -267,7 +267,10 @@ class _Generator:
             lines += [f"    while {pending}:"]
         else:
             lines += [f"    while {pending} and t - {pending}[0][1] >= {_number(a)}:"]
-        lines += [f"        _j, _tj = {pending}.popleft()", f"        {out}.append((_j, _tj, True))"]
+        lines += [
+            f"        _j, _tj = {pending}.popleft()",
+            f"        {out}.append((_j, _tj, True))",
+        ]
         if left is not None:
             lines += [
                 f"if not {left}:",
