@@ -382,8 +382,11 @@ def signal_variable(name: str) -> str:
 UNSET = type("Unset", (), {"__repr__": lambda self: "<unset>"})()
 
 
-def generate(spec: Specification) -> Program:
+def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) -> Program:
     """Generate the step and run functions' source for every property of ``spec``.
+
+    ``reads`` overrides, per property, the signals whose first values end its warm-up (by
+    default: those it reads); explanations use it to evaluate sub-formulas in context.
 
     The source defines ``factory()`` returning ``(step, run)``; it reads the names in
     ``Program.constants`` plus ``STATE`` (initial values), ``VERDICT``, ``NAMES``, ``STARTS``,
@@ -398,10 +401,12 @@ def generate(spec: Specification) -> Program:
     for number, prop in enumerate(spec.properties):
         gen.lines, gen.finish_lines = [], []
         kind, value = gen.emit(normalise(prop.formula))
-        reads = tuple(
-            name for name in signals_of(prop.formula) if name not in events and name not in defaults
-        )
-        program.reads.append(reads)
+        if reads is None:
+            needed = signals_of(prop.formula)
+        else:
+            needed = reads[number]
+        warm = tuple(name for name in needed if name not in events and name not in defaults)
+        program.reads.append(warm)
         program.roots.append(value if kind == "stream" else None)
         body: list = list(gen.lines)
         finish: list = list(gen.finish_lines)
@@ -413,9 +418,9 @@ def generate(spec: Specification) -> Program:
             drain.append(("EMIT", number, "_j", "_tj", "_v", "    "))
             body += drain
             finish += drain
-        if reads:
+        if warm:
             started = gen.variable("started", False)
-            ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in reads)
+            ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in warm)
             block: list = [f"if not {started} and {ready}:", f"    {started} = True"]
             block.append(f"    STARTS[{number}] = i")
             block.append(f"if {started}:")

@@ -83,10 +83,10 @@ class Monitor:
     returns no verdicts.
     """
 
-    def __init__(self, spec: Specification) -> None:
+    def __init__(self, spec: Specification, *, reads: list[tuple[str, ...]] | None = None) -> None:
         self.spec = spec
         self.names = [p.name for p in spec.properties]
-        self.program = generate(spec)
+        self.program = generate(spec, reads)
         self.starts: list[int | None] = [None] * len(self.names)
         self.rejected: list[Rejection] = []
         self._values: list[list] = [[] for _ in self.names]
@@ -107,7 +107,6 @@ class Monitor:
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
         self._step, self._run, self._finish = namespace["factory"]()
-        self.records = 0
 
     # ----------------------------------------------------------------- online
     @property

@@ -1,0 +1,119 @@
+"""Reading traces (SPEC §4): JSONL, one record a line, ``time`` plus the signals it updates.
+
+Every malformed record is reported with its line (and the column of the offending key): not a
+JSON object, no numeric ``time``, a time going back, a value of the wrong type for a signal
+the properties read. Blank lines are skipped; the others are records 0, 1, 2, …
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from rasm.errors import Location, SourceError, SourceErrors
+
+__all__ = ["read_trace", "parse_trace", "MAX_REPORTED"]
+
+MAX_REPORTED = 50  # a broken file is reported by its first problems, not a million lines
+_WANT = {
+    "float": "a number",
+    "int": "an integer",
+    "bool": "true or false",
+    "str": "a string",
+    "any": "a number, string or boolean",
+}
+
+
+def _accepts(kind: str, value: object) -> bool:
+    cls = value.__class__
+    if kind == "float":
+        return cls is int or cls is float
+    if kind == "int":
+        return cls is int
+    if kind == "bool":
+        return cls is bool
+    if kind == "str":
+        return cls is str
+    return cls in (int, float, str, bool)
+
+
+def _column(line: str, key: str) -> int:
+    position = line.find(json.dumps(key))
+    return position + 1 if position >= 0 else 1
+
+
+def parse_trace(
+    lines: Iterable[str],
+    signals: Mapping[str, str] | None = None,
+    *,
+    source: str = "<trace>",
+) -> list[tuple[float, dict]]:
+    """Parse trace lines into ``(time, values)`` records, checking them against ``signals``.
+
+    ``signals`` maps signal names to float | int | bool | str | any (a monitor's
+    ``spec.signals``); other keys are kept unchecked. Raises :class:`SourceErrors` listing every
+    malformed record (at most :data:`MAX_REPORTED`).
+    """
+    signals = signals or {}
+    records: list[tuple[float, dict]] = []
+    errors: list[SourceError] = []
+    last_time = -math.inf
+
+    def fail(message: str, number: int, col: int = 1) -> None:
+        if len(errors) < MAX_REPORTED:
+            errors.append(SourceError(message, Location(source, number, col)))
+
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError as exc:
+            fail(f"not valid JSON: {exc.msg}", number, exc.colno)
+            continue
+        if not isinstance(record, dict):
+            fail(f"a record must be a JSON object, not {type(record).__name__}", number)
+            continue
+        time = record.pop("time", None)
+        if time is None:
+            fail("record without 'time' (seconds, a number)", number)
+            continue
+        if time.__class__ not in (int, float) or time != time:
+            fail(f"'time' must be a number, not {json.dumps(time)}", number, _column(line, "time"))
+            continue
+        if time < last_time:
+            fail(
+                f"time {time} goes back in time (the previous record has {last_time})",
+                number,
+                _column(line, "time"),
+            )
+            continue
+        bad = False
+        for key, value in record.items():
+            kind = signals.get(key)
+            if kind is not None and not _accepts(kind, value):
+                fail(
+                    f"{key!r} must be {_WANT[kind]}, not {json.dumps(value)}",
+                    number,
+                    _column(line, key),
+                )
+                bad = True
+        if bad:
+            continue
+        last_time = time
+        records.append((time, record))
+    if errors:
+        raise SourceErrors(errors)
+    return records
+
+
+def read_trace(path: str | Path, signals: Mapping[str, str] | None = None) -> list:
+    """Read a JSONL trace file; see :func:`parse_trace`."""
+    path = Path(path)
+    try:
+        with path.open(encoding="utf-8") as handle:
+            return parse_trace(handle, signals, source=str(path))
+    except UnicodeDecodeError as exc:
+        raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(str(path))) from None
