@@ -68,7 +68,28 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    raise UsageError("rasm check is not implemented yet")
+    # exit 1 iff some property is violated; inconclusive alone is not a failure (SPEC §6)
+    from rasm.errors import Location
+    from rasm.spec.check import check_records, format_json, format_text, format_verdicts
+    from rasm.spec.loader import load_specification
+    from rasm.spec.trace import read_trace
+
+    try:
+        with open(args.props, encoding="utf-8") as handle:
+            text = handle.read()
+    except UnicodeDecodeError as exc:
+        raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(args.props)) from None
+    spec = load_specification(text, source=args.props)
+    records = read_trace(args.trace, spec.signals)
+    explain = args.format == "text" and not args.verdicts
+    report = check_records(spec, records, trace=args.trace, explain_violations=explain)
+    if args.verdicts:
+        sys.stdout.write(format_verdicts(report))
+    elif args.format == "json":
+        sys.stdout.write(format_json(report))
+    else:
+        sys.stdout.write(format_text(report))
+    return EXIT_FAILED if report.violated else EXIT_OK
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
