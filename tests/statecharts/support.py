@@ -1,8 +1,9 @@
-"""Shared helpers for the platform statechart tests: where the charts are, how to load and drive them.
+"""Shared helpers for the platform statechart tests: where the charts are, how to drive them.
 
-The charts are loaded exactly as the platform loads them, so these tests check the shipped files,
-not copies. Driving a chart always goes through a simulated clock: time advances only when a test
-says so, which is what makes the `after(...)` budgets testable without sleeping.
+The charts are loaded and run exactly as the platform loads and runs them (``rasm.statechart``:
+validated loading, the atomic interpreter), so these tests check the shipped files, not copies.
+Driving a chart always goes through a simulated clock: time advances only when a test says so,
+which is what makes the `after(...)` budgets testable without sleeping.
 """
 
 from __future__ import annotations
@@ -12,18 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sismic.clock import SimulatedClock
 from sismic.model import Statechart
 
-try:  # the platform's loader and atomic interpreter, once rasm.statechart provides them
-    from rasm.statechart import Interpreter, load_statechart
-except ImportError:  # stock sismic until then (same API)
-    from sismic.interpreter import Interpreter
-    from sismic.io import import_from_yaml
-
-    def load_statechart(path: str | Path) -> Statechart:
-        return import_from_yaml(filepath=str(path))
-
+from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 
 REPO = Path(__file__).resolve().parents[2]
 CHART_DIR = REPO / "statecharts"
@@ -116,6 +108,13 @@ class Run:
     def advance(self, seconds: float) -> list:
         """Let simulated time pass, then take the steps that became due (timeouts)."""
         self.clock.time += seconds
+        taken = self.interpreter.execute()
+        self.steps.extend(taken)
+        return taken
+
+    def advance_to(self, time: float) -> list:
+        """Set simulated time to exactly ``time`` (no rounding from sums), then step."""
+        self.clock.time = time
         taken = self.interpreter.execute()
         self.steps.extend(taken)
         return taken

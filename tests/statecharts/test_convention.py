@@ -5,22 +5,50 @@ from __future__ import annotations
 import pytest
 from sismic.model import CompoundState, FinalState
 
+from rasm.lint import lint_file
+
 from .support import (
     BLOCKS,
     BRING_UP,
     CHART_DIR,
     LIFECYCLE,
     MODES,
+    MONITOR_DIR,
+    MONITORS,
     TIMED_FAULTS,
     chart_path,
     entered,
     load,
+    monitor_path,
     start,
 )
 
 
 def test_there_is_one_chart_per_building_block_and_nothing_else():
     assert sorted(p.stem for p in CHART_DIR.glob("*.yaml")) == sorted(BLOCKS)
+
+
+def test_there_is_one_file_per_monitor():
+    assert sorted(p.stem for p in MONITOR_DIR.glob("*.yaml")) == sorted(MONITORS)
+
+
+@pytest.mark.parametrize(
+    "path",
+    [chart_path(n) for n in BLOCKS] + [monitor_path(n) for n in MONITORS],
+    ids=lambda p: f"{p.parent.name}/{p.name}",
+)
+def test_rasm_lint_finds_no_problem(path):
+    # Not even a warning: the shipped charts are the examples users copy.
+    assert lint_file(path) == []
+
+
+@pytest.mark.parametrize("name", MONITORS)
+def test_monitor_is_named_after_its_file_and_fails_only_by_its_final_state(name):
+    monitor = load(monitor_path(name))
+    assert monitor.name == name and monitor.description
+    finals = [s for s in monitor.states if isinstance(monitor.state_for(s), FinalState)]
+    assert finals == ["violation"]
+    assert monitor.parent_for("violation") == monitor.root
 
 
 @pytest.mark.parametrize("name", BLOCKS)

@@ -1,0 +1,292 @@
+"""The property statecharts in monitors/ against the orchestrator chart.
+
+Two directions: for all event sequences the shipped orchestrator never makes a monitor fail (the
+chart is right), and hand-broken variants of the orchestrator are caught by exactly the monitors
+whose property they break (the monitors are not vacuous).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from sismic.exceptions import PropertyStatechartError
+
+from rasm.statechart import load_statechart
+
+from .support import (
+    BRING_UP,
+    LIFECYCLE_EVENTS,
+    LOOP_EVENTS,
+    MONITORS,
+    OUTCOMES,
+    chart_path,
+    entered,
+    load,
+    micro_steps,
+    monitor_path,
+    start,
+)
+
+CHART = chart_path("adaptation_orchestrator")
+
+
+def monitors(names=MONITORS):
+    return [load(monitor_path(name)) for name in names]
+
+
+def current(run) -> str:
+    """The orchestrator's innermost state, or its mode outside `initialized` ('' when final)."""
+    config = set(run.configuration)
+    inner = config - {"lifecycle", "initialized"}
+    return next(iter(inner), "")
+
+
+# ------------------------------------------------------------------------- the chart is right
+
+
+@functools.cache
+def next_step(state: str):
+    """Mostly an outcome of the current stage (so iterations get deep), sometimes any loop event,
+    `stage_failed`, a lifecycle event or an unknown one, after a random delay that may overrun
+    the stage budget."""
+    likely = OUTCOMES.get(state) or {
+        "instantiated": ("configure",),
+        "configuration": ("configuration_done",),
+        "initialization": ("initialization_done",),
+        "fault": ("reset",),
+    }.get(state, ("tick",))
+    # Hypothesis favours the first element of a sampled_from: offer the outcomes in both orders
+    # so that, say, `rejected` comes about as often as `accepted`.
+    event = st.one_of(
+        st.sampled_from(likely),
+        st.sampled_from(likely[::-1]),
+        st.sampled_from(likely),
+        st.sampled_from(likely[::-1]),
+        st.sampled_from(LOOP_EVENTS),
+        st.sampled_from([*LIFECYCLE_EVENTS, "bogus"]),
+    )
+    # Mostly short delays, so that iterations get through; sometimes one long enough to overrun.
+    delay = st.one_of(
+        st.just(0.0), st.floats(0.0, 0.3), st.just(0.0), st.sampled_from([0.5, 1.0, 2.5])
+    )
+    return st.tuples(delay, event)
+
+
+BUDGETS = st.sampled_from([1.0, 2.0, 0.5, 0.0])
+MAX_REPLANS = st.integers(min_value=0, max_value=3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.data(), budget=BUDGETS, max_replans=MAX_REPLANS)
+def test_no_event_sequence_makes_a_monitor_fail_on_the_shipped_orchestrator(
+    data, budget, max_replans
+):
+    run = start(
+        load(CHART),
+        context={"stage_budget": budget, "max_replans": max_replans},
+        monitors=monitors(),
+    )
+    run.send_all(BRING_UP)
+    for _ in range(data.draw(st.integers(min_value=0, max_value=60), label="length")):
+        delay, event = data.draw(next_step(current(run)), label="delay, event")
+        run.advance(delay)  # a PropertyStatechartError here or below fails the test
+        run.send(event)
+    bound = [listener._interpreter for listener in run.interpreter._listeners]
+    assert [p.statechart.name for p in bound] == list(MONITORS)
+    assert not any(p.final for p in bound)
+
+
+def test_the_generated_sequences_reach_every_stage_and_outcome():
+    """The property above means something only if its runs get deep: check that they do."""
+    seen_states: set[str] = set()
+    seen_events: set[str] = set()
+
+    # Derandomized: a coverage claim must not depend on the luck of one run.
+    @settings(max_examples=100, deadline=None, database=None, derandomize=True)
+    @given(data=st.data(), budget=BUDGETS, max_replans=MAX_REPLANS)
+    def explore(data, budget, max_replans):
+        run = start(load(CHART), context={"stage_budget": budget, "max_replans": max_replans})
+        run.send_all(BRING_UP)
+        for _ in range(data.draw(st.integers(min_value=0, max_value=60))):
+            delay, event = data.draw(next_step(current(run)))
+            run.advance(delay)
+            run.send(event)
+        seen_states.update(entered(run.steps))
+        seen_events.update(m.event.name for m in micro_steps(run.steps) if m.event is not None)
+
+    explore()
+    assert {"executing", "fault", "instantiated"} <= seen_states
+    assert set(LOOP_EVENTS) <= seen_events
+    assert {"stage_timeout", "adaptation_cancelled"} <= seen_events
+
+
+# ------------------------------------------------------------------------- the monitors bite
+
+Edit = Callable[[dict], None]
+
+
+def _state(node: dict, name: str) -> dict | None:
+    if node.get("name") == name:
+        return node
+    for child in node.get("states", []) + node.get("parallel states", []):
+        found = _state(child, name)
+        if found is not None:
+            return found
+    return None
+
+
+def drop(source: str, event: str | None) -> Edit:
+    """Remove the transitions of ``source`` on ``event`` (None: the eventless ones)."""
+
+    def edit(doc: dict) -> None:
+        state = _state(doc["statechart"]["root state"], source)
+        state["transitions"] = [t for t in state["transitions"] if t.get("event") != event]
+
+    return edit
+
+
+def add(source: str, **transition: str) -> Edit:
+    def edit(doc: dict) -> None:
+        _state(doc["statechart"]["root state"], source)["transitions"].append(transition)
+
+    return edit
+
+
+def rewire(source: str, event: str | None, target: str) -> Edit:
+    """Replace the transitions of ``source`` on ``event`` by one unguarded transition to
+    ``target`` (for ``event=None``: the timeout, kept as ``after(stage_budget)``, no action)."""
+
+    def edit(doc: dict) -> None:
+        drop(source, event)(doc)
+        if event is None:
+            add(source, guard="after(stage_budget)", target=target)(doc)
+        else:
+            add(source, event=event, target=target)(doc)
+
+    return edit
+
+
+@functools.cache
+def mutant(*edits: Edit):
+    doc = yaml.safe_load(CHART.read_text(encoding="utf-8"))
+    for edit in edits:
+        edit(doc)
+    return load_statechart(text=yaml.safe_dump(doc, sort_keys=False), source="<mutant>")
+
+
+TO_LEGITIMATING = ("tick", "monitored", "anomaly", "planned")
+TO_EXECUTING = (*TO_LEGITIMATING, "accepted")
+
+#: name -> (edits, what to feed: event names or delays in seconds, the monitors that must fail)
+MUTANTS = {
+    "rejected_plan_is_executed": (
+        (rewire("legitimating", "rejected", "executing"),),
+        (*TO_LEGITIMATING, "rejected"),
+        {"accepted_before_executing", "stage_order"},
+    ),
+    "planning_is_skipped": (
+        (rewire("analysing", "anomaly", "legitimating"),),
+        ("tick", "monitored", "anomaly"),
+        {"stage_order"},
+    ),
+    "idle_jumps_to_executing": (
+        (rewire("idle", "tick", "executing"),),
+        ("tick",),
+        {"stage_order", "accepted_before_executing"},
+    ),
+    "accepted_plan_is_planned_again": (
+        (rewire("legitimating", "accepted", "planning"),),
+        (*TO_LEGITIMATING, "accepted"),
+        {"stage_order"},
+    ),
+    "next_iteration_skips_idle": (
+        (rewire("executing", "executed", "monitoring"),),
+        (*TO_EXECUTING, "executed"),
+        {"stage_order"},
+    ),
+    "failed_stage_executes": (
+        (rewire("analysing", "stage_failed", "executing"),),
+        ("tick", "monitored", "stage_failed"),
+        {"stage_order", "accepted_before_executing"},
+    ),
+    "timeout_goes_on_to_the_next_stage": (
+        (rewire("monitoring", None, "analysing"),),
+        ("tick", 1.5),
+        {"stage_outcome"},
+    ),
+    "timeout_without_signal": (
+        (rewire("planning", None, "idle"),),
+        ("tick", "monitored", "anomaly", 1.5),
+        {"stage_outcome"},
+    ),
+    "legitimating_timeout_executes": (
+        (rewire("legitimating", None, "executing"),),
+        (*TO_LEGITIMATING, 1.5),
+        {"accepted_before_executing", "stage_outcome"},
+    ),
+    "tick_interrupts_executing": (
+        (add("executing", event="tick", target="idle"),),
+        (*TO_EXECUTING, "tick"),
+        {"stage_outcome"},
+    ),
+    "monitoring_left_by_a_foreign_outcome": (
+        (add("monitoring", event="executed", target="idle"),),
+        ("tick", "executed"),
+        {"stage_outcome"},
+    ),
+}
+
+
+def feed(run, script) -> None:
+    for item in script:
+        if isinstance(item, str):
+            run.send(item)
+        else:
+            run.advance(item)
+
+
+@pytest.mark.parametrize("name", sorted(MUTANTS))
+def test_the_shipped_orchestrator_passes_every_mutant_script(name):
+    _, script, _ = MUTANTS[name]
+    run = start(load(CHART), monitors=monitors())
+    run.send_all(BRING_UP)
+    feed(run, script)
+    assert current(run)  # still running: nothing was refused
+
+
+@pytest.mark.parametrize("monitor", MONITORS)
+@pytest.mark.parametrize("name", sorted(MUTANTS))
+def test_a_broken_orchestrator_is_caught_by_exactly_the_monitors_it_breaks(name, monitor):
+    edits, script, catchers = MUTANTS[name]
+    run = start(mutant(*edits), monitors=monitors([monitor]))
+    run.send_all(BRING_UP)
+    if monitor in catchers:
+        with pytest.raises(PropertyStatechartError) as failure:
+            feed(run, script)
+        assert failure.value.property_statechart.statechart.name == monitor
+    else:
+        feed(run, script)
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.data())
+def test_the_monitor_catches_every_rejected_plan_that_is_executed(data):
+    """On the broken chart, `accepted_before_executing` fails exactly when a `rejected` arrives
+    in legitimating (which that chart turns into an execution), whatever came before."""
+    edits, _, _ = MUTANTS["rejected_plan_is_executed"]
+    run = start(mutant(*edits), monitors=monitors(["accepted_before_executing"]))
+    run.send_all(BRING_UP)
+    for _ in range(data.draw(st.integers(min_value=0, max_value=40), label="length")):
+        delay, event = data.draw(next_step(current(run)), label="delay, event")
+        run.advance(delay)
+        breaks = current(run) == "legitimating" and event == "rejected"
+        if breaks:
+            with pytest.raises(PropertyStatechartError):
+                run.send(event)
+            return
+        run.send(event)
