@@ -115,7 +115,33 @@ def _cmd_verify_rules(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    raise UsageError("rasm run is not implemented yet")
+    from rich.console import Console
+
+    from rasm.platform.console import LiveView, print_summary
+    from rasm.platform.manifest import load_manifest
+    from rasm.platform.runtime import Platform
+
+    manifest = load_manifest(args.app)
+    if args.duration is not None and args.duration <= 0:
+        raise UsageError("--duration must be a positive number of seconds")
+    platform = Platform(
+        manifest,
+        clock=args.clock,
+        seed=args.seed,
+        transport=args.transport,
+        trace=args.trace,
+        role=args.role,
+    )
+    duration = args.duration if args.duration is not None else manifest.duration
+    console = Console(stderr=False)
+    platform.build()
+    if console.is_terminal and args.role != "managed":
+        with LiveView(platform, console, duration=duration):
+            summary = platform.run(duration)
+    else:
+        summary = platform.run(duration)
+    print_summary(summary, console)
+    return EXIT_OK if summary.ok else EXIT_FAILED
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

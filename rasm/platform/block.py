@@ -72,6 +72,10 @@ class Block:
         self._running = False
         self._listeners: list[ModeListener] = []
         self._mode = "instantiated"
+        # Called with (block, time) when the chart has a timer due at `time` (after(), idle(),
+        # delayed events): the platform's scheduler then steps the chart at that time.
+        self.on_deadline: Callable[[Block, float], Any] | None = None
+        self._armed: float | None = None
         self.send(None)  # the initial step: enter `instantiated`
 
     # ------------------------------------------------------------------ hooks
@@ -87,6 +91,9 @@ class Block:
 
     def on_fault(self, reason: str | None) -> None:
         """Called on entering ``fault``."""
+
+    def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
+        """Called for each event the chart sends (``send(...)`` in an action)."""
 
     # ------------------------------------------------------------------ driving
 
@@ -116,9 +123,27 @@ class Block:
                 return []
             self._running = True
             try:
-                return self._run()
+                steps = self._run()
             finally:
                 self._running = False
+            self._arm_timer()
+            return steps
+
+    def _arm_timer(self) -> None:
+        if self.on_deadline is None:
+            return
+        due = self.interpreter.next_deadline()
+        if due is None or (
+            self._armed is not None and self._armed <= due and self._armed > self.clock.time
+        ):
+            return
+        self._armed = due
+        self.on_deadline(self, due)
+
+    def wake(self) -> None:
+        """Step the chart now (its timer is due)."""
+        self._armed = None
+        self.send(None)
 
     def _run(self) -> list[MacroStep]:
         steps: list[MacroStep] = []
@@ -129,6 +154,8 @@ class Block:
             steps.append(step)
             for state in step.entered_states:
                 self._entered(state)
+            for sent in step.sent_events:
+                self.on_event_sent(sent.name, dict(sent.data))
 
     def _entered(self, state: str) -> None:
         if state in MODES:

@@ -1,0 +1,439 @@
+"""The building blocks of seed §5, each a :class:`~rasm.platform.block.Block` driven by its chart.
+
+The low-frequency paths (an action through Adaptation Manager, Trustworthiness Manager and
+Trustworthiness Checker; persistence batches) step the block's chart through its core-task
+sub-states. The per-record paths (Telegraf digesting, knowledge registration, logging) are gated by
+the block's mode (no work unless ``initialized``) but do not step a chart per record: a chart step
+costs tens of microseconds, a record must cost less (docs/runtime.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import Counter, defaultdict, deque
+from collections.abc import Callable
+from typing import Any
+
+from rasm.platform.block import Block
+from rasm.platform.components import Action, Plan
+from rasm.platform.manifest import Effector, Probe, Signal
+
+__all__ = [
+    "AdaptationManager",
+    "CommunicationManager",
+    "KnowledgeManager",
+    "LoggingAndTracking",
+    "StateManager",
+    "StorageManager",
+    "Telegraf",
+    "TrustworthinessChecker",
+    "TrustworthinessManager",
+]
+
+_TYPES: dict[str, tuple[type, ...]] = {
+    "float": (float, int),
+    "int": (int,),
+    "bool": (bool,),
+    "str": (str,),
+}
+
+
+class LoggingAndTracking(Block):
+    """Logging and Tracking (lt): severities and sinks on the standard ``logging`` module."""
+
+    chart_name = "logging_and_tracking"
+    short_name = "lt"
+
+    def __init__(self, *, level: int = logging.INFO, logger: str = "rasm", **kw: Any) -> None:
+        self.logger = logging.getLogger(logger)
+        self.level = level
+        self.counts: Counter[str] = Counter()
+        super().__init__(**kw)
+
+    def is_enabled(self, severity: int = logging.INFO) -> bool:
+        return self.mode == "initialized" and severity >= self.level
+
+    def log(self, severity: int, message: str, *args: Any, exc_info: Any = None) -> None:
+        self.counts[logging.getLevelName(severity)] += 1
+        if self.is_enabled(severity):
+            self.logger.log(severity, message, *args, exc_info=exc_info)
+
+
+class StateManager(Block):
+    """State Manager (sm): the mode of every block and the timing history of every stage."""
+
+    chart_name = "state_manager"
+    short_name = "sm"
+
+    def __init__(self, *, timing_history: int = 1000, **kw: Any) -> None:
+        self.modes: dict[str, str] = {}
+        self.stage_timing: dict[str, deque[tuple[float, float]]] = defaultdict(
+            lambda: deque(maxlen=timing_history)
+        )
+        super().__init__(**kw)
+
+    def track(self, block: Block) -> None:
+        """Follow ``block``'s mode from now on."""
+        self.modes[block.name] = block.mode
+        block.add_mode_listener(self._mode_changed)
+
+    def _mode_changed(self, block: Block, mode: str) -> None:
+        self.modes[block.name] = mode
+
+    def get_time(self) -> float:
+        return self.clock.time
+
+    def get_status(self, name: str | None = None) -> Any:
+        """The mode of block ``name``, or of every block."""
+        return dict(self.modes) if name is None else self.modes.get(name)
+
+    def record_stage(self, stage: str, start: float, duration: float) -> None:
+        self.stage_timing[stage].append((start, duration))
+
+    def percentiles(self, stage: str, qs: tuple[float, ...] = (50, 90, 99)) -> dict[str, float]:
+        durations = sorted(d for _, d in self.stage_timing.get(stage, ()))
+        if not durations:
+            return {}
+        out = {}
+        for q in qs:
+            k = max(0, min(len(durations) - 1, math.ceil(q / 100 * len(durations)) - 1))
+            out[f"p{q:g}"] = durations[k]
+        return out
+
+
+class KnowledgeManager(Block):
+    """Knowledge Manager (km): ``register_knowledge`` / ``read_knowledge`` over the store."""
+
+    chart_name = "knowledge_manager"
+    short_name = "km"
+
+    def __init__(self, store: Any, **kw: Any) -> None:
+        self.store = store
+        super().__init__(**kw)
+
+    def register_knowledge(self, key: str, value: Any, time: float | None = None) -> Any:
+        self.require_mode("initialized")
+        return self.store.register_knowledge(key, value, self.clock.time if time is None else time)
+
+    def read_knowledge(self, key: str, default: Any = None) -> Any:
+        return self.store.read_knowledge(key, default)
+
+
+class StorageManager(Block):
+    """Storage Manager (stom): batches knowledge updates and persists them (SQLite, WAL)."""
+
+    chart_name = "storage_manager"
+    short_name = "stom"
+
+    def __init__(self, storage: Any, *, flush_period: float = 1.0, **kw: Any) -> None:
+        self.storage = storage
+        self.persisted = 0
+        super().__init__(context={"flush_period": flush_period}, **kw)
+
+    def register_knowledge_update(self, key: str, sample: Any) -> None:
+        if self.storage is None:
+            return
+        self.storage.register_knowledge_update(key, sample)
+        if "idle" in self.interpreter._configuration:  # only the first update steps the chart
+            self.send("update_registered")
+
+    def on_enter_persisting(self) -> None:
+        try:
+            self.persisted += self.update_persistency()
+        except Exception as exc:  # a full disk must not stop the loop; the chart retries
+            logging.getLogger("rasm.platform").error("persisting knowledge failed: %s", exc)
+            self.post("persist_failed")
+            return
+        self.post("persisted")
+
+    def update_persistency(self) -> int:
+        return 0 if self.storage is None else int(self.storage.update_persistency() or 0)
+
+    def on_termination(self) -> None:
+        if self.storage is not None:
+            self.storage.update_persistency()
+            self.storage.close()
+
+
+class CommunicationManager(Block):
+    """Communication Manager (cm): publishers and subscribers on one transport."""
+
+    chart_name = "communication_manager"
+    short_name = "cm"
+
+    def __init__(self, transport: Any, **kw: Any) -> None:
+        self.transport = transport
+        super().__init__(**kw)
+
+    def on_initialization(self) -> None:
+        self.transport.connect()
+
+    def on_termination(self) -> None:
+        self.transport.close()
+
+    def publish_message(self, topic: str, payload: dict[str, Any]) -> None:
+        self.require_mode("initialized")
+        self.transport.publish(topic, payload)
+
+    def subscribe(self, pattern: str, callback: Callable[[str, dict[str, Any]], Any]) -> Any:
+        return self.transport.subscribe(pattern, callback)
+
+
+class Telegraf(Block):
+    """Telegraf (tg): managed-system data into knowledge, by the manifest's routing table.
+
+    Each value is checked against its signal's declared type and range; bad data is logged and
+    counted, never stored.
+    """
+
+    chart_name = "telegraf"
+    short_name = "tg"
+
+    def __init__(
+        self, probes: list[Probe], register: Callable[[dict[str, Any], float], Any], **kw: Any
+    ) -> None:
+        self.routes: dict[str, dict[str, Signal]] = {p.topic: p.signals for p in probes}
+        self.register = register
+        self.digested = 0
+        self.rejected: Counter[str] = Counter()
+        super().__init__(**kw)
+
+    def digest(self, topic: str, payload: Any, time: float) -> dict[str, Any]:
+        """Route one message; returns the values stored (an empty dict if nothing was)."""
+        if self.mode != "initialized":
+            self.rejected["not running"] += 1
+            return {}
+        signals = self.routes.get(topic)
+        if signals is None or not isinstance(payload, dict):
+            self.rejected["unroutable"] += 1
+            return {}
+        values: dict[str, Any] = {}
+        for key, signal in signals.items():
+            if key not in payload:
+                continue
+            value = payload[key]
+            problem = _check_value(signal, value)
+            if problem:
+                self.rejected[problem] += 1
+                logging.getLogger("rasm.telegraf").warning(
+                    "%s: %s=%r rejected: %s", topic, key, value, problem
+                )
+                continue
+            values[key] = float(value) if signal.type == "float" else value
+        if values:
+            self.register(values, time)
+            self.digested += 1
+        return values
+
+
+def _check_value(signal: Signal, value: Any) -> str | None:
+    if signal.type == "json":
+        return None
+    allowed = _TYPES[signal.type]
+    if not isinstance(value, allowed) or (signal.type != "bool" and isinstance(value, bool)):
+        return f"expected {signal.type}, got {type(value).__name__}"
+    if signal.type in ("float", "int"):
+        if not math.isfinite(value):
+            return "not a finite number"
+        if signal.minimum is not None and value < signal.minimum:
+            return f"below the declared minimum {signal.minimum}"
+        if signal.maximum is not None and value > signal.maximum:
+            return f"above the declared maximum {signal.maximum}"
+    return None
+
+
+class TrustworthinessManager(Block):
+    """Trustworthiness Manager (tm): ``check_trustworthiness`` of an action (seed §6.4.4).
+
+    An action is trustworthy when its plan was accepted by the Legitimate stage (the loop hands
+    over the accepted plans), the rules still accept the plan now, and no *veto* property is
+    currently violated according to the Trustworthiness Checker's live monitors.
+    """
+
+    chart_name = "trustworthiness_manager"
+    short_name = "tm"
+
+    def __init__(
+        self,
+        *,
+        rules: list[Any],
+        veto_properties: tuple[str, ...],
+        verdicts: Callable[[], dict[str, bool | None]],
+        context: Callable[[], dict[str, Any]],
+        **kw: Any,
+    ) -> None:
+        self.rules = rules
+        self.veto_properties = veto_properties
+        self.verdicts = verdicts
+        self.context_of = context
+        self.accepted_plans: dict[str, Plan] = {}
+        self._evidence: tuple[Action, Plan | None] | None = None
+        self._verdict: tuple[bool, str] = (False, "not checked")
+        super().__init__(**kw)
+
+    def check_trustworthiness(self, action: Action) -> tuple[bool, str]:
+        """Return (trustworthy, explanation); fail closed when the block is not running."""
+        if self.mode != "initialized":
+            return False, f"trustworthiness manager is {self.mode}"
+        self._evidence = (action, self.accepted_plans.get(action.plan))
+        self._verdict = (False, "check did not complete in time")
+        self.send("check_requested")
+        return self._verdict
+
+    def on_enter_gathering_evidence(self) -> None:
+        self.post("evidence_gathered")
+
+    def on_enter_evaluating(self) -> None:
+        action, plan = self._evidence or (None, None)
+        ok, why = self._evaluate(action, plan)
+        self._verdict = (ok, why)
+        self.post("trustworthy" if ok else "untrustworthy")
+
+    def _evaluate(self, action: Action | None, plan: Plan | None) -> tuple[bool, str]:
+        if action is None or plan is None:
+            return False, "the action's plan was never accepted by the Legitimate stage"
+        context = self.context_of()
+        for rules in self.rules:
+            decision = rules.evaluate(plan.values, context)
+            if not decision.accepted:
+                return False, f"rules no longer accept the plan: {decision.explanation()}"
+        verdicts = self.verdicts()
+        violated = [p for p in self.veto_properties if verdicts.get(p) is False]
+        if violated:
+            return (
+                False,
+                f"veto propert{'y' if len(violated) == 1 else 'ies'} violated: "
+                + ", ".join(violated),
+            )
+        return True, "plan accepted by Legitimate, rules hold, no veto property violated"
+
+
+class AdaptationManager(Block):
+    """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis`` (seed §6.4.4).
+
+    Has the Trustworthiness Manager check the action; when trustworthy, registers it with the
+    Trustworthiness Checker, which alone hands it to the effector. Otherwise the action is dropped.
+    """
+
+    chart_name = "adaptation_manager"
+    short_name = "am"
+
+    def __init__(self, tm: TrustworthinessManager, tc: TrustworthinessChecker, **kw: Any) -> None:
+        self.tm = tm
+        self.tc = tc
+        self._action: Action | None = None
+        self._outcome: tuple[bool, str] = (False, "")
+        self.last_trusted = False
+        super().__init__(**kw)
+
+    def perform_adaptation(self, action: Action) -> tuple[bool, str]:
+        """Check and register ``action``; (True, why) when it reached the effector."""
+        self.last_trusted = False
+        if self.mode != "initialized":
+            return False, f"adaptation manager is {self.mode}"
+        self._action = action
+        self._outcome = (False, "the adaptation did not complete in time")
+        self.send("action_requested")
+        return self._outcome
+
+    def perform_diagnosis(self, action: Action) -> tuple[bool, str]:
+        return self.perform_adaptation(
+            Action(action.effector, action.payload, action.plan, "diagnosis")
+        )
+
+    def on_enter_checking_trustworthiness(self) -> None:
+        ok, why = self.tm.check_trustworthiness(self._action)
+        self.last_trusted = ok
+        self._outcome = (False, why)
+        self.post("trustworthy" if ok else "untrustworthy")
+
+    def on_enter_registering(self) -> None:
+        ok, why = self.tc.register_action(self._action)
+        self._outcome = (ok, why)
+        self.post("registered" if ok else "registration_refused")
+
+    def on_enter_dropping(self) -> None:
+        self.post("dropped")
+
+
+class TrustworthinessChecker(Block):
+    """Trustworthiness Checker (tc): ``register_action`` and the online property monitors.
+
+    The only path to an effector: an action is sent when it is applicable in the managed
+    system's current mode (and its effector is known). The online monitors of the app's and the
+    platform's properties run over every record of the loop (:meth:`observe`).
+    """
+
+    chart_name = "trustworthiness_checker"
+    short_name = "tc"
+
+    def __init__(
+        self,
+        *,
+        monitors: list[Any],
+        effectors: dict[str, Effector],
+        send: Callable[[Effector, Action], Any],
+        mode_of: Callable[[], str | None],
+        on_verdict: Callable[[Any], Any] | None = None,
+        **kw: Any,
+    ) -> None:
+        self.monitors = monitors
+        self.effectors = effectors
+        self.send_to_effector = send
+        self.mode_of = mode_of
+        self.on_verdict = on_verdict
+        self.latest: dict[str, bool | None] = {}
+        self.violations: Counter[str] = Counter()
+        self.records_refused = 0
+        self._action: Action | None = None
+        self._outcome: tuple[bool, str] = (False, "")
+        super().__init__(**kw)
+
+    def observe(self, time: float, record: dict[str, Any]) -> list[Any]:
+        """Feed one loop record to every monitor; returns the verdicts it decided."""
+        out = []
+        for monitor in self.monitors:
+            try:
+                verdicts = monitor.step(time, record)
+            except Exception:  # a monitor fault is logged and the record skipped, never fatal
+                logging.getLogger("rasm.tc").exception("monitor failed on a record")
+                self.records_refused += 1
+                continue
+            for verdict in verdicts:
+                self.latest[verdict.property] = verdict.value
+                if verdict.value is False:
+                    self.violations[verdict.property] += 1
+                if self.on_verdict is not None:
+                    self.on_verdict(verdict)
+                out.append(verdict)
+        return out
+
+    def register_action(self, action: Action | None) -> tuple[bool, str]:
+        if self.mode != "initialized" or action is None:
+            return False, f"trustworthiness checker is {self.mode}"
+        self._action = action
+        self._outcome = (False, "registration did not complete")
+        self.send("register_requested")
+        return self._outcome
+
+    def on_enter_checking_action(self) -> None:
+        action = self._action
+        effector = self.effectors.get(action.effector) if action else None
+        if action is None or effector is None:
+            self._outcome = (False, f"unknown effector {action.effector if action else None!r}")
+            self.post("action_refused")
+            return
+        mode = self.mode_of()
+        if effector.modes is not None and mode not in effector.modes:
+            self._outcome = (False, f"not applicable in managed-system mode {mode!r}")
+            self.post("action_refused")
+            return
+        try:
+            self.send_to_effector(effector, action)
+        except Exception as exc:
+            self._outcome = (False, f"effector unreachable: {exc}")
+            self.post("action_refused")
+            return
+        self._outcome = (True, f"sent to {effector.name} on {effector.topic}")
+        self.post("action_registered")

@@ -1,0 +1,200 @@
+"""What user components see and return: the stage context, anomalies, plans and actions.
+
+A user component is a plain class with one method per stage it implements, each taking a
+:class:`StageContext`::
+
+    class Analyse:
+        def analyse(self, ctx):
+            if ctx.knowledge.read_knowledge("temperature") > 30:
+                return Anomaly("too hot")
+
+Return values are forgiving (a dict for a plan, ``True`` for an anomaly) but checked: anything
+else fails the stage with an explanation, and no action comes out of a failed stage.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rasm.errors import PlatformError
+
+__all__ = [
+    "Action",
+    "Anomaly",
+    "Plan",
+    "StageContext",
+    "StageError",
+    "load_component",
+    "as_actions",
+    "as_anomaly",
+    "as_plan",
+    "as_signals",
+    "as_verdict",
+]
+
+
+class StageError(PlatformError):
+    """A stage's user code raised or returned something unusable."""
+
+
+@dataclass(frozen=True)
+class Anomaly:
+    """What Analyse found: a short reason and any data the planner needs."""
+
+    reason: str = "anomaly"
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A candidate adaptation: values for the rule variables (and anything else Execute needs)."""
+
+    values: dict[str, Any]
+    id: str = ""
+    explanation: str = ""
+
+    def __getitem__(self, key: str) -> Any:
+        return self.values[key]
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self.values.get(key, default)
+
+
+@dataclass(frozen=True)
+class Action:
+    """One command for one effector, produced by Execute from an accepted plan."""
+
+    effector: str
+    payload: dict[str, Any]
+    plan: str = ""
+    kind: str = "adaptation"  # or "diagnosis" (the seed's performDiagnosis)
+
+
+@dataclass
+class StageContext:
+    """Everything a stage may read: knowledge, time, and what the earlier stages decided."""
+
+    knowledge: Any
+    time: float
+    iteration: int
+    anomaly: Anomaly | None = None
+    plan: Plan | None = None
+    rejections: list[tuple[Plan, list[str], str]] = field(default_factory=list)
+    log: Any = None
+
+
+def load_component(
+    ref: str, folder: Path, *, package: str, kwargs: dict[str, Any] | None = None
+) -> Any:
+    """Instantiate ``module:Class`` (``module`` a file or package in ``folder``) with ``kwargs``."""
+    module_name, _, class_name = ref.partition(":")
+    qualified = f"{package}.{module_name}"
+    module = sys.modules.get(qualified)
+    if module is None:
+        candidates = [
+            folder / (module_name.replace(".", "/") + ".py"),
+            folder / module_name.replace(".", "/") / "__init__.py",
+        ]
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is None:
+            raise PlatformError(f"{ref}: no module {module_name!r} in {folder}")
+        spec = importlib.util.spec_from_file_location(qualified, path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[qualified] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:
+            del sys.modules[qualified]
+            raise PlatformError(
+                f"{ref}: importing {path} failed: {type(exc).__name__}: {exc}"
+            ) from exc
+    cls = getattr(module, class_name, None)
+    if cls is None:
+        raise PlatformError(f"{ref}: {module_name} has no {class_name!r}")
+    try:
+        return cls(**(kwargs or {}))
+    except Exception as exc:
+        raise PlatformError(f"{ref}: creating {class_name}() failed: {exc}") from exc
+
+
+_SCALARS = (int, float, bool, str)
+
+
+def as_signals(value: Any) -> dict[str, Any]:
+    """Monitor's result: derived signals to register (a dict), or nothing."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
+        raise StageError(
+            f"monitor must return a dict of signals or None, not {type(value).__name__}"
+        )
+    return value
+
+
+def as_anomaly(value: Any) -> Anomaly | None:
+    """Analyse's result: an :class:`Anomaly`, ``True``/a reason string, or falsy for none."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return Anomaly()
+    if isinstance(value, Anomaly):
+        return value
+    if isinstance(value, str):
+        return Anomaly(value)
+    if isinstance(value, dict):
+        return Anomaly(str(value.get("reason", "anomaly")), dict(value))
+    raise StageError(
+        f"analyse must return an Anomaly, a bool, a reason or None, not {type(value).__name__}"
+    )
+
+
+def as_plan(value: Any, plan_id: str) -> Plan | None:
+    """Plan's result: a :class:`Plan` or a dict of plan values, or None for no plan."""
+    if value is None:
+        return None
+    if isinstance(value, Plan):
+        return Plan(dict(value.values), plan_id, value.explanation)
+    if isinstance(value, dict) and all(isinstance(k, str) for k in value):
+        return Plan(dict(value), plan_id)
+    raise StageError(
+        f"plan must return a Plan, a dict of plan values or None, not {type(value).__name__}"
+    )
+
+
+def as_verdict(value: Any) -> tuple[bool, str]:
+    """Legitimate's own opinion: ``True``/``None`` to accept, ``False`` or ``(False, why)``."""
+    if value is None or value is True:
+        return True, ""
+    if value is False:
+        return False, "rejected by the application's legitimate stage"
+    if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], bool):
+        return value[0], str(value[1])
+    raise StageError(
+        f"legitimate must return a bool, (bool, reason) or None, not {type(value).__name__}"
+    )
+
+
+def as_actions(value: Any, plan_id: str) -> list[Action]:
+    """Execute's result: an :class:`Action`, a list of them, or ``{effector: payload}``."""
+    if value is None:
+        return []
+    items = value if isinstance(value, list) else [value]
+    out: list[Action] = []
+    for item in items:
+        if isinstance(item, Action):
+            out.append(Action(item.effector, dict(item.payload), plan_id, item.kind))
+        elif isinstance(item, dict):
+            for effector, payload in item.items():
+                if not isinstance(payload, dict):
+                    raise StageError(f"execute: the payload for {effector!r} must be a dict")
+                out.append(Action(str(effector), dict(payload), plan_id))
+        else:
+            raise StageError(
+                f"execute must return Actions or {{effector: payload}}, not {type(item).__name__}"
+            )
+    return out

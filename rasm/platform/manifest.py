@@ -1,0 +1,246 @@
+"""The application manifest, ``app.yaml`` (SPEC §2), read and validated with positions.
+
+The shape is a JSON Schema (``app.schema.json`` beside this module, also the reference for editors);
+a value that breaks it is reported at its own line and column. Cross-checks the schema cannot
+express (files that must exist, ``module:Class`` references, effectors named by actions) come after.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+
+from rasm.errors import Location, SourceError, SourceErrors
+from rasm.statechart.source import YamlSource, load_yaml, plain
+
+__all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEMA"]
+
+SCHEMA: dict[str, Any] = json.loads(
+    (Path(__file__).with_name("app.schema.json")).read_text(encoding="utf-8")
+)
+STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
+_REF = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A value the managed system reports: its knowledge key, type and declared range."""
+
+    key: str
+    type: str
+    minimum: float | None = None
+    maximum: float | None = None
+    history: int = 100
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A topic the managed system publishes on, routed by Telegraf into knowledge."""
+
+    topic: str
+    signals: dict[str, Signal]
+
+
+@dataclass(frozen=True)
+class Effector:
+    """Where actions for one actuator go, and in which managed-system modes they apply."""
+
+    name: str
+    topic: str
+    modes: tuple[str, ...] | None = None
+    fields: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class AppManifest:
+    """A validated ``app.yaml``; paths are resolved against the app folder."""
+
+    name: str
+    folder: Path
+    file: Path
+    description: str = ""
+    components: dict[str, str] = field(default_factory=dict)
+    simulator: str | None = None
+    simulator_period: float = 0.1
+    scenario: dict[str, Any] = field(default_factory=dict)
+    probes: list[Probe] = field(default_factory=list)
+    effectors: dict[str, Effector] = field(default_factory=dict)
+    properties: list[Path] = field(default_factory=list)
+    rules: list[Path] = field(default_factory=list)
+    statecharts: dict[str, Path] = field(default_factory=dict)
+    transport: str = "local"
+    knowledge: str = "sqlite"
+    clock: str | None = None
+    period: float = 1.0
+    duration: float = 60.0
+    stage_budget: float = 1.0
+    max_replans: int = 2
+    veto_properties: tuple[str, ...] = ()
+    mode_signal: str | None = None
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def signals(self) -> dict[str, Signal]:
+        out: dict[str, Signal] = {}
+        for probe in self.probes:
+            out.update(probe.signals)
+        return out
+
+
+def _path_location(src: YamlSource, path: list[Any]) -> Location:
+    """The position of the node at ``path`` (keys and indexes), or of its nearest parent."""
+    node = src.data
+    parent, last = None, None
+    for step in path:
+        try:
+            parent, last, node = node, step, node[step]
+        except (KeyError, IndexError, TypeError):
+            break
+    if parent is None:
+        return src.node(node)
+    if isinstance(last, int):
+        return src.item(parent, last)
+    return (
+        src.value(parent, last)
+        if isinstance(node, str | int | float | bool) or node is None
+        else src.key(parent, last)
+    )
+
+
+def _schema_errors(src: YamlSource) -> list[SourceError]:
+    validator = jsonschema.Draft202012Validator(SCHEMA)
+    errors = []
+    for error in sorted(validator.iter_errors(plain(src.data)), key=lambda e: list(e.path)):
+        path = list(error.absolute_path)
+        where = ".".join(str(p) for p in path) or "the manifest"
+        message = error.message
+        if error.validator == "additionalProperties":
+            extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+            if extra and isinstance(error.instance, dict):
+                location = src.key(_node_at(src.data, path), extra[0])
+                errors.append(src.error(f"unknown key '{extra[0]}' in {where}", location))
+                continue
+        errors.append(src.error(f"{where}: {message}", _path_location(src, path)))
+    return errors
+
+
+def _node_at(data: Any, path: list[Any]) -> Any:
+    for step in path:
+        data = data[step]
+    return data
+
+
+def load_manifest(app: str | Path) -> AppManifest:
+    """Read ``app.yaml`` from an app folder (or the file itself), raising :class:`SourceErrors`."""
+    path = Path(app)
+    file = path / "app.yaml" if path.is_dir() else path
+    if not file.is_file():
+        raise SourceErrors(
+            [SourceError(f"no app manifest here (expected {file})", Location(str(file)))]
+        )
+    src = load_yaml(file.read_text(encoding="utf-8"), str(file))
+    if not isinstance(src.data, dict):
+        raise SourceErrors(
+            [
+                src.error(
+                    "an app manifest is a mapping (name, components, ...)",
+                    Location(str(file), 1, 1),
+                )
+            ]
+        )
+    errors = _schema_errors(src)
+    if errors:
+        raise SourceErrors(errors)
+    data = src.data
+    folder = file.parent
+    problems: list[SourceError] = []
+
+    def existing(key_path: list[Any], value: str) -> Path:
+        target = folder / value
+        if not target.exists():
+            problems.append(
+                src.error(
+                    f"no such file: {value} (relative to {folder})", _path_location(src, key_path)
+                )
+            )
+        return target
+
+    components = dict(data.get("components", {}))
+    for stage, ref in components.items():
+        if not _REF.match(str(ref)):
+            problems.append(
+                src.error(
+                    f"'{ref}' is not module:Class", _path_location(src, ["components", stage])
+                )
+            )
+    managed = data.get("managed_system", {}) or {}
+    probes = []
+    for i, probe in enumerate(data.get("probes", [])):
+        signals = {}
+        for key, spec in probe["signals"].items():
+            signals[str(key)] = Signal(
+                str(key), spec["type"], spec.get("min"), spec.get("max"), spec.get("history", 100)
+            )
+            if (
+                spec.get("min") is not None
+                and spec.get("max") is not None
+                and spec["min"] > spec["max"]
+            ):
+                problems.append(
+                    src.error(
+                        f"signal '{key}': min is above max",
+                        _path_location(src, ["probes", i, "signals", key]),
+                    )
+                )
+        probes.append(Probe(str(probe["topic"]), signals))
+    effectors = {
+        str(name): Effector(
+            str(name),
+            str(spec["topic"]),
+            tuple(spec["modes"]) if "modes" in spec else None,
+            dict(spec.get("fields", {})),
+        )
+        for name, spec in (data.get("effectors") or {}).items()
+    }
+    properties = [existing(["properties", i], p) for i, p in enumerate(data.get("properties", []))]
+    rules_field = data.get("rules", [])
+    rules_list = [rules_field] if isinstance(rules_field, str) else list(rules_field)
+    rules_path = ["rules"] if isinstance(rules_field, str) else None
+    rules = [existing(rules_path or ["rules", i], p) for i, p in enumerate(rules_list)]
+    charts = {
+        str(k): existing(["statecharts", k], v) for k, v in (data.get("statecharts") or {}).items()
+    }
+    loop = data.get("loop", {}) or {}
+    trust = data.get("trustworthiness", {}) or {}
+    if problems:
+        raise SourceErrors(problems)
+    return AppManifest(
+        name=str(data["name"]),
+        folder=folder,
+        file=file,
+        description=str(data.get("description", "")),
+        components={str(k): str(v) for k, v in components.items()},
+        simulator=managed.get("simulator"),
+        simulator_period=managed.get("period", 0.1),
+        scenario=plain(managed.get("scenario", {}) or {}),
+        probes=probes,
+        effectors=effectors,
+        properties=properties,
+        rules=rules,
+        statecharts=charts,
+        transport=str(data.get("transport", "local")),
+        knowledge=str(data.get("knowledge", "sqlite")),
+        clock=data.get("clock"),
+        period=float(loop.get("period", 1.0)),
+        duration=float(data.get("duration", 60.0)),
+        stage_budget=float(loop.get("stage_budget", 1.0)),
+        max_replans=int(loop.get("max_replans", 2)),
+        veto_properties=tuple(trust.get("veto_properties", ())),
+        mode_signal=trust.get("mode_signal"),
+        raw=plain(data),
+    )

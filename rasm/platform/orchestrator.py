@@ -1,0 +1,274 @@
+"""The Adaptation Orchestrator: the MAPLE-K loop, run by its chart (adaptation_orchestrator.yaml).
+
+Each ``tick`` the chart walks monitoring → analysing → planning → legitimating → executing. On
+entering a stage state this block runs the user's stage code (with a time budget, see
+:mod:`rasm.platform.stages`), writes what happened to the adaptation trace, and answers with the
+stage's outcome event. The chart decides what comes next: a rejected plan goes back to planning a
+bounded number of times, an overrun or failed stage ends the iteration, and no action is executed
+from an iteration that did not pass Legitimate.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from sismic.clock import SimulatedClock
+
+from rasm.platform.block import Block
+from rasm.platform.blocks import AdaptationManager, StateManager, TrustworthinessManager
+from rasm.platform.components import (
+    StageContext,
+    StageError,
+    as_actions,
+    as_anomaly,
+    as_plan,
+    as_signals,
+    as_verdict,
+)
+from rasm.platform.stages import StageOutcome, StageRunner
+
+__all__ = ["AdaptationOrchestrator", "LoopStats"]
+
+_log = logging.getLogger("rasm.loop")
+
+
+@dataclass
+class LoopStats:
+    """Counts the summary of ``rasm run`` reports."""
+
+    iterations: int = 0
+    anomalies: int = 0
+    plans: int = 0
+    rejected: int = 0
+    accepted: int = 0
+    executed: int = 0
+    dropped: int = 0
+    cancelled: int = 0
+    failed_stages: Counter[str] = field(default_factory=Counter)
+    timeouts: Counter[str] = field(default_factory=Counter)
+
+
+class AdaptationOrchestrator(Block):
+    """Adaptation Orchestrator (ao): ``orchestration_loop`` is its chart; this is its driver."""
+
+    chart_name = "adaptation_orchestrator"
+    short_name = "ao"
+
+    def __init__(
+        self,
+        *,
+        components: dict[str, Any],
+        knowledge: Any,
+        rules: list[Any],
+        register: Callable[[dict[str, Any], float], Any],
+        emit: Callable[[float, dict[str, Any]], Any],
+        am: AdaptationManager,
+        tm: TrustworthinessManager,
+        sm: StateManager,
+        stage_budget: float = 1.0,
+        max_replans: int = 2,
+        isolate_stages: bool = True,
+        **kw: Any,
+    ) -> None:
+        self.components = components
+        self.knowledge = knowledge
+        self.rules = rules
+        self.register = register
+        self.emit = emit
+        self.am = am
+        self.tm = tm
+        self.sm = sm
+        self.stage_budget = stage_budget
+        self.runner = StageRunner(isolate=isolate_stages)
+        self.stats = LoopStats()
+        self.ctx: StageContext | None = None
+        self._plans = 0
+        super().__init__(context={"stage_budget": stage_budget, "max_replans": max_replans}, **kw)
+
+    # ------------------------------------------------------------------ driving
+
+    def orchestration_loop(self) -> None:
+        """One loop iteration (the seed's ``orchestrationLoop``): a ``tick`` for the chart."""
+        self.send("tick")
+
+    def on_enter_idle(self) -> None:
+        self.ctx = None
+
+    def on_termination(self) -> None:
+        self.runner.close()
+
+    # ------------------------------------------------------------------ stages
+
+    def _stage(self, stage: str, method: str, body: Callable[[StageContext, Any], str]) -> None:
+        """Run ``body`` for ``stage``; post its outcome event, or ``stage_failed``."""
+        ctx = self.ctx
+        start = self.clock.time
+        component = self.components.get(stage)
+        func = getattr(component, method, None) if component is not None else None
+        if func is None:
+            outcome = StageOutcome(True, None)
+        else:
+            outcome = self.runner.call(lambda: func(ctx), self.stage_budget)
+        self.sm.record_stage(stage, start, outcome.duration)
+        self.emit(start, {"stage": stage, "duration": round(outcome.duration, 9)})
+        if outcome.timed_out:
+            self.stats.timeouts[stage] += 1
+            _log.warning(
+                "%s stage overran its %.3g s budget (%.3g s): iteration cancelled",
+                stage,
+                self.stage_budget,
+                outcome.duration,
+            )
+            self.emit(start, {"explanation": f"{stage} stage overran its time budget"})
+            if isinstance(self.clock, SimulatedClock):
+                # an overrun costs the whole budget, so the chart's after() timer fires
+                self.clock.time = start + self.stage_budget
+            return  # the chart's after(stage_budget) transition ends the iteration
+        if not outcome.ok:
+            self._fail(stage, f"{type(outcome.error).__name__}: {outcome.error}", outcome.traceback)
+            return
+        try:
+            event = body(ctx, outcome.result)
+        except StageError as exc:
+            self._fail(stage, str(exc), "")
+            return
+        self.post(event)
+
+    def _fail(self, stage: str, reason: str, tb: str) -> None:
+        self.stats.failed_stages[stage] += 1
+        _log.error("%s stage failed: %s%s", stage, reason, f"\n{tb}" if tb else "")
+        self.emit(self.clock.time, {"explanation": f"{stage} stage failed: {reason}"})
+        self.post("stage_failed", stage=stage, reason=reason)
+
+    def on_enter_monitoring(self) -> None:
+        self.stats.iterations += 1
+        self.ctx = StageContext(self.knowledge, self.clock.time, self.stats.iterations)
+
+        def done(ctx: StageContext, result: Any) -> str:
+            signals = as_signals(result)
+            if signals:
+                self.register(signals, self.clock.time)
+            return "monitored"
+
+        self._stage("monitor", "monitor", done)
+
+    def on_enter_analysing(self) -> None:
+        def done(ctx: StageContext, result: Any) -> str:
+            anomaly = as_anomaly(result)
+            if anomaly is None:
+                return "no_anomaly"
+            ctx.anomaly = anomaly
+            ctx.rejections = []
+            self.stats.anomalies += 1
+            self.emit(self.clock.time, {"anomaly": True, "explanation": anomaly.reason})
+            return "anomaly"
+
+        self._stage("analyse", "analyse", done)
+
+    def on_enter_planning(self) -> None:
+        def done(ctx: StageContext, result: Any) -> str:
+            self._plans += 1
+            plan = as_plan(result, f"p{self._plans}")
+            if plan is None:
+                self.emit(self.clock.time, {"explanation": "no plan for the anomaly"})
+                return "no_plan"
+            ctx.plan = plan
+            self.stats.plans += 1
+            record = {"planned": True, "plan": plan.id}
+            record.update(
+                {
+                    k: v
+                    for k, v in plan.values.items()
+                    if isinstance(v, int | float | str | bool) and k not in record
+                }
+            )
+            if plan.explanation:
+                record["explanation"] = plan.explanation
+            self.emit(self.clock.time, record)
+            return "planned"
+
+        self._stage("plan", "plan", done)
+
+    def on_enter_legitimating(self) -> None:
+        def done(ctx: StageContext, result: Any) -> str:
+            plan = ctx.plan
+            assert plan is not None
+            ok, why = as_verdict(result)
+            broken: list[str] = []
+            reasons: list[str] = []
+            context = self.knowledge.snapshot()
+            for rules in self.rules:
+                decision = rules.evaluate(plan.values, context)
+                if not decision.accepted:
+                    broken.extend(decision.broken)
+                    reasons.append(decision.explanation())
+            if not ok:
+                broken.append("application")
+                reasons.append(why)
+            if broken:
+                self.stats.rejected += 1
+                ctx.rejections.append((plan, broken, "; ".join(reasons)))
+                self.emit(
+                    self.clock.time,
+                    {
+                        "rejected": True,
+                        "plan": plan.id,
+                        "broken_rules": broken,
+                        "explanation": "; ".join(reasons),
+                    },
+                )
+                return "rejected"
+            self.stats.accepted += 1
+            self.tm.accepted_plans[plan.id] = plan
+            self.emit(self.clock.time, {"legitimate": True, "plan": plan.id})
+            return "accepted"
+
+        self._stage("legitimate", "legitimate", done)
+
+    def on_enter_executing(self) -> None:
+        def done(ctx: StageContext, result: Any) -> str:
+            plan = ctx.plan
+            assert plan is not None
+            actions = as_actions(result, plan.id)
+            executed = 0
+            for action in actions:
+                ok, why = self.am.perform_adaptation(action)
+                if self.am.last_trusted:
+                    self.emit(self.clock.time, {"trusted": True, "plan": plan.id})
+                if ok:
+                    executed += 1
+                    self.emit(
+                        self.clock.time, {"executed": True, "plan": plan.id, "explanation": why}
+                    )
+                else:
+                    self.emit(
+                        self.clock.time, {"dropped": True, "plan": plan.id, "explanation": why}
+                    )
+            self.tm.accepted_plans.pop(plan.id, None)
+            if executed:
+                self.stats.executed += 1
+                return "executed"
+            self.stats.dropped += 1
+            if not actions:
+                self.emit(
+                    self.clock.time,
+                    {"dropped": True, "plan": plan.id, "explanation": "execute produced no action"},
+                )
+            return "dropped"
+
+        self._stage("execute", "execute", done)
+
+    def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
+        if name == "adaptation_cancelled":
+            self.stats.cancelled += 1
+            self.emit(
+                self.clock.time,
+                {
+                    "explanation": f"adaptation cancelled after "
+                    f"{data.get('replans', '?')} rejected replans"
+                },
+            )

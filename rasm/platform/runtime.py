@@ -1,0 +1,369 @@
+"""The platform assembled: Core, every building block, the loop, and the managed system.
+
+:class:`Platform` is what ``rasm run`` drives and what :func:`rasm.testing.run_app` uses::
+
+    platform = Platform(load_manifest("examples/hotbox"), clock="simulated", seed=1)
+    summary = platform.run(duration=60)
+
+The managing side (Core and the blocks, seed §5) and the managed side (the app's simulator, with
+its probes and effectors) meet only on the transport: the simulator publishes on probe topics,
+Telegraf digests them into knowledge, and actions reach the simulator only through the
+Trustworthiness Checker publishing on an effector topic.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sismic.clock import SimulatedClock
+
+from rasm.errors import PlatformError
+from rasm.platform.blocks import (
+    AdaptationManager,
+    CommunicationManager,
+    KnowledgeManager,
+    LoggingAndTracking,
+    StateManager,
+    StorageManager,
+    Telegraf,
+    TrustworthinessChecker,
+    TrustworthinessManager,
+)
+from rasm.platform.components import Action, load_component
+from rasm.platform.core import Core
+from rasm.platform.manifest import AppManifest, Effector
+from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.scheduler import Scheduler
+from rasm.platform.trace import TraceWriter
+from rasm.resources import data_dir
+from rasm.statechart import MonotonicClock
+
+__all__ = ["Platform", "RunSummary", "STAGES"]
+
+STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
+_log = logging.getLogger("rasm.platform")
+_SCALARS = (int, float, bool, str)
+
+
+@dataclass
+class RunSummary:
+    """What ``rasm run`` prints at the end."""
+
+    app: str
+    clock: str
+    duration: float
+    stats: LoopStats
+    verdicts: dict[str, str]
+    violations: dict[str, int]
+    timing: dict[str, dict[str, float]]
+    records: int
+    rejected_data: dict[str, int] = field(default_factory=dict)
+    modes: dict[str, str] = field(default_factory=dict)
+    trace: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return not any(v == "violated" for v in self.verdicts.values())
+
+
+def _remove_sqlite(path: Path) -> None:
+    for suffix in ("", "-wal", "-shm"):
+        Path(f"{path}{suffix}").unlink(missing_ok=True)
+
+
+class Platform:
+    """One application's managing system (and, with ``role='all'``, its managed system)."""
+
+    def __init__(
+        self,
+        manifest: AppManifest,
+        *,
+        clock: str | None = None,
+        seed: int | None = None,
+        transport: str | None = None,
+        trace: str | Path | None = None,
+        role: str = "all",
+        knowledge: str | None = None,
+        state_dir: str | Path | None = None,
+        scenario: dict[str, Any] | None = None,
+        components: dict[str, Any] | None = None,
+        isolate_stages: bool = True,
+    ) -> None:
+        if role not in ("all", "managing", "managed"):
+            raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
+        self.manifest = manifest
+        self.clock_kind = clock or manifest.clock or "wall"
+        self.clock = SimulatedClock() if self.clock_kind == "simulated" else MonotonicClock()
+        self.seed = 0 if seed is None else seed
+        self.role = role
+        self.scheduler = Scheduler(self.clock)
+        self.scheduler.on_error = self._job_failed
+        self.trace = TraceWriter(trace)
+        self.state_dir = Path(state_dir) if state_dir else Path(".rasm") / manifest.name
+        self.scenario = manifest.scenario if scenario is None else scenario
+        self.transport_url = transport or manifest.transport
+        self.knowledge_url = knowledge or manifest.knowledge
+        self._component_overrides = components or {}
+        self.isolate_stages = isolate_stages
+        self.on_record: list[Callable[[float, dict[str, Any]], Any]] = []
+        self.verdict_log: list[Any] = []
+        self.simulator: Any = None
+        self.core: Core | None = None
+        self._built = False
+        self._started_at = 0.0
+
+    # ------------------------------------------------------------------ assembly
+
+    def build(self) -> None:
+        """Create every block (not started yet: :meth:`start` asks Core to do that)."""
+        from rasm.comm import open_transport
+
+        m = self.manifest
+        storage = self._open_knowledge() if self.role in ("all", "managing") else None
+        clock = self.clock
+        self.transport = open_transport(self.transport_url)
+        self.lt = LoggingAndTracking(clock=clock)
+        self.sm = StateManager(clock=clock, depends_on=("lt",))
+        self.cm = CommunicationManager(self.transport, clock=clock, depends_on=("lt",))
+        blocks: list[Any] = [self.lt, self.sm, self.cm]
+        if self.role in ("all", "managing"):
+            blocks += self._managing_blocks(storage)
+        if self.role in ("all", "managed") and m.simulator:
+            self.simulator = load_component(
+                m.simulator,
+                m.folder,
+                package=f"rasm_app_{m.name}",
+                kwargs={"scenario": self.scenario, "seed": self.seed},
+            )
+        self.core = Core(blocks, clock=clock)
+        for block in blocks:
+            self.sm.track(block)
+            block.on_deadline = self._schedule_block
+        self._built = True
+
+    def _open_knowledge(self) -> Any:
+        """Open (and restore) the knowledge store; returns its storage, if persistent."""
+        from rasm.knowledge import open_knowledge
+
+        url = self.knowledge_url
+        if url == "sqlite":
+            name = "simulated.sqlite" if self.clock_kind == "simulated" else "knowledge.sqlite"
+            url = f"sqlite:{self.state_dir / name}"
+        if url.startswith("sqlite:") and self.clock_kind == "simulated":
+            # a simulation is a fresh world: no knowledge from an earlier run
+            _remove_sqlite(Path(url[len("sqlite:") :]))
+        self.kb, storage = open_knowledge(url, base_dir=Path.cwd())
+        if storage is not None:
+            storage.detach()  # the Storage Manager block feeds it (and steps its chart)
+        restored = [self.kb.read_sample(k) for k in self.kb.keys()]
+        restored = [sample for sample in restored if sample is not None]
+        if restored and isinstance(self.clock, MonotonicClock):
+            # a restarted managing system continues its timeline after what it restored
+            self.clock = MonotonicClock(max(sample.time for sample in restored))
+            self.scheduler.clock = self.clock
+        for signal in self.manifest.signals.values():
+            self.kb.declare(
+                signal.key,
+                signal.type,
+                history=signal.history,
+                minimum=signal.minimum,
+                maximum=signal.maximum,
+            )
+        return storage
+
+    def _managing_blocks(self, storage: Any) -> list[Any]:
+        from rasm.rules import RuleSet
+        from rasm.spec import compile as compile_properties
+
+        m, clock = self.manifest, self.clock
+        self.km = KnowledgeManager(self.kb, clock=clock, depends_on=("lt",))
+        self.stom = StorageManager(storage, clock=clock, depends_on=("km",))
+        self.kb.subscribe(self._knowledge_updated)
+        self.tg = Telegraf(m.probes, self._register, clock=clock, depends_on=("km", "cm"))
+        self.rules = [RuleSet.load(path) for path in m.rules]
+        monitors = [
+            compile_properties(p.read_text(encoding="utf-8"), source=str(p))
+            for p in [*self._platform_properties(), *m.properties]
+        ]
+        self.tc = TrustworthinessChecker(
+            monitors=monitors,
+            effectors=m.effectors,
+            send=self._send_action,
+            mode_of=lambda: self.kb.read_knowledge(m.mode_signal) if m.mode_signal else None,
+            on_verdict=self.verdict_log.append,
+            clock=clock,
+            depends_on=("sm", "cm"),
+        )
+        self.tm = TrustworthinessManager(
+            rules=self.rules,
+            veto_properties=m.veto_properties,
+            verdicts=lambda: self.tc.latest,
+            context=self.kb.snapshot,
+            clock=clock,
+            depends_on=("sm", "km", "tc"),
+        )
+        self.am = AdaptationManager(self.tm, self.tc, clock=clock, depends_on=("tm", "tc"))
+        package = f"rasm_app_{m.name}"
+        components = {
+            stage: self._component_overrides.get(stage)
+            or load_component(ref, m.folder, package=package)
+            for stage, ref in m.components.items()
+        }
+        components.update(self._component_overrides)
+        self.ao = AdaptationOrchestrator(
+            components=components,
+            knowledge=self.kb,
+            rules=self.rules,
+            register=self._register,
+            emit=self._emit,
+            am=self.am,
+            tm=self.tm,
+            sm=self.sm,
+            stage_budget=m.stage_budget,
+            max_replans=m.max_replans,
+            isolate_stages=self.isolate_stages,
+            clock=clock,
+            depends_on=("km", "am", "tm", "tc", "sm", "tg"),
+        )
+        self.trace.observers.append(self.tc.observe)
+        return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+
+    def _platform_properties(self) -> list[Path]:
+        return sorted(data_dir("properties").glob("*.rv"))
+
+    # ------------------------------------------------------------------ data paths
+
+    def _register(self, values: dict[str, Any], time: float) -> None:
+        """Store values in knowledge (one trace record for the batch)."""
+        stored = {}
+        for key, value in values.items():
+            try:
+                self.km.register_knowledge(key, value, time)
+            except Exception as exc:  # a bad value is logged and dropped, never fatal
+                _log.warning("knowledge %s=%r refused: %s", key, value, exc)
+                continue
+            if isinstance(value, _SCALARS):
+                stored[key] = value
+        if stored:
+            self._emit(time, stored)
+
+    def _knowledge_updated(self, key: str, sample: Any) -> None:
+        self.stom.register_knowledge_update(key, sample)
+
+    def _emit(self, time: float, record: dict[str, Any]) -> None:
+        self.trace.emit(time, record)
+        for observer in self.on_record:
+            observer(time, record)
+
+    def _send_action(self, effector: Effector, action: Action) -> None:
+        payload = {**action.payload, "plan": action.plan, "kind": action.kind}
+        self.cm.publish_message(effector.topic, payload)
+
+    def _on_probe(self, message: Any) -> None:
+        # Delivered on the transport's thread: hand it to the loop thread.
+        topic, payload = message.topic, message.payload
+        self.scheduler.submit(lambda: self.tg.digest(topic, payload, self.clock.time))
+
+    def _on_effector(self, name: str, message: Any) -> None:
+        payload = dict(message.payload)
+        self.scheduler.submit(
+            lambda: self.simulator.apply(name, payload, self.clock.time - self._started_at)
+        )
+
+    def _schedule_block(self, block: Any, due: float) -> None:
+        self.scheduler.at(due, block.wake)
+
+    def _job_failed(self, exc: BaseException) -> None:
+        _log.error("a loop job failed: %s: %s", type(exc).__name__, exc, exc_info=exc)
+
+    # ------------------------------------------------------------------ running
+
+    def start(self) -> None:
+        """Build (if needed) and start every block in dependency order, then wire the loop."""
+        if not self._built:
+            self.build()
+        assert self.core is not None
+        self.core.initialize()
+        self._started_at = self.clock.time
+        m = self.manifest
+        if self.role in ("all", "managing"):
+            for probe in m.probes:
+                self.cm.subscribe(probe.topic, self._on_probe)
+            self.scheduler.every(
+                m.period, self.ao.orchestration_loop, start=self.clock.time + m.period
+            )
+        if self.simulator is not None:
+            for name, effector in m.effectors.items():
+                self.cm.subscribe(
+                    effector.topic, lambda message, name=name: self._on_effector(name, message)
+                )
+            self.scheduler.every(m.simulator_period, self._step_simulator)
+
+    def _step_simulator(self) -> None:
+        # the simulated world starts at 0 whatever the managing system's restored timeline
+        readings = self.simulator.step(
+            self.clock.time - self._started_at, self.manifest.simulator_period
+        )
+        for topic, payload in (readings or {}).items():
+            self.cm.publish_message(topic, payload)
+
+    def run(self, duration: float | None = None) -> RunSummary:
+        """Start, run for ``duration`` seconds of the platform's clock, stop, summarise."""
+        random.seed(self.seed)
+        self.start()
+        length = duration if duration is not None else self.manifest.duration
+        try:
+            self.scheduler.run_until(self._started_at + length)
+        finally:
+            self.stop()
+        return self.summary(length)
+
+    def stop(self) -> None:
+        if self.core is not None and self.core.mode != "terminated":
+            self.core.deinitialize()
+        self.trace.flush()
+
+    def summary(self, duration: float) -> RunSummary:
+        verdicts: dict[str, str] = {}
+        violations: dict[str, int] = {}
+        timing: dict[str, dict[str, float]] = {}
+        stats = LoopStats()
+        if self.role in ("all", "managing"):
+            for monitor in self.tc.monitors:
+                for verdict in monitor.finish():
+                    self.verdict_log.append(verdict)
+                    if verdict.value is False:
+                        self.tc.violations[verdict.property] += 1
+                for name in monitor.properties:
+                    verdicts[name] = "satisfied"
+            for verdict in self.verdict_log:
+                if verdict.value is None and verdicts.get(verdict.property) == "satisfied":
+                    verdicts[verdict.property] = "inconclusive"
+            for name, count in self.tc.violations.items():
+                verdicts[name] = "violated"
+                violations[name] = count
+            timing = {
+                stage: self.sm.percentiles(stage)
+                for stage in STAGES
+                if self.sm.stage_timing.get(stage)
+            }
+            stats = self.ao.stats
+        self.trace.close()
+        return RunSummary(
+            app=self.manifest.name,
+            clock=self.clock_kind,
+            duration=duration,
+            stats=stats,
+            verdicts=verdicts,
+            violations=violations,
+            timing=timing,
+            records=self.trace.records,
+            rejected_data=dict(self.tg.rejected) if hasattr(self, "tg") else {},
+            modes=self.sm.get_status(),
+            trace=str(self.trace.path) if self.trace.path else None,
+        )

@@ -1,0 +1,118 @@
+"""The loop's scheduler: timed jobs on one thread, on a simulated or a monotonic clock.
+
+Everything the loop does (stepping the managed-system simulator, orchestrator ticks, statechart
+timers, messages arriving from other threads) becomes a job run by one thread, in time order, so a
+simulated run with a seed is deterministic. On the simulated clock the scheduler jumps from job to
+job as fast as the machine allows; on the wall clock it sleeps on a condition variable until the
+next job is due or another thread submits one: it never polls.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from sismic.clock import Clock, SimulatedClock
+
+__all__ = ["Scheduler"]
+
+Job = Callable[[], Any]
+
+
+class Scheduler:
+    """Runs jobs at their times. ``clock`` is a ``SimulatedClock`` (jumps) or a real clock."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self.simulated = isinstance(clock, SimulatedClock)
+        self._heap: list[tuple[float, int, Job]] = []
+        self._order = itertools.count()
+        self._wake = threading.Condition()
+        self._inbox: list[Job] = []
+        self._stopping = False
+        self.on_error: Callable[[BaseException], Any] | None = None
+
+    @property
+    def time(self) -> float:
+        return self.clock.time
+
+    def at(self, time: float, job: Job) -> None:
+        """Run ``job`` at ``time`` (loop thread only; other threads use :meth:`submit`)."""
+        heapq.heappush(self._heap, (time, next(self._order), job))
+
+    def after(self, delay: float, job: Job) -> None:
+        self.at(self.clock.time + max(delay, 0.0), job)
+
+    def every(self, period: float, job: Job, *, start: float | None = None) -> None:
+        """Run ``job`` every ``period`` seconds from ``start`` (default: now), drift-free."""
+        if period <= 0:
+            raise ValueError("period must be positive")
+        first = self.clock.time if start is None else start
+
+        def tick(n: int = 0) -> None:
+            job()
+            self.at(first + (n + 1) * period, lambda: tick(n + 1))
+
+        self.at(first, tick)
+
+    def submit(self, job: Job) -> None:
+        """Run ``job`` on the loop thread as soon as possible (thread-safe)."""
+        with self._wake:
+            self._inbox.append(job)
+            self._wake.notify()
+
+    def stop(self) -> None:
+        """Make :meth:`run_until` return after the current job (thread-safe)."""
+        with self._wake:
+            self._stopping = True
+            self._wake.notify()
+
+    def _run(self, job: Job) -> None:
+        try:
+            job()
+        except Exception as exc:  # a failing job never stops the loop
+            if self.on_error is None:
+                raise
+            self.on_error(exc)
+
+    def run_until(self, end: float | None) -> None:
+        """Run jobs until the clock reaches ``end`` (None: until :meth:`stop`)."""
+        while True:
+            with self._wake:
+                if self._stopping:
+                    self._stopping = False
+                    return
+                inbox, self._inbox = self._inbox, []
+            for job in inbox:
+                self._run(job)
+            if inbox:
+                continue
+            due = self._heap[0][0] if self._heap else None
+            if end is not None and (due is None or due > end):
+                if self.simulated:
+                    self.clock.time = max(self.clock.time, end)
+                    return
+                due = end
+            if self.simulated:
+                if due is None:
+                    return  # nothing will ever happen again
+                self.clock.time = max(self.clock.time, due)
+            else:
+                with self._wake:
+                    wait = None if due is None else due - self.clock.time
+                    if (wait is None or wait > 0) and not self._inbox and not self._stopping:
+                        self._wake.wait(wait)
+                    if self._inbox or self._stopping:
+                        continue
+                if (
+                    end is not None
+                    and self.clock.time >= end
+                    and (not self._heap or self._heap[0][0] > end)
+                ):
+                    return
+            while self._heap and self._heap[0][0] <= self.clock.time:
+                _, _, job = heapq.heappop(self._heap)
+                self._run(job)

@@ -1,0 +1,55 @@
+"""The adaptation trace (SPEC §4): every record of the loop, as JSON lines.
+
+Records are written in time order with ``time`` first. The same records feed the Trustworthiness
+Checker's online monitors, so what ``rasm check`` says about a trace file is what the monitors saw
+live.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TextIO
+
+__all__ = ["TraceWriter"]
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+class TraceWriter:
+    """Collects loop records; writes them to ``path`` (if any) and hands them to ``observers``."""
+
+    def __init__(self, path: str | Path | None = None) -> None:
+        self.path = Path(path) if path is not None else None
+        self._out: TextIO | None = None
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._out = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        self.observers: list[Callable[[float, dict[str, Any]], Any]] = []
+        self.records = 0
+        self.last_time = -math.inf
+
+    def emit(self, time: float, record: dict[str, Any]) -> None:
+        time = max(time, self.last_time)  # never back in time (SPEC §4)
+        self.last_time = time
+        self.records += 1
+        if self._out is not None:
+            line = {"time": round(time, 9), **{k: _jsonable(v) for k, v in record.items()}}
+            self._out.write(json.dumps(line, separators=(", ", ": ")) + "\n")
+        for observer in self.observers:
+            observer(time, record)
+
+    def flush(self) -> None:
+        if self._out is not None:
+            self._out.flush()
+
+    def close(self) -> None:
+        if self._out is not None:
+            self._out.close()
+            self._out = None
