@@ -86,3 +86,11 @@ class RulesError(RasmError):
 
 class PlatformError(RasmError):
     """A building block or the loop failed."""
+
+
+class KnowledgeError(RasmError):
+    """The knowledge layer failed: a value of the wrong type, time going back, a storage fault."""
+
+
+class CommError(RasmError):
+    """The communication layer failed: a bad transport URL, topic or payload, or a broker problem."""

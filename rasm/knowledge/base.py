@@ -1,0 +1,353 @@
+"""The Knowledge Manager's store: typed values with a bounded history per key.
+
+Every key holds a ring of its last ``history`` samples plus a parallel ring of their times, so a
+write is O(1) (no SQL, no shifting) and a time-range query is two binary searches. One re-entrant
+lock guards the store: bus callbacks, the loop and the storage flusher use it from their threads.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import threading
+from bisect import bisect_left, bisect_right
+from collections.abc import Callable, Iterable
+from typing import Any, NamedTuple
+
+from rasm.errors import KnowledgeError
+from rasm.knowledge.values import (
+    DEFAULT_HISTORY,
+    Check,
+    Declaration,
+    infer_type,
+    make_check,
+)
+
+_log = logging.getLogger("rasm.knowledge")
+
+# Below every finite time: the first sample of a key may have any finite time, -inf is refused.
+_BEFORE_ALL = -sys.float_info.max
+_INF = math.inf
+
+
+class Sample(NamedTuple):
+    """One value of a key and the platform-clock time (seconds) it was registered at."""
+
+    time: float
+    value: Any
+
+
+Callback = Callable[[str, Sample], object]
+"""Called as ``callback(key, sample)`` after each registration."""
+
+
+class _Series:
+    """The samples of one key: two rings (samples, times) filled by append, then overwritten.
+
+    Until the ring is full ``head`` is 0 and the lists are in order; afterwards ``head`` is the
+    index of the oldest sample, so the logical order is ``[head:] + [:head]`` and both parts are
+    sorted by time.
+    """
+
+    __slots__ = ("decl", "check", "capacity", "samples", "times", "head", "last")
+
+    def __init__(self, decl: Declaration) -> None:
+        self.decl = decl
+        self.check: Check = make_check(decl)
+        self.capacity = decl.history
+        self.samples: list[Sample] = []
+        self.times: list[float] = []
+        self.head = 0
+        self.last = _BEFORE_ALL
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    def append(self, sample: Sample) -> None:
+        samples = self.samples
+        if len(samples) < self.capacity:
+            samples.append(sample)
+            self.times.append(sample.time)
+        else:
+            head = self.head
+            samples[head] = sample
+            self.times[head] = sample.time
+            head += 1
+            self.head = 0 if head == self.capacity else head
+        self.last = sample.time
+
+    def latest(self) -> Sample | None:
+        # when not full head is 0 and [-1] is the newest; when full the newest is just before head
+        return self.samples[self.head - 1] if self.samples else None
+
+    def position(self, time: float, after: bool) -> int:
+        """Logical index of the first sample with time >= ``time`` (> if ``after``)."""
+        search = bisect_right if after else bisect_left
+        times, head = self.times, self.head
+        size = len(times)
+        found = search(times, time, head, size) - head
+        if found < size - head or head == 0:
+            return found
+        return size - head + search(times, time, 0, head)
+
+    def between(self, lo: int, hi: int) -> list[Sample]:
+        """Logical slice ``[lo, hi)``, oldest first."""
+        samples, head = self.samples, self.head
+        older = len(samples) - head  # samples in the [head:] part
+        if hi <= older:
+            return samples[head + lo : head + hi]
+        if lo >= older:
+            return samples[lo - older : hi - older]
+        return samples[head + lo :] + samples[: hi - older]
+
+    def all(self) -> list[Sample]:
+        return self.between(0, len(self.samples))
+
+
+class Subscription:
+    """Handle returned by :meth:`KnowledgeBase.subscribe`: call it (or ``cancel()``) to stop."""
+
+    def __init__(self, kb: KnowledgeBase, callback: Callback) -> None:
+        self._kb = kb
+        self.callback = callback
+
+    def cancel(self) -> None:
+        """Stop the callback; calling it again does nothing."""
+        self._kb._unsubscribe(self)
+
+    __call__ = cancel
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.cancel()
+
+
+class KnowledgeBase:
+    """Typed knowledge with a bounded history per key (the seed's Knowledge Manager).
+
+    ``default_history`` is the history of keys registered without a declaration.
+    """
+
+    def __init__(self, *, default_history: int = DEFAULT_HISTORY) -> None:
+        Declaration("default", "float", history=default_history)  # validates the number
+        self.default_history = default_history
+        self._lock = threading.RLock()
+        self._series: dict[str, _Series] = {}
+        # replaced, never mutated, so a registration can iterate it while another thread
+        # subscribes or cancels
+        self._subscriptions: tuple[Subscription, ...] = ()
+
+    # -- declarations ---------------------------------------------------------------------------
+
+    def declare(
+        self,
+        key: str,
+        type: str,
+        *,
+        history: int | None = None,
+        minimum: float | None = None,
+        maximum: float | None = None,
+    ) -> Declaration:
+        """Declare what ``key`` holds. Re-declaring is allowed: samples already held must fit the
+        new declaration (they are converted, e.g. ints to floats) and the last ``history`` stay.
+        """
+        decl = Declaration(
+            key, type, self.default_history if history is None else history, minimum, maximum
+        )
+        with self._lock:
+            old = self._series.get(key)
+            if old is None:
+                self._series[key] = _Series(decl)
+                return decl
+            if old.decl == decl:
+                return decl
+            fresh = _Series(decl)
+            kept = old.all()[-decl.history :]
+            try:
+                converted = [Sample(s.time, fresh.check(s.value)) for s in kept]
+            except KnowledgeError as exc:
+                raise KnowledgeError(
+                    f"cannot declare {key!r} as {type}: a sample it already holds does not fit "
+                    f"({exc})"
+                ) from exc
+            for sample in converted:
+                fresh.append(sample)
+            self._series[key] = fresh
+            return decl
+
+    def declaration(self, key: str) -> Declaration | None:
+        """The declaration of ``key`` (inferred at its first write if never declared)."""
+        with self._lock:
+            series = self._series.get(key)
+            return series.decl if series is not None else None
+
+    def declarations(self) -> dict[str, Declaration]:
+        """All declarations, by key."""
+        with self._lock:
+            return {key: series.decl for key, series in self._series.items()}
+
+    # -- writing --------------------------------------------------------------------------------
+
+    def register_knowledge(self, key: str, value: Any, time: float) -> Sample:
+        """Record ``value`` for ``key`` at ``time`` (platform-clock seconds); return the sample.
+
+        Raises :class:`KnowledgeError` for a value of the wrong type or out of its bounds, and for
+        a time older than the key's last sample. Subscribers are called before this returns.
+        """
+        with self._lock:
+            series = self._series.get(key)
+            if series is None:
+                series = self._infer(key, value)
+            value = series.check(value)
+            if type(time) is not float:
+                time = self._time(key, time)
+            if not series.last <= time < _INF:  # also false for NaN
+                raise self._bad_time(key, time, series.last)
+            sample = Sample(time, value)
+            series.append(sample)
+            for subscription in self._subscriptions:
+                try:
+                    subscription.callback(key, sample)
+                except Exception:
+                    # a failing reader must not fail the writer (the Telegraf, the loop)
+                    _log.exception(
+                        "knowledge subscriber %r failed on %r", subscription.callback, key
+                    )
+            return sample
+
+    def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
+        """Append samples in bulk **without** notifying subscribers; return how many.
+
+        Used by a storage's restore (so restored samples are not buffered again). All are checked
+        before any is stored: on an error nothing changes.
+        """
+        samples = list(samples)
+        with self._lock:
+            series = self._series.get(key)
+            if series is None:
+                if not samples:
+                    return 0
+                series = _Series(self._inferred(key, samples[0].value))
+                new = True
+            else:
+                new = False
+            checked: list[Sample] = []
+            last = series.last
+            for time, value in samples:
+                value = series.check(value)
+                time = self._time(key, time)
+                if not last <= time < _INF:
+                    raise self._bad_time(key, time, last)
+                last = time
+                checked.append(Sample(time, value))
+            for sample in checked[-series.capacity :]:
+                series.append(sample)
+            if new:
+                self._series[key] = series
+            return len(checked)
+
+    def _inferred(self, key: str, value: Any) -> Declaration:
+        return Declaration(key, infer_type(value), self.default_history)
+
+    def _infer(self, key: str, value: Any) -> _Series:
+        series = _Series(self._inferred(key, value))
+        self._series[key] = series
+        return series
+
+    @staticmethod
+    def _time(key: str, time: Any) -> float:
+        if isinstance(time, bool) or not isinstance(time, int | float):
+            raise KnowledgeError(
+                f"knowledge {key!r}: time must be a number of seconds, got {time!r}"
+            )
+        return float(time)
+
+    @staticmethod
+    def _bad_time(key: str, time: float, last: float) -> KnowledgeError:
+        if math.isnan(time) or math.isinf(time):
+            return KnowledgeError(f"knowledge {key!r}: time must be finite, got {time!r}")
+        return KnowledgeError(
+            f"knowledge {key!r}: time {time!r} is older than its last sample at {last!r} "
+            "(times must not decrease per key)"
+        )
+
+    # -- reading --------------------------------------------------------------------------------
+
+    def read_knowledge(self, key: str, default: Any = None) -> Any:
+        """The latest value of ``key``, or ``default`` if it has none."""
+        with self._lock:
+            series = self._series.get(key)
+            sample = series.latest() if series is not None else None
+            return default if sample is None else sample.value
+
+    def read_sample(self, key: str) -> Sample | None:
+        """The latest sample of ``key``, or None."""
+        with self._lock:
+            series = self._series.get(key)
+            return series.latest() if series is not None else None
+
+    def history(
+        self,
+        key: str,
+        *,
+        last: int | None = None,
+        since: float | None = None,
+        until: float | None = None,
+    ) -> list[Sample]:
+        """Samples of ``key`` held in memory, oldest first: those with ``since <= time <= until``
+        (either bound optional), and of those only the ``last`` newest if given.
+
+        The range is found by binary search: O(log n) plus the size of the answer.
+        """
+        if last is not None and (isinstance(last, bool) or not isinstance(last, int) or last < 0):
+            raise KnowledgeError(
+                f"history of {key!r}: last must be a whole number >= 0, got {last!r}"
+            )
+        with self._lock:
+            series = self._series.get(key)
+            if series is None:
+                return []
+            lo = 0 if since is None else series.position(since, after=False)
+            hi = len(series) if until is None else series.position(until, after=True)
+            if last is not None:
+                lo = max(lo, hi - last)
+            return series.between(lo, hi) if lo < hi else []
+
+    def keys(self) -> list[str]:
+        """Every key declared or registered, in the order they became known."""
+        with self._lock:
+            return list(self._series)
+
+    def snapshot(self) -> dict[str, Any]:
+        """The latest value of every key that has one."""
+        with self._lock:
+            return {
+                key: series.latest().value  # type: ignore[union-attr]
+                for key, series in self._series.items()
+                if series.samples
+            }
+
+    def __contains__(self, key: object) -> bool:
+        with self._lock:
+            return key in self._series
+
+    # -- subscribers ----------------------------------------------------------------------------
+
+    def subscribe(self, callback: Callback) -> Subscription:
+        """Call ``callback(key, sample)`` after each registration; return the handle that stops it.
+
+        Callbacks run on the writer's thread, in registration order, while the store is locked:
+        keep them short (set an event, append to a buffer). They may read the store. An exception
+        in a callback is logged and never reaches the writer.
+        """
+        subscription = Subscription(self, callback)
+        with self._lock:
+            self._subscriptions = (*self._subscriptions, subscription)
+        return subscription
+
+    def _unsubscribe(self, subscription: Subscription) -> None:
+        with self._lock:
+            self._subscriptions = tuple(s for s in self._subscriptions if s is not subscription)
