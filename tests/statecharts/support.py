@@ -144,10 +144,12 @@ def start(
     *,
     context: dict[str, Any] | None = None,
     monitors: Sequence[Statechart] = (),
+    engine: type = Interpreter,
 ) -> Run:
-    """A fresh interpreter for ``chart``, monitors bound, initial step taken."""
+    """A fresh interpreter for ``chart`` (rasm's unless ``engine`` says otherwise: stock sismic's
+    ``Interpreter`` has the same API), monitors bound, initial step taken."""
     clock = SimulatedClock()
-    interpreter = Interpreter(chart, clock=clock, initial_context=context)
+    interpreter = engine(chart, clock=clock, initial_context=context)
     for monitor in monitors:
         interpreter.bind_property_statechart(monitor)
     run = Run(interpreter, clock)

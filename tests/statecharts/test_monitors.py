@@ -15,8 +15,9 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from sismic.exceptions import PropertyStatechartError
+from sismic.interpreter import Interpreter as SismicInterpreter
 
-from rasm.statechart import load_statechart
+from rasm.statechart import Interpreter, load_statechart
 
 from .support import (
     BRING_UP,
@@ -250,20 +251,22 @@ def feed(run, script) -> None:
             run.advance(item)
 
 
+@pytest.mark.parametrize("engine", [Interpreter, SismicInterpreter], ids=["rasm", "sismic"])
 @pytest.mark.parametrize("name", sorted(MUTANTS))
-def test_the_shipped_orchestrator_passes_every_mutant_script(name):
+def test_the_shipped_orchestrator_passes_every_mutant_script(name, engine):
     _, script, _ = MUTANTS[name]
-    run = start(load(CHART), monitors=monitors())
+    run = start(load(CHART), monitors=monitors(), engine=engine)
     run.send_all(BRING_UP)
     feed(run, script)
     assert current(run)  # still running: nothing was refused
 
 
+@pytest.mark.parametrize("engine", [Interpreter, SismicInterpreter], ids=["rasm", "sismic"])
 @pytest.mark.parametrize("monitor", MONITORS)
 @pytest.mark.parametrize("name", sorted(MUTANTS))
-def test_a_broken_orchestrator_is_caught_by_exactly_the_monitors_it_breaks(name, monitor):
+def test_a_broken_orchestrator_is_caught_by_exactly_the_monitors_it_breaks(name, monitor, engine):
     edits, script, catchers = MUTANTS[name]
-    run = start(mutant(*edits), monitors=monitors([monitor]))
+    run = start(mutant(*edits), monitors=monitors([monitor]), engine=engine)
     run.send_all(BRING_UP)
     if monitor in catchers:
         with pytest.raises(PropertyStatechartError) as failure:
