@@ -141,13 +141,13 @@ def _origin(source: str):
 
 def _strip_always(formula: Expr) -> Expr:
     # "always φ" outermost, unbounded: φ is judged at every record anyway
-    while (
+    if (
         isinstance(formula, Future)
         and formula.op == "always"
         and formula.bound.low == 0
         and formula.bound.high == INF
     ):
-        formula = formula.operand
+        return formula.operand
     return formula
 
 

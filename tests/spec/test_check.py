@@ -1,0 +1,213 @@
+"""``rasm check``: trace reading, the three output formats, explanations and exit codes."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from rasm.cli import main
+from rasm.errors import SourceErrors
+from rasm.spec.trace import parse_trace
+
+PROPS = """\
+input velocity: float
+input mode: str = "idle"
+event anomaly
+event adapted
+
+property velocity_limit:
+    always (velocity <= 0.5 or mode == "emergency")
+property timely_adaptation:
+    always (anomaly -> eventually[0, 2s] adapted)
+"""
+
+GOOD = [
+    {"time": 0, "velocity": 0.1},
+    {"time": 1, "velocity": 0.2, "anomaly": True},
+    {"time": 2.5, "adapted": True},
+    {"time": 3, "velocity": 0.3},
+]
+
+BAD = [
+    {"time": 0, "velocity": 0.1},
+    {"time": 1, "velocity": 0.7, "mode": "navigate"},
+    {"time": 2, "anomaly": True, "velocity": 0.2},
+    {"time": 5, "velocity": 0.3},
+    {"time": 5.5, "anomaly": True},
+]
+
+
+def write(tmp_path, name, records):
+    path = tmp_path / name
+    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    return str(path)
+
+
+@pytest.fixture
+def props(tmp_path):
+    path = tmp_path / "props.rv"
+    path.write_text(PROPS)
+    return str(path)
+
+
+def test_satisfied_trace_exits_0(props, tmp_path, capsys):
+    assert main(["check", props, write(tmp_path, "t.jsonl", GOOD)]) == 0
+    out = capsys.readouterr().out
+    assert "velocity_limit: satisfied (4 records judged)" in out
+    assert "0 of 2 properties violated" in out
+
+
+def test_violations_exit_1_and_are_explained(props, tmp_path, capsys):
+    assert main(["check", props, write(tmp_path, "t.jsonl", BAD)]) == 1
+    out = capsys.readouterr().out
+    assert "velocity_limit: VIOLATED at 1 of 5 judged records (first: record 1, time 1)" in out
+    # which sub-formula failed, and the values that made it fail
+    assert 'velocity <= 0.5 or mode == "emergency" failed' in out
+    assert "velocity = 0.7" in out
+    assert 'mode = "navigate"' in out
+    assert "timely_adaptation: VIOLATED at 1 of 5" in out
+    assert "eventually[0, 2] adapted failed: adapted never held" in out
+    assert "anomaly was true" in out
+
+
+def test_json_report(props, tmp_path, capsys):
+    assert main(["check", props, write(tmp_path, "t.jsonl", BAD), "--format", "json"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert report["records"] == 5
+    first, second = report["properties"]
+    assert first == {
+        "name": "velocity_limit",
+        "verdict": "violated",
+        "violations": [{"index": 1, "time": 1}],
+        "judged": 5,
+        "inconclusive": 0,
+    }
+    # the anomaly at 5.5 cannot be decided: the trace ends before its window does
+    assert second["verdict"] == "violated"
+    assert second["violations"] == [{"index": 2, "time": 2}]
+    assert second["inconclusive"] == 1
+
+
+def test_inconclusive_alone_exits_0(props, tmp_path, capsys):
+    trace = write(tmp_path, "t.jsonl", [{"time": 0, "velocity": 0.1, "anomaly": True}])
+    assert main(["check", props, trace, "--format", "json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["properties"][1]["verdict"] == "inconclusive"
+
+
+def test_verdicts_jsonl(props, tmp_path, capsys):
+    assert main(["check", props, write(tmp_path, "t.jsonl", BAD), "--verdicts"]) == 1
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(lines) == 10
+    assert lines[1] == {"property": "velocity_limit", "index": 1, "time": 1, "value": False}
+    assert lines[-1] == {"property": "timely_adaptation", "index": 4, "time": 5.5, "value": None}
+
+
+def test_bad_trace_reports_every_line(props, tmp_path, capsys):
+    path = tmp_path / "bad.jsonl"
+    path.write_text(
+        '{"time": 0, "velocity": 0.1}\n'
+        "[1, 2]\n"
+        '{"time": "soon"}\n'
+        '{"velocity": 0.2}\n'
+        '{"time": 3, "velocity": "fast"}\n'
+        '{"time": 2}\n'
+        "{oops\n"
+        '{"time": 4, "anomaly": "yes"}\n'
+    )
+    assert main(["check", props, str(path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"rasm: {path}:2:1: a record must be a JSON object, not list",
+        f"rasm: {path}:3:2: 'time' must be a number, not \"soon\"",
+        f"rasm: {path}:4:1: record without 'time' (seconds, a number)",
+        f"rasm: {path}:5:13: 'velocity' must be a number, not \"fast\"",
+        f"rasm: {path}:7:2: not valid JSON: Expecting property name enclosed in double quotes",
+        f"rasm: {path}:8:13: 'anomaly' must be true or false, not \"yes\"",
+    ]
+
+
+def test_time_going_back_is_rejected_with_its_line():
+    with pytest.raises(SourceErrors) as info:
+        parse_trace(['{"time": 2}', "", '{"time": 1}'], {}, source="t.jsonl")
+    (error,) = info.value.errors
+    assert str(error).startswith("t.jsonl:3:2: time 1 goes back in time")
+
+
+def test_bad_property_file_exits_2_with_location(tmp_path, capsys):
+    path = tmp_path / "bad.rv"
+    path.write_text("input v: float\nproperty p:\n    always[0, 1] (v <= 0.5) until[2, 1] v > 1\n")
+    trace = write(tmp_path, "t.jsonl", GOOD)
+    assert main(["check", str(path), trace]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rasm: {path}:3:34: empty window [2, 1]")
+    assert "^" in err and "Traceback" not in err
+
+
+def test_missing_files_exit_2(props, tmp_path, capsys):
+    assert main(["check", str(tmp_path / "nope.rv"), "x.jsonl"]) == 2
+    assert main(["check", props, str(tmp_path / "nope.jsonl")]) == 2
+    assert "No such file" in capsys.readouterr().err
+
+
+def test_shipped_platform_properties_load():
+    from pathlib import Path
+
+    from rasm.spec import load_specification
+
+    folder = Path(__file__).resolve().parents[2] / "properties"
+    files = sorted(folder.glob("*.rv"))
+    assert files
+    for path in files:
+        spec = load_specification(path.read_text(), source=str(path))
+        assert spec.properties
+
+
+def loop_trace(reject_second: bool = False, skip_legitimate: bool = False) -> list[dict]:
+    """An adaptation trace as `rasm run --trace` writes it: two iterations, one anomaly."""
+    t = 0.0
+    out = []
+
+    def at(dt, **values):
+        nonlocal t
+        t = round(t + dt, 3)
+        out.append({"time": t, **values})
+
+    for iteration in range(2):
+        at(0.1, stage="monitor", duration=0.01)
+        at(0.05, stage="analyse", duration=0.02, anomaly=True)
+        at(0.05, stage="plan", duration=0.05, planned=True, plan=f"p{iteration}")
+        if not skip_legitimate:
+            rejected = reject_second and iteration == 1
+            at(0.05, stage="legitimate", duration=0.01,
+               **({"rejected": True} if rejected else {"legitimate": True}))
+            if rejected:
+                continue
+        at(0.01, trusted=True)
+        at(0.05, stage="execute", duration=0.1, executed=True)
+    at(1.0, stage="monitor", duration=0.01)
+    return out
+
+
+@pytest.mark.parametrize("name", ["maple_k.rv", "adaptation.rv"])
+def test_platform_properties_hold_on_a_good_loop(name, tmp_path, capsys):
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "properties" / name
+    trace = write(tmp_path, "loop.jsonl", loop_trace())
+    assert main(["check", str(path), trace, "--format", "json"]) == 0, capsys.readouterr().out
+    report = json.loads(capsys.readouterr().out)
+    assert all(p["verdict"] == "satisfied" for p in report["properties"])
+
+
+def test_platform_properties_catch_an_unlegitimated_execution(tmp_path, capsys):
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "properties" / "maple_k.rv"
+    trace = write(tmp_path, "loop.jsonl", loop_trace(skip_legitimate=True))
+    assert main(["check", str(path), trace, "--format", "json"]) == 1
+    report = {p["name"]: p for p in json.loads(capsys.readouterr().out)["properties"]}
+    assert report["stage_order"]["verdict"] == "violated"  # plan -> execute skips a stage
+    assert report["execute_only_legitimate_plans"]["verdict"] == "violated"
+    assert report["rejected_plans_stay_rejected"]["verdict"] == "satisfied"

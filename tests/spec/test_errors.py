@@ -1,0 +1,69 @@
+"""Every bad input is a SourceError at the right file, line and column, with the text marked."""
+
+from __future__ import annotations
+
+import pytest
+
+from rasm.errors import SourceError
+from rasm.spec import compile, load_specification
+
+CASES = [
+    # (text, line, col, words in the message)
+    ("property p: x >", 1, 16, "unexpected end of input"),
+    ("property p: x >> 2", 1, 16, "unexpected '>'"),
+    ("property p:\n  once[5, 2] x", 2, 7, "upper bound is smaller"),
+    ("property p: once[-1, 2] x", 1, 18, "cannot be negative"),
+    ("property p: eventually[0, inf] x", 1, 23, "infinite bound"),
+    ("property p: always[1, inf] x", 1, 19, "infinite bound"),
+    ("property p: x until[0, inf] y", 1, 20, "infinite bound"),
+    ("property p: eventually x", 1, 13, "needs a bound"),
+    ("property p: x until y", 1, 13, "needs a bound"),
+    ("property p: once[inf, inf] x", 1, 17, "lower bound"),
+    ("property p: once[0, 2h] x", 1, 22, "unknown time unit 'h'"),
+    ("property p: x and x > 1", 1, 19, "used as a number here but is a boolean"),
+    ("input x: float\nproperty p: x and y", 2, 13, "used as a boolean here but is a number"),
+    ("property p: foo(x) > 1", 1, 13, "unknown function 'foo'"),
+    ('property p: mode == "a" and mode > 1', 1, 29, "used as a number here but is a string"),
+    ('input m: str\nproperty p: m == 3', 2, 13, "cannot compare a string with a number"),
+    ('property p: "a" + 1 > 0', 1, 13, "needs a number, not a string"),
+    ("property p: (true * 2) > 1", 1, 14, "needs a number, not a boolean"),
+    ("property p: x + 1", 1, 13, "a number, but a boolean is needed"),
+    ("property p: once (always x)", 1, 19, "unbounded 'always'"),
+    ("let a = always x\nproperty p: a", 1, 9, "unbounded 'always'"),
+    ("input x: integer\nproperty p: x > 1", 1, 10, "unknown type 'integer'"),
+    ("input x: int = 2.5\nproperty p: x > 1", 1, 16, "not of type int"),
+    ("input x: float\ninput x: int\nproperty p: x > 1", 2, 1, "already defined"),
+    ("property p: x\nproperty p: y", 2, 10, "already defined"),
+    ("property p: a\nlet a = x > 1", 2, 5, "already used as a signal"),
+    ("input x: float", 1, 1, "no property"),
+    ("property p: abs(x, y) > 1", 1, 13, "abs takes 1 argument"),
+    ("property p: prev(x, y) > 1", 1, 13, "prev takes one argument"),
+    ("property p: x > 1 @", 1, 19, "unexpected character '@'"),
+    ("property : x", 1, 10, "unexpected ':'"),
+]
+
+
+@pytest.mark.parametrize("text,line,col,words", CASES)
+def test_error_is_located(text, line, col, words):
+    with pytest.raises(SourceError) as info:
+        load_specification(text, source="props.rv")
+    error = info.value
+    assert words in error.message
+    assert (error.location.file, error.location.line, error.location.col) == ("props.rv", line, col)
+    assert str(error).startswith(f"props.rv:{line}:{col}: ")
+    # the offending text is shown with a marker under it
+    assert error.excerpt is not None and "^" in error.excerpt
+    marked = error.excerpt.splitlines()
+    assert marked[0].strip() == text.splitlines()[line - 1].strip()
+    assert marked[1].index("^") == 4 + col - 1
+
+
+def test_compile_raises_the_same_errors():
+    with pytest.raises(SourceError, match="needs a bound"):
+        compile("property p: eventually x", source="f.rv")
+
+
+def test_nested_unbounded_always_inside_property_is_rejected_but_outermost_is_fine():
+    load_specification("property p: always (x -> once y)")
+    with pytest.raises(SourceError, match="outermost"):
+        load_specification("property p: always always x")

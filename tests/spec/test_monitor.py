@@ -1,0 +1,118 @@
+"""The Monitor API of SPEC §6: step, finish, warm-up, rejected records, timing of verdicts."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rasm.errors import SpecError
+from rasm.spec import Verdict, compile
+
+
+def test_step_returns_the_verdicts_of_this_record():
+    mon = compile("input v: float\nproperty limit: always (v <= 0.5)\n")
+    assert mon.step(0.0, {"v": 0.1}) == [Verdict("limit", 0, 0.0, True)]
+    (verdict,) = mon.step(1.0, {"v": 0.9})
+    assert (verdict.property, verdict.index) == ("limit", 1)
+    assert (verdict.time, verdict.value) == (1.0, False)
+    assert mon.step(2.0, {}) == [Verdict("limit", 2, 2.0, False)]  # sample and hold
+    assert mon.finish() == []
+
+
+def test_warm_up_and_defaults():
+    mon = compile(
+        "input v: float\ninput mode: str = \"idle\"\n"
+        "property p: v < 1 or mode == \"stop\"\nproperty q: mode == \"idle\"\n"
+    )
+    # q reads only mode, which has a default: judged from the first record
+    assert [v.property for v in mon.step(0, {})] == ["q"]
+    assert [v.property for v in mon.step(1, {"v": 2})] == ["p", "q"]
+    assert mon.starts == [1, 0]
+
+
+def test_events_are_true_only_where_set():
+    mon = compile("event bump\nproperty calm: not bump\n")
+    values = [mon.step(t, rec)[0].value for t, rec in enumerate([{}, {"bump": True}, {}])]
+    assert values == [True, False, True]
+
+
+def test_future_verdicts_come_no_later_than_the_window_end_and_finish_is_inconclusive():
+    mon = compile("event a\nevent b\nproperty p: a -> eventually[0, 2] b\n")
+    assert mon.step(0, {"a": True}) == []
+    assert mon.step(1, {}) == []
+    assert mon.step(2, {}) == []
+    # time 2.5 > 0 + 2: record 0's window has passed
+    out = mon.step(2.5, {})
+    assert Verdict("p", 0, 0, False) in out
+    out = mon.step(3, {"a": True, "b": True})
+    assert all(v.value is True for v in out)
+    assert {v.index for v in out} == {1, 2, 3, 4}
+    assert mon.step(4, {"a": True}) == []
+    assert mon.finish() == [Verdict("p", 5, 4, None)]
+    assert mon.finish() == []
+
+
+def test_bad_records_are_counted_and_change_nothing():
+    mon = compile("input v: float\nevent e\nproperty p: v < 1 and not e\n")
+    assert mon.step(1, {"v": 0.5})[0].value is True
+    assert mon.step(2, {"v": "fast"}) == []
+    assert mon.step(0.5, {"v": 3}) == []  # back in time
+    assert mon.step(2, {"e": 1}) == []  # an event is true or false
+    assert mon.step(float("nan"), {}) == []
+    assert mon.step(3, {"v": 0.7})[0] == Verdict("p", 1, 3, True)
+    reasons = [r.reason for r in mon.rejected]
+    assert len(reasons) == 4
+    assert "'v' must be a number" in reasons[0]
+    assert "goes back in time" in reasons[1]
+    assert "'e' must be true or false" in reasons[2]
+
+
+def test_run_raises_on_bad_record_and_finished_monitor_refuses_more():
+    mon = compile("input v: float\nproperty p: v < 1\n")
+    with pytest.raises(SpecError, match="record 1: 'v' must be a number"):
+        mon.run([(0, {"v": 1}), (1, {"v": None})])
+    mon = compile("input v: float\nproperty p: v < 1\n")
+    mon.finish()
+    with pytest.raises(SpecError, match="finished"):
+        mon.step(0, {"v": 1})
+
+
+def test_prev_and_time_and_aggregates():
+    mon = compile(
+        "input v: float\n"
+        "property rising: prev(v) < v\n"
+        "property late: time >= 2\n"
+        "property busy: count[0, 1](v > 0) >= 2\n"
+        "property mean: avg[0, 10](v) <= 1\n"
+        "property low: min[0, 1](v) >= 0 and max(v) < 3\n"
+    )
+    rows = [mon.step(t, {"v": v}) for t, v in [(0, 1), (1, 2), (2, 0), (3, 5)]]
+    table = {(v.property, v.index): v.value for row in rows for v in row}
+    assert [table[("rising", i)] for i in range(4)] == [False, True, False, True]
+    assert [table[("late", i)] for i in range(4)] == [False, False, True, True]
+    assert [table[("busy", i)] for i in range(4)] == [False, True, False, False]
+    assert [table[("mean", i)] for i in range(4)] == [True, False, True, False]
+    assert [table[("low", i)] for i in range(4)] == [True, True, True, False]
+
+
+def test_time_units():
+    mon = compile("event a\nproperty p: once[0, 1500ms] a\nproperty q: once[0, 0.01min] a\n")
+    out = [mon.step(t, {"a": t == 0}) for t in (0, 1.0, 1.2, 1.6)]
+    assert [row[0].value for row in out] == [True, True, True, False]
+    assert [row[1].value for row in out] == [True, False, False, False]
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(1, 6))
+def test_memory_is_bounded_by_the_window(exponent):
+    # a pending queue never holds more records than the window can reach
+    bound = 10 ** min(exponent, 3)
+    mon = compile(f"event a\nevent b\nproperty p: a -> eventually[0, {bound}] b\n")
+    (pending,) = [v for k, v in mon.program.constants.items() if k.startswith("w")]
+    for t in range(3 * bound):
+        mon.step(t, {"a": True})
+        assert len(pending) <= bound + 1
+    assert math.isfinite(bound)
