@@ -38,6 +38,8 @@ class Sample(NamedTuple):
     value: Any
 
 
+_new_tuple = tuple.__new__
+
 Callback = Callable[[str, Sample], object]
 """Called as ``callback(key, sample)`` after each registration."""
 
@@ -206,7 +208,8 @@ class KnowledgeBase:
                 time = self._time(key, time)
             if not series.last <= time < _INF:  # also false for NaN
                 raise self._bad_time(key, time, series.last)
-            sample = Sample(time, value)
+            # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
+            sample = _new_tuple(Sample, (time, value))
             series.append(sample)
             for subscription in self._subscriptions:
                 try:

@@ -76,7 +76,7 @@ class SqliteStorage(Storage):
         self._buf_lock = threading.Lock()
         self._pending: dict[str, deque[Sample]] = {}
         self._known: dict[str, Declaration] = {}  # on disk or waiting to be written
-        self._last: dict[str, float] = {}  # newest time buffered or stored, per key
+        self._last: dict[str, float] = {}  # newest time taken from the buffer, per key
         self._written: dict[str, Declaration] = {}  # as on disk
         self._counts: dict[str, int] = {}  # rows on disk per key (we are the only writer)
         self._lock_fd = _take_lock(self.path)
@@ -137,7 +137,6 @@ class SqliteStorage(Storage):
             if queue is None:
                 queue = self._pending[key] = deque(maxlen=self.keep)
             queue.append(sample)
-            self._last[key] = sample.time
 
     def register_knowledge_update(self, key: str, sample: Sample) -> None:
         """Buffer one sample of ``key``, checked against its declaration (the attached knowledge
@@ -156,7 +155,8 @@ class SqliteStorage(Storage):
             if isinstance(time, bool) or not isinstance(time, int | float):
                 raise KnowledgeError(f"knowledge {key!r}: time must be a number, got {time!r}")
             time = float(time)
-            last = self._last.get(key, _BEFORE_ALL)
+            pending = self._pending.get(key)
+            last = pending[-1].time if pending else self._last.get(key, _BEFORE_ALL)
             if not last <= time < float("inf"):
                 raise KnowledgeError(
                     f"knowledge {key!r}: time {time!r} is not finite or older than the last "
@@ -178,6 +178,9 @@ class SqliteStorage(Storage):
             db = self._open_db()
             with self._buf_lock:
                 batch, self._pending = self._pending, {}
+                for key, queue in batch.items():
+                    # newest time of each key, kept for register_knowledge_update's check
+                    self._last[key] = queue[-1].time
                 known = dict(self._known)
             kb = self._kb
             if kb is not None:

@@ -180,6 +180,8 @@ def test_register_knowledge_update_checks_type_and_time_then_persists():
                 storage.register_knowledge_update("v", Sample(0.5, 3))
             storage.register_knowledge_update("v", (2, 3))  # a plain (time, value) pair
             assert storage.update_persistency() == 2
+            with pytest.raises(KnowledgeError, match="'v': time 1.5 is not finite or older"):
+                storage.register_knowledge_update("v", Sample(1.5, 3))  # older than flushed
         # a reopened storage remembers the type and the last time
         with SqliteStorage(path) as storage:
             with pytest.raises(KnowledgeError, match="'v': time 1.0 is not finite or older"):
