@@ -34,7 +34,7 @@ ROUND_TRIPS = {
                              ("logging_enabled", "ready")],
     "trustworthiness_manager": [("check_requested", "gathering_evidence"),
                                 ("evidence_gathered", "evaluating"), ("untrustworthy", "waiting")],
-    "trustworthiness_checker": [("register_requested", "registering_action"),
+    "trustworthiness_checker": [("register_requested", "checking_action"),
                                 ("action_refused", "monitoring"),
                                 ("spec_update_requested", "reconfiguring"),
                                 ("spec_updated", "monitoring")],
@@ -116,7 +116,7 @@ def test_trustworthiness_checker_counts_violations_in_any_sub_state():
     run.send("violation_detected", property="velocity_limit")
     run.send("register_requested")
     run.send("violation_detected")
-    assert task(run) == "registering_action" and run.context["violations"] == 2
+    assert task(run) == "checking_action" and run.context["violations"] == 2
 
 
 def test_communication_manager_faults_when_reconnecting_overruns_its_budget():
