@@ -1,0 +1,60 @@
+"""Transport URLs: ``local``, ``mqtt://host:port`` and ``mqtts://host:port``."""
+
+from __future__ import annotations
+
+from typing import Any
+from urllib.parse import urlsplit
+
+from rasm.comm.transport import Transport
+from rasm.errors import CommError
+
+__all__ = ["open_transport", "parse_mqtt_url", "ACCEPTED_FORMS"]
+
+ACCEPTED_FORMS = "'local', 'mqtt://HOST:PORT' or 'mqtts://HOST:PORT' (TLS)"
+_DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
+
+
+def parse_mqtt_url(url: str) -> tuple[str, int, bool]:
+    """``(host, port, tls)`` of an ``mqtt://`` or ``mqtts://`` URL; :class:`CommError` otherwise.
+
+    The port defaults to 1883 (8883 for ``mqtts``). Paths, queries and credentials are refused:
+    give credentials to :class:`~rasm.comm.mqtt.MqttTransport` instead, not in a URL that ends up
+    in logs.
+    """
+    def bad(why: str) -> CommError:
+        return CommError(f"bad transport URL {url!r}: {why}; expected {ACCEPTED_FORMS}")
+
+    if not isinstance(url, str):
+        raise CommError(f"transport URL must be a string, got {url!r}; expected {ACCEPTED_FORMS}")
+    parts = urlsplit(url.strip())
+    if parts.scheme not in _DEFAULT_PORTS:
+        raise bad(f"unknown scheme {parts.scheme!r}" if parts.scheme else "no scheme")
+    if parts.username is not None or parts.password is not None:
+        raise bad("credentials do not belong in the URL (pass username= and password=)")
+    if parts.path not in ("", "/") or parts.query or parts.fragment:
+        raise bad("a broker URL has no path, query or fragment")
+    try:
+        port = parts.port
+    except ValueError as exc:
+        raise bad(str(exc)) from None
+    host = parts.hostname
+    if not host:
+        raise bad("no host")
+    return host, port if port is not None else _DEFAULT_PORTS[parts.scheme], parts.scheme == "mqtts"
+
+
+def open_transport(url: str, **options: Any) -> Transport:
+    """A new, not yet connected transport for ``url``.
+
+    ``local`` gives a :class:`~rasm.comm.local.LocalTransport`; ``mqtt://host:port`` (or
+    ``mqtts://``) an :class:`~rasm.comm.mqtt.MqttTransport`; ``options`` go to its constructor.
+    Anything else raises :class:`CommError` naming the URL and the accepted forms.
+    """
+    if isinstance(url, str) and url.strip() == "local":
+        from rasm.comm.local import LocalTransport
+
+        return LocalTransport(**options)
+    parse_mqtt_url(url)  # raises with the accepted forms
+    from rasm.comm.mqtt import MqttTransport  # imported lazily: paho is not needed for 'local'
+
+    return MqttTransport(url, **options)

@@ -1,0 +1,137 @@
+"""Real servers for tests: a mosquitto broker on a free loopback port.
+
+``start_mosquitto(tmp_dir)`` writes a minimal config into ``tmp_dir``, starts ``mosquitto -c`` and
+returns once the broker accepts TCP connections. Use it from any test folder, e.g. as a fixture::
+
+    @pytest.fixture
+    def broker(tmp_path):
+        broker = start_mosquitto(tmp_path)
+        yield broker
+        broker.stop()
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+__all__ = ["Broker", "start_mosquitto", "free_port", "find_mosquitto"]
+
+_HOST = "127.0.0.1"  # loopback only: tests never listen on a public interface
+
+
+def find_mosquitto() -> str:
+    """Path of the mosquitto binary (it lives in /usr/sbin on Debian/Ubuntu, often not on PATH)."""
+    found = shutil.which("mosquitto") or next(
+        (p for p in ("/usr/sbin/mosquitto", "/usr/local/sbin/mosquitto") if os.access(p, os.X_OK)),
+        None,
+    )
+    if found is None:
+        raise FileNotFoundError(
+            "mosquitto is not installed; install it (apt-get install mosquitto) or run "
+            "scripts/test.sh, which does"
+        )
+    return found
+
+
+def free_port() -> int:
+    """A TCP port on loopback that nobody was listening on a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind((_HOST, 0))
+        return sock.getsockname()[1]
+
+
+class Broker:
+    """A mosquitto process: ``host``, ``port``, ``url`` (``mqtt://host:port``), stop, restart."""
+
+    def __init__(self, tmp_dir: Path, port: int, timeout: float = 10.0) -> None:
+        self.host = _HOST
+        self.port = port
+        self.url = f"mqtt://{self.host}:{port}"
+        self.timeout = timeout
+        self.config = Path(tmp_dir) / f"mosquitto-{port}.conf"
+        self.log = Path(tmp_dir) / f"mosquitto-{port}.log"
+        self.config.write_text(
+            f"listener {port} {_HOST}\nallow_anonymous true\npersistence false\n"
+        )
+        self._process: subprocess.Popen[bytes] | None = None
+
+    @property
+    def running(self) -> bool:
+        return self._process is not None and self._process.poll() is None
+
+    def start(self) -> None:
+        """Start mosquitto and wait until it accepts connections; RuntimeError if it cannot."""
+        if self.running:
+            return
+        with open(self.log, "ab") as log:
+            self._process = subprocess.Popen(
+                [find_mosquitto(), "-c", str(self.config)], stdout=log, stderr=subprocess.STDOUT
+            )
+        deadline = time.monotonic() + self.timeout
+        while True:
+            try:
+                with socket.create_connection((self.host, self.port), timeout=0.5):
+                    return
+            except OSError:
+                pass
+            try:
+                # Waiting on the process doubles as the short pause between attempts and notices
+                # at once if mosquitto exited (port taken, bad config).
+                code = self._process.wait(timeout=0.02)
+            except subprocess.TimeoutExpired:
+                code = None
+            if code is not None or time.monotonic() > deadline:
+                self.stop()
+                tail = self.log.read_text(errors="replace")[-2000:]
+                raise RuntimeError(
+                    f"mosquitto did not start on {self.host}:{self.port} "
+                    f"(exit code {code}); its log:\n{tail}"
+                )
+
+    def stop(self) -> None:
+        """Terminate the broker (idempotent); its clients see the connection drop."""
+        process, self._process = self._process, None
+        if process is None or process.poll() is not None:
+            return
+        process.terminate()
+        try:
+            process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(timeout=5)
+
+    def restart(self) -> None:
+        """Stop the broker and start a fresh one on the same port (no state survives)."""
+        self.stop()
+        self.start()
+
+    def __enter__(self) -> Broker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def __repr__(self) -> str:
+        return f"<Broker {self.url} {'running' if self.running else 'stopped'}>"
+
+
+def start_mosquitto(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> Broker:
+    """Start a mosquitto broker on a free loopback port, with its config and log in ``tmp_dir``.
+
+    The port is picked free just before starting; if another process takes it in between, a new
+    port is tried (up to ``attempts`` times).
+    """
+    for attempt in range(attempts):
+        broker = Broker(Path(tmp_dir), free_port())
+        try:
+            broker.start()
+            return broker
+        except RuntimeError:
+            if attempt == attempts - 1:
+                raise
+    raise AssertionError("unreachable")
