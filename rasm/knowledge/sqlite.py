@@ -109,8 +109,8 @@ class SqliteStorage(Storage):
             if str(mode).lower() != "wal":
                 _log.warning("%s: journal mode is %s, not WAL (file system?)", self.path, mode)
             db.execute(f"PRAGMA synchronous={'FULL' if self.durable else 'NORMAL'}")
-            db.executescript(_SCHEMA)
-            db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+            # one transaction: a kill half-way never leaves tables without the version mark
+            db.executescript(f"BEGIN; {_SCHEMA} PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
             for key, type_, history, lo, hi in db.execute(
                 "SELECT key, type, history, minimum, maximum FROM declarations"
             ):
@@ -163,7 +163,10 @@ class SqliteStorage(Storage):
                     f"sample at {last!r}"
                 )
             self._known.setdefault(key, decl)
-        self._buffer(key, Sample(time, value))
+            # appended under the same lock as the check, so two threads cannot reorder a key
+            if pending is None:
+                pending = self._pending[key] = deque(maxlen=self.keep)
+            pending.append(Sample(time, value))
 
     # -- writing --------------------------------------------------------------------------------
 
@@ -242,20 +245,21 @@ class SqliteStorage(Storage):
 
     # -- restoring ------------------------------------------------------------------------------
 
-    def restore(self, kb: KnowledgeBase) -> int:
+    def restore(self, kb: KnowledgeBase, *, strict: bool = False) -> int:
         """Load the stored declarations and the last ``history`` samples of every key into
         ``kb``; return how many samples.
 
-        A key ``kb`` already declares keeps ``kb``'s declaration (its samples must fit it); a key
-        ``kb`` already holds samples for is refused. All is checked before anything is loaded.
+        A key ``kb`` already declares keeps ``kb``'s declaration and stored samples are converted
+        to it (ints to floats). Stored samples that do not fit it (the application changed the
+        key's type or bounds) are skipped with a warning, or, if ``strict``, stop the restore.
+        A key ``kb`` already holds samples of is refused. Errors come before anything is loaded.
         """
         with self._db_lock:
             db = self._open_db()
             stored = dict(self._written)
             keys = list(stored)
-            keys += [
-                k for (k,) in db.execute("SELECT DISTINCT key FROM samples") if k not in stored
-            ]
+            on_disk = db.execute("SELECT DISTINCT key FROM samples")
+            keys += [key for (key,) in on_disk if key not in stored]
             plan: list[tuple[str, Declaration | None, list[Sample]]] = []
             for key in keys:
                 if kb.read_sample(key) is not None:
@@ -272,7 +276,8 @@ class SqliteStorage(Storage):
                 rows.reverse()
                 if decl is None:  # samples without a stored declaration: infer, as on a write
                     decl = Declaration(key, infer_type(decode(rows[0][1])), kb.default_history)
-                plan.append((key, None if current else decl, self._check_rows(decl, rows)))
+                samples = self._check_rows(decl, rows, strict)
+                plan.append((key, None if current else decl, samples))
             total = 0
             for key, decl, samples in plan:
                 if decl is not None:
@@ -286,21 +291,38 @@ class SqliteStorage(Storage):
                 total += kb.load_samples(key, samples)
             return total
 
-    def _check_rows(self, decl: Declaration, rows: list[tuple[float, str]]) -> list[Sample]:
+    def _check_rows(
+        self, decl: Declaration, rows: list[tuple[float, str]], strict: bool
+    ) -> list[Sample]:
         check = make_check(decl)
         samples: list[Sample] = []
+        skipped: list[KnowledgeError] = []
         last = _BEFORE_ALL
-        try:
-            for time, text in rows:
-                if not last <= time:
-                    raise KnowledgeError(f"time goes back to {time!r} after {last!r}")
+        for time, text in rows:
+            try:
+                if not last <= time:  # only a file edited by hand can get here
+                    raise ValueError(f"time goes back to {time!r} after {last!r}")
                 last = time
-                samples.append(Sample(float(time), check(decode(text))))
-        except (KnowledgeError, ValueError) as exc:
-            raise KnowledgeError(
-                f"cannot restore {decl.key!r} from {self.path}: {exc}; declare the key as it was "
-                "stored, or delete the file to start afresh"
-            ) from exc
+                value = decode(text)
+            except ValueError as exc:
+                raise KnowledgeError(f"{self.path} is damaged: key {decl.key!r}: {exc}") from exc
+            try:
+                samples.append(Sample(float(time), check(value)))
+            except KnowledgeError as exc:
+                if strict:
+                    raise KnowledgeError(
+                        f"cannot restore {decl.key!r} from {self.path}: {exc}; declare the key "
+                        "as it was stored, or delete the file to start afresh"
+                    ) from exc
+                skipped.append(exc)
+        if skipped:
+            _log.warning(
+                "%s: skipped %d stored sample(s) of %r that do not fit its declaration, e.g. %s",
+                self.path,
+                len(skipped),
+                decl.key,
+                skipped[0],
+            )
         return samples
 
     # -- closing --------------------------------------------------------------------------------

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import sqlite3
 import tempfile
 import threading
@@ -214,7 +215,21 @@ def test_restore_keeps_the_knowledge_base_declaration_and_converts_to_it():
         assert all(type(s.value) is float for s in kb.history("v"))
 
 
-def test_restore_refuses_samples_that_do_not_fit_and_loads_nothing():
+def test_restore_skips_samples_that_no_longer_fit_with_a_warning(caplog):
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "k.db"
+        _file_with(path, "v", [-1.5, 2.5, -0.5, 3.5])
+        kb = KnowledgeBase()
+        kb.declare("v", "float", minimum=0)  # the application added a bound
+        with caplog.at_level(logging.WARNING, logger="rasm.knowledge"):
+            with SqliteStorage(path) as storage:
+                assert storage.restore(kb) == 2
+        assert kb.history("v") == [Sample(1.0, 2.5), Sample(3.0, 3.5)]
+        assert "skipped 2 stored sample(s) of 'v'" in caplog.text
+        assert "below its minimum" in caplog.text
+
+
+def test_a_strict_restore_refuses_samples_that_do_not_fit_and_loads_nothing():
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "k.db"
         _file_with(path, "a", [1.0])
@@ -223,8 +238,32 @@ def test_restore_refuses_samples_that_do_not_fit_and_loads_nothing():
         kb.declare("v", "int")
         with SqliteStorage(path) as storage:
             with pytest.raises(KnowledgeError, match="cannot restore 'v' from .*expected int"):
-                storage.restore(kb)
+                storage.restore(kb, strict=True)
         assert kb.read_sample("a") is None and kb.read_sample("v") is None
+
+
+def test_a_hand_damaged_file_is_reported_not_loaded():
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "k.db"
+        _file_with(path, "v", [1.5, 2.5])
+        with sqlite3.connect(path) as db:
+            db.execute("UPDATE samples SET value = '{oops' WHERE time = 1.0")
+        kb = KnowledgeBase()
+        with SqliteStorage(path) as storage:
+            with pytest.raises(KnowledgeError, match="k.db is damaged: key 'v'"):
+                storage.restore(kb)
+        assert kb.read_sample("v") is None
+
+
+def test_a_file_of_another_schema_version_is_refused(tmp_path):
+    path = tmp_path / "k.db"
+    SqliteStorage(path).close()
+    with sqlite3.connect(path) as db:
+        db.execute("PRAGMA user_version = 7")
+    with pytest.raises(
+        KnowledgeError, match=r"not a rasm knowledge file of schema 1 \(user_version 7\)"
+    ):
+        SqliteStorage(path)
 
 
 def test_restore_refuses_a_knowledge_base_that_already_holds_samples():
