@@ -32,8 +32,12 @@ class Storage(ABC):
         """Write everything buffered; return how many samples were written."""
 
     @abstractmethod
-    def restore(self, kb: KnowledgeBase) -> int:
-        """Load the stored declarations and samples into ``kb``; return how many samples."""
+    def restore(self, kb: KnowledgeBase, *, strict: bool = False) -> int:
+        """Load the stored declarations and samples into ``kb``; return how many samples.
+
+        Stored samples that no longer fit ``kb``'s declarations are skipped with a warning, or
+        refused with :class:`KnowledgeError` if ``strict``.
+        """
 
     @abstractmethod
     def _buffer(self, key: str, sample: Sample) -> None:
