@@ -16,7 +16,7 @@ import z3
 
 from rasm.errors import Location, SourceError, SourceErrors
 from rasm.rules.model import Rules
-from rasm.rules.mus import check
+from rasm.rules.mus import check, new_solver
 from rasm.rules.report import Violation
 from rasm.rules.smt import Encoder
 from rasm.rules.typing import check_rule_expression
@@ -41,7 +41,7 @@ def check_properties(rules: Rules, text: str, *, source: str = "<properties>") -
     declarations = parse_declarations(text, source=source)
     lets: dict[str, ast.Expr] = {}
     encoder = Encoder(rules.variables)
-    admitted = z3.Solver()
+    admitted = new_solver()
     admitted.add(*encoder.domain())
     for rule in rules.rules:
         admitted.add(z3.Implies(*encoder.rule(rule)))

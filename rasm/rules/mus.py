@@ -23,13 +23,24 @@ import z3
 
 from rasm.errors import RulesError
 
+#: Longest a single z3 check may take. Linear rules take milliseconds; only nonlinear integer
+#: arithmetic (undecidable in general) can reach it, and then the answer is an error, not a guess.
+SOLVER_TIMEOUT_MS = 30_000
+
+
+def new_solver() -> z3.Solver:
+    """A z3 solver with rasm's time limit per check."""
+    solver = z3.Solver()
+    solver.set("timeout", SOLVER_TIMEOUT_MS)
+    return solver
+
 
 def check(solver: z3.Solver, assumptions: Sequence[z3.BoolRef] = ()) -> bool:
     """``solver.check`` as a boolean; z3 giving up (``unknown``) is an error, never a guess."""
     result = solver.check(*assumptions)
     if result == z3.unknown:
         raise RulesError(
-            "z3 could not decide the rules (" + solver.reason_unknown() + "); "
+            f"z3 could not decide the rules ({solver.reason_unknown()}); "
             "nonlinear integer arithmetic (a product of int variables) is the usual cause"
         )
     return result == z3.sat
@@ -50,12 +61,12 @@ class ConflictFinder:
     ) -> None:
         self.count = len(bodies)
         self.bodies = list(bodies)
-        self.checker = z3.Solver()
+        self.checker = new_solver()
         self.checker.add(*domain)
         self.selectors = [z3.Bool(f"__body_{i}") for i in range(self.count)]
         for selector, body in zip(self.selectors, bodies, strict=True):
             self.checker.add(z3.Implies(selector, body))
-        self.map = z3.Solver()
+        self.map = new_solver()
         self.map.add(*domain)
         self.picks = [z3.Bool(f"__pick_{i}") for i in range(self.count)]
         for pick, when in zip(self.picks, whens, strict=True):

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 import z3
 
 from rasm.rules.model import Rules
-from rasm.rules.mus import ConflictFinder, check
+from rasm.rules.mus import ConflictFinder, check, new_solver
 from rasm.rules.report import Conflict, Report
 from rasm.rules.smt import Encoder, encode_rules
 
@@ -95,7 +95,7 @@ class _Verifier:
         return [n for n in self.rules.variables if n in names]
 
     def solver(self, names: set[str] | frozenset[str]) -> z3.Solver:
-        solver = z3.Solver()
+        solver = new_solver()
         solver.add(*self.encoder.domain(self.ordered(names)))
         return solver
 
