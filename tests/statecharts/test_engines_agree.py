@@ -49,7 +49,7 @@ def observe(engine, chart, script, context):
 
 
 @pytest.mark.parametrize("name", BLOCKS)
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(data=st.data())
 def test_stock_sismic_and_rasm_take_the_same_steps(name, data):
     chart = load(chart_path(name))

@@ -103,7 +103,7 @@ def entered_modes(macro) -> list[str]:
 
 
 @pytest.mark.parametrize("name", BLOCKS)
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 def test_random_event_sequences_keep_the_lifecycle_invariants(name, data):
     chart = load(chart_path(name))
