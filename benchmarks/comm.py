@@ -6,8 +6,9 @@ shared by all processes of the machine):
 
 - ``hop``: one hop, publisher -> broker -> subscriber, at 10 and 200 msg/s;
 - ``relay``: two hops through a middle process whose *callback* republishes each message (a
-  MAPLE-K stage handing on its result) — with rasm's MqttTransport, and with a plain paho client
-  publishing from inside ``on_message`` (how the public platform does it).
+  MAPLE-K stage handing on its result) — with rasm's MqttTransport, with a plain paho client
+  publishing from inside ``on_message`` (how the public platform does it), and with that paho
+  client plus TCP_NODELAY on its socket.
 
 Local cases: messages per second through ``LocalTransport.publish`` to one exact subscriber, one
 wildcard subscriber among 20 patterns, in strict (JSON round trip) mode, and through a
@@ -76,8 +77,14 @@ def rasm_relay_process(url: str, conn) -> None:
     threading.Event().set()
 
 
-def paho_relay_process(url: str, conn) -> None:
-    """The same relay written the usual paho way: publish inside ``on_message``."""
+def paho_relay_process(url: str, conn, nodelay: bool = False) -> None:
+    """The same relay written the usual paho way: publish inside ``on_message``.
+
+    With ``nodelay`` the socket gets TCP_NODELAY (as rasm's sockets do), to show how much of the
+    difference is Nagle's algorithm holding small packets back.
+    """
+    import socket
+
     import paho.mqtt.client as paho
     from paho.mqtt.enums import CallbackAPIVersion
 
@@ -86,6 +93,10 @@ def paho_relay_process(url: str, conn) -> None:
     host, port, _ = parse_mqtt_url(url)
     client = paho.Client(CallbackAPIVersion.VERSION2)
     client.on_message = lambda c, u, msg: c.publish("bench/out", msg.payload)
+    if nodelay:
+        client.on_socket_open = lambda c, u, sock: sock.setsockopt(
+            socket.IPPROTO_TCP, socket.TCP_NODELAY, 1
+        )
     client.connect(host, port)
     client.subscribe("bench/in")
     client.loop_start()
@@ -94,6 +105,18 @@ def paho_relay_process(url: str, conn) -> None:
     conn.recv()
     client.disconnect()
     client.loop_stop()
+
+
+def paho_nodelay_relay_process(url: str, conn) -> None:
+    paho_relay_process(url, conn, nodelay=True)
+
+
+def burn_cpu(stop) -> None:
+    """Background load: spin until told to stop (emulates a robot computer busy with other work)."""
+    x = 0
+    while not stop.is_set():
+        for _ in range(10_000):
+            x += 1
 
 
 def _start(ctx, target: Callable, *args) -> tuple[mp.Process, object]:
@@ -124,6 +147,8 @@ def mqtt_case(url: str, relay: str | None, rate: float, count: int) -> list[floa
         relay_proc, relay_conn = _start(ctx, rasm_relay_process, url)
     elif relay == "paho":
         relay_proc, relay_conn = _start(ctx, paho_relay_process, url)
+    elif relay == "paho+nodelay":
+        relay_proc, relay_conn = _start(ctx, paho_nodelay_relay_process, url)
     topic = "bench/out" if relay else "bench/in"
     sink, sink_conn = _start(ctx, sink_process, url, topic, count)
     send_paced(url, "bench/in", rate, count)
@@ -182,7 +207,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer messages (a smoke run)")
     parser.add_argument("--url", help="an existing broker (default: start mosquitto)")
     parser.add_argument("--no-relay", action="store_true", help="skip the relay cases")
+    parser.add_argument(
+        "--cpu-load", type=int, default=0, metavar="N",
+        help="run N CPU-bound processes meanwhile (a busy machine)",
+    )
     args = parser.parse_args(argv)
+    ctx = mp.get_context("spawn")
+    stop_burning = ctx.Event()
+    burners = [ctx.Process(target=burn_cpu, args=(stop_burning,), daemon=True)
+               for _ in range(args.cpu_load)]
+    for burner in burners:
+        burner.start()
 
     broker = None
     url = args.url
@@ -194,7 +229,10 @@ def main(argv: list[str] | None = None) -> int:
     seconds = 3 if args.quick else 15
     rows = []
     try:
-        cases = [(None, "rasm"), ("rasm", "rasm"), ("paho", "paho")]
+        cases = [
+            (None, "rasm"), ("rasm", "rasm"), ("paho", "plain paho"),
+            ("paho+nodelay", "paho + TCP_NODELAY"),
+        ]
         for relay, label in cases if not args.no_relay else cases[:1]:
             for rate in (10, 200):
                 count = int(rate * seconds)
@@ -203,19 +241,23 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append((f"mqtt {kind}, {label}", rate, len(lat), lat))
                 print(f"  done: {rows[-1][0]} at {rate} msg/s", file=sys.stderr)
     finally:
+        stop_burning.set()
+        for burner in burners:
+            burner.join(WAIT)
         if broker is not None:
             broker.stop()
 
-    print(f"\nMQTT latency over loopback mosquitto ({url}), milliseconds")
-    print(f"{'case':<32} {'msg/s':>6} {'n':>6} {'p50':>8} {'p90':>8} {'p99':>8} {'max':>8}")
+    load = f", {args.cpu_load} CPU-bound processes running" if args.cpu_load else ""
+    print(f"\nMQTT latency over loopback mosquitto ({url}{load}), milliseconds")
+    print(f"{'case':<36} {'msg/s':>6} {'n':>6} {'p50':>8} {'p90':>8} {'p99':>8} {'max':>8}")
     for name, rate, n, lat in rows:
         p50, p90, p99 = (percentile(lat, q) * 1e3 for q in (50, 90, 99))
         mx = lat[-1] * 1e3 if lat else float("nan")
-        print(f"{name:<32} {rate:>6} {n:>6} {p50:>8.3f} {p90:>8.3f} {p99:>8.3f} {mx:>8.3f}")
+        print(f"{name:<36} {rate:>6} {n:>6} {p50:>8.3f} {p90:>8.3f} {p99:>8.3f} {mx:>8.3f}")
 
     n = 20_000 if args.quick else 200_000
     print("\nLocal transport throughput (one publisher thread, median of 3 runs)")
-    print(f"{'case':<32} {'msg/s':>12} {'us/msg':>8}")
+    print(f"{'case':<36} {'msg/s':>12} {'us/msg':>8}")
     for name in ("exact", "wildcard", "strict", "manager"):
         rate = statistics.median(local_case(name, n) for _ in range(3))
         print(f"{name:<32} {rate:>12,.0f} {1e6 / rate:>8.2f}")

@@ -221,13 +221,17 @@ class MqttTransport(Transport):
         return found[0][1] if found else 0
 
     def _on_network_thread(self) -> bool:
+        # paho keeps its loop thread in a private attribute; there is no public accessor.
         client = self._client
         return client is not None and threading.current_thread() is client._thread
 
     def _pattern_added(self, pattern: str, qos: int) -> None:
         client = self._client
-        if client is None or not self._ready.is_set():
-            return  # subscribed (again) when the connection is ready
+        # Not "ready" is not enough to skip: between CONNACK and the SUBACK of the renewal the
+        # renewal list may already have been taken without this pattern. Only while there is no
+        # connection at all is it safe to leave it to the next _on_connect.
+        if client is None or not client.is_connected():
+            return
         with self._acks_lock:
             rc, mid = client.subscribe(pattern, qos)
             if rc != MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
@@ -243,7 +247,7 @@ class MqttTransport(Transport):
                 )
 
     def _pattern_removed(self, pattern: str) -> None:
-        if self._client is not None and self._ready.is_set():
+        if self._client is not None and self._client.is_connected():
             self._client.unsubscribe(pattern)
 
     def _shutdown(self) -> None:
