@@ -122,6 +122,8 @@ class MqttTransport(Transport):
         self._acks_lock = threading.Lock()
         self._acks: dict[int, threading.Event] = {}
         self._resub_mid: int | None = None
+        self._last_publish: mqtt.MQTTMessageInfo | None = None
+        self._disconnected = threading.Event()
         self._connections = 0
         self._last_failure = "no answer"
 
@@ -176,7 +178,11 @@ class MqttTransport(Transport):
         self._state = "open"
 
     def close(self) -> None:
-        """Disconnect cleanly (the broker does not send the will), stop both threads."""
+        """Flush, disconnect cleanly (so the broker does not send the will), stop both threads.
+
+        Messages already published are written out first (QoS 1/2: acknowledged), waiting at
+        most ``connect_timeout`` seconds in all.
+        """
         if self._state == "closed":
             return
         self._shutdown()
@@ -191,7 +197,9 @@ class MqttTransport(Transport):
             payload, uid=self._next_uid(), timestamp=time.time(), max_bytes=self.max_payload
         )
         assert self._client is not None
-        rc = self._client.publish(topic, data, qos=q).rc
+        info = self._client.publish(topic, data, qos=q)
+        rc = info.rc
+        self._last_publish = info  # close() waits for it: packets leave in order
         if rc == MQTTErrorCode.MQTT_ERR_SUCCESS or (rc == MQTTErrorCode.MQTT_ERR_NO_CONN and q):
             self.stats.incr("published")  # QoS>0 without connection: queued by paho, sent later
         else:
@@ -255,7 +263,18 @@ class MqttTransport(Transport):
         self._cancel_all()
         client = self._client
         if client is not None:
+            # paho's loop_stop() does not flush: without these waits the last messages and the
+            # DISCONNECT itself could be lost, and the broker would then publish the will.
+            waits = client.is_connected() and not self._on_network_thread()
+            deadline = time.monotonic() + self.connect_timeout
+            if waits and self._last_publish is not None:
+                try:
+                    self._last_publish.wait_for_publish(self.connect_timeout)
+                except (ValueError, RuntimeError):
+                    pass  # it was never queued (counted as dropped when published)
             client.disconnect()
+            if waits:
+                self._disconnected.wait(max(0.0, deadline - time.monotonic()))
             client.loop_stop()
         self._ready.clear()
         self._release_acks()
@@ -297,6 +316,7 @@ class MqttTransport(Transport):
                 _log.warning("%s refused the connection: %s", self.url, reason)
                 return
             self._connections += 1
+            self._disconnected.clear()
             if self._connections > 1:
                 self.stats.incr("reconnects")
                 _log.info("reconnected to %s", self.url)
@@ -320,6 +340,7 @@ class MqttTransport(Transport):
         try:
             was_ready = self._ready.is_set()
             self._ready.clear()
+            self._disconnected.set()
             self._release_acks()
             if self._state == "open":
                 _log.warning("lost the connection to %s (%s); reconnecting", self.url, reason)

@@ -155,6 +155,13 @@ class TopicIndex(Generic[T]):
         exact, wild, _ = self._state
         return [i for items in exact.values() for i in items] + [w[2] for w in wild]
 
+    def get(self, pattern: str) -> tuple[T, ...]:
+        """The items registered under exactly ``pattern``."""
+        exact, wild, _ = self._state
+        if is_wildcard(pattern):
+            return tuple(w[2] for w in wild if w[0] == pattern)
+        return exact.get(pattern, ())
+
     def count(self, pattern: str) -> int:
         """How many items are registered under exactly ``pattern``."""
         exact, wild, _ = self._state

@@ -102,9 +102,10 @@ class Transport(ABC):
             raise CommError(f"cannot subscribe to {pattern!r}: the transport {self.url} is closed")
         sub = Subscription(self, pattern, callback, check_qos(self._qos_for(pattern, qos)))
         with self._sub_lock:
-            first = self._index.count(pattern) == 0
+            before = self._index.get(pattern)
             self._index.add(pattern, sub)
-        if first:
+        # The broker holds one subscription per pattern, at the highest QoS asked for.
+        if not before or sub.qos > max(s.qos for s in before):
             try:
                 self._pattern_added(pattern, sub.qos)
             except BaseException:
@@ -122,7 +123,7 @@ class Transport(ABC):
         return 0 if qos is None else qos
 
     def _pattern_added(self, pattern: str, qos: int) -> None:
-        """Called when a pattern gets its first subscription (e.g. to tell a broker)."""
+        """Called when a pattern gets its first subscription, or one with a higher QoS."""
         return None
 
     def _pattern_removed(self, pattern: str) -> None:

@@ -1,7 +1,8 @@
 """Real servers for tests: a mosquitto broker on a free loopback port.
 
 ``start_mosquitto(tmp_dir)`` writes a minimal config into ``tmp_dir``, starts ``mosquitto -c`` and
-returns once the broker accepts TCP connections. Use it from any test folder, e.g. as a fixture::
+returns once the broker accepts connections (it answers an MQTT CONNECT). Use it from any test
+folder, e.g. as a fixture::
 
     @pytest.fixture
     def broker(tmp_path):
@@ -38,6 +39,29 @@ def find_mosquitto() -> str:
     return found
 
 
+# MQTT 3.1.1 CONNECT (clean session, keepalive 60, client id "rasm-probe") and the CONNACK that
+# accepts it: the readiness probe speaks MQTT, so another program on the port does not pass.
+_CONNECT = bytes([0x10, 22, 0, 4]) + b"MQTT" + bytes([4, 2, 0, 60, 0, 10]) + b"rasm-probe"
+_CONNACK_OK = bytes([0x20, 2, 0, 0])
+_DISCONNECT = bytes([0xE0, 0])
+
+
+def _mqtt_answers(host: str, port: int) -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=0.5) as sock:
+            sock.sendall(_CONNECT)
+            answer = b""
+            while len(answer) < 4:
+                chunk = sock.recv(4 - len(answer))
+                if not chunk:
+                    return False
+                answer += chunk
+            sock.sendall(_DISCONNECT)
+            return answer == _CONNACK_OK
+    except OSError:
+        return False
+
+
 def free_port() -> int:
     """A TCP port on loopback that nobody was listening on a moment ago."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
@@ -65,7 +89,7 @@ class Broker:
         return self._process is not None and self._process.poll() is None
 
     def start(self) -> None:
-        """Start mosquitto and wait until it accepts connections; RuntimeError if it cannot."""
+        """Start mosquitto and wait until it answers an MQTT CONNECT; RuntimeError if it cannot."""
         if self.running:
             return
         with open(self.log, "ab") as log:
@@ -74,11 +98,8 @@ class Broker:
             )
         deadline = time.monotonic() + self.timeout
         while True:
-            try:
-                with socket.create_connection((self.host, self.port), timeout=0.5):
-                    return
-            except OSError:
-                pass
+            if _mqtt_answers(self.host, self.port):
+                return
             try:
                 # Waiting on the process doubles as the short pause between attempts and notices
                 # at once if mosquitto exited (port taken, bad config).

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from paho.mqtt.enums import CallbackAPIVersion
 
-from rasm.comm import CommError, CommunicationManager, Message, MqttTransport
+from rasm.comm import CommError, CommunicationManager, Message, MqttTransport, Will
 from rasm.comm.envelope import MalformedPayload, decode
 from rasm.testing.servers import free_port
 
@@ -337,3 +337,40 @@ def test_communication_manager_over_mqtt(broker, mqtt_factory):
     message = subscriber.get_queue_message(timeout=WAIT)
     assert (message.topic, message.payload) == ("k/speed", {"v": 0.4})
     cm.close()
+
+
+def test_close_flushes_what_was_published_just_before(broker, mqtt_factory):
+    inbox: queue.Queue[Message] = queue.Queue()
+    mqtt_factory(broker.url).subscribe("burst", inbox.put)
+    sender = mqtt_factory(broker.url)
+    for i in range(500):
+        sender.publish("burst", {"i": i})
+    sender.close()  # right away: nothing may be left behind in paho's queue
+    assert [inbox.get(timeout=WAIT).payload["i"] for _ in range(500)] == list(range(500))
+
+
+def test_a_clean_close_does_not_send_the_will(broker, mqtt_factory):
+    leaving = mqtt_factory(broker.url, will=Will("presence/a", {"online": False}, retain=True))
+    leaving.close()
+    # A will would have been retained: a new subscriber would get it on subscribing, before the
+    # answer to its own marker message.
+    inbox: queue.Queue[Message] = queue.Queue()
+    observer = mqtt_factory(broker.url)
+    observer.subscribe("presence/#", inbox.put)
+    observer.publish("presence/marker", {})
+    assert inbox.get(timeout=WAIT).topic == "presence/marker"
+
+
+def test_a_callback_may_close_its_own_transport(broker, mqtt_factory):
+    closed = threading.Event()
+    transport = mqtt_factory(broker.url)
+
+    def close_me(message: Message) -> None:
+        transport.close()
+        closed.set()
+
+    transport.subscribe("bye", close_me)
+    transport.publish("bye", {})
+    assert closed.wait(WAIT)
+    with pytest.raises(CommError, match="closed"):
+        transport.publish("bye", {})
