@@ -447,12 +447,12 @@ def _render(line, mode: str) -> str:
     _, number, index, time, value, *indent = line
     pad = indent[0] if indent else ""
     if mode == "step":
-        return f"{pad}out.append(VERDICT((NAMES[{number}], {index}, {time}, {value})))"
+        return f"{pad}out.append(TUPLE_NEW(Verdict, (NAME_{number}, {index}, {time}, {value})))"
     return f"{pad}values_{number}({value})"
 
 
 def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
-    for name in spec.signals:
+    for name in _used(spec):
         if name in events:
             gen.state[signal_variable(name)] = False
         else:
@@ -483,6 +483,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
     factory += ["    i = -1", "    last_t = -INF"]
     for number in range(len(blocks)):
         factory.append(f"    values_{number} = VALUES[{number}].append")
+        factory.append(f"    NAME_{number} = NAMES[{number}]")
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
     factory += ["    " + line for line in function("def run(records):", "run")]
     factory += ["    def finish():", "        nonlocal " + ", ".join(cells), "        out = []"]
@@ -492,14 +493,25 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
     return "\n".join(factory) + "\n"
 
 
+def _used(spec: Specification) -> list[str]:
+    # only the signals some property reads are held and checked: others cannot change a verdict
+    used: dict[str, None] = {}
+    for prop in spec.properties:
+        for name in signals_of(prop.formula):
+            used.setdefault(name, None)
+    return list(used)
+
+
 def _update_lines(spec: Specification, events: set[str]) -> list[str]:
     """Validate a record's time and values, then update the held signals (all or nothing)."""
     lines = [
-        "if t.__class__ not in NUMERIC or t != t: return REJECT(i + 1, t, rec, None, 'time')",
-        "if t < last_t: return REJECT(i + 1, t, rec, None, 'backwards')",
+        # one test for both a nan and a time going back: neither is >= last_t
+        "if t.__class__ not in NUMERIC or not t >= last_t: return REJECT(i + 1, t, rec, None, "
+        "'time' if t.__class__ not in NUMERIC or t != t else 'backwards')",
     ]
     assigns = []
-    for name, kind in spec.signals.items():
+    for name in _used(spec):
+        kind = spec.signals[name]
         var = signal_variable(name)
         tmp = f"n_{name}"
         if name in events:

@@ -1,0 +1,214 @@
+"""Monitor throughput: rasm against reelay and rtamt on the same properties and traces.
+
+Run:  .venv/bin/python benchmarks/monitors.py            (1e5-record traces)
+      .venv/bin/python benchmarks/monitors.py --quick    (1e4 records, one repetition)
+
+Every tool gets the same records (discrete time: record k at time k, every signal set on every
+record) and produces one verdict per record. Reported, in events (records) per second:
+
+* ``rasm run``  — ``Monitor.run(records)``, the offline path of ``rasm check``;
+* ``rasm step`` — ``Monitor.step(t, values)`` once per record, the online path (a list of
+  ``Verdict`` objects per call);
+* ``reelay``    — ``reelay.discrete_timed_monitor(pattern, condense=False).update(record)``;
+* ``rtamt``     — ``StlDiscreteTimeSpecification.update(k, [(name, value), …])`` (past
+  formulas directly; the future one after ``pastify()``). rtamt is slow, so it runs on the
+  first ``--rtamt-records`` records only, and at most ~2 s per run (its bounded ``since``
+  costs O(bound) per record); its rate is still events per second.
+
+Each figure is the median of ``--repeat`` runs. Ratios are rasm's rate over the peer's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import monitors_timescales as timescales  # noqa: E402
+
+from rasm.spec import compile  # noqa: E402
+
+BASIC = [
+    # (name, rasm, reelay, rtamt); signals x (float), a, b (bool)
+    ("historically (x <= 0.5)", "historically (x <= 0.5)", "historically({x <= 0.5})",
+     "historically(x <= 0.5)"),
+    ("historically (b -> once[0,10] a)", "historically (b -> once[0, 10] a)",
+     "historically({b} -> once[0:10]{a})",
+     "historically((not (b >= 0.5)) or once[0:10](a >= 0.5))"),
+    ("a -> eventually[0,10] b", "a -> eventually[0, 10] b", None,
+     "(not (a >= 0.5)) or eventually[0:10](b >= 0.5)"),
+]
+
+
+def basic_trace(n: int, seed: int = 1) -> list[dict]:
+    rng = random.Random(seed)
+    return [
+        {"time": k, "x": rng.random() * 0.52, "a": rng.random() < 0.3, "b": rng.random() < 0.3}
+        for k in range(n)
+    ]
+
+
+def median_rate(function, n: int, repeat: int) -> float:
+    rates = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        function()
+        rates.append(n / (time.perf_counter() - start))
+    return statistics.median(rates)
+
+
+def measure_rasm(header: str, formula: str, trace: list[dict], repeat: int) -> tuple[float, float]:
+    text = header + f"property p: {formula}\n"
+    records = [(r["time"], {k: v for k, v in r.items() if k != "time"}) for r in trace]
+
+    def run():
+        compile(text).run(records)
+
+    monitors = [compile(text) for _ in range(repeat)]
+
+    def step():
+        monitor = monitors.pop()
+        step = monitor.step
+        for t, values in records:
+            step(t, values)
+        monitor.finish()
+
+    # compile() is outside the timed part of step(); for run() it is included (~5 ms)
+    return median_rate(run, len(records), repeat), median_rate(step, len(records), repeat)
+
+
+def measure_reelay(pattern: str | None, trace: list[dict], repeat: int) -> float | None:
+    if pattern is None:
+        return None
+    import reelay
+
+    records = [{k: v for k, v in r.items() if k != "time"} for r in trace]
+    monitors = [reelay.discrete_timed_monitor(pattern=pattern, condense=False)
+                for _ in range(repeat)]
+
+    def run():
+        update = monitors.pop().update
+        for record in records:
+            update(record)
+
+    return median_rate(run, len(records), repeat)
+
+
+def measure_rtamt(formula: str, variables: list[str], trace: list[dict], future: bool,
+                  repeat: int, budget: float = 2.0) -> float | None:
+    try:
+        import rtamt
+    except ImportError:
+        return None
+    rename = {"s": "sx"}
+    rows = [
+        [(rename.get(v, v), float(r[v])) for v in variables] for r in trace
+    ]
+
+    def build():
+        spec = rtamt.StlDiscreteTimeSpecification()
+        for v in variables:
+            spec.declare_var(rename.get(v, v), "float")
+        spec.spec = formula
+        spec.parse()
+        if future:
+            spec.pastify()
+        return spec
+
+    # rtamt's bounded since costs O(bound) per record: give it a time budget per run and
+    # report the rate over the records it got through
+    rates = []
+    for _ in range(repeat):
+        update = build().update
+        start = time.perf_counter()
+        done = 0
+        for k, row in enumerate(rows):
+            update(k, row)
+            done = k + 1
+            if done % 100 == 0 and time.perf_counter() - start > budget:
+                break
+        rates.append(done / (time.perf_counter() - start))
+    return statistics.median(rates)
+
+
+def fmt(rate: float | None) -> str:
+    if rate is None:
+        return "n/a"
+    if rate >= 1e6:
+        return f"{rate / 1e6:.2f} M"
+    return f"{rate / 1e3:.0f} k"
+
+
+def ratio(a: float, b: float | None) -> str:
+    return "n/a" if not b else f"{a / b:.1f}x"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="1e4 records, one repetition")
+    parser.add_argument("--records", type=int, default=None)
+    parser.add_argument("--rtamt-records", type=int, default=None)
+    parser.add_argument("--repeat", type=int, default=None)
+    parser.add_argument("--bounds", default="10,100,1000")
+    parser.add_argument("--no-rtamt", action="store_true")
+    args = parser.parse_args(argv)
+    n = args.records or (10_000 if args.quick else 100_000)
+    n_rtamt = args.rtamt_records or (2_000 if args.quick else 10_000)
+    repeat = args.repeat or (1 if args.quick else 3)
+    bounds = [int(b) for b in args.bounds.split(",")]
+
+    print(f"records: {n} (rtamt: {n_rtamt}); median of {repeat}; Python {sys.version.split()[0]}")
+    header = ("case", "rasm run", "rasm step", "reelay", "rtamt", "run/reelay", "step/reelay",
+              "run/rtamt", "step/rtamt")
+    print(" | ".join(header))
+    rows = []
+
+    def report(name, run, step, reelay_rate, rtamt_rate):
+        row = (name, fmt(run), fmt(step), fmt(reelay_rate), fmt(rtamt_rate),
+               ratio(run, reelay_rate), ratio(step, reelay_rate), ratio(run, rtamt_rate),
+               ratio(step, rtamt_rate))
+        rows.append((name, run, step, reelay_rate, rtamt_rate))
+        print(" | ".join(row), flush=True)
+
+    trace = basic_trace(n)
+    basic_header = "input x: float\ninput a: bool\ninput b: bool\n"
+    for name, mine, theirs, rt in BASIC:
+        run, step = measure_rasm(basic_header, mine, trace, repeat)
+        reelay_rate = measure_reelay(theirs, trace, repeat)
+        rtamt_rate = None if args.no_rtamt else measure_rtamt(
+            rt, ["x", "a", "b"], trace[:n_rtamt], "eventually" in rt, repeat)
+        report(name, run, step, reelay_rate, rtamt_rate)
+
+    flat: dict[str, list[float]] = {}
+    for name in timescales.PATTERNS:
+        for bound in bounds:
+            p = timescales.pattern(name, bound // 2, bound)
+            ts_trace = timescales.trace(n, seed=bound)
+            run, step = measure_rasm(timescales.RASM_HEADER, p.rasm, ts_trace, repeat)
+            reelay_rate = measure_reelay(p.reelay, ts_trace, repeat)
+            rtamt_rate = None if args.no_rtamt else measure_rtamt(
+                p.rtamt, ["p", "q", "r", "s"], ts_trace[:n_rtamt], False, repeat)
+            report(f"{name} u={bound}", run, step, reelay_rate, rtamt_rate)
+            flat.setdefault(name, []).append(run)
+
+    print()
+    print("flatness (rasm run, slowest bound over fastest bound):")
+    for name, rates in flat.items():
+        print(f"  {name}: {' / '.join(fmt(r) for r in rates)}  ({min(rates) / max(rates):.2f})")
+    worst_reelay = min((r[1] / r[3], r[0]) for r in rows if r[3])
+    worst_rtamt = min((r[1] / r[4], r[0]) for r in rows if r[4])
+    worst_step_reelay = min((r[2] / r[3], r[0]) for r in rows if r[3])
+    print(f"lowest rasm-run/reelay: {worst_reelay[0]:.2f}x ({worst_reelay[1]})")
+    print(f"lowest rasm-step/reelay: {worst_step_reelay[0]:.2f}x ({worst_step_reelay[1]})")
+    print(f"lowest rasm-run/rtamt: {worst_rtamt[0]:.1f}x ({worst_rtamt[1]})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
