@@ -19,3 +19,17 @@ JSON_VALUES = st.recursive(
 PAYLOADS = st.dictionaries(
     st.text(max_size=10).filter(lambda k: k not in RESERVED_KEYS), JSON_VALUES, max_size=6
 )
+
+# Topics and patterns over a tiny alphabet: matches, '$' topics and empty levels are common.
+LEVELS = st.sampled_from(["a", "b", "", "$s", "ab"])
+TOPICS = st.lists(LEVELS, min_size=1, max_size=4).map("/".join).filter(bool)
+PATTERN_LEVELS = st.sampled_from(["a", "b", "", "$s", "+"])
+
+
+@st.composite
+def patterns(draw) -> str:
+    """A valid subscription pattern, sometimes ending in '#'."""
+    levels = draw(st.lists(PATTERN_LEVELS, min_size=1, max_size=4))
+    if draw(st.booleans()):
+        levels.append("#")
+    return "/".join(levels) or "#"

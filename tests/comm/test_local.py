@@ -11,8 +11,7 @@ from hypothesis import strategies as st
 
 from rasm.comm import CommError, LocalTransport, Message, topic_matches
 
-from .strategies import PAYLOADS
-from .test_topics import TOPICS, patterns
+from .strategies import PAYLOADS, TOPICS, patterns
 
 
 def test_publish_delivers_to_exact_and_wildcard_subscribers_before_returning(local):

@@ -12,18 +12,7 @@ from paho.mqtt.client import topic_matches_sub
 from rasm.comm import CommError, topic_matches, validate_pattern, validate_topic
 from rasm.comm.topics import TopicIndex
 
-LEVELS = st.sampled_from(["a", "b", "", "$s", "ab"])
-TOPICS = st.lists(LEVELS, min_size=1, max_size=4).map("/".join).filter(bool)
-PATTERN_LEVELS = st.sampled_from(["a", "b", "", "$s", "+"])
-
-
-@st.composite
-def patterns(draw) -> str:
-    levels = draw(st.lists(PATTERN_LEVELS, min_size=1, max_size=4))
-    if draw(st.booleans()):
-        levels.append("#")
-    pattern = "/".join(levels)
-    return pattern or "#"
+from .strategies import TOPICS, patterns
 
 
 def reference_matches(pattern: str, topic: str) -> bool:
