@@ -98,8 +98,10 @@ class _Generator:
         self.constants.update(HELPERS)
         self.state: dict[str, object] = {}
         self.count = 0
-        self.lines: list[str] = []
-        self.finish_lines: list[str] = []
+        self.lines: list = []
+        self.finish_lines: list = []
+        self.root: Expr | None = None  # the property's formula being compiled
+        self.root_number = 0
 
     def fresh(self, prefix: str) -> str:
         self.count += 1
@@ -313,10 +315,31 @@ class _Generator:
         drain = [f"while {child}:", f"    _j, _tj, _v = {child}.popleft()"]
         if held is not None:
             drain.append(f"    _w = {held}.popleft()")
+        decides = _decider(node, position) if len(immediate) == 1 else None
+        if decides is not None and node is self.root:
+            # online, the immediate side alone may decide the verdict (a false trigger of
+            # "trigger -> eventually …"): say it now, and skip it when the stream catches up
+            test, value = decides
+            self.lines.append(("EARLY", f"if {test.format(w=immediate[0])}:"))
+            self.lines.append(("EMIT", self.root_number, "i", "t", value, "    ", "EARLY"))
+            drain.append(("EARLY", f"    if {test.format(w='_w')}: continue"))
         drain.append(f"    {out}.append((_j, _tj, {_kleene(node, names, position)}))")
         self.lines += drain
         self.finish_lines += drain
         return "stream", source
+
+
+def _decider(node: Expr, position: int) -> tuple[str, str] | None:
+    """When the immediate operand ``w`` alone decides ``node``: (test on w, verdict)."""
+    if not isinstance(node, Binary):
+        return None
+    if node.op == "and":
+        return "not {w}", "False"
+    if node.op == "or":
+        return "{w}", "True"
+    if node.op == "->":
+        return ("not {w}", "True") if position == 1 else ("{w}", "True")
+    return None
 
 
 def _kleene(node: Expr, names: list[str], position: int) -> str:
@@ -400,7 +423,9 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     program = Program("", gen.constants, gen.state)
     for number, prop in enumerate(spec.properties):
         gen.lines, gen.finish_lines = [], []
-        kind, value = gen.emit(normalise(prop.formula))
+        gen.root = normalise(prop.formula)
+        gen.root_number = number
+        kind, value = gen.emit(gen.root)
         if reads is None:
             needed = signals_of(prop.formula)
         else:
@@ -436,16 +461,23 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
 
 
 def _indent(line):
+    if isinstance(line, tuple) and line[0] == "EARLY":
+        return ("EARLY", "    " + line[1])
     if isinstance(line, tuple):
-        return (*line[:5], (line[5] if len(line) > 5 else "") + "    ")
+        return (*line[:5], (line[5] if len(line) > 5 else "") + "    ", *line[6:])
     return "    " + line
 
 
-def _render(line, mode: str) -> str:
+def _render(line, mode: str) -> str | None:
+    """A generated line for ``mode`` (step or run); None where the line is step-only."""
     if isinstance(line, str):
         return line
-    _, number, index, time, value, *indent = line
-    pad = indent[0] if indent else ""
+    if line[0] == "EARLY":  # early verdicts exist online only: run() keeps record order
+        return line[1] if mode == "step" else None
+    _, number, index, time, value, *rest = line
+    if "EARLY" in rest and mode != "step":
+        return None
+    pad = rest[0] if rest else ""
     if mode == "step":
         return f"{pad}out.append(TUPLE_NEW(Verdict, (NAME_{number}, {index}, {time}, {value})))"
     return f"{pad}values_{number}({value})"
@@ -472,8 +504,9 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             indent = "    "
             reject = "REJECT_STEP"
         for line in [*update, "i += 1", *properties]:
-            text = _render(line, mode).replace("REJECT(", reject + "(")
-            lines.append(indent + text)
+            text = _render(line, mode)
+            if text is not None:
+                lines.append(indent + text.replace("REJECT(", reject + "("))
         lines.append("    return out" if mode == "step" else "    return None")
         return lines
 
@@ -486,10 +519,14 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         factory.append(f"    NAME_{number} = NAMES[{number}]")
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
     factory += ["    " + line for line in function("def run(records):", "run")]
-    factory += ["    def finish():", "        nonlocal " + ", ".join(cells), "        out = []"]
-    for block in finishes:
-        factory += ["        " + _render(line, "step") for line in block]
-    factory += ["        return out", "    return step, run, finish"]
+    for mode in ("step", "run"):
+        factory += [f"    def finish_{mode}():", "        nonlocal " + ", ".join(cells),
+                    "        out = []"]
+        for block in finishes:
+            rendered = (_render(line, mode) for line in block)
+            factory += ["        " + text for text in rendered if text is not None]
+        factory.append("        return out")
+    factory.append("    return step, run, finish_step, finish_run")
     return "\n".join(factory) + "\n"
 
 

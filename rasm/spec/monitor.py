@@ -108,7 +108,7 @@ class Monitor:
         )
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
-        self._step, self._run, self._finish = namespace["factory"]()
+        self._step, self._run, self._finish, self._finish_run = namespace["factory"]()
         # the generated function itself, not a method around it: one call less per record
         self.step = self._step
 
@@ -153,8 +153,9 @@ class Monitor:
         if self._finished:
             raise SpecError("this monitor has finished; compile a new one for a new trace")
         self._run(records)
-        for verdict in self.finish():
-            self._values[self.names.index(verdict.property)].append(verdict.value)
+        self._finished = True
+        self.step = self._refuse
+        self._finish_run()
         return [
             PropertyRun(name, self.starts[k], self._values[k]) for k, name in enumerate(self.names)
         ]

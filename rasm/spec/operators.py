@@ -208,6 +208,13 @@ class EventuallyCore:
                 j, tj = pending.popleft()
                 out.append((j, tj, True))
 
+    def close(self, t_next: float) -> None:
+        """The next record to come has time ``t_next``: windows ending before it are over."""
+        pending, out, b = self.pending, self.out, self.b
+        while pending and t_next - pending[0][1] > b:
+            j, tj = pending.popleft()
+            out.append((j, tj, False))
+
     def flush(self, default) -> None:
         pending, out = self.pending, self.out
         while pending:
@@ -242,6 +249,8 @@ class UntilCore:
             while pending:
                 j, tj = pending.popleft()
                 out.append((j, tj, False))
+
+    close = EventuallyCore.close
 
     def flush(self, default) -> None:
         pending, out = self.pending, self.out
@@ -305,6 +314,15 @@ class Kleene:
             j, tj, low = low_out.popleft()
             high = high_out.popleft()[2]
             out.append((j, tj, True if low else (None if high else False)))
+
+    def close(self, t_next: float) -> None:
+        """See :meth:`EventuallyCore.close` (future cores only)."""
+        if self.core is not None:
+            self.core.close(t_next)
+            return
+        self.low.close(t_next)
+        self.high.close(t_next)
+        self._merge()
 
     def flush(self) -> None:
         if not self.future:

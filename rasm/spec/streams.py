@@ -97,16 +97,35 @@ class PrevStream(Stream):
 
 
 class TemporalStream(Stream):
-    """A boolean temporal operator (past or future) through :class:`Kleene`."""
+    """A boolean temporal operator (past or future) through :class:`Kleene`.
 
-    __slots__ = ("kleene",)
+    A future operator also watches the records go by: its inputs may come late, but a window
+    is over as soon as the first record whose value has not arrived yet lies beyond it.
+    """
+
+    __slots__ = ("kleene", "waiting")
 
     def __init__(self, inputs, core) -> None:
         super().__init__(inputs)
         self.kleene = Kleene(core)
         self.out = self.kleene.out
+        self.waiting: deque | None = deque() if self.kleene.future else None
+
+    def step(self, i: int, t: float, *values) -> None:
+        waiting = self.waiting
+        if waiting is None:
+            Stream.step(self, i, t, *values)
+            return
+        waiting.append((i, t))
+        Stream.step(self, i, t, *values)
+        if waiting:
+            self.kleene.close(waiting[0][1])
 
     def consume(self, i, t, values) -> None:
+        waiting = self.waiting
+        if waiting is not None:
+            while waiting and waiting[0][0] <= i:
+                waiting.popleft()
         self.kleene.push(i, t, *values)
 
     def finish(self) -> None:

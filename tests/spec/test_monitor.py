@@ -42,17 +42,26 @@ def test_events_are_true_only_where_set():
 def test_future_verdicts_come_no_later_than_the_window_end_and_finish_is_inconclusive():
     mon = compile("event a\nevent b\nproperty p: a -> eventually[0, 2] b\n")
     assert mon.step(0, {"a": True}) == []
-    assert mon.step(1, {}) == []
-    assert mon.step(2, {}) == []
+    # no trigger: decided at once
+    assert mon.step(1, {}) == [Verdict("p", 1, 1, True)]
+    assert mon.step(2, {}) == [Verdict("p", 2, 2, True)]
     # time 2.5 > 0 + 2: record 0's window has passed
-    out = mon.step(2.5, {})
-    assert Verdict("p", 0, 0, False) in out
+    assert mon.step(2.5, {"a": True}) == [Verdict("p", 0, 0, False)]
     out = mon.step(3, {"a": True, "b": True})
-    assert all(v.value is True for v in out)
-    assert {v.index for v in out} == {1, 2, 3, 4}
+    assert sorted(out) == [Verdict("p", 3, 2.5, True), Verdict("p", 4, 3, True)]
     assert mon.step(4, {"a": True}) == []
     assert mon.finish() == [Verdict("p", 5, 4, None)]
     assert mon.finish() == []
+
+
+def test_nested_future_verdicts_come_by_the_sum_of_the_bounds():
+    mon = compile("event a\nproperty p: eventually[0, 1] always[0, 1] a\n")
+    decided_at = {}
+    for t in range(8):
+        for v in mon.step(t, {"a": t >= 3}):
+            decided_at[v.index] = t
+    assert all(decided_at[i] <= i + 3 for i in decided_at)  # first record beyond t + 2
+    assert set(decided_at) == set(range(6))
 
 
 def test_bad_records_are_counted_and_change_nothing():

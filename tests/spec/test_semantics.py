@@ -66,3 +66,26 @@ def test_several_properties_in_one_file(formulas_, records):
     spec = load_specification(text)
     got, _ = online(text, records)
     assert got == reference_verdicts(spec, records)
+
+
+def horizon(node) -> float:
+    """How far into the future a formula looks: the sum of nested future upper bounds."""
+    from rasm.spec.ast import Future, Until, children
+
+    below = max((horizon(c) for c in children(node)), default=0.0)
+    if isinstance(node, (Future, Until)):
+        return node.bound.high + below
+    return below
+
+
+@settings(max_examples=200, deadline=None)
+@given(formulas(3), traces())
+def test_online_verdicts_come_no_later_than_the_horizon(formula, records):
+    # SPEC §5: a verdict for record i comes no later than the first record with time > ti + b
+    text = HEADER + f"property p0: {formula}\n"
+    b = horizon(load_specification(text).properties[0].formula)
+    _, emitted_at = online(text, records)
+    times = [t for t, _ in records]
+    for (_, index), at in emitted_at.items():
+        late = next((k for k, t in enumerate(times) if t > times[index] + b), None)
+        assert late is None or at <= late, (formula, index, at, late)
