@@ -38,7 +38,7 @@ def offline(text: str, records):
     }
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=250, deadline=None)
 @given(formulas(3), traces())
 def test_monitor_agrees_with_reference(formula, records):
     text = HEADER + f"property p0: {formula}\n"
@@ -49,7 +49,7 @@ def test_monitor_agrees_with_reference(formula, records):
     assert offline(text, records) == expected
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(formulas(3, future=False), traces())
 def test_past_only_verdicts_come_at_once(formula, records):
     text = HEADER + f"property p0: {formula}\n"
@@ -59,7 +59,7 @@ def test_past_only_verdicts_come_at_once(formula, records):
     assert len(emitted_at) == len(got["p0"])
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(formulas(2), min_size=2, max_size=4), traces())
 def test_several_properties_in_one_file(formulas_, records):
     text = HEADER + "".join(f"property p{k}: {f}\n" for k, f in enumerate(formulas_))
@@ -78,7 +78,7 @@ def horizon(node) -> float:
     return below
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(formulas(3), traces())
 def test_online_verdicts_come_no_later_than_the_horizon(formula, records):
     # SPEC §5: a verdict for record i comes no later than the first record with time > ti + b
