@@ -133,7 +133,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         role=args.role,
     )
     duration = args.duration if args.duration is not None else manifest.duration
-    console = Console(stderr=False)
+    console = Console(stderr=args.trace == "-")  # keep stdout for the trace
     platform.build()
     if console.is_terminal and args.role != "managed":
         with LiveView(platform, console, duration=duration):
@@ -179,7 +179,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("app", help="application folder (with app.yaml)")
     p.add_argument("--duration", type=float, default=None, help="seconds to run")
     p.add_argument("--transport", default=None, help="local | mqtt://host:port")
-    p.add_argument("--trace", default=None, help="write the adaptation trace (JSONL) here")
+    p.add_argument(
+        "--trace",
+        default=None,
+        help="write the adaptation trace (JSONL) here; - for standard output",
+    )
     p.add_argument("--clock", choices=["wall", "simulated"], default=None)
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--role", choices=["all", "managing", "managed"], default="all")

@@ -26,9 +26,14 @@ class TraceWriter:
     """Collects loop records; writes them to ``path`` (if any) and hands them to ``observers``."""
 
     def __init__(self, path: str | Path | None = None) -> None:
-        self.path = Path(path) if path is not None else None
+        self.path = Path(path) if path is not None and str(path) != "-" else None
         self._out: TextIO | None = None
-        if self.path is not None:
+        self._owned = self.path is not None
+        if str(path) == "-":  # standard output: lines are flushed as they come
+            import sys
+
+            self._out = sys.stdout
+        elif self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._out = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
         self.observers: list[Callable[[float, dict[str, Any]], Any]] = []
@@ -42,6 +47,8 @@ class TraceWriter:
         if self._out is not None:
             line = {"time": round(time, 9), **{k: _jsonable(v) for k, v in record.items()}}
             self._out.write(json.dumps(line, separators=(", ", ": ")) + "\n")
+            if not self._owned:
+                self._out.flush()
         for observer in self.observers:
             observer(time, record)
 
@@ -50,6 +57,6 @@ class TraceWriter:
             self._out.flush()
 
     def close(self) -> None:
-        if self._out is not None:
+        if self._out is not None and self._owned:
             self._out.close()
-            self._out = None
+        self._out = None

@@ -1,0 +1,127 @@
+"""Faults in user code never let an unchecked action through, and never stop the loop."""
+
+from __future__ import annotations
+
+import threading
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rasm.platform.components import Action
+from rasm.platform.runtime import Platform
+from rasm.rules import RuleSet
+
+from .conftest import HOTBOX, read_trace
+
+GOOD = {"mode": "boost", "setpoint": 38.5, "power_limit": 100.0}
+BREAKS_RULES = [
+    {"mode": "boost", "setpoint": 45.0, "power_limit": 100.0},  # safe_setpoint
+    {"mode": "normal", "setpoint": 37.0, "power_limit": 95.0},  # normal_power
+    {"mode": "boost", "setpoint": 38.0, "power_limit": 150.0},  # heater_rating
+    {"mode": "turbo", "setpoint": 38.0, "power_limit": 50.0},  # not an enum value
+    {"mode": "boost", "setpoint": "hot", "power_limit": 50.0},  # wrong type
+    {"setpoint": 38.0},  # missing values
+]
+BEHAVIOURS = st.sampled_from(["ok", "raise", "garbage", "breaks_rules", "slow", "none"])
+
+
+class Scripted:
+    """Planner/executor whose behaviour on each call is drawn by hypothesis."""
+
+    def __init__(self, plan_script, execute_script, analyse_script):
+        self.plan_script = list(plan_script)
+        self.execute_script = list(execute_script)
+        self.analyse_script = list(analyse_script)
+        self.calls = 0
+
+    @staticmethod
+    def _next(script):
+        return script.pop(0) if script else "ok"
+
+    def analyse(self, ctx):
+        what = self._next(self.analyse_script)
+        if what == "raise":
+            raise RuntimeError("analysis crashed")
+        if what == "garbage":
+            return 42
+        return {"reason": "scripted", "want": "boost"}  # an anomaly every iteration
+
+    def plan(self, ctx):
+        self.calls += 1
+        what = self._next(self.plan_script)
+        if what == "raise":
+            raise ZeroDivisionError("planner bug")
+        if what == "garbage":
+            return ["not", "a", "plan"]
+        if what == "breaks_rules":
+            return dict(BREAKS_RULES[self.calls % len(BREAKS_RULES)])
+        if what == "slow":
+            threading.Event().wait(0.2)  # overruns the 0.05 s budget: simulates a slow planner
+            return dict(GOOD)
+        if what == "none":
+            return None
+        return dict(GOOD)
+
+    def execute(self, ctx):
+        what = self._next(self.execute_script)
+        if what == "raise":
+            raise RuntimeError("executor crashed")
+        if what == "garbage":
+            return "heater: on"
+        if what == "breaks_rules":  # an action for an effector that does not exist
+            return Action("laser", {"power": 1})
+        return Action("heater", dict(ctx.plan.values))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    plan=st.lists(BEHAVIOURS, max_size=12),
+    execute=st.lists(BEHAVIOURS, max_size=8),
+    analyse=st.lists(st.sampled_from(["ok", "raise", "garbage"]), max_size=6),
+)
+def test_faulty_components_never_get_an_unchecked_action_executed(
+    plan, execute, analyse, tmp_path_factory
+):
+    from rasm.platform.manifest import load_manifest
+
+    manifest = load_manifest(HOTBOX)
+    manifest.stage_budget = 0.05
+    scripted = Scripted(plan, execute, analyse)
+    trace_file = tmp_path_factory.mktemp("faulty") / "trace.jsonl"
+    platform = Platform(
+        manifest,
+        clock="simulated",
+        seed=3,
+        trace=trace_file,
+        knowledge="memory",
+        components={"analyse": scripted, "plan": scripted, "execute": scripted},
+    )
+    applied = []
+    platform.build()
+    original = platform.simulator.apply
+    platform.simulator.apply = lambda eff, payload, t: (
+        applied.append((eff, payload)),
+        original(eff, payload, t),
+    )
+    summary = platform.run(8.0)
+    trace = read_trace(trace_file)
+
+    # the loop kept running: one iteration per period, whatever failed
+    assert summary.stats.iterations == int(8.0 / manifest.period)
+    rules = RuleSet.load(HOTBOX / "rules" / "hotbox.yaml")
+    legitimate = {r["plan"] for r in trace if r.get("legitimate")}
+    executed = [r["plan"] for r in trace if r.get("executed")]
+    plans = {r["plan"]: r for r in trace if r.get("planned")}
+    for plan_id in executed:
+        assert plan_id in legitimate, f"{plan_id} executed without passing Legitimate"
+        values = {k: plans[plan_id][k] for k in ("mode", "setpoint", "power_limit")}
+        assert rules.evaluate(values, {"temperature": 37.0}).accepted
+    # what reached the effector is exactly what was executed, and every payload obeys the rules
+    assert len(applied) == len(executed)
+    for effector, payload in applied:
+        assert effector == "heater"
+        values = {k: payload[k] for k in ("mode", "setpoint", "power_limit")}
+        assert rules.evaluate(values, {"temperature": 37.0}).accepted
+    for r in trace:
+        if r.get("rejected"):
+            assert r["plan"] not in executed and r["broken_rules"]
