@@ -142,7 +142,9 @@ def fmt(rate: float | None) -> str:
         return "n/a"
     if rate >= 1e6:
         return f"{rate / 1e6:.2f} M"
-    return f"{rate / 1e3:.0f} k"
+    if rate >= 1e4:
+        return f"{rate / 1e3:.0f} k"
+    return f"{rate / 1e3:.2f} k"
 
 
 def ratio(a: float, b: float | None) -> str:
