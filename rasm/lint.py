@@ -55,11 +55,11 @@ def _lint_properties(path: Path, text: str) -> list[str]:
 
 def _lint_rules(path: Path, text: str) -> list[str]:
     try:
-        from rasm.rules import load_rules
+        from rasm.rules import parse_rules
     except ImportError:  # pragma: no cover
         return [f"{path}: cannot lint rule files: rasm.rules is not available"]
     try:
-        load_rules(text=text, source=str(path))
+        parse_rules(text, source=str(path))
     except (SourceError, SourceErrors) as exc:
         return _errors_of(exc)
     return []
@@ -85,10 +85,10 @@ def _yaml_kind(path: Path, text: str) -> Callable[[Path, str], list[str]] | None
             keys.add(line.split(":", 1)[0].strip())
     if "statechart" in keys:
         return _lint_statechart
+    if path.name in ("app.yaml", "app.yml") or "components" in keys:
+        return _lint_manifest
     if "rules" in keys or "variables" in keys:
         return _lint_rules
-    if path.name in ("app.yaml", "app.yml"):
-        return _lint_manifest
     return None
 
 

@@ -98,7 +98,9 @@ class Platform:
             raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
         self.manifest = manifest
         self.clock_kind = clock or manifest.clock or "wall"
-        self.clock = SimulatedClock() if self.clock_kind == "simulated" else MonotonicClock()
+        self.clock = (
+            SimulatedClock() if self.clock_kind == "simulated" else MonotonicClock(running=False)
+        )
         self.seed = 0 if seed is None else seed
         self.role = role
         self.scheduler = Scheduler(self.clock)
@@ -116,6 +118,7 @@ class Platform:
         self.core: Core | None = None
         self._built = False
         self._started_at = 0.0
+        self._timeline_start = 0.0
 
     # ------------------------------------------------------------------ assembly
 
@@ -162,10 +165,9 @@ class Platform:
             storage.detach()  # the Storage Manager block feeds it (and steps its chart)
         restored = [self.kb.read_sample(k) for k in self.kb.keys()]
         restored = [sample for sample in restored if sample is not None]
-        if restored and isinstance(self.clock, MonotonicClock):
+        if restored:
             # a restarted managing system continues its timeline after what it restored
-            self.clock = MonotonicClock(max(sample.time for sample in restored))
-            self.scheduler.clock = self.clock
+            self._timeline_start = max(sample.time for sample in restored)
         for signal in self.manifest.signals.values():
             self.kb.declare(
                 signal.key,
@@ -288,6 +290,9 @@ class Platform:
         if not self._built:
             self.build()
         assert self.core is not None
+        if isinstance(self.clock, MonotonicClock):
+            # building took time; the run's timeline starts now (or after restored knowledge)
+            self.clock.start_at(self._timeline_start)
         self.core.initialize()
         self._started_at = self.clock.time
         m = self.manifest

@@ -1,0 +1,111 @@
+"""Every mistake in app.yaml is reported at its line and column, with exit code 2."""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+
+import pytest
+
+from rasm.cli import main
+from rasm.errors import SourceErrors
+from rasm.platform.manifest import load_manifest
+
+from .conftest import HOTBOX
+
+GOOD = """\
+name: demo
+components:
+  monitor: components:M
+  analyse: components:A
+  plan: components:P
+  execute: components:E
+probes:
+  - topic: demo/sensors
+    signals:
+      x: {type: float, min: 0, max: 10}
+effectors:
+  valve: {topic: demo/valve}
+loop:
+  period: 0.5
+"""
+
+
+def write_app(tmp_path, text):
+    (tmp_path / "app.yaml").write_text(textwrap.dedent(text))
+    (tmp_path / "components.py").write_text(
+        "class M: pass\nclass A: pass\nclass P: pass\nclass E: pass\n"
+    )
+    return tmp_path
+
+
+def errors(tmp_path, text):
+    with pytest.raises(SourceErrors) as info:
+        load_manifest(write_app(tmp_path, text))
+    return [(e.location.line, e.location.col, e.message) for e in info.value.errors]
+
+
+def test_a_good_manifest_loads(tmp_path):
+    manifest = load_manifest(write_app(tmp_path, GOOD))
+    assert manifest.name == "demo" and manifest.period == 0.5
+    assert manifest.signals["x"].maximum == 10
+
+
+@pytest.mark.parametrize(
+    "old, new, line, col, message",
+    [
+        ("name: demo", "name: 3demo", 1, 7, "does not match"),
+        ("  plan: components:P\n", "", 2, 1, "'plan' is a required property"),
+        (
+            "  execute: components:E",
+            "  execute: components:E\n  pan: components:P",
+            7,
+            3,
+            "unknown key 'pan' in components",
+        ),
+        (
+            "x: {type: float, min: 0, max: 10}",
+            "x: {type: double}",
+            10,
+            17,
+            "'double' is not one of",
+        ),
+        ("  period: 0.5", "  period: -1", 14, 11, "less than or equal to the minimum"),
+        ("  monitor: components:M", "  monitor: components.M", 3, 12, "is not module:Class"),
+        (
+            "x: {type: float, min: 0, max: 10}",
+            "x: {type: float, min: 5, max: 1}",
+            10,
+            7,
+            "min is above max",
+        ),
+    ],
+)
+def test_each_mistake_is_reported_at_its_place(tmp_path, old, new, line, col, message):
+    assert old in GOOD
+    found = errors(tmp_path, GOOD.replace(old, new))
+    assert any(message in m and (ln, c) == (line, col) for ln, c, m in found), found
+
+
+def test_missing_files_are_named(tmp_path):
+    found = errors(tmp_path, GOOD + "properties: [props/missing.rv]\nrules: rules/none.yaml\n")
+    assert (15, 14) in {(ln, c) for ln, c, _ in found}
+    assert any("no such file: rules/none.yaml" in m for _, _, m in found)
+
+
+def test_cli_run_exits_2_with_the_position_and_no_traceback(tmp_path, capsys):
+    app = tmp_path / "app"
+    shutil.copytree(HOTBOX, app)
+    text = (app / "app.yaml").read_text().replace("period: 0.5", "period: fast")
+    (app / "app.yaml").write_text(text)
+    assert main(["run", str(app), "--clock", "simulated", "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    line = next(i for i, t in enumerate(text.splitlines(), 1) if "period: fast" in t)
+    assert f"app.yaml:{line}:" in err and "'fast' is not of type 'number'" in err
+    assert "Traceback" not in err
+    assert main(["lint", str(app / "app.yaml")]) == 1
+
+
+def test_cli_run_on_a_folder_without_manifest(tmp_path, capsys):
+    assert main(["run", str(tmp_path)]) == 2
+    assert "no app manifest here" in capsys.readouterr().err
