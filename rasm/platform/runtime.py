@@ -92,7 +92,7 @@ class Platform:
         state_dir: str | Path | None = None,
         scenario: dict[str, Any] | None = None,
         components: dict[str, Any] | None = None,
-        isolate_stages: bool = True,
+        isolate_stages: bool | None = None,
     ) -> None:
         if role not in ("all", "managing", "managed"):
             raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
@@ -111,7 +111,11 @@ class Platform:
         self.transport_url = transport or manifest.transport
         self.knowledge_url = knowledge or manifest.knowledge
         self._component_overrides = components or {}
-        self.isolate_stages = isolate_stages
+        # live runs isolate user stages on a worker thread so an overrun can be walked away
+        # from; simulations run them inline (deterministic and fast) and discard overruns
+        self.isolate_stages = (
+            self.clock_kind != "simulated" if isolate_stages is None else isolate_stages
+        )
         self.on_record: list[Callable[[float, dict[str, Any]], Any]] = []
         self.verdict_log: list[Any] = []
         self.simulator: Any = None
