@@ -145,7 +145,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    raise UsageError("rasm report is not implemented yet")
+    from rasm.report import write_report
+
+    # --props FILE.rv (repeatable) and --no-platform-props, where the parser offers them
+    props = getattr(args, "props", None) or []
+    model = write_report(
+        args.trace,
+        args.output,
+        props,
+        platform_props=getattr(args, "platform_props", True),
+    )
+    checked = model["properties"]["timelines"]
+    violated = [t["name"] for t in checked if t["verdict"] == "violated"]
+    print(
+        f"rasm: {args.output}: {model['records']} records, {len(model['adaptations'])} "
+        f"adaptations, {len(checked)} properties ({len(violated)} violated)",
+        file=sys.stderr,
+    )
+    for note in model["missing"]:
+        print(f"rasm: note: {note}", file=sys.stderr)
+    return EXIT_OK
 
 
 def _cmd_new(args: argparse.Namespace) -> int:

@@ -1,0 +1,291 @@
+"""``rasm run APP --dashboard [PORT]``: the report's views live, on 127.0.0.1.
+
+:func:`serve` attaches to a platform before it runs; every trace record the loop emits updates a
+:class:`~rasm.report.model.TraceModel` (on the loop thread, under a lock), the Trustworthiness
+Checker's verdicts extend the property timelines, and the building blocks' modes are read from
+the State Manager. Browsers get the page at ``/`` and follow ``/events`` (server-sent events:
+one JSON model per message, at most ``refresh`` seconds apart)::
+
+    platform = Platform(load_manifest("examples/hotbox"))
+    platform.build()
+    dashboard = serve(platform, 8050)
+    try:
+        platform.run(60)
+    finally:
+        dashboard.close()
+
+Only the loopback interface is served: the dashboard has no authentication.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import threading
+import time as _time
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import Any
+from urllib.parse import urlsplit
+
+from rasm.errors import PlatformError
+from rasm.report.model import TraceModel
+from rasm.report.page import plotly_js, render_page
+from rasm.report.verdicts import VerdictTimeline
+from rasm.spec.loader import signals_of
+
+__all__ = ["Dashboard", "HOST", "serve"]
+
+HOST = "127.0.0.1"
+_log = logging.getLogger("rasm.report.dashboard")
+
+
+class Dashboard:
+    """The live model of one running platform, and the HTTP server that shows it."""
+
+    def __init__(
+        self,
+        platform: Any,
+        port: int = 8050,
+        *,
+        refresh: float = 0.25,
+        max_points: int = 5000,
+    ) -> None:
+        self.platform = platform
+        self.refresh = refresh
+        self.model = TraceModel(max_points=max_points)
+        self.timelines: dict[str, VerdictTimeline] = {}
+        self.modes: dict[str, str] = {}
+        self.status = "starting"
+        self._cond = threading.Condition()
+        self._version = 0
+        self._cache: tuple[int, str] = (-1, "")
+        self._verdicts_seen = 0
+        self._modes_read = 0.0
+        self._streams = 0
+        self._closed = False
+        self._properties()
+        self._read_modes()
+        try:
+            self.server = _Server((HOST, port), _Handler, self)
+        except OSError as exc:
+            raise PlatformError(
+                f"dashboard: cannot listen on {HOST}:{port} ({exc.strerror or exc}); "
+                "choose another port with --dashboard PORT"
+            ) from None
+        self.port = self.server.server_address[1]
+        self.url = f"http://{HOST}:{self.port}/"
+        self._thread = threading.Thread(
+            target=self.server.serve_forever, name="rasm-dashboard", daemon=True
+        )
+        self._thread.start()
+        platform.on_record.append(self.on_record)
+
+    # ------------------------------------------------------------------ the loop's side
+
+    def _properties(self) -> None:
+        # verdicts carry the property's name only: two files' properties of one name share a row
+        tc = getattr(self.platform, "tc", None)
+        for monitor in getattr(tc, "monitors", ()):
+            for prop in monitor.spec.properties:
+                timeline = self.timelines.get(prop.name)
+                if timeline is None:
+                    self.timelines[prop.name] = VerdictTimeline(
+                        prop.name,
+                        str(prop.location),
+                        sorted(signals_of(prop.formula)),
+                        max_violations=500,
+                    )
+                else:
+                    timeline.source += f", {prop.location}"
+                    timeline.name = f"{prop.name} (in {timeline.source.count(',') + 1} files)"
+                    timeline.reads = sorted({*timeline.reads, *signals_of(prop.formula)})
+
+    def _read_modes(self) -> None:
+        sm = getattr(self.platform, "sm", None)
+        if sm is not None:
+            self.modes = dict(sm.get_status())
+        self._modes_read = _time.monotonic()
+
+    def on_record(self, time: float, record: dict[str, Any]) -> None:
+        """``platform.on_record`` observer: runs on the loop thread for every trace record."""
+        with self._cond:
+            self.status = "running"
+            self.model.add(time, record)
+            log = getattr(self.platform, "verdict_log", ())
+            for verdict in log[self._verdicts_seen :]:
+                timeline = self.timelines.get(verdict.property)
+                if timeline is not None:
+                    timeline.add(verdict.time, verdict.value)
+            self._verdicts_seen = len(log)
+            if _time.monotonic() - self._modes_read >= 0.1:
+                self._read_modes()
+            self._version += 1
+            self._cond.notify_all()
+
+    # ------------------------------------------------------------------ the browser's side
+
+    def snapshot(self) -> tuple[int, str]:
+        """The current model as JSON, and its version (serialised once per version)."""
+        with self._cond:
+            if self._cache[0] != self._version:
+                self._cache = (self._version, json.dumps(self._model(), separators=(",", ":")))
+            return self._cache
+
+    def _model(self) -> dict[str, Any]:
+        p = self.platform
+        manifest = getattr(p, "manifest", None)
+        name = getattr(manifest, "name", "platform")
+        data = self.model.to_dict()
+        data["properties"] = {
+            "files": [],
+            "timelines": [t.to_dict() for t in self.timelines.values()],
+            "note": "No properties: the Trustworthiness Checker of this run checks none.",
+        }
+        data["source"] = f"{name} on the {getattr(p, 'clock_kind', '?')} clock"
+        data["live"] = True
+        data["status"] = self.status
+        data["modes"] = self.modes
+        transport = getattr(p, "transport_url", "local")
+        data["nodes"] = {
+            "remote": [],
+            "note": f"single process: no remote nodes (transport {transport}, "
+            f"role {getattr(p, 'role', 'all')})",
+        }
+        data["missing"] = []
+        return _json_safe(data)
+
+    def page(self) -> str:
+        name = getattr(getattr(self.platform, "manifest", None), "name", "platform")
+        return render_page(
+            None, title=f"rasm dashboard: {name}", events_url="/events", plotly_url="/plotly.js"
+        )
+
+    def stream(self, write: Any) -> None:
+        """Send the model to one browser each time it changes, until the run finishes."""
+        sent = -1
+        with self._cond:
+            self._streams += 1
+        try:
+            while True:
+                with self._cond:
+                    self._cond.wait_for(
+                        lambda sent=sent: self._version != sent or self._closed, timeout=10.0
+                    )
+                    finished = self.status == "finished"
+                if self._version == sent and not finished:
+                    write(b": keep-alive\n\n")
+                    continue
+                sent, data = self.snapshot()
+                write(f"data: {data}\n\n".encode())
+                if finished:
+                    return
+                with self._cond:  # at most one message every `refresh` seconds
+                    self._cond.wait_for(lambda: self._closed, timeout=self.refresh)
+        finally:
+            with self._cond:
+                self._streams -= 1
+                self._cond.notify_all()
+
+    # ------------------------------------------------------------------ ending
+
+    def finish(self) -> None:
+        """Mark the run finished: browsers get the final model and stop following."""
+        with self._cond:
+            self._read_modes()
+            self.status = "finished"
+            self._version += 1
+            self._cond.notify_all()
+
+    def close(self, timeout: float = 2.0) -> None:
+        """Finish, let the browsers have the final model (``timeout`` at most), stop serving."""
+        if self._closed:
+            return
+        self.finish()
+        with self._cond:
+            self._cond.wait_for(lambda: self._streams == 0, timeout=timeout)
+            self._closed = True
+            self._cond.notify_all()
+        if self.on_record in self.platform.on_record:
+            self.platform.on_record.remove(self.on_record)
+        self.server.shutdown()
+        self.server.server_close()
+        self._thread.join(timeout)
+
+    def __enter__(self) -> Dashboard:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+    allow_reuse_address = True
+
+    def __init__(self, address: tuple[str, int], handler: type, dashboard: Dashboard) -> None:
+        self.dashboard = dashboard
+        super().__init__(address, handler)
+
+
+class _Handler(BaseHTTPRequestHandler):
+    server: _Server
+
+    def do_GET(self) -> None:  # noqa: N802 - the http.server protocol
+        dashboard = self.server.dashboard
+        path = urlsplit(self.path).path
+        if path == "/":
+            self._send(200, "text/html; charset=utf-8", dashboard.page().encode())
+        elif path == "/plotly.js":
+            body = plotly_js().encode()
+            self._send(200, "text/javascript; charset=utf-8", body, cache=True)
+        elif path == "/model.json":
+            self._send(200, "application/json", dashboard.snapshot()[1].encode())
+        elif path == "/events":
+            self.send_response(200)
+            self.send_header("Content-Type", "text/event-stream")
+            self.send_header("Cache-Control", "no-cache")
+            self.end_headers()
+
+            def write(chunk: bytes) -> None:
+                self.wfile.write(chunk)
+                self.wfile.flush()
+
+            try:
+                dashboard.stream(write)
+            except (BrokenPipeError, ConnectionResetError):
+                pass  # the browser went away
+        else:
+            self._send(404, "text/plain; charset=utf-8", b"not found\n")
+
+    def _send(self, status: int, kind: str, body: bytes, *, cache: bool = False) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", kind)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "max-age=3600" if cache else "no-cache")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - base signature
+        _log.debug("%s " + format, self.address_string(), *args)
+
+
+def serve(platform: Any, port: int = 8050, **options: Any) -> Dashboard:
+    """Serve ``platform``'s dashboard on 127.0.0.1:``port`` (0: any free port).
+
+    Call it after ``platform.build()`` and before ``platform.run(...)``; call ``close()`` on the
+    result when the run is over. Raises :class:`~rasm.errors.PlatformError` if the port is taken.
+    """
+    if getattr(platform, "core", None) is None and hasattr(platform, "build"):
+        platform.build()
+    return Dashboard(platform, port, **options)

@@ -1,0 +1,264 @@
+"""The data behind the report and the dashboard, built record by record from a trace (SPEC §4).
+
+:class:`TraceModel` is fed ``(time, record)`` pairs, in trace order, either from a trace file
+(``rasm report``) or from a running platform's ``on_record`` (``rasm run --dashboard``), and
+turns them into plain JSON-able data that ``assets/report.js`` draws:
+
+- the MAPLE-K loop iterations: for each, its start time and each stage's duration (Gantt);
+- each stage's duration distribution with the platform's nearest-rank percentiles;
+- the knowledge signals (every key that is not one of the loop's own keys);
+- the adaptations: anomaly, plan, legitimacy verdict with broken rules, trust check, outcome
+  (executed, dropped, cancelled, no plan) and the explanations given on the way.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+__all__ = ["Adaptation", "LOOP_KEYS", "STAGES", "TraceModel", "percentiles"]
+
+STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
+EVENTS = ("anomaly", "planned", "legitimate", "rejected", "trusted", "executed", "dropped")
+LOOP_KEYS = frozenset({*EVENTS, "stage", "duration", "plan", "broken_rules", "explanation"})
+
+
+def percentiles(values: Iterable[float], qs: tuple[float, ...] = (50, 90, 99)) -> dict[str, float]:
+    """Nearest-rank percentiles, as ``rasm run`` prints them (``{"p50": …, "p90": …}``)."""
+    ordered = sorted(values)
+    if not ordered:
+        return {}
+    out = {}
+    for q in qs:
+        k = max(0, min(len(ordered) - 1, math.ceil(q / 100 * len(ordered)) - 1))
+        out[f"p{q:g}"] = ordered[k]
+    out["max"] = ordered[-1]
+    out["mean"] = sum(ordered) / len(ordered)
+    out["count"] = len(ordered)
+    return out
+
+
+@dataclass
+class Adaptation:
+    """One plan's way through the loop (or an anomaly that never got a plan)."""
+
+    number: int
+    time: float
+    anomaly: str | None = None
+    anomaly_time: float | None = None
+    plan: str | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+    plan_explanation: str | None = None
+    legitimacy: str | None = None  # accepted | rejected
+    broken_rules: list[str] = field(default_factory=list)
+    legitimacy_explanation: str | None = None
+    trusted: bool | None = None
+    outcome: str | None = None  # executed | dropped | cancelled | no plan | stage failed
+    outcome_time: float | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+class TraceModel:
+    """Everything the views draw, kept up to date one record at a time.
+
+    ``max_points`` bounds each signal's and each stage's history (the dashboard of a long run
+    keeps the most recent ones); ``None`` keeps everything (the offline report).
+    """
+
+    def __init__(self, *, max_points: int | None = None) -> None:
+        self.max_points = max_points
+        self.records = 0
+        self.first_time: float | None = None
+        self.last_time: float | None = None
+        self.iterations: list[dict[str, Any]] = []  # {"time": t, "stages": {stage: seconds}}
+        self.durations: dict[str, list[float]] = {s: [] for s in STAGES}
+        self.other_stages: set[str] = set()
+        self.signals: dict[str, dict[str, Any]] = {}
+        self.adaptations: list[Adaptation] = []
+        self._open: Adaptation | None = None  # the adaptation the loop is working on
+        self._anomaly: tuple[float, str | None] | None = None
+        self._by_plan: dict[str, Adaptation] = {}
+
+    # ------------------------------------------------------------------ feeding
+
+    def add(self, time: float, record: dict[str, Any]) -> None:
+        """Take one trace record (``time`` apart from the other keys)."""
+        self.records += 1
+        if self.first_time is None:
+            self.first_time = time
+        self.last_time = time
+        if "stage" in record:
+            self._stage(time, record)
+        if any(record.get(event) is True for event in EVENTS) or "plan" in record:
+            self._event(time, record)
+        elif "explanation" in record and "stage" not in record:
+            self._note(time, str(record["explanation"]))
+        if record.get("planned") is True:
+            return  # the other keys of a plan record are the plan's parameters, not knowledge
+        for key, value in record.items():
+            if key not in LOOP_KEYS:
+                self._signal(time, key, value)
+
+    def _stage(self, time: float, record: dict[str, Any]) -> None:
+        stage = str(record["stage"])
+        duration = record.get("duration")
+        seconds = float(duration) if isinstance(duration, int | float) else None
+        if stage not in STAGES:
+            self.other_stages.add(stage)
+            return
+        current = self.iterations[-1] if self.iterations else None
+        order = STAGES.index(stage)
+        if (
+            current is None
+            or stage == "monitor"
+            or any(STAGES.index(s) >= order for s in current["stages"])
+        ):
+            current = {"time": time, "stages": {}}
+            self.iterations.append(current)
+            self._trim(self.iterations)
+        current["stages"][stage] = seconds
+        if seconds is not None:
+            self.durations[stage].append(seconds)
+            self._trim(self.durations[stage])
+
+    def _signal(self, time: float, key: str, value: Any) -> None:
+        value = _finite(value)
+        if isinstance(value, bool):
+            kind = "bool"
+        elif isinstance(value, int | float):
+            kind = "number"
+        elif isinstance(value, str):
+            kind = "str"
+        else:
+            return  # lists and objects are not drawn
+        series = self.signals.get(key)
+        if series is None:
+            series = self.signals[key] = {"kind": kind, "t": [], "v": []}
+        elif series["kind"] != kind:
+            if {series["kind"], kind} == {"number", "bool"}:
+                series["kind"] = "number"
+            else:
+                series["kind"] = "str"
+        series["t"].append(time)
+        series["v"].append(value)
+        if self.max_points is not None and len(series["t"]) > self.max_points:
+            del series["t"][0], series["v"][0]
+
+    def _trim(self, items: list) -> None:
+        if self.max_points is not None and len(items) > self.max_points:
+            del items[0]
+
+    # ------------------------------------------------------------------ adaptations
+
+    def _new(self, time: float) -> Adaptation:
+        adaptation = Adaptation(number=len(self.adaptations) + 1, time=time)
+        self.adaptations.append(adaptation)
+        self._open = adaptation
+        return adaptation
+
+    def _event(self, time: float, record: dict[str, Any]) -> None:
+        explanation = record.get("explanation")
+        text = str(explanation) if explanation is not None else None
+        if record.get("anomaly") is True:
+            if self._open is not None and self._open.plan is None and self._open.outcome is None:
+                self._open.outcome = "no plan"  # the previous anomaly was never planned for
+            self._anomaly = (time, text)
+            adaptation = self._new(time)
+            adaptation.anomaly, adaptation.anomaly_time = text or "anomaly", time
+            return
+        plan = record.get("plan")
+        plan = str(plan) if plan is not None else None
+        adaptation = self._by_plan.get(plan) if plan is not None else self._open
+        if record.get("planned") is True or adaptation is None:
+            adaptation = self._planned(time, plan, record, text)
+        if record.get("legitimate") is True:
+            adaptation.legitimacy = "accepted"
+        if record.get("rejected") is True:
+            adaptation.legitimacy = "rejected"
+            rules = record.get("broken_rules") or []
+            adaptation.broken_rules = [str(r) for r in rules] if isinstance(rules, list) else [
+                str(rules)
+            ]
+            adaptation.legitimacy_explanation = text
+            adaptation.outcome, adaptation.outcome_time = "rejected", time
+        if record.get("trusted") is True:
+            adaptation.trusted = True
+        for outcome in ("executed", "dropped"):
+            if record.get(outcome) is True:
+                if adaptation.outcome != "executed":
+                    adaptation.outcome, adaptation.outcome_time = outcome, time
+                if text:
+                    adaptation.notes.append(text)
+
+    def _planned(
+        self, time: float, plan: str | None, record: dict[str, Any], text: str | None
+    ) -> Adaptation:
+        current = self._open
+        if current is not None and current.plan is None and current.outcome in (None, "no plan"):
+            adaptation = current  # the anomaly's first plan
+            adaptation.outcome = None
+        else:
+            adaptation = self._new(time)
+            if self._anomaly is not None and current is not None and current.outcome == "rejected":
+                # a replan: same anomaly, next plan
+                adaptation.anomaly_time, adaptation.anomaly = self._anomaly
+        adaptation.plan = plan
+        adaptation.time = adaptation.anomaly_time if adaptation.anomaly_time is not None else time
+        if record.get("planned") is True:
+            adaptation.params = {
+                k: _finite(v) for k, v in record.items() if k not in LOOP_KEYS and k != "time"
+            }
+            adaptation.plan_explanation = text
+        if plan is not None:
+            self._by_plan[plan] = adaptation
+        self._open = adaptation
+        return adaptation
+
+    def _note(self, time: float, text: str) -> None:
+        adaptation = self._open
+        if adaptation is None or adaptation.outcome in ("executed", "dropped"):
+            return
+        adaptation.notes.append(text)
+        if text.startswith("adaptation cancelled"):
+            adaptation.outcome, adaptation.outcome_time = "cancelled", time
+        elif text == "no plan for the anomaly":
+            adaptation.outcome, adaptation.outcome_time = "no plan", time
+        elif " stage failed" in text or "overran" in text:
+            if adaptation.outcome is None:
+                adaptation.outcome, adaptation.outcome_time = "stage failed", time
+
+    # ------------------------------------------------------------------ output
+
+    def counts(self) -> dict[str, int]:
+        """How many adaptations ended each way (and how many anomalies there were)."""
+        out = {"anomalies": sum(1 for a in self.adaptations if a.anomaly is not None)}
+        out["plans"] = sum(1 for a in self.adaptations if a.plan is not None)
+        for outcome in ("executed", "rejected", "dropped", "cancelled"):
+            out[outcome] = sum(1 for a in self.adaptations if a.outcome == outcome)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON-able data the page draws."""
+        return {
+            "records": self.records,
+            "start": self.first_time,
+            "end": self.last_time,
+            "stages": list(STAGES),
+            "other_stages": sorted(self.other_stages),
+            "iterations": self.iterations,
+            "timing": {
+                stage: percentiles(values) for stage, values in self.durations.items() if values
+            },
+            "durations": {stage: values for stage, values in self.durations.items() if values},
+            "signals": self.signals,
+            "adaptations": [asdict(a) for a in self.adaptations],
+            "counts": self.counts(),
+        }

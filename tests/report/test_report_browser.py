@@ -1,0 +1,134 @@
+"""``rasm report`` in a real browser: a Hotbox trace's page loads cleanly, every view has data,
+and the adaptation table's links move the timelines."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from rasm.cli import main
+
+HOTBOX_PROPS = Path(__file__).resolve().parents[2] / "examples" / "hotbox" / "properties"
+
+# the number of traces plotly drew in a figure
+TRACES = "id => (document.getElementById(id).data || []).length"
+
+
+@pytest.fixture
+def hotbox_report(hotbox_trace: Path, tmp_path: Path) -> Path:
+    out = tmp_path / "report.html"
+    code = main(["report", str(hotbox_trace), "-o", str(out)])
+    assert code == 0
+    return out
+
+
+def _open(page, path: Path) -> None:
+    page.page.goto(path.as_uri())
+    page.page.wait_for_selector("body[data-rendered=true]")
+
+
+def test_report_is_self_contained(hotbox_report: Path) -> None:
+    html = hotbox_report.read_text(encoding="utf-8")
+    assert "<script src=" not in html and "<link rel=\"stylesheet\"" not in html
+    assert "http://" not in html.split("<script>", 1)[0]  # nothing fetched by the head
+    assert 'id="rasm-data"' in html
+
+
+def test_every_view_renders_with_data(page, hotbox_report: Path, tmp_path: Path) -> None:
+    _open(page, hotbox_report)
+    p = page.page
+    for figure in ("gantt", "gantt-detail", "timing", "verdicts", "signals"):
+        assert p.evaluate(TRACES, figure) > 0, figure
+        assert p.locator(f"#{figure} .main-svg").count() > 0, figure  # plotly drew SVG
+    assert p.evaluate(TRACES, "gantt") == 5  # one bar trace per MAPLE-K stage
+    assert p.locator("#timing-table tbody tr").count() == 5
+    assert p.locator("#verdict-table tbody tr").count() >= 8  # the platform's properties
+    assert p.locator(".missing:visible").count() == 0
+    assert p.locator("#notes").is_hidden()
+    rows = p.locator("#adaptations tbody tr")
+    assert rows.count() == 3
+    assert "executed" in rows.nth(0).inner_text()
+    assert "boost" in rows.nth(0).inner_text()
+    assert p.inner_text("#count-executed") == "3"
+    shot = tmp_path / "report.png"
+    p.screenshot(path=str(shot), full_page=True)
+    print(f"report screenshot: {shot}")
+    assert shot.stat().st_size > 10_000
+    assert page.errors == []
+
+
+def test_app_properties_are_drawn_with_props(page, hotbox_trace: Path, tmp_path: Path) -> None:
+    # the parser may not offer --props yet: the API is what it calls
+    from rasm.report import write_report
+
+    out = tmp_path / "with-props.html"
+    write_report(hotbox_trace, out, [HOTBOX_PROPS / "hotbox.rv"])
+    _open(page, out)
+    names = page.page.locator("#verdict-table tbody tr td:first-child").all_inner_texts()
+    assert "temperature_band" in names and "heater_rating" in names
+    assert "timely_adaptation (hotbox.rv)" in names  # the platform has one of that name too
+    signals = page.page.evaluate("document.getElementById('signals').data.map(d => d.name)")
+    assert signals[:2] == ["heater_power", "temperature"]  # read by properties: first
+    assert page.errors == []
+
+
+def test_adaptation_links_move_the_timelines(page, hotbox_report: Path) -> None:
+    _open(page, hotbox_report)
+    p = page.page
+    link = p.locator("#adaptation-2 a.goto")
+    t = float(link.get_attribute("data-time"))
+    link.click()
+    p.wait_for_selector(f"body[data-focus='{link.get_attribute('data-time')}']")
+    assert p.locator("#adaptation-2.selected").count() == 1
+    assert p.locator("#adaptations tr.selected").count() == 1
+    for figure in ("gantt", "verdicts", "signals"):
+        low, high = p.evaluate(f"document.getElementById('{figure}').layout.xaxis.range")
+        assert low < t < high and high - low < 40, figure  # zoomed around the adaptation
+        focus = p.evaluate(
+            f"document.getElementById('{figure}').layout.shapes.filter(s => s.name === 'focus')"
+        )
+        assert [s["x0"] for s in focus] == [t], figure
+    assert p.evaluate("location.hash") == f"#t={link.get_attribute('data-time')}"
+    assert link.get_attribute("data-time") in p.inner_text("#detail-title").replace(".000", "")
+    p.click("#focus-reset")
+    p.wait_for_function("document.body.dataset.focus === undefined")
+    assert p.evaluate("document.getElementById('signals').layout.xaxis.autorange") is True
+    assert page.errors == []
+
+
+def test_a_link_to_a_moment_opens_there(page, hotbox_report: Path) -> None:
+    page.page.goto(hotbox_report.as_uri() + "#t=38")
+    page.page.wait_for_selector("body[data-focus='38']")
+    assert page.page.locator("#adaptation-2.selected").count() == 1
+    assert page.errors == []
+
+
+def test_a_trace_without_loop_records_says_what_is_missing(page, tmp_path: Path) -> None:
+    trace = tmp_path / "plain.jsonl"
+    trace.write_text(
+        "\n".join(json.dumps({"time": i / 10, "velocity": i / 100}) for i in range(20)) + "\n"
+    )
+    out = tmp_path / "plain.html"
+    assert main(["report", str(trace), "-o", str(out)]) == 0
+    _open(page, out)
+    p = page.page
+    notes = p.inner_text("#notes")
+    assert "no MAPLE-K stage timing" in notes and "no adaptations" in notes
+    assert "No MAPLE-K stage timing" in p.inner_text("#gantt")
+    assert "No stage durations" in p.inner_text("#timing")
+    assert "No adaptations" in p.inner_text("#adaptations-missing")
+    assert p.evaluate(TRACES, "signals") == 1  # velocity is still drawn
+    assert page.errors == []
+
+
+def test_a_report_without_properties_says_so(page, hotbox_trace: Path, tmp_path: Path) -> None:
+    from rasm.report import write_report
+
+    out = tmp_path / "no-props.html"
+    write_report(hotbox_trace, out, platform_props=False)
+    _open(page, out)
+    assert "No properties" in page.page.inner_text("#verdicts")
+    assert "no properties checked" in page.page.inner_text("#notes")
+    assert page.errors == []
