@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Run the whole test suite on a fresh machine: installs the system servers the tests start
-# themselves (mosquitto, redis-server), the Python packages into .venv, then runs pytest and ruff.
+# Run the whole test suite on a fresh machine: installs the system servers and the browser the
+# tests start themselves (mosquitto, redis-server, influxd, chromium), the Python packages into
+# .venv, then runs ruff and pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 need=()
-for pkg_bin in mosquitto:mosquitto redis-server:redis-server; do
+for pkg_bin in mosquitto:mosquitto redis-server:redis-server influxdb:influxd chromium:chromium; do
     pkg=${pkg_bin%%:*}; bin=${pkg_bin##*:}
     command -v "$bin" >/dev/null 2>&1 || [ -x "/usr/sbin/$bin" ] || need+=("$pkg")
 done
@@ -16,7 +17,7 @@ if [ ${#need[@]} -gt 0 ]; then
     fi
 fi
 # The tests start their own servers on free loopback ports; stop the ones the packages start.
-for svc in mosquitto redis-server; do
+for svc in mosquitto redis-server influxdb; do
     command -v service >/dev/null 2>&1 && service "$svc" stop >/dev/null 2>&1 || true
 done
 bash scripts/setup.sh test
