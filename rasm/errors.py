@@ -93,4 +93,4 @@ class KnowledgeError(RasmError):
 
 
 class CommError(RasmError):
-    """The communication layer failed: a bad transport URL, topic or payload, or a broker problem."""
+    """The communication layer failed: a bad transport URL, topic or payload, or a broker fault."""
