@@ -82,6 +82,7 @@ class AppManifest:
     max_replans: int = 2
     veto_properties: tuple[str, ...] = ()
     mode_signal: str | None = None
+    logging: dict[str, Any] = field(default_factory=dict)
     raw: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -242,5 +243,6 @@ def load_manifest(app: str | Path) -> AppManifest:
         max_replans=int(loop.get("max_replans", 2)),
         veto_properties=tuple(trust.get("veto_properties", ())),
         mode_signal=trust.get("mode_signal"),
+        logging=plain(data.get("logging", {}) or {}),
         raw=plain(data),
     )

@@ -134,7 +134,13 @@ class Platform:
         storage = self._open_knowledge() if self.role in ("all", "managing") else None
         clock = self.clock
         self.transport = open_transport(self.transport_url)
-        self.lt = LoggingAndTracking(clock=clock)
+        log = self.manifest.logging
+        self.lt = LoggingAndTracking(
+            level=logging.getLevelName(log.get("level", "warning").upper()),
+            sinks=tuple(log.get("sinks", ("console",))),
+            publish=lambda topic, payload: self.transport.publish(topic, payload),
+            clock=clock,
+        )
         self.sm = StateManager(clock=clock, depends_on=("lt",))
         self.cm = CommunicationManager(self.transport, clock=clock, depends_on=("lt",))
         blocks: list[Any] = [self.lt, self.sm, self.cm]

@@ -14,13 +14,29 @@ from .conftest import HOTBOX, read_trace
 def test_managed_and_managing_processes_adapt_over_mqtt(hotbox, tmp_path):
     broker = start_mosquitto(tmp_path)
     managed = subprocess.Popen(
-        [sys.executable, "-m", "rasm.cli", "run", str(HOTBOX), "--role", "managed",
-         "--transport", broker.url, "--duration", "14"],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        [
+            sys.executable,
+            "-m",
+            "rasm.cli",
+            "run",
+            str(HOTBOX),
+            "--role",
+            "managed",
+            "--transport",
+            broker.url,
+            "--duration",
+            "14",
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         trace_file = tmp_path / "managing.jsonl"
-        summary = Platform(hotbox, role="managing", transport=broker.url, trace=trace_file,
-                           knowledge="memory").run(12.0)
+        summary = Platform(
+            hotbox, role="managing", transport=broker.url, trace=trace_file, knowledge="memory"
+        ).run(12.0)
         managed_out, _ = managed.communicate(timeout=30)
     finally:
         if managed.poll() is None:

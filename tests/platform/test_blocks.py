@@ -1,0 +1,125 @@
+"""Telegraf's data checks, the logging sinks, and blocks refusing work outside their mode."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rasm.platform.blocks import Telegraf, TrustworthinessChecker
+from rasm.platform.components import Action
+from rasm.platform.manifest import Effector, Probe, Signal
+from rasm.platform.runtime import Platform
+
+PROBE = Probe(
+    "box/sensors",
+    {
+        "temperature": Signal("temperature", "float", -40.0, 150.0),
+        "lid_open": Signal("lid_open", "bool"),
+        "count": Signal("count", "int", 0, 10),
+        "mode": Signal("mode", "str"),
+    },
+)
+
+
+def started_telegraf():
+    stored = []
+    tg = Telegraf([PROBE], lambda values, time: stored.append(dict(values)))
+    tg.send("configure")
+    assert tg.mode == "initialized"
+    return tg, stored
+
+
+def valid(signal, value):
+    if signal.type == "float":
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+        return ok and math.isfinite(value) and signal.minimum <= value <= signal.maximum
+    if signal.type == "int":
+        ok = isinstance(value, int) and not isinstance(value, bool)
+        return ok and signal.minimum <= value <= signal.maximum
+    if signal.type == "bool":
+        return isinstance(value, bool)
+    return isinstance(value, str)
+
+
+VALUES = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(-100, 200),
+    st.booleans(),
+    st.text(max_size=5),
+    st.none(),
+    st.lists(st.integers(), max_size=2),
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(payload=st.dictionaries(st.sampled_from(sorted(PROBE.signals) + ["other"]), VALUES))
+def test_telegraf_stores_exactly_the_valid_values(payload):
+    tg, stored = started_telegraf()
+    result = tg.digest("box/sensors", payload, 1.0)
+    expected = {
+        k: v for k, v in payload.items() if k in PROBE.signals and valid(PROBE.signals[k], v)
+    }
+    assert result == expected
+    assert stored == ([expected] if expected else [])
+    bad = sum(
+        1 for k, v in payload.items() if k in PROBE.signals and not valid(PROBE.signals[k], v)
+    )
+    assert sum(tg.rejected.values()) == bad
+
+
+def test_telegraf_refuses_unroutable_data_and_works_only_when_initialized():
+    tg, stored = started_telegraf()
+    assert tg.digest("elsewhere", {"temperature": 1.0}, 0) == {}
+    assert tg.digest("box/sensors", ["not", "a", "dict"], 0) == {}
+    assert tg.rejected["unroutable"] == 2
+    tg.send("failed", reason="test")
+    assert tg.mode == "fault"
+    assert tg.digest("box/sensors", {"temperature": 20.0}, 0) == {}
+    assert tg.rejected["not running"] == 1 and stored == []
+
+
+def test_checker_sends_only_applicable_actions_to_known_effectors():
+    sent = []
+    mode = {"now": "docked"}
+    tc = TrustworthinessChecker(
+        monitors=[],
+        effectors={"wheels": Effector("wheels", "robot/wheels", ("navigate",))},
+        send=lambda effector, action: sent.append((effector.name, action.payload)),
+        mode_of=lambda: mode["now"],
+    )
+    assert tc.register_action(Action("wheels", {"v": 1}))[0] is False  # not started yet
+    tc.send("configure")
+    ok, why = tc.register_action(Action("wheels", {"v": 1}))
+    assert not ok and "mode 'docked'" in why
+    ok, why = tc.register_action(Action("laser", {"on": True}))
+    assert not ok and "unknown effector" in why
+    mode["now"] = "navigate"
+    assert tc.register_action(Action("wheels", {"v": 2}))[0] is True
+    assert sent == [("wheels", {"v": 2})]
+    assert "monitoring" in tc.configuration  # the chart went checking_action -> monitoring
+
+
+def test_log_sinks_file_and_bus(hotbox, tmp_path):
+    log_file = tmp_path / "rasm.log"
+    hotbox.logging = {"level": "info", "sinks": [f"file:{log_file}", "bus:rasm/log"]}
+    platform = Platform(hotbox, clock="simulated", knowledge="memory")
+    platform.build()
+    published = []
+    platform.transport.subscribe("rasm/log", lambda message: published.append(message.payload))
+
+    class Crashing:
+        def plan(self, ctx):
+            raise RuntimeError("planner bug 42")
+
+    platform.ao.components["plan"] = Crashing()
+    platform.run(12)
+    text = log_file.read_text()
+    assert "plan stage failed: RuntimeError: planner bug 42" in text
+    assert any("planner bug 42" in p["message"] and p["level"] == "ERROR" for p in published)
+    assert platform.lt.counts["ERROR"] >= 1
+    # the sinks are detached at termination
+    assert not platform.lt.handlers
+    json.dumps(published)  # bus payloads are plain JSON
