@@ -168,15 +168,59 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_new(args: argparse.Namespace) -> int:
-    raise UsageError("rasm new is not implemented yet")
+    from rasm.workflow import new_app
+
+    result = new_app(args.name, args.model)
+    for path in result.written:
+        print(f"wrote {path}")
+    for path in result.kept:
+        print(f"kept  {path} (yours: not regenerated)")
+    for path, regions in result.orphans.items():
+        for region in regions:
+            print(
+                f"rasm: {path}:{region.line}: region {region.id} could not be kept (its component "
+                f"left the model); saved to {result.folder}/.rasm-orphans/{path.name}.txt",
+                file=sys.stderr,
+            )
+    return EXIT_OK
 
 
 def _cmd_package(args: argparse.Namespace) -> int:
-    raise UsageError("rasm package is not implemented yet")
+    import os
+
+    from rasm.workflow import configured_key, package_app
+
+    key = configured_key(getattr(args, "key_file", None))
+    bundle = not getattr(args, "no_deps", False) and os.environ.get("RASM_PACKAGE_NO_DEPS") != "1"
+    report = package_app(args.app, args.output, key=key, dependencies=bundle)
+    signed = "signed (HMAC-SHA256)" if report.signed else "unsigned (no key configured)"
+    print(
+        f"{report.output}: {report.app}, {report.files} files, {len(report.wheels)} wheels, "
+        f"{report.size / 1e6:.1f} MB, units: {', '.join(report.units)}; {signed}"
+    )
+    if report.derived_model:
+        print("no model.yaml: documented a minimal model derived from app.yaml")
+    for item in report.checklist_failures:
+        print(f"rasm: checklist item failed: {item} (see 06_Workflows/checklist.md)",
+              file=sys.stderr)
+    return EXIT_FAILED if report.checklist_failures else EXIT_OK
 
 
 def _cmd_deploy(args: argparse.Namespace) -> int:
-    raise UsageError("rasm deploy is not implemented yet")
+    from rasm.workflow import configured_key, deploy_package
+
+    key = configured_key(getattr(args, "key_file", None))
+    report = deploy_package(
+        args.package, args.unit, args.target, key=key, start=getattr(args, "start", False)
+    )
+    print(f"{args.package}: {report.files} files verified; {report.signature}")
+    for step in report.steps:
+        print(f"{step.action}: {'ok' if step.ok else f'failed (exit {step.returncode})'}")
+        if not step.ok:
+            sys.stderr.write(step.output)
+    if report.ok:
+        print(f"unit {report.unit} (role {report.role}) deployed in {report.target}")
+    return EXIT_OK if report.ok else EXIT_FAILED
 
 
 # --------------------------------------------------------------------------- parser

@@ -1,0 +1,346 @@
+"""Cross-checks of an architecture model that its JSON Schema cannot express.
+
+Each check returns :class:`SourceError` values at the line and column of the offending element:
+dangling references, ports with no peer, publisher/subscriber message type mismatches,
+components on no compute unit, compute units whose transports cannot reach a component they must
+talk to, a MAPLE-K loop missing (or repeating, or splitting) a stage, and properties that read
+signals no component produces.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel, Check
+
+__all__ = ["PLATFORM_SIGNALS", "check_model", "produced_signals", "property_reads"]
+
+# keys the platform itself writes into the adaptation trace (SPEC §4) and knowledge
+PLATFORM_SIGNALS = frozenset(
+    {
+        "stage",
+        "duration",
+        "anomaly",
+        "planned",
+        "legitimate",
+        "rejected",
+        "trusted",
+        "executed",
+        "plan",
+        "broken_rules",
+        "explanation",
+    }
+)
+
+
+def check_model(model: ArchitectureModel) -> list[SourceError]:
+    """Every cross-check problem of ``model``, in file order."""
+    errors = [
+        *_references(model),
+        *_ports(model),
+        *_deployment(model),
+        *_reachability(model),
+        *_loop(model),
+        *_trustworthiness(model),
+    ]
+    return sorted(errors, key=lambda e: (e.location.line, e.location.col, e.message))
+
+
+def _error(model: ArchitectureModel, message: str, location: Location) -> SourceError:
+    text = model.source.text if model.source else ""
+    return SourceError(message, location, mark(text, location.line, location.col))
+
+
+def _references(model: ArchitectureModel) -> Iterator[SourceError]:
+    for component in model.components.values():
+        for port in component.ports.values():
+            if port.message not in model.messages:
+                known = ", ".join(sorted(model.messages)) or "none declared"
+                yield _error(
+                    model,
+                    f"port {port.ref}: unknown message type '{port.message}' (known: {known})",
+                    port.message_location,
+                )
+    for component, unit in model.deployment.items():
+        where = model.deployment_locations[component]
+        if component not in model.components:
+            yield _error(model, f"deployment names an unknown component '{component}'", where)
+        if unit not in model.units:
+            known = ", ".join(sorted(model.units))
+            yield _error(
+                model,
+                f"'{component}' is deployed on an unknown compute unit '{unit}' (known: {known})",
+                where,
+            )
+    for link in model.links:
+        ends = [(link.publisher, link.publisher_location)]
+        ends += list(zip(link.subscribers, link.subscriber_locations, strict=True))
+        for ref, where in ends:
+            component, _, port = ref.partition(".")
+            if component not in model.components:
+                yield _error(model, f"topic {link.topic}: unknown component '{component}'", where)
+            elif port not in model.components[component].ports:
+                ports = ", ".join(sorted(model.components[component].ports)) or "no ports"
+                yield _error(
+                    model,
+                    f"topic {link.topic}: component '{component}' has no port '{port}' "
+                    f"(it has {ports})",
+                    where,
+                )
+    for check in model.checks:
+        if check.runs_on not in model.units:
+            yield _error(
+                model,
+                f"{check.file} runs on an unknown compute unit '{check.runs_on}'",
+                check.runs_on_location,
+            )
+
+
+def _ports(model: ArchitectureModel) -> Iterator[SourceError]:
+    connected: set[str] = set()
+    for link in model.links:
+        publisher = model.port(link.publisher)
+        if publisher is not None:
+            connected.add(publisher.ref)
+            if publisher.direction != "out":
+                yield _error(
+                    model,
+                    f"topic {link.topic}: publisher {link.publisher} is an 'in' port",
+                    link.publisher_location,
+                )
+        for ref, where in zip(link.subscribers, link.subscriber_locations, strict=True):
+            subscriber = model.port(ref)
+            if subscriber is None:
+                continue
+            connected.add(subscriber.ref)
+            if subscriber.direction != "in":
+                yield _error(model, f"topic {link.topic}: subscriber {ref} is an 'out' port", where)
+            if publisher is not None and subscriber.message != publisher.message:
+                yield _error(
+                    model,
+                    f"topic {link.topic}: {ref} expects {subscriber.message} but "
+                    f"{link.publisher} publishes {publisher.message}",
+                    where,
+                )
+    for component in model.components.values():
+        for port in component.ports.values():
+            if port.ref not in connected:
+                side = "publishes to" if port.direction == "out" else "subscribes from"
+                yield _error(
+                    model,
+                    f"port {port.ref} has no peer: no row of the communication matrix {side} it",
+                    port.location,
+                )
+
+
+def _deployment(model: ArchitectureModel) -> Iterator[SourceError]:
+    for component in model.components.values():
+        if component.name not in model.deployment:
+            yield _error(
+                model,
+                f"component '{component.name}' is deployed on no compute unit "
+                f"(add '{component.name}: UNIT' under deployment)",
+                component.location,
+            )
+
+
+def _reachability(model: ArchitectureModel) -> Iterator[SourceError]:
+    crossing = False
+    for link in model.links:
+        pub_component = link.publisher.partition(".")[0]
+        pub_unit = model.units.get(model.deployment.get(pub_component, ""))
+        for ref, where in zip(link.subscribers, link.subscriber_locations, strict=True):
+            sub_component = ref.partition(".")[0]
+            sub_unit = model.units.get(model.deployment.get(sub_component, ""))
+            if pub_unit is None or sub_unit is None:
+                continue  # reported as a dangling reference or an undeployed component
+            for unit, peer, peer_unit in (
+                (pub_unit, sub_component, sub_unit),
+                (sub_unit, pub_component, pub_unit),
+            ):
+                if link.protocol not in unit.transports:
+                    yield _error(
+                        model,
+                        f"compute unit '{unit.name}' (transports: {', '.join(unit.transports)}) "
+                        f"cannot reach '{peer}' on '{peer_unit.name}' over {link.protocol} "
+                        f"(topic {link.topic})",
+                        where,
+                    )
+                    break
+            else:
+                if pub_unit.name != sub_unit.name:
+                    crossing = True
+                    if link.protocol == "local":
+                        yield _error(
+                            model,
+                            f"topic {link.topic}: '{pub_component}' on '{pub_unit.name}' cannot "
+                            f"reach '{sub_component}' on '{sub_unit.name}' over local (an "
+                            f"in-process bus); use protocol: mqtt",
+                            where,
+                        )
+    transport = str(model.interface.get("transport", "local"))
+    if crossing and not transport.startswith("mqtt://") and model.source is not None:
+        data = model.source.data
+        where = (
+            model.source.value(data["interface"], "transport")
+            if "interface" in data and "transport" in (data["interface"] or {})
+            else model.source.key(data, "architecture")
+        )
+        yield _error(
+            model,
+            "messages cross compute units but interface.transport is "
+            f"'{transport}': name the broker (e.g. transport: mqtt://broker:1883)",
+            where,
+        )
+
+
+def _loop(model: ArchitectureModel) -> Iterator[SourceError]:
+    where = model.source.key(model.source.data, "components") if model.source else Location("")
+    seen: dict[str, str] = {}
+    for component in model.components.values():
+        if component.role not in MAPLE_STAGES:
+            continue
+        if component.role in seen:
+            yield _error(
+                model,
+                f"'{component.name}' repeats the {component.role} stage of "
+                f"'{seen[component.role]}' (one component per MAPLE-K stage)",
+                component.location,
+            )
+        else:
+            seen[component.role] = component.name
+    for stage in MAPLE_STAGES:
+        if stage not in seen:
+            yield _error(
+                model,
+                f"the MAPLE-K loop has no {stage} stage (add a component with role: {stage})",
+                where,
+            )
+    units = {
+        model.deployment[c]: c for c in seen.values() if model.deployment.get(c) in model.units
+    }
+    if len(units) > 1:
+        loop_unit = model.managing_unit
+        for stage, name in seen.items():
+            unit = model.deployment.get(name)
+            if unit in model.units and unit != loop_unit:
+                yield _error(
+                    model,
+                    f"the {stage} stage '{name}' is on '{unit}' but the loop runs on "
+                    f"'{loop_unit}': rasm runs the five MAPLE-K stages in one process",
+                    model.deployment_locations.get(name, where),
+                )
+
+
+def produced_signals(model: ArchitectureModel) -> dict[str, str]:
+    """Every signal some component produces (message fields it publishes, declared knowledge),
+    with its type; the platform's own trace keys are not included."""
+    out: dict[str, str] = {}
+    for component in model.components.values():
+        out.update(component.produces)
+        for port in component.ports.values():
+            message = model.messages.get(port.message)
+            if port.direction == "out" and message is not None:
+                out.update({k: str(v["type"]) for k, v in message.fields.items()})
+    return out
+
+
+def property_reads(check: Check, model: ArchitectureModel) -> tuple[dict[str, Location], list]:
+    """The signals a property check reads (name -> first place read) and any problems in it."""
+    from rasm.spec import load_specification
+    from rasm.spec.ast import Name, Property, children
+
+    text, source = _check_text(check, model)
+    if text is None:
+        return {}, []
+    try:
+        spec = load_specification(text, source=source)
+    except (SourceError, SourceErrors) as exc:
+        errors = exc.errors if isinstance(exc, SourceErrors) else [exc]
+        return {}, [_relocate(check, model, e) for e in errors]
+    reads: dict[str, Location] = {}
+
+    def walk(node) -> None:
+        if isinstance(node, Name) and node.name not in reads:
+            reads[node.name] = node.location
+        for child in children(node):
+            walk(child)
+
+    for prop in spec.properties:
+        if isinstance(prop, Property):
+            walk(prop.formula)
+    for name in spec.signals:
+        reads.setdefault(name, Location(source))
+    return {k: v for k, v in reads.items() if k in spec.signals}, []
+
+
+def _check_text(check: Check, model: ArchitectureModel) -> tuple[str | None, str]:
+    if check.text is not None:
+        return check.text, str(model.file)
+    path = model.folder / check.file
+    if path.is_file():
+        try:
+            return path.read_text(encoding="utf-8"), str(path)
+        except (OSError, UnicodeDecodeError):
+            return None, str(path)
+    return None, str(path)
+
+
+def _relocate(check: Check, model: ArchitectureModel, error: SourceError) -> SourceError:
+    """A problem found inside a check's inline ``text`` moved to its place in the model."""
+    if check.text is None or model.source is None or error.location.file != str(model.file):
+        return error
+    location = _text_location(check, model, error.location)
+    return _error(model, error.message, location)
+
+
+def _text_location(check: Check, model: ArchitectureModel, inner: Location) -> Location:
+    src = model.source
+    assert src is not None
+    section = src.data["trustworthiness"][check.kind]
+    entry = next(e for e in section if str(e["file"]) == check.file)
+    start = src.value(entry, "text")
+    lines = src.text.splitlines()
+    if lines[start.line - 1][start.col - 1 :].startswith(("|", ">")):
+        # a block scalar: its content starts on the next line, at the block's indentation
+        content = [ln for ln in lines[start.line :] if ln.strip()]
+        indent = len(content[0]) - len(content[0].lstrip(" ")) if content else 0
+        return Location(src.file, start.line + max(inner.line, 1), indent + max(inner.col, 1))
+    return src.code_location(entry, "text", max(inner.line, 1), max(inner.col, 1))
+
+
+def _trustworthiness(model: ArchitectureModel) -> Iterator[SourceError]:
+    produced = set(produced_signals(model)) | PLATFORM_SIGNALS
+    for check in model.checks:
+        if check.kind == "rules":
+            yield from _rules_problems(check, model)
+            continue
+        reads, problems = property_reads(check, model)
+        yield from problems
+        for signal, where in sorted(reads.items()):
+            if signal in produced:
+                continue
+            if check.text is not None and where.file == str(model.file):
+                where = _text_location(check, model, where)
+            message = (
+                f"{check.file} reads '{signal}', which no component produces "
+                "(publish it in a message or declare it under a component's produces)"
+            )
+            if where.file == str(model.file):
+                yield _error(model, message, where)
+            else:
+                yield SourceError(message, where)
+
+
+def _rules_problems(check: Check, model: ArchitectureModel) -> Iterator[SourceError]:
+    if check.text is None:
+        return
+    from rasm.rules.loader import parse_rules
+
+    try:
+        parse_rules(check.text, source=str(model.file))
+    except (SourceError, SourceErrors) as exc:
+        errors = exc.errors if isinstance(exc, SourceErrors) else [exc]
+        for error in errors:
+            yield _relocate(check, model, error)
