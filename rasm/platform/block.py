@@ -68,6 +68,7 @@ class Block:
         self.clock = clock or SimulatedClock()
         self.interpreter = Interpreter(statechart, clock=self.clock, initial_context=context)
         self.failure_reason: str | None = None
+        self.step_failures = 0
         self._lock = threading.RLock()
         self._running = False
         self._listeners: list[ModeListener] = []
@@ -148,7 +149,19 @@ class Block:
     def _run(self) -> list[MacroStep]:
         steps: list[MacroStep] = []
         while True:
-            step = self.interpreter.execute_once()
+            try:
+                step = self.interpreter.execute_once()
+            except Exception as exc:
+                # the interpreter rolled the step back and discarded its event (a monitor that
+                # refuses a step, an action that raises): the block stays where it was
+                self.step_failures += 1
+                _log.error(
+                    "%s: step refused and rolled back: %s: %s", self.name, type(exc).__name__, exc
+                )
+                failure = self.interpreter.last_failure
+                if failure is None or failure.event is None:
+                    return steps  # an eventless step failed: only a new event can help
+                continue
             if step is None:
                 return steps
             steps.append(step)

@@ -30,6 +30,8 @@ from rasm.platform.components import (
     as_verdict,
 )
 from rasm.platform.stages import StageOutcome, StageRunner
+from rasm.resources import platform_monitors
+from rasm.statechart import load_statechart
 
 __all__ = ["AdaptationOrchestrator", "LoopStats"]
 
@@ -88,6 +90,9 @@ class AdaptationOrchestrator(Block):
         self.ctx: StageContext | None = None
         self._plans = 0
         super().__init__(context={"stage_budget": stage_budget, "max_replans": max_replans}, **kw)
+        # the property statecharts of monitors/ watch every step of the loop (docs/statecharts.md)
+        for path in platform_monitors():
+            self.interpreter.bind_property_statechart(load_statechart(path))
 
     # ------------------------------------------------------------------ driving
 

@@ -136,13 +136,19 @@ class Platform:
         self.transport = open_transport(self.transport_url)
         log = self.manifest.logging
         self.lt = LoggingAndTracking(
+            chart=self._chart("logging_and_tracking"),
             level=logging.getLevelName(log.get("level", "warning").upper()),
             sinks=tuple(log.get("sinks", ("console",))),
             publish=lambda topic, payload: self.transport.publish(topic, payload),
             clock=clock,
         )
-        self.sm = StateManager(clock=clock, depends_on=("lt",))
-        self.cm = CommunicationManager(self.transport, clock=clock, depends_on=("lt",))
+        self.sm = StateManager(chart=self._chart("state_manager"), clock=clock, depends_on=("lt",))
+        self.cm = CommunicationManager(
+            self.transport,
+            chart=self._chart("communication_manager"),
+            clock=clock,
+            depends_on=("lt",),
+        )
         blocks: list[Any] = [self.lt, self.sm, self.cm]
         if self.role in ("all", "managing"):
             blocks += self._managing_blocks(storage)
@@ -193,16 +199,27 @@ class Platform:
         from rasm.spec import compile as compile_properties
 
         m, clock = self.manifest, self.clock
-        self.km = KnowledgeManager(self.kb, clock=clock, depends_on=("lt",))
-        self.stom = StorageManager(storage, clock=clock, depends_on=("km",))
+        self.km = KnowledgeManager(
+            self.kb, chart=self._chart("knowledge_manager"), clock=clock, depends_on=("lt",)
+        )
+        self.stom = StorageManager(
+            storage, chart=self._chart("storage_manager"), clock=clock, depends_on=("km",)
+        )
         self.kb.subscribe(self._knowledge_updated)
-        self.tg = Telegraf(m.probes, self._register, clock=clock, depends_on=("km", "cm"))
+        self.tg = Telegraf(
+            m.probes,
+            self._register,
+            chart=self._chart("telegraf"),
+            clock=clock,
+            depends_on=("km", "cm"),
+        )
         self.rules = [RuleSet.load(path) for path in m.rules]
         monitors = [
             compile_properties(p.read_text(encoding="utf-8"), source=str(p))
             for p in [*self._platform_properties(), *m.properties]
         ]
         self.tc = TrustworthinessChecker(
+            chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
             effectors=m.effectors,
             send=self._send_action,
@@ -212,6 +229,7 @@ class Platform:
             depends_on=("sm", "cm"),
         )
         self.tm = TrustworthinessManager(
+            chart=self._chart("trustworthiness_manager"),
             rules=self.rules,
             veto_properties=m.veto_properties,
             verdicts=lambda: self.tc.latest,
@@ -219,7 +237,13 @@ class Platform:
             clock=clock,
             depends_on=("sm", "km", "tc"),
         )
-        self.am = AdaptationManager(self.tm, self.tc, clock=clock, depends_on=("tm", "tc"))
+        self.am = AdaptationManager(
+            self.tm,
+            self.tc,
+            chart=self._chart("adaptation_manager"),
+            clock=clock,
+            depends_on=("tm", "tc"),
+        )
         package = f"rasm_app_{m.name}"
         components = {
             stage: self._component_overrides.get(stage)
@@ -228,6 +252,7 @@ class Platform:
         }
         components.update(self._component_overrides)
         self.ao = AdaptationOrchestrator(
+            chart=self._chart("adaptation_orchestrator"),
             components=components,
             knowledge=self.kb,
             rules=self.rules,
@@ -244,6 +269,10 @@ class Platform:
         )
         self.trace.observers.append(self.tc.observe)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+
+    def _chart(self, name: str) -> Path | None:
+        """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
+        return self.manifest.statecharts.get(name)
 
     def _platform_properties(self) -> list[Path]:
         return sorted(data_dir("properties").glob("*.rv"))
