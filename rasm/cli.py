@@ -93,7 +93,57 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
-    raise UsageError("rasm monitor is not implemented yet")
+    # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated
+    import signal
+    import threading
+
+    from rasm.attach import Attachment, load_topic_map
+    from rasm.comm import open_transport
+    from rasm.errors import Location
+    from rasm.spec import load_specification
+
+    duration = getattr(args, "duration", None)
+    if duration is not None and duration <= 0:
+        raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
+    try:
+        with open(args.props, encoding="utf-8") as handle:
+            text = handle.read()
+    except UnicodeDecodeError as exc:
+        raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(args.props)) from None
+    signals = list(load_specification(text, source=args.props).signals)
+    topics = load_topic_map(args.topics, signals) if args.topics else None
+    transport = open_transport(args.transport)
+    stop = threading.Event()
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda *_: stop.set())
+
+    def show(verdict) -> None:
+        if verdict.value is False:
+            print(f"violated {verdict.property} at t={verdict.time:g}", flush=True)
+
+    attachment = Attachment(
+        text, transport, source=args.props, topics=topics, on_verdict=show
+    )
+    transport.connect()
+    try:
+        attachment.start()
+        print(
+            f"rasm monitor: {len(attachment.monitor.properties)} properties on "
+            f"{len(attachment.subscribed_topics)} topic(s) of {args.transport}; "
+            "verdicts on the topics named after the properties; Ctrl-C stops",
+            file=sys.stderr,
+            flush=True,
+        )
+        try:
+            stop.wait(duration)
+        except KeyboardInterrupt:
+            pass
+        summary = attachment.stop()
+    finally:
+        attachment.stop()
+        transport.close()
+    sys.stdout.write(summary.format())
+    return EXIT_FAILED if summary.any_violated else EXIT_OK
 
 
 # --------------------------------------------------------------------------- rules

@@ -3,7 +3,8 @@
 ``KnowledgeBase`` keeps typed values with a bounded history per key (``register_knowledge``,
 ``read_knowledge``, ``history``, ``subscribe``); ``SqliteStorage`` buffers registrations
 (``register_knowledge_update``) and writes them in one transaction (``update_persistency``);
-``open_knowledge`` opens what an application manifest's ``knowledge:`` field names.
+``open_knowledge`` opens what an application manifest's ``knowledge:`` field names;
+``RedisKnowledgeBase`` is the same API kept in a Redis server that several processes share.
 """
 
 from rasm.errors import KnowledgeError
@@ -20,9 +21,20 @@ __all__ = [
     "Declaration",
     "KnowledgeBase",
     "KnowledgeError",
+    "RedisKnowledgeBase",
+    "RedisStorage",
     "Sample",
     "SqliteStorage",
     "Storage",
     "Subscription",
     "open_knowledge",
 ]
+
+
+def __getattr__(name: str) -> object:
+    # the Redis store loads redis-py only when asked for
+    if name in ("RedisKnowledgeBase", "RedisStorage"):
+        from rasm.knowledge import redis as _redis
+
+        return getattr(_redis, name)
+    raise AttributeError(f"module 'rasm.knowledge' has no attribute {name!r}")

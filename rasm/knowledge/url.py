@@ -2,7 +2,8 @@
 
 ``memory`` keeps knowledge in memory only; ``sqlite:PATH`` also persists it to a SQLite file
 (restored on start, so a restarted application continues from its last persisted state);
-``redis://...`` is reserved for the Redis store a later release adds.
+``redis://HOST:PORT/DB`` keeps it in a Redis server shared by every process of the application
+(``?namespace=NAME`` separates applications on one server; see :mod:`rasm.knowledge.redis`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,9 @@ def open_knowledge(
     A ``sqlite:PATH`` that is relative is taken from ``base_dir`` (the application folder;
     default the current directory); missing folders are created. Stored knowledge is restored
     and the storage attached, so every registration is buffered for ``update_persistency``.
+    ``redis://`` gives a :class:`~rasm.knowledge.redis.RedisKnowledgeBase` and its
+    :class:`~rasm.knowledge.redis.RedisStorage` (nothing to restore: the knowledge is read from
+    Redis directly).
     """
     if not isinstance(url, str):
         raise KnowledgeError(f"knowledge store must be text ({_FORMS}), got {url!r}")
@@ -37,9 +41,7 @@ def open_knowledge(
     if colon and scheme == "sqlite":
         return _open_sqlite(rest, base_dir, url)
     if colon and scheme in ("redis", "rediss"):
-        raise KnowledgeError(
-            f"knowledge store {url!r}: Redis is not available yet; use memory or sqlite:PATH"
-        )
+        return _open_redis(text)
     raise KnowledgeError(f"unknown knowledge store {url!r}: expected {_FORMS}")
 
 
@@ -71,3 +73,14 @@ def _open_sqlite(
         storage.close()
         raise
     return kb, storage
+
+
+def _open_redis(url: str) -> tuple[KnowledgeBase, Storage]:
+    try:
+        from rasm.knowledge.redis import RedisKnowledgeBase, RedisStorage
+    except ImportError as exc:  # pragma: no cover - redis is a dependency
+        raise KnowledgeError(
+            f"knowledge store {url!r} needs the redis package: pip install 'redis>=5'"
+        ) from exc
+    kb = RedisKnowledgeBase(url)
+    return kb, RedisStorage(kb)

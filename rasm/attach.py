@@ -1,0 +1,328 @@
+"""``rasm monitor``: property monitors attached to a live loop from outside, over a message bus.
+
+An :class:`Attachment` subscribes to the topics the properties read, turns every message into
+one record (SPEC §4), steps a compiled monitor (SPEC §6) and publishes each verdict as
+``{"value": true|false, "time": t}`` on a topic named after the property — the convention of the
+public RoboSAPIENS Trustworthiness Checker, so its dashboards and subscribers work unchanged.
+
+Where a signal comes from (a :class:`TopicMap`): by default signal ``x`` is read from topic
+``x``, from the payload's ``value`` field, or, if there is none, from its field ``x``. A
+``--topics`` YAML file maps signals elsewhere::
+
+    velocity: robot/odometry                 # field "value", else "velocity"
+    mode: {topic: robot/state, field: mode}  # an explicit field
+    anomaly: {topic: rasm/trace}             # several signals may share one topic
+
+A message's time is its ``time`` field (seconds), else the sender's envelope timestamp, else the
+time it arrived. A message that gives no mapped signal, a bad ``time``, or a record the monitor
+refuses (time going back, a value of the wrong type) is counted and logged, never fatal.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time as _time
+from collections import defaultdict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rasm.comm.message import Message
+from rasm.comm.topics import validate_pattern, validate_topic
+from rasm.comm.transport import Subscription, Transport
+from rasm.errors import CommError, Location, SourceError
+from rasm.spec import Verdict, load_specification
+from rasm.spec.monitor import Monitor
+
+__all__ = [
+    "Attachment",
+    "MonitorSummary",
+    "Source",
+    "TopicMap",
+    "default_topic_map",
+    "load_topic_map",
+]
+
+_log = logging.getLogger("rasm.attach")
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where one signal is read: a topic, and a payload field (None: ``value``, else the
+    signal's own name)."""
+
+    signal: str
+    topic: str
+    field: str | None = None
+
+    def extract(self, payload: Mapping[str, Any]) -> tuple[bool, Any]:
+        """``(found, value)`` of this signal in ``payload``."""
+        if self.field is not None:
+            return (True, payload[self.field]) if self.field in payload else (False, None)
+        if "value" in payload:
+            return True, payload["value"]
+        if self.signal in payload:
+            return True, payload[self.signal]
+        return False, None
+
+
+TopicMap = dict[str, Source]
+"""Signal name -> :class:`Source`."""
+
+
+def default_topic_map(signals: list[str]) -> TopicMap:
+    """Each signal read from the topic of its own name."""
+    return {name: Source(name, name) for name in signals}
+
+
+def load_topic_map(
+    path: str | Path, signals: list[str], *, text: str | None = None
+) -> TopicMap:
+    """The topic map of a ``--topics`` YAML file, completed with the default for every signal
+    it does not name. Raises :class:`SourceError` naming the file (and line) of a problem."""
+    import yaml
+
+    source = str(path)
+    if text is None:
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise SourceError(f"cannot read the topic map: {exc}", Location(source)) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = Location(source, mark.line + 1, mark.column + 1) if mark else Location(source)
+        raise SourceError(f"not valid YAML: {getattr(exc, 'problem', exc)}", where) from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise SourceError(
+            "a topic map is a mapping 'signal: topic' or 'signal: {topic: T, field: F}'",
+            Location(source, 1, 1),
+        )
+    lines = text.splitlines()
+    mapping = default_topic_map(signals)
+    for signal, entry in data.items():
+        where = _find_line(source, lines, str(signal))
+        if signal not in signals:
+            known = ", ".join(signals) or "none"
+            raise SourceError(
+                f"{signal!r} is not a signal the properties read (they read: {known})", where
+            )
+        if isinstance(entry, str):
+            topic, fld = entry, None
+        elif isinstance(entry, dict) and set(entry) <= {"topic", "field"} and "topic" in entry:
+            topic, fld = entry["topic"], entry.get("field")
+        else:
+            raise SourceError(
+                f"{signal!r}: write a topic, or {{topic: T, field: F}}; got {entry!r}", where
+            )
+        if not isinstance(topic, str) or (fld is not None and not isinstance(fld, str)):
+            raise SourceError(f"{signal!r}: topic and field must be text", where)
+        try:
+            validate_topic(topic)
+        except CommError as exc:
+            raise SourceError(f"{signal!r}: {exc}", where) from None
+        mapping[signal] = Source(signal, topic, fld)
+    return mapping
+
+
+def _find_line(source: str, lines: list[str], key: str) -> Location:
+    for number, line in enumerate(lines, 1):
+        stripped = line.lstrip()
+        if stripped.startswith((f"{key}:", f'"{key}":', f"'{key}':")):
+            return Location(source, number, len(line) - len(stripped) + 1)
+    return Location(source)
+
+
+@dataclass
+class MonitorSummary:
+    """What an attachment saw: messages, records stepped, refusals, verdicts per property."""
+
+    messages: int = 0
+    records: int = 0
+    malformed: int = 0
+    rejected: int = 0
+    published: int = 0
+    satisfied: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    violated: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    inconclusive: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    first_violations: dict[str, float] = field(default_factory=dict)
+    properties: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def any_violated(self) -> bool:
+        return any(self.violated.values())
+
+    def format(self) -> str:
+        """A few lines for a terminal."""
+        out = [
+            f"{self.messages} message(s), {self.records} record(s) in {self.seconds:.1f} s; "
+            f"{self.malformed} malformed, {self.rejected} refused by the monitor; "
+            f"{self.published} verdict(s) published"
+        ]
+        width = max((len(p) for p in self.properties), default=0)
+        for name in self.properties:
+            bad = self.violated.get(name, 0)
+            word = "violated" if bad else "satisfied" if self.satisfied.get(name) else "no verdict"
+            line = (
+                f"  {name:<{width}}  {word:<10} {self.satisfied.get(name, 0)} true, {bad} false, "
+                f"{self.inconclusive.get(name, 0)} inconclusive"
+            )
+            if name in self.first_violations:
+                line += f" (first violation at t={self.first_violations[name]:g})"
+            out.append(line)
+        return "\n".join(out) + "\n"
+
+
+class Attachment:
+    """Monitors of one property file attached to a transport (see the module doc).
+
+    ``verdict_topic`` is a format string with ``{property}`` (default: the property's name).
+    ``on_verdict(verdict)`` is called for every decided verdict, after it is published. Call
+    :meth:`start`, then :meth:`stop` (which settles the monitor and returns the summary).
+    """
+
+    def __init__(
+        self,
+        text: str,
+        transport: Transport,
+        *,
+        source: str = "<properties>",
+        topics: TopicMap | None = None,
+        verdict_topic: str = "{property}",
+        on_verdict: Callable[[Verdict], object] | None = None,
+        qos: int = 0,
+    ) -> None:
+        self.spec = load_specification(text, source=source)
+        self.monitor = Monitor(self.spec)
+        self.signals = list(self.spec.signals)
+        self.topics: TopicMap = topics if topics is not None else default_topic_map(self.signals)
+        missing = [s for s in self.signals if s not in self.topics]
+        if missing:
+            raise CommError(f"no topic given for signal(s) {', '.join(missing)}")
+        for name in self.monitor.properties:
+            validate_topic(verdict_topic.format(property=name))
+        self.transport = transport
+        self.verdict_topic = verdict_topic
+        self.on_verdict = on_verdict
+        self.qos = qos
+        self.summary = MonitorSummary(properties=self.monitor.properties)
+        self._by_topic: dict[str, list[Source]] = defaultdict(list)
+        for src in self.topics.values():
+            self._by_topic[src.topic].append(src)
+        self._lock = threading.Lock()
+        self._subscriptions: list[Subscription] = []
+        self._started = 0.0
+        self._stopped = False
+
+    @property
+    def subscribed_topics(self) -> list[str]:
+        return sorted(self._by_topic)
+
+    def start(self) -> Attachment:
+        """Subscribe to every mapped topic (returns once the broker confirmed); returns self."""
+        self._started = _time.monotonic()
+        for topic in self.subscribed_topics:
+            validate_pattern(topic)
+            self._subscriptions.append(self.transport.subscribe(topic, self._receive, qos=self.qos))
+        return self
+
+    # -- one message ----------------------------------------------------------------------------
+    def _malformed(self, message: Message, why: str) -> None:
+        self.summary.malformed += 1
+        n = self.summary.malformed
+        if n <= 10 or n % 1000 == 0:
+            _log.warning("message #%d on %r ignored: %s", n, message.topic, why)
+
+    def _receive(self, message: Message) -> None:
+        payload = message.payload
+        with self._lock:
+            if self._stopped:
+                return
+            self.summary.messages += 1
+            record: dict[str, Any] = {}
+            for src in self._by_topic.get(message.topic, ()):
+                found, value = src.extract(payload)
+                if found:
+                    record[src.signal] = value
+            if not record:
+                self._malformed(message, "it carries none of the mapped signals")
+                return
+            stamp = payload.get("time", message.timestamp)
+            if stamp is None:
+                stamp = _time.time()
+            if isinstance(stamp, bool) or not isinstance(stamp, int | float) or not math.isfinite(
+                stamp
+            ):
+                self._malformed(message, f"'time' must be a finite number, not {stamp!r}")
+                return
+            verdicts = self.monitor.step(float(stamp), record)
+            if self.monitor.rejected:
+                reason = self.monitor.rejected[-1].reason
+                self.monitor.rejected.clear()  # counted here: a long run keeps no list
+                self.summary.rejected += 1
+                if self.summary.rejected <= 10 or self.summary.rejected % 1000 == 0:
+                    _log.warning("record from %r refused: %s", message.topic, reason)
+                return
+            self.summary.records += 1
+            self._count(verdicts)
+        self._publish(verdicts)
+
+    def _count(self, verdicts: list[Verdict]) -> None:
+        summary = self.summary
+        for verdict in verdicts:
+            if verdict.value is True:
+                summary.satisfied[verdict.property] += 1
+            elif verdict.value is False:
+                summary.violated[verdict.property] += 1
+                summary.first_violations.setdefault(verdict.property, verdict.time)
+            else:
+                summary.inconclusive[verdict.property] += 1
+
+    def _publish(self, verdicts: list[Verdict]) -> None:
+        for verdict in verdicts:
+            if verdict.value is None:
+                continue
+            topic = self.verdict_topic.format(property=verdict.property)
+            try:
+                self.transport.publish(
+                    topic, {"value": verdict.value, "time": verdict.time}, qos=self.qos
+                )
+                with self._lock:
+                    self.summary.published += 1
+            except CommError as exc:
+                _log.warning("verdict of %s not published: %s", verdict.property, exc)
+            if self.on_verdict is not None:
+                try:
+                    self.on_verdict(verdict)
+                except Exception:
+                    _log.exception("on_verdict raised on %r", verdict)
+
+    # -- the end --------------------------------------------------------------------------------
+    def stop(self) -> MonitorSummary:
+        """Unsubscribe, settle the monitor (publishing the verdicts it decides), return the
+        summary (idempotent)."""
+        for subscription in self._subscriptions:
+            subscription.cancel()
+        self._subscriptions.clear()
+        with self._lock:
+            if self._stopped:
+                return self.summary
+            self._stopped = True
+            verdicts = self.monitor.finish()
+            self._count(verdicts)
+            self.summary.seconds = _time.monotonic() - self._started if self._started else 0.0
+        self._publish(verdicts)  # a closed transport: logged, not raised
+        return self.summary
+
+    def __enter__(self) -> Attachment:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

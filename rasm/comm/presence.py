@@ -1,0 +1,291 @@
+"""Node presence (seed §6.1): advertise start-up, periodic presence and shutdown; follow others.
+
+Every node owns the topic ``rasm/presence/<node>``:
+
+- start-up: ``{"state": "online", "role": …, "period": P, "seq": 0}`` (retained where the
+  transport can retain, so a tracker started later learns of the node at once);
+- every ``period`` seconds a heartbeat, the same payload with a growing ``seq``;
+- a clean shutdown: ``{"state": "offline", "role": …, "reason": "shutdown"}`` (retained);
+- a crash: the broker publishes the node's last will, ``{"state": "offline", "reason":
+  "lost"}`` (retained). The will must be given when the MQTT transport is created:
+  ``MqttTransport(url, will=presence_will(node, role))``.
+
+:class:`PresenceTracker` follows every node: ``online`` (start-up or a heartbeat), ``offline``
+(shutdown or will), ``silent`` (online, but no heartbeat for ``timeout`` seconds: hung, or cut
+off without the broker noticing yet). Silence is detected by a timer thread that sleeps until the
+earliest deadline, never by polling.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from rasm.comm.message import Message
+from rasm.comm.topics import validate_topic
+from rasm.comm.transport import Subscription, Transport
+from rasm.errors import CommError
+
+__all__ = [
+    "PRESENCE_PREFIX",
+    "NodeState",
+    "Presence",
+    "PresenceTracker",
+    "presence_topic",
+    "presence_will",
+]
+
+_log = logging.getLogger("rasm.comm.presence")
+
+PRESENCE_PREFIX = "rasm/presence"
+STATES = ("online", "offline", "silent")
+
+
+def presence_topic(node: str) -> str:
+    """``rasm/presence/<node>``; :class:`CommError` if ``node`` is not one topic level."""
+    if not isinstance(node, str) or not node or any(c in node for c in "/+#\0"):
+        raise CommError(
+            f"node name {node!r} must be non-empty text without '/', '+', '#' (it is one "
+            "level of the topic rasm/presence/<node>)"
+        )
+    topic = f"{PRESENCE_PREFIX}/{node}"
+    validate_topic(topic)
+    return topic
+
+
+def presence_will(node: str, role: str | None = None) -> Any:
+    """The last will that marks ``node`` offline if it vanishes: pass it as
+    ``MqttTransport(url, will=presence_will(node, role))`` (retained, QoS 1)."""
+    from rasm.comm.mqtt import Will  # paho only when MQTT is used
+
+    return Will(
+        presence_topic(node),
+        {"state": "offline", "role": role, "reason": "lost"},
+        qos=1,
+        retain=True,
+    )
+
+
+def _publish(transport: Transport, topic: str, payload: dict[str, Any], retain: bool) -> None:
+    # Transport.publish has no retain parameter yet; use it as soon as a transport offers one.
+    if retain and "retain" in inspect.signature(transport.publish).parameters:
+        transport.publish(topic, payload, qos=1, retain=True)  # type: ignore[call-arg]
+    else:
+        transport.publish(topic, payload, qos=1)
+
+
+class Presence:
+    """Advertises one node: start-up on :meth:`start`, a heartbeat every ``period`` seconds,
+    shutdown on :meth:`stop`. Also a context manager.
+
+    The transport must be connected (and, over MQTT, created with :func:`presence_will` so a
+    crash is advertised too). Heartbeats come from a daemon thread; a failed publish (broker
+    away) is logged and the next heartbeat tries again.
+    """
+
+    def __init__(
+        self, transport: Transport, node: str, *, role: str | None = None, period: float = 1.0
+    ) -> None:
+        if not isinstance(period, int | float) or isinstance(period, bool) or not period > 0:
+            raise CommError(f"presence period must be a positive number of seconds: {period!r}")
+        self.transport = transport
+        self.node = node
+        self.role = role
+        self.period = float(period)
+        self.topic = presence_topic(node)
+        self.heartbeats = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def _online(self, seq: int) -> dict[str, Any]:
+        return {"state": "online", "role": self.role, "period": self.period, "seq": seq}
+
+    def start(self) -> Presence:
+        """Announce start-up and start the heartbeats; returns self."""
+        if self._thread is not None:
+            return self
+        _publish(self.transport, self.topic, self._online(0), retain=True)
+        self._thread = threading.Thread(
+            target=self._beat, name=f"rasm-presence-{self.node}", daemon=True
+        )
+        self._thread.start()
+        return self
+
+    def _beat(self) -> None:
+        seq = 0
+        while not self._stop.wait(self.period):  # the wait is the timer: stop() ends it at once
+            seq += 1
+            try:
+                _publish(self.transport, self.topic, self._online(seq), retain=False)
+                self.heartbeats += 1
+            except CommError as exc:
+                _log.warning("presence heartbeat of %s not sent: %s", self.node, exc)
+
+    def stop(self) -> None:
+        """Stop the heartbeats and announce shutdown (idempotent). Close the transport after."""
+        if self._thread is None or self._stop.is_set():
+            return
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        try:
+            _publish(
+                self.transport,
+                self.topic,
+                {"state": "offline", "role": self.role, "reason": "shutdown"},
+                retain=True,
+            )
+        except CommError as exc:
+            _log.warning("shutdown of %s not announced: %s", self.node, exc)
+
+    def __enter__(self) -> Presence:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+@dataclass
+class NodeState:
+    """What a tracker knows of one node."""
+
+    node: str
+    state: str
+    role: str | None = None
+    last_seen: float = 0.0  # time.monotonic() of its last message
+    reason: str | None = None
+    payload: dict[str, Any] = field(default_factory=dict)
+
+
+OnChange = Callable[[str, str], object]
+
+
+class PresenceTracker:
+    """Follows every node's presence: ``online``, ``offline`` or ``silent``.
+
+    ``on_change(node, state)`` is called at every change of state (a new node counts), in the
+    order the changes happen, from the transport's delivery thread or the tracker's timer thread,
+    while the tracker is locked: keep it short (it may read :meth:`nodes`). ``timeout`` is how
+    long an online node may stay without a heartbeat before it is ``silent``; a heartbeat makes a
+    silent node online again.
+    """
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        timeout: float = 3.0,
+        on_change: OnChange | None = None,
+    ) -> None:
+        if not isinstance(timeout, int | float) or isinstance(timeout, bool) or not timeout > 0:
+            raise CommError(f"presence timeout must be a positive number of seconds: {timeout!r}")
+        self.transport = transport
+        self.timeout = float(timeout)
+        self.on_change = on_change
+        self.malformed = 0
+        self._nodes: dict[str, NodeState] = {}
+        self._cond = threading.Condition(threading.RLock())
+        self._stopped = False
+        self._subscription: Subscription | None = None
+        self._timer: threading.Thread | None = None
+
+    def start(self) -> PresenceTracker:
+        """Subscribe to ``rasm/presence/+`` and start the silence timer; returns self."""
+        if self._subscription is None:
+            self._timer = threading.Thread(
+                target=self._watch, name="rasm-presence-tracker", daemon=True
+            )
+            self._timer.start()
+            self._subscription = self.transport.subscribe(
+                f"{PRESENCE_PREFIX}/+", self._receive, qos=1
+            )
+        return self
+
+    def stop(self) -> None:
+        """Unsubscribe and end the timer (idempotent)."""
+        if self._subscription is not None:
+            self._subscription.cancel()
+        with self._cond:
+            self._stopped = True
+            self._cond.notify_all()
+        if self._timer is not None and self._timer is not threading.current_thread():
+            self._timer.join(timeout=5.0)
+
+    def __enter__(self) -> PresenceTracker:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def nodes(self) -> dict[str, NodeState]:
+        """A copy of every known node's state, by name."""
+        with self._cond:
+            return {
+                name: NodeState(s.node, s.state, s.role, s.last_seen, s.reason, dict(s.payload))
+                for name, s in self._nodes.items()
+            }
+
+    def state(self, node: str) -> str | None:
+        """``online``, ``offline``, ``silent``, or None for a node never heard of."""
+        with self._cond:
+            known = self._nodes.get(node)
+            return known.state if known is not None else None
+
+    # -- internals ------------------------------------------------------------------------------
+    def _receive(self, message: Message) -> None:
+        node = message.topic.rsplit("/", 1)[-1]
+        payload = message.payload
+        state = payload.get("state")
+        role = payload.get("role")
+        if state not in ("online", "offline") or not (role is None or isinstance(role, str)):
+            with self._cond:
+                self.malformed += 1
+            _log.warning("malformed presence message on %r ignored: %r", message.topic, payload)
+            return
+        reason = payload.get("reason")
+        with self._cond:
+            known = self._nodes.get(node)
+            if known is None:
+                known = self._nodes[node] = NodeState(node, "new")
+            before = known.state
+            known.state = state
+            known.role = role
+            known.last_seen = time.monotonic()
+            known.reason = reason if isinstance(reason, str) else None
+            known.payload = dict(payload)
+            if state == "online":
+                self._cond.notify_all()  # the timer recomputes its earliest deadline
+            if before != state:
+                self._changed(node, state)
+
+    def _changed(self, node: str, state: str) -> None:
+        if state == "offline":
+            _log.info("node %s is offline", node)
+        elif state == "silent":
+            _log.warning("node %s is silent (no heartbeat for %g s)", node, self.timeout)
+        if self.on_change is not None:
+            try:
+                self.on_change(node, state)
+            except Exception:
+                _log.exception("presence on_change(%r, %r) raised", node, state)
+
+    def _watch(self) -> None:
+        with self._cond:
+            while not self._stopped:
+                now = time.monotonic()
+                earliest: float | None = None
+                for known in list(self._nodes.values()):
+                    if known.state != "online":
+                        continue
+                    deadline = known.last_seen + self.timeout
+                    if deadline <= now:
+                        known.state = "silent"
+                        self._changed(known.node, "silent")
+                    elif earliest is None or deadline < earliest:
+                        earliest = deadline
+                # sleeps until the earliest deadline, or until a message or stop() wakes it
+                self._cond.wait(None if earliest is None else earliest - now)

@@ -1,0 +1,209 @@
+"""``rasm monitor``: monitors attached to a live bus, end to end over a real mosquitto."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+
+import paho.mqtt.publish as paho_publish
+import pytest
+
+from rasm.attach import Attachment, Source, default_topic_map, load_topic_map
+from rasm.errors import SourceError
+from tests.distribution.conftest import Inbox
+
+PROPS = """
+input mode: str = "navigate"
+event anomaly
+property velocity_limit:
+    always (velocity <= 0.5 or mode == "emergency")
+property timely_adaptation:
+    always (anomaly -> eventually[0, 2s] adapted)
+"""
+
+
+def test_verdicts_are_published_on_topics_named_after_the_properties(mqtt):
+    bus, robot = mqtt(), mqtt()
+    limit, timely = Inbox(), Inbox()
+    robot.subscribe("velocity_limit", limit, qos=1)
+    robot.subscribe("timely_adaptation", timely, qos=1)
+    attachment = Attachment(PROPS, bus, qos=1).start()
+    assert attachment.subscribed_topics == ["adapted", "anomaly", "mode", "velocity"]
+
+    robot.publish("velocity", {"value": 0.3, "time": 1.0}, qos=1)
+    assert limit.get().payload == {"value": True, "time": 1.0}
+    robot.publish("velocity", {"value": 0.7, "time": 2.0}, qos=1)
+    assert limit.get().payload == {"value": False, "time": 2.0}
+    robot.publish("mode", {"mode": "emergency", "time": 2.5}, qos=1)  # the field named like it
+    assert limit.get().payload == {"value": True, "time": 2.5}
+
+    robot.publish("adapted", {"value": False, "time": 3.0}, qos=1)
+    robot.publish("anomaly", {"value": True, "time": 3.0}, qos=1)
+    robot.publish("adapted", {"value": True, "time": 4.0}, qos=1)
+    robot.publish("adapted", {"value": False, "time": 6.5}, qos=1)  # closes the 2 s windows
+    decided = [m.payload for m in timely.take(3)]
+    assert {"value": True, "time": 3.0} in decided  # the anomaly at 3.0 was answered at 4.0
+    assert all(v["value"] is True for v in decided)
+
+    summary = attachment.stop()
+    assert summary.records == 7 and summary.malformed == 0 and summary.rejected == 0
+    assert summary.violated["velocity_limit"] == 1
+    assert summary.first_violations == {"velocity_limit": 2.0}
+    assert summary.any_violated
+    assert "velocity_limit     violated   6 true, 1 false" in summary.format()
+
+
+def test_malformed_and_refused_messages_are_counted_never_fatal(mqtt, broker):
+    bus, robot = mqtt(), mqtt()
+    limit = Inbox()
+    robot.subscribe("velocity_limit", limit, qos=1)
+    attachment = Attachment(PROPS, bus, qos=1).start()
+    robot.publish("velocity", {"speed": 0.1, "time": 1.0}, qos=1)  # no mapped field
+    robot.publish("velocity", {"value": 0.1, "time": "soon"}, qos=1)  # bad time
+    robot.publish("velocity", {"value": "fast", "time": 1.0}, qos=1)  # wrong type
+    robot.publish("velocity", {"value": 0.1, "time": 5.0}, qos=1)
+    robot.publish("velocity", {"value": 0.1, "time": 4.0}, qos=1)  # back in time
+    # a foreign, broken publisher (returns once the broker has it, so it arrives before the next)
+    paho_publish.single("velocity", b"not json", qos=1, hostname=broker.host, port=broker.port)
+    robot.publish("velocity", {"value": 0.2, "time": 6.0}, qos=1)
+    assert [m.payload for m in limit.take(2)] == [
+        {"value": True, "time": 5.0},
+        {"value": True, "time": 6.0},
+    ]
+    summary = attachment.stop()
+    assert (summary.malformed, summary.rejected, summary.records) == (2, 2, 2)
+    assert bus.stats.malformed == 1
+
+
+def test_time_falls_back_to_the_envelope_timestamp(mqtt):
+    bus, robot = mqtt(), mqtt()
+    limit = Inbox()
+    robot.subscribe("velocity_limit", limit, qos=1)
+    attachment = Attachment(PROPS, bus, qos=1).start()
+    robot.publish("velocity", {"value": 0.1}, qos=1)
+    message = limit.get()
+    stamp = message.payload["time"]
+    assert isinstance(stamp, float) and stamp <= message.timestamp
+    attachment.stop()
+
+
+def test_a_topic_map_moves_signals_and_fields(mqtt, tmp_path):
+    path = tmp_path / "topics.yaml"
+    path.write_text(
+        "velocity: robot/odometry\nmode: {topic: robot/state, field: mode}\n"
+        "anomaly: {topic: robot/state, field: alarm}\n"
+    )
+    signals = ["velocity", "mode", "anomaly", "adapted"]
+    mapping = load_topic_map(path, signals)
+    assert mapping == {
+        "velocity": Source("velocity", "robot/odometry"),
+        "mode": Source("mode", "robot/state", "mode"),
+        "anomaly": Source("anomaly", "robot/state", "alarm"),
+        "adapted": Source("adapted", "adapted"),
+    }
+    bus, robot = mqtt(), mqtt()
+    limit = Inbox()
+    robot.subscribe("velocity_limit", limit, qos=1)
+    attachment = Attachment(PROPS, bus, topics=mapping, qos=1).start()
+    robot.publish("robot/odometry", {"value": 0.9, "time": 1.0}, qos=1)
+    assert limit.get().payload == {"value": False, "time": 1.0}
+    robot.publish("robot/state", {"mode": "emergency", "alarm": False, "time": 2.0}, qos=1)
+    assert limit.get().payload == {"value": True, "time": 2.0}
+    attachment.stop()
+
+
+@pytest.mark.parametrize(
+    ("text", "message", "line"),
+    [
+        ("speed: robot/odom\n", "'speed' is not a signal the properties read", 1),
+        ("velocity: robot/#\n", "velocity", 1),
+        ("mode: x\nvelocity: {topic: a, unit: m}\n", "write a topic", 2),
+        ("velocity: [a\n", "not valid YAML", 2),
+        ("- velocity\n", "a topic map is a mapping", 1),
+    ],
+)
+def test_bad_topic_maps_name_the_place(text, message, line):
+    with pytest.raises(SourceError, match=message) as caught:
+        load_topic_map("map.yaml", ["velocity", "mode"], text=text)
+    assert caught.value.location.file == "map.yaml"
+    assert caught.value.location.line == line
+
+
+def test_default_map():
+    assert default_topic_map(["v"]) == {"v": Source("v", "v")}
+    assert Source("v", "t").extract({"v": 1, "value": 2}) == (True, 2)
+    assert Source("v", "t").extract({"v": 1}) == (True, 1)
+    assert Source("v", "t", "f").extract({"v": 1}) == (False, None)
+
+
+def test_the_command_runs_until_interrupted_and_summarises(broker, mqtt, tmp_path):
+    props = tmp_path / "props.rv"
+    props.write_text(PROPS)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", broker.url],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        ready = process.stderr.readline()
+        assert ready.startswith("rasm monitor: 2 properties on 4 topic(s)"), ready
+        robot = mqtt()
+        limit = Inbox()
+        robot.subscribe("velocity_limit", limit, qos=1)
+        for time, value in ((1.0, 0.2), (2.0, 0.8), (3.0, 0.1)):
+            robot.publish("velocity", {"value": value, "time": time}, qos=0)
+        assert [m.payload["value"] for m in limit.take(3)] == [True, False, True]
+        robot.publish("velocity", {"value": 0.1, "time": 0.5}, qos=0)  # refused, not fatal
+        robot.publish("velocity", {"value": 0.1, "time": 4.0}, qos=0)
+        assert limit.get().payload == {"value": True, "time": 4.0}
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 1, err  # a property was violated
+    assert out.splitlines()[0] == "violated velocity_limit at t=2"
+    assert "5 message(s), 4 record(s)" in out and "1 refused by the monitor" in out
+    assert "velocity_limit     violated   3 true, 1 false" in out
+
+
+def test_the_command_reports_bad_input(broker, tmp_path):
+    props = tmp_path / "props.rv"
+    props.write_text("property p:\n    always (velocity <=)\n")
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", broker.url],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and f"{props}:2:" in done.stderr
+    props.write_text(PROPS)
+    topics = tmp_path / "map.yaml"
+    topics.write_text("nope: x\n")
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rasm.cli",
+            "monitor",
+            str(props),
+            "--transport",
+            broker.url,
+            "--topics",
+            str(topics),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and f"{topics}:1:1: 'nope' is not a signal" in done.stderr
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", "bogus://x"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and "bad transport URL" in done.stderr

@@ -1,0 +1,156 @@
+"""Node presence over a real mosquitto: start-up, heartbeats, shutdown, a killed and a hung node."""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from rasm.comm import MqttTransport, Presence, PresenceTracker, presence_topic, presence_will
+from rasm.errors import CommError
+
+NODE = textwrap.dedent(
+    """
+    import sys
+    from rasm.comm import MqttTransport, Presence, presence_will
+
+    url, node, period = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    transport = MqttTransport(url, will=presence_will(node, "planner"))
+    transport.connect()
+    presence = Presence(transport, node, role="planner", period=period).start()
+    print("up", flush=True)
+    sys.stdin.read()  # until the test closes our stdin
+    presence.stop()
+    transport.close()
+    """
+)
+
+
+class Changes:
+    """``on_change`` that queues every change; ``next()`` awaits one (no sleeps)."""
+
+    def __init__(self) -> None:
+        self.queue: queue.Queue[tuple[str, str]] = queue.Queue()
+
+    def __call__(self, node: str, state: str) -> None:
+        self.queue.put((node, state))
+
+    def next(self, timeout: float = 15.0) -> tuple[str, str]:
+        return self.queue.get(timeout=timeout)
+
+
+@pytest.fixture
+def node_process(broker):
+    started: list[subprocess.Popen] = []
+
+    def start(name: str, period: float = 0.1) -> subprocess.Popen:
+        process = subprocess.Popen(
+            [sys.executable, "-c", NODE, broker.url, name, str(period)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        started.append(process)
+        assert process.stdout.readline().strip() == "up"
+        return process
+
+    yield start
+    for process in started:
+        if process.poll() is None:
+            os.kill(process.pid, signal.SIGCONT)
+            process.kill()
+        process.wait(timeout=10)
+
+
+def test_a_killed_node_is_marked_offline_by_its_will(mqtt, node_process):
+    changes = Changes()
+    tracker = PresenceTracker(mqtt(), timeout=5.0, on_change=changes).start()
+    process = node_process("planner-1")
+    assert changes.next() == ("planner-1", "online")
+    assert tracker.nodes()["planner-1"].role == "planner"
+    os.kill(process.pid, signal.SIGKILL)
+    assert changes.next() == ("planner-1", "offline")
+    assert tracker.nodes()["planner-1"].reason == "lost"
+    # the will is retained: a tracker that starts later learns of the crash at once
+    late = Changes()
+    PresenceTracker(mqtt(), timeout=5.0, on_change=late).start()
+    assert late.next() == ("planner-1", "offline")
+    tracker.stop()
+
+
+def test_a_hung_node_becomes_silent_then_online_again_then_shuts_down(mqtt, node_process):
+    changes = Changes()
+    tracker = PresenceTracker(mqtt(), timeout=1.0, on_change=changes).start()
+    process = node_process("executor", period=0.05)
+    assert changes.next() == ("executor", "online")
+    os.kill(process.pid, signal.SIGSTOP)  # hung: the TCP connection stays up, no heartbeats
+    assert changes.next() == ("executor", "silent")
+    assert tracker.state("executor") == "silent"
+    os.kill(process.pid, signal.SIGCONT)
+    assert changes.next() == ("executor", "online")
+    process.stdin.close()  # clean shutdown
+    assert changes.next() == ("executor", "offline")
+    assert tracker.nodes()["executor"].reason == "shutdown"
+    assert process.wait(timeout=10) == 0
+    tracker.stop()
+
+
+def test_heartbeats_keep_a_node_online_and_count(mqtt):
+    changes = Changes()
+    beats: queue.Queue[int] = queue.Queue()
+    watcher = mqtt()
+    watcher.subscribe("rasm/presence/+", lambda m: beats.put(m.payload.get("seq")), qos=1)
+    tracker = PresenceTracker(watcher, timeout=2.0, on_change=changes).start()
+    node = MqttTransport(watcher.url, will=presence_will("monitor", "monitor"))
+    node.connect()
+    with Presence(node, "monitor", role="monitor", period=0.02) as presence:
+        assert [beats.get(timeout=10) for _ in range(6)] == [0, 1, 2, 3, 4, 5]
+        assert tracker.state("monitor") == "online"
+    node.close()
+    assert presence.heartbeats >= 5
+    assert [changes.next(), changes.next()] == [("monitor", "online"), ("monitor", "offline")]
+    assert changes.queue.empty()  # never silent while heartbeats came
+    tracker.stop()
+
+
+def test_a_node_that_announces_but_never_beats_goes_silent(mqtt):
+    changes = Changes()
+    tracker = PresenceTracker(mqtt(), timeout=0.2, on_change=changes).start()
+    node = mqtt()
+    presence = Presence(node, "quiet", period=3600).start()
+    assert changes.next() == ("quiet", "online")
+    assert changes.next() == ("quiet", "silent")
+    presence.stop()
+    assert changes.next() == ("quiet", "offline")
+    tracker.stop()
+
+
+def test_malformed_presence_messages_are_counted(mqtt):
+    changes = Changes()
+    tracker = PresenceTracker(mqtt(), timeout=5.0, on_change=changes).start()
+    sender = mqtt()
+    sender.publish("rasm/presence/x", {"state": "dancing"}, qos=1)
+    sender.publish("rasm/presence/x", {"state": "online", "role": 3}, qos=1)
+    sender.publish("rasm/presence/x", {"state": "online"}, qos=1)
+    assert changes.next() == ("x", "online")  # after the two bad ones, in order
+    assert tracker.malformed == 2
+    tracker.stop()
+
+
+def test_names_and_numbers_are_checked():
+    assert presence_topic("planner-1") == "rasm/presence/planner-1"
+    for bad in ("", "a/b", "+", "#"):
+        with pytest.raises(CommError, match="node name"):
+            presence_topic(bad)
+    with pytest.raises(CommError, match="period"):
+        Presence(object(), "n", period=0)  # type: ignore[arg-type]
+    with pytest.raises(CommError, match="timeout"):
+        PresenceTracker(object(), timeout=-1)  # type: ignore[arg-type]
+    will = presence_will("n", "planner")
+    assert (will.topic, will.retain, will.qos) == ("rasm/presence/n", True, 1)
+    assert will.payload == {"state": "offline", "role": "planner", "reason": "lost"}
