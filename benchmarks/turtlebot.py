@@ -1,0 +1,192 @@
+"""The TurtleBot occlusion demonstrator with and without its adaptation loop (issue 8).
+
+Run:  .venv/bin/python benchmarks/turtlebot.py               (50 scenarios, the plot)
+      .venv/bin/python benchmarks/turtlebot.py --seeds 10    (fewer)
+
+Each seed generates a scenario (``tb4.world.generate_scenario``: two or three obstacles on the
+route, wide debris ahead from 0.5-1.5 s, in 40 % of them more debris next to it later) and runs
+it on the simulated clock for 90 s twice: with the MAPLE-K loop, and with the same loop whose
+Plan stage plans nothing (occlusions are found, nothing is done). Reported per condition:
+collisions (total, and runs with any), goals reached, time to goal (median, over runs that
+reach it), and for the loop the latencies: debris onset -> anomaly (detection, simulated s),
+anomaly -> executed (simulated s) and the loop's compute time for that iteration (wall ms, the
+sum of its stage durations). On the simulated clock the stages take no simulated time, so
+anomaly -> executed is 0 there; ``--live N`` adds N short wall-clock runs for the live figure.
+``--plot`` (default ``docs/images/turtlebot.png``) draws the
+per-seed collisions and times to goal; it needs matplotlib (``pip install rasm[docs]``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "examples" / "turtlebot"))
+
+from tb4.evaluation import APP, Outcome, run  # noqa: E402
+
+from rasm.platform.manifest import load_manifest  # noqa: E402
+
+DEFAULT_SCENARIO = load_manifest(APP).scenario
+
+
+def _one(args: tuple[int, bool]) -> tuple[int, bool, Outcome]:
+    seed, loop = args
+    return seed, loop, run(seed, loop=loop, duration=90.0)
+
+
+def _median(values: list[float]) -> float:
+    return statistics.median(values) if values else float("nan")
+
+
+def _pct(values: list[float], q: float) -> float:
+    if not values:
+        return float("nan")
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def summarise(outcomes: dict[bool, list[Outcome]]) -> list[str]:
+    """The markdown table of docs/turtlebot.md."""
+    lines = [
+        "| condition | runs | collisions | runs with a collision | goals reached "
+        "| time to goal, median (s) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for loop, name in ((False, "without the loop"), (True, "with the loop")):
+        out = outcomes[loop]
+        reached = [o.time_to_goal for o in out if o.reached]
+        lines.append(
+            f"| {name} | {len(out)} | {sum(o.collisions for o in out)} "
+            f"| {sum(1 for o in out if o.collisions)} | {len(reached)} "
+            f"| {_median(reached):.1f} |"
+        )
+    out = outcomes[True]
+    detection = [d for o in out for d in o.detection]
+    act = [d for o in out for d in o.detect_to_act]
+    compute = [c * 1000 for o in out for c in o.loop_compute]
+    lines += [
+        "",
+        "| latency (with the loop) | n | median | p90 | max |",
+        "|---|---|---|---|---|",
+        f"| debris onset -> anomaly (s, simulated) | {len(detection)} | {_median(detection):.2f} "
+        f"| {_pct(detection, 0.9):.2f} | {max(detection, default=float('nan')):.2f} |",
+        f"| anomaly -> executed (s, simulated) | {len(act)} | {_median(act):.2f} "
+        f"| {_pct(act, 0.9):.2f} | {max(act, default=float('nan')):.2f} |",
+        f"| loop compute for that iteration (ms, wall) | {len(compute)} | {_median(compute):.1f} "
+        f"| {_pct(compute, 0.9):.1f} | {max(compute, default=float('nan')):.1f} |",
+    ]
+    return lines
+
+
+def plot(outcomes: dict[bool, list[Outcome]], seeds: list[int], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
+    styles = ((False, "tab:red", "o", "without the loop"), (True, "tab:blue", "s", "with the loop"))
+    for loop, colour, marker, label in styles:
+        out = outcomes[loop]
+        offset = 0.15 if loop else -0.15
+        left.scatter(
+            [s + offset for s in seeds],
+            [o.collisions for o in out],
+            s=16,
+            color=colour,
+            marker=marker,
+            label=label,
+        )
+        reached = [(s, o.time_to_goal) for s, o in zip(seeds, out, strict=True) if o.reached]
+        right.scatter(
+            [s for s, _ in reached],
+            [t for _, t in reached],
+            s=14,
+            color=colour,
+            marker=marker,
+            label=label,
+        )
+    left.yaxis.get_major_locator().set_params(integer=True)
+    left.set(xlabel="scenario seed", ylabel="collisions", title="Collisions per scenario")
+    right.set(
+        xlabel="scenario seed", ylabel="time to goal (s)", title="Time to goal (runs that reach it)"
+    )
+    for ax in (left, right):
+        ax.legend(loc="upper right", fontsize=8)
+        ax.grid(alpha=0.3)
+    fig.suptitle("TurtleBot 4 with LiDAR debris: the MAPLE-K loop stops and looks around")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def simulate(seeds: list[int], jobs: int) -> dict[bool, list[Outcome]]:
+    """Every seed with and without the loop, on the simulated clock, ``jobs`` at a time."""
+    results: dict[tuple[int, bool], Outcome] = {}
+    with ProcessPoolExecutor(jobs) as pool:
+        for seed, loop, outcome in pool.map(_one, [(s, lp) for s in seeds for lp in (False, True)]):
+            results[(seed, loop)] = outcome
+            print(
+                f"seed {seed:3d} {'loop   ' if loop else 'no loop'}: "
+                f"{outcome.collisions} collisions, "
+                + (f"goal at {outcome.time_to_goal:.1f} s" if outcome.reached else "no goal"),
+                file=sys.stderr,
+                flush=True,
+            )
+    return {loop: [results[(s, loop)] for s in seeds] for loop in (False, True)}
+
+
+def live(runs: int, seconds: float = 5.0) -> str:
+    """Anomaly -> executed on the wall clock (local bus): the detect-to-act latency a live loop
+    sees, over ``runs`` short runs of the default scenario's first debris."""
+    latencies = []
+    for seed in range(runs):
+        outcome = run(seed, duration=seconds, scenario=DEFAULT_SCENARIO, clock="wall")
+        latencies += [d * 1000 for d in outcome.detect_to_act]
+    return (
+        f"| anomaly -> executed, live (ms, wall clock, {runs} runs) | {len(latencies)} "
+        f"| {_median(latencies):.1f} | {_pct(latencies, 0.9):.1f} "
+        f"| {max(latencies, default=float('nan')):.1f} |"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=50)
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--plot", type=Path, default=ROOT / "docs" / "images" / "turtlebot.png")
+    parser.add_argument("--no-plot", action="store_true")
+    parser.add_argument("--live", type=int, default=5, help="wall-clock runs for the latency")
+    parser.add_argument("--save", type=Path, help="write the outcomes to this JSON file")
+    parser.add_argument("--load", type=Path, help="table and plot from saved outcomes")
+    args = parser.parse_args()
+    if args.load:
+        saved = json.loads(args.load.read_text())
+        seeds = saved["seeds"]
+        outcomes = {loop: [Outcome(**o) for o in saved[str(loop)]] for loop in (False, True)}
+    else:
+        seeds = list(range(args.seeds))
+        outcomes = simulate(seeds, args.jobs)
+    if args.save:
+        args.save.write_text(
+            json.dumps(
+                {"seeds": seeds} | {str(k): [asdict(o) for o in v] for k, v in outcomes.items()}
+            )
+        )
+    print("\n".join(summarise(outcomes)))
+    if args.live:
+        print("\n" + live(args.live))
+    if not args.no_plot:
+        plot(outcomes, seeds, args.plot)
+        print(f"\nplot: {args.plot}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,10 @@
+"""The TurtleBot demonstrator's tests import its ``tb4`` package from the app folder."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+APP = Path(__file__).resolve().parents[2] / "examples" / "turtlebot"
+if str(APP) not in sys.path:
+    sys.path.insert(0, str(APP))
