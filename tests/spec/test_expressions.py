@@ -152,7 +152,7 @@ def boolean(draw, depth=2):
 envs = st.fixed_dictionaries({n: numbers for n in ("a", "b", "c")})
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(boolean(), envs)
 def test_compiled_and_direct_evaluation_agree(text, env):
     e = parse_expression(text)
@@ -162,7 +162,7 @@ def test_compiled_and_direct_evaluation_agree(text, env):
     assert compile_expression(e)(env) is direct
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(boolean())
 def test_printing_and_parsing_round_trip(text):
     e = parse_expression(text)

@@ -38,7 +38,7 @@ def offline(text: str, records):
     }
 
 
-@settings(max_examples=250, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(formulas(3), traces())
 def test_monitor_agrees_with_reference(formula, records):
     text = HEADER + f"property p0: {formula}\n"
