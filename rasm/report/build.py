@@ -69,7 +69,7 @@ def build_model(
 ) -> dict[str, Any]:
     """Everything the page draws, for one trace file."""
     records = _read(trace)
-    files = [*(platform_properties() if platform_props else []), *props]
+    files = [_shown(f) for f in [*(platform_properties() if platform_props else []), *props]]
     specs = load_properties(files)
     model = TraceModel()
     for time, record in records:
@@ -87,6 +87,14 @@ def build_model(
     data["generated"] = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     data["missing"] = missing_notes(data)
     return _clean(data)
+
+
+def _shown(path: str | Path) -> str:
+    """A property file's name as the page shows it: relative to the working folder if inside."""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
 
 
 def _clean(value: Any) -> Any:

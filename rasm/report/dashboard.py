@@ -48,7 +48,7 @@ class Dashboard:
         platform: Any,
         port: int = 8050,
         *,
-        refresh: float = 0.25,
+        refresh: float = 0.5,
         max_points: int = 5000,
     ) -> None:
         self.platform = platform
@@ -107,17 +107,21 @@ class Dashboard:
             self.modes = dict(sm.get_status())
         self._modes_read = _time.monotonic()
 
+    def _take_verdicts(self) -> None:
+        # the Trustworthiness Checker's verdicts so far (appended on the loop thread)
+        log = getattr(self.platform, "verdict_log", ())
+        for verdict in log[self._verdicts_seen :]:
+            timeline = self.timelines.get(verdict.property)
+            if timeline is not None:
+                timeline.add(verdict.time, verdict.value)
+        self._verdicts_seen = len(log)
+
     def on_record(self, time: float, record: dict[str, Any]) -> None:
         """``platform.on_record`` observer: runs on the loop thread for every trace record."""
         with self._cond:
             self.status = "running"
             self.model.add(time, record)
-            log = getattr(self.platform, "verdict_log", ())
-            for verdict in log[self._verdicts_seen :]:
-                timeline = self.timelines.get(verdict.property)
-                if timeline is not None:
-                    timeline.add(verdict.time, verdict.value)
-            self._verdicts_seen = len(log)
+            self._take_verdicts()
             if _time.monotonic() - self._modes_read >= 0.1:
                 self._read_modes()
             self._version += 1
@@ -193,6 +197,7 @@ class Dashboard:
         """Mark the run finished: browsers get the final model and stop following."""
         with self._cond:
             self._read_modes()
+            self._take_verdicts()  # the end-of-run verdicts (the loop thread is done)
             self.status = "finished"
             self._version += 1
             self._cond.notify_all()

@@ -86,6 +86,7 @@ class TraceModel:
         self._open: Adaptation | None = None  # the adaptation the loop is working on
         self._anomaly: tuple[float, str | None] | None = None
         self._by_plan: dict[str, Adaptation] = {}
+        self.anomalies = 0
 
     # ------------------------------------------------------------------ feeding
 
@@ -168,6 +169,7 @@ class TraceModel:
         explanation = record.get("explanation")
         text = str(explanation) if explanation is not None else None
         if record.get("anomaly") is True:
+            self.anomalies += 1
             if self._open is not None and self._open.plan is None and self._open.outcome is None:
                 self._open.outcome = "no plan"  # the previous anomaly was never planned for
             self._anomaly = (time, text)
@@ -238,10 +240,12 @@ class TraceModel:
     # ------------------------------------------------------------------ output
 
     def counts(self) -> dict[str, int]:
-        """How many adaptations ended each way (and how many anomalies there were)."""
-        out = {"anomalies": sum(1 for a in self.adaptations if a.anomaly is not None)}
+        """Anomalies, plans, plans executed, rejected (by Legitimate), dropped, cancelled."""
+        out = {"anomalies": self.anomalies}
         out["plans"] = sum(1 for a in self.adaptations if a.plan is not None)
-        for outcome in ("executed", "rejected", "dropped", "cancelled"):
+        out["executed"] = sum(1 for a in self.adaptations if a.outcome == "executed")
+        out["rejected"] = sum(1 for a in self.adaptations if a.legitimacy == "rejected")
+        for outcome in ("dropped", "cancelled"):
             out[outcome] = sum(1 for a in self.adaptations if a.outcome == outcome)
         return out
 

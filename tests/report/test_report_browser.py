@@ -132,3 +132,21 @@ def test_a_report_without_properties_says_so(page, hotbox_trace: Path, tmp_path:
     assert "No properties" in page.page.inner_text("#verdicts")
     assert "no properties checked" in page.page.inner_text("#notes")
     assert page.errors == []
+
+
+def test_one_slow_iteration_does_not_flatten_the_gantt(page, tmp_path: Path) -> None:
+    lines = []
+    for i in range(40):
+        slow = 0.050 if i == 7 else 0.0001  # one 50 ms monitor among 0.1 ms ones
+        lines.append({"time": i / 2, "stage": "monitor", "duration": slow})
+        lines.append({"time": i / 2, "stage": "analyse", "duration": 0.00005})
+    trace = tmp_path / "slow.jsonl"
+    trace.write_text("\n".join(json.dumps(r) for r in lines) + "\n")
+    out = tmp_path / "slow.html"
+    assert main(["report", str(trace), "-o", str(out)]) == 0
+    _open(page, out)
+    low, high = page.page.evaluate("document.getElementById('gantt').layout.yaxis.range")
+    assert low == 0 and 0.15 <= high < 1  # ms: the 0.15 ms iterations fill the plot
+    assert "3.500 s took 50.050 ms" in page.page.inner_text("#gantt-note")
+    assert "iteration at 3.500 s" in page.page.inner_text("#detail-title")  # the slowest
+    assert page.errors == []

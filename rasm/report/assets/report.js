@@ -13,7 +13,7 @@
   var TIMELINES = ["gantt", "verdicts", "signals"];
   var MAX_SIGNALS = 12;
   var MAX_ROWS = 500;
-  var state = {model: null, focus: null, iteration: null, drawn: {}};
+  var state = {model: null, focus: null, half: 2, iteration: null, drawn: {}};
   var CONFIG = {displaylogo: false, responsive: true};
 
   function $(id) { return document.getElementById(id); }
@@ -57,8 +57,9 @@
     ["anomalies", "plans", "executed", "rejected", "dropped", "cancelled"].forEach(function (k) {
       $("count-" + k).textContent = c[k] || 0;
     });
-    $("status").textContent = m.live ? (m.status === "finished" ? "run finished" : "live: running")
-      : "generated " + (m.generated || "");
+    $("status").textContent = !m.live ? "generated " + (m.generated || "") :
+      m.status === "finished" ? "run finished" : m.status === "starting" ?
+      "waiting for the loop to start" : "live: running";
     $("status").className = m.live && m.status !== "finished" ? "status running" : "status";
     var notes = $("notes");
     notes.innerHTML = (m.missing || []).map(function (n) { return "<li>" + esc(n) + "</li>"; })
@@ -100,8 +101,12 @@
         y: its.map(function (it) { return ms(it.stages[stage]); }),
         hovertemplate: stage + " at %{x:.3f} s: %{y:.4f} ms<extra></extra>"};
     });
-    draw("gantt", data, {barmode: "stack", bargap: 0.15, xaxis: timeAxis(),
-      yaxis: {title: {text: "stage duration (ms, stacked in loop order)"}},
+    var scale = state.focus === null ? ganttRange(m, -Infinity, Infinity) :
+      ganttRange(m, state.focus - state.half, state.focus + state.half);
+    ganttNote(scale.clipped);
+    var yaxis = {title: {text: "stage duration (ms, stacked in loop order)"}};
+    if (scale.range) yaxis.range = scale.range;
+    draw("gantt", data, {barmode: "stack", bargap: 0.15, xaxis: timeAxis(), yaxis: yaxis,
       legend: {orientation: "h", y: 1.12, traceorder: "normal"}, shapes: markers(m, "gantt")});
     var figure = $("gantt");
     if (!figure._rasmClick) {
@@ -109,6 +114,33 @@
       figure._rasmClick = true;
     }
     detail(m);
+  }
+
+  function total(it) {
+    var sum = 0;
+    Object.keys(it.stages).forEach(function (s) { sum += it.stages[s] || 0; });
+    return sum * 1000;
+  }
+
+  /* A y range for the iterations in [lo, hi]: one slow outlier must not flatten the others, so
+     iterations over 3 × the 95th percentile are clipped (and named in the note). */
+  function ganttRange(m, lo, hi) {
+    var its = (m.iterations || []).filter(function (it) { return it.time >= lo && it.time <= hi; });
+    var totals = its.map(total).sort(function (a, b) { return a - b; });
+    if (!totals.length) return {range: null, clipped: []};
+    var p95 = totals[Math.max(0, Math.ceil(0.95 * totals.length) - 1)];
+    var top = totals[totals.length - 1];
+    if (top <= 3 * p95 || p95 <= 0) return {range: [0, top * 1.08], clipped: []};
+    var limit = p95 * 1.5;
+    return {range: [0, limit], clipped: its.filter(function (it) { return total(it) > limit; })};
+  }
+
+  function ganttNote(clipped) {
+    $("gantt-note").textContent = clipped.length ? "Scale clipped at the slow end: " +
+      clipped.slice(0, 5).map(function (it) {
+        return fmt(it.time) + " took " + total(it).toFixed(3) + " ms";
+      }).join(", ") + (clipped.length > 5 ? ", … (" + clipped.length + " in all)" : "") + "." :
+      "";
   }
 
   function iterationAt(m, t) {
@@ -120,11 +152,10 @@
   }
 
   function slowest(m) {
-    var best = null, total = -1;
+    var best = null, most = -1;
     (m.iterations || []).forEach(function (it) {
-      var sum = 0;
-      Object.keys(it.stages).forEach(function (s) { sum += it.stages[s] || 0; });
-      if (sum > total) { total = sum; best = it; }
+      var sum = total(it);
+      if (sum > most) { most = sum; best = it; }
     });
     return best;
   }
@@ -359,9 +390,16 @@
     if (!m) return;
     var span = (m.end - m.start) || 1;
     var half = Math.max(span * 0.05, 2);
+    state.half = half;
     TIMELINES.forEach(function (id) {
       if (!state.drawn[id]) return;
-      Plotly.relayout($(id), {"xaxis.range": [t - half, t + half], shapes: markers(m, id)});
+      var update = {"xaxis.range": [t - half, t + half], shapes: markers(m, id)};
+      if (id === "gantt") {
+        var scale = ganttRange(m, t - half, t + half);
+        if (scale.range) update["yaxis.range"] = scale.range;
+        ganttNote(scale.clipped);
+      }
+      Plotly.relayout($(id), update);
     });
     if (m.iterations && m.iterations.length) detail(m);
     highlight(t);
@@ -375,7 +413,13 @@
     delete document.body.dataset.focus;
     TIMELINES.forEach(function (id) {
       if (!state.drawn[id]) return;
-      Plotly.relayout($(id), {"xaxis.autorange": true, shapes: markers(state.model, id)});
+      var update = {"xaxis.autorange": true, shapes: markers(state.model, id)};
+      if (id === "gantt") {
+        var scale = ganttRange(state.model, -Infinity, Infinity);
+        if (scale.range) update["yaxis.range"] = scale.range;
+        ganttNote(scale.clipped);
+      }
+      Plotly.relayout($(id), update);
     });
     highlight(NaN);
     $("focus-note").textContent = "";
@@ -412,11 +456,19 @@
   }
 
   function live(url) {
-    var source = new EventSource(url);
-    source.onmessage = function (e) {
-      var m = JSON.parse(e.data);
+    /* A render takes a while with big figures: draw only the newest model, never a backlog. */
+    var source = new EventSource(url), latest = null, scheduled = false;
+    function flush() {
+      scheduled = false;
+      if (latest === null) return;
+      var m = JSON.parse(latest);
+      latest = null;
       render(m);
       if (m.status === "finished") source.close();
+    }
+    source.onmessage = function (e) {
+      latest = e.data;
+      if (!scheduled) { scheduled = true; setTimeout(flush, 0); }
     };
     source.onerror = function () {
       if (state.model && state.model.status === "finished") return;
