@@ -36,14 +36,30 @@ def new_solver() -> z3.Solver:
 
 
 def check(solver: z3.Solver, assumptions: Sequence[z3.BoolRef] = ()) -> bool:
-    """``solver.check`` as a boolean; z3 giving up (``unknown``) is an error, never a guess."""
-    result = solver.check(*assumptions)
-    if result == z3.unknown:
+    """``solver.check`` as a boolean; z3 giving up (``unknown``) is an error, never a guess.
+
+    Calls z3's C API directly: z3py's ``check`` re-validates every assumption in Python, which
+    cost more than the solving itself on rule sets with hundreds of assumption literals.
+    """
+    count = len(assumptions)
+    array = (z3.Ast * count)()
+    for index, literal in enumerate(assumptions):
+        array[index] = literal.as_ast()
+    answer = z3.CheckSatResult(
+        z3.Z3_solver_check_assumptions(solver.ctx.ref(), solver.solver, count, array)
+    )
+    if answer == z3.unknown:
         raise RulesError(
             f"z3 could not decide the rules ({solver.reason_unknown()}); "
             "nonlinear integer arithmetic (a product of int variables) is the usual cause"
         )
-    return result == z3.sat
+    return answer == z3.sat
+
+
+def core_ids(solver: z3.Solver) -> set[int]:
+    """The ids of the last unsat core's literals (z3 shares terms: compare ids, not text,
+    which z3's pretty printer makes slow)."""
+    return {literal.get_id() for literal in solver.unsat_core()}
 
 
 class ConflictFinder:
@@ -100,8 +116,8 @@ class ConflictFinder:
 
     def core(self, subset: Sequence[int]) -> list[int]:
         """The unsat core of the last (unsatisfiable) check, as indices in ``subset`` order."""
-        core = {str(c) for c in self.checker.unsat_core()}
-        return [i for i in subset if str(self.selectors[i]) in core]
+        core = core_ids(self.checker)
+        return [i for i in subset if self.selectors[i].get_id() in core]
 
     def shrink(self, subset: list[int]) -> list[int]:
         """A minimal unsatisfiable subset of the unsatisfiable ``subset`` (deletion + cores)."""

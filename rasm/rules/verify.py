@@ -26,12 +26,13 @@ from collections.abc import Sequence
 import z3
 
 from rasm.rules.model import Rules
-from rasm.rules.mus import ConflictFinder, check, new_solver
+from rasm.rules.mus import ConflictFinder, check, core_ids, new_solver
 from rasm.rules.report import Conflict, Report
 from rasm.rules.smt import Encoder, encode_rules
+from rasm.rules.split import components, guard_split, names
 
 #: Solver calls spent making one redundant rule's "implied by" set minimal, at most.
-IMPLIED_BY_BUDGET = 40
+IMPLIED_BY_BUDGET = 12
 
 
 def verify(rules: Rules, *, redundancy: bool = True) -> Report:
@@ -101,25 +102,7 @@ class _Verifier:
 
     def groups(self) -> list[list[int]]:
         """Rule indices grouped by shared variables (connected components), in file order."""
-        parent = list(range(len(self.names)))
-
-        def find(i: int) -> int:
-            while parent[i] != i:
-                parent[i] = parent[parent[i]]
-                i = parent[i]
-            return i
-
-        owner: dict[str, int] = {}
-        for index, rule in enumerate(self.rules.rules):
-            for name in rule.reads:
-                if name in owner:
-                    parent[find(index)] = find(owner[name])
-                else:
-                    owner[name] = index
-        groups: dict[int, list[int]] = {}
-        for index in range(len(self.names)):
-            groups.setdefault(find(index), []).append(index)
-        return list(groups.values())
+        return components(range(len(self.names)), lambda i: self.rules.rules[i].reads)
 
     def reads(self, indices: Sequence[int]) -> set[str]:
         return set().union(*(self.rules.rules[i].reads for i in indices)) if indices else set()
@@ -127,16 +110,28 @@ class _Verifier:
     def conflicts(self, candidates: list[int]) -> list[tuple[list[int], Conflict]]:
         if len(candidates) < 2:
             return []
-        reads = self.reads(candidates)
-        domain = self.encoder.domain(self.ordered(reads))
-        whens = [self.formulas[i][0] for i in candidates]
-        bodies = [z3.And(*self.formulas[i]) for i in candidates]
-        finder = ConflictFinder(domain, whens, bodies)
-        result = []
-        for local in finder.conflicts():
-            members = [candidates[i] for i in local]
-            result.append((members, self.conflict(members)))
-        return result
+        split = guard_split(self.rules.rules, self.rules.variables, candidates)
+        if split is None:
+            found = self.search(candidates, {i: self.formulas[i][0] for i in candidates})
+        else:
+            found = set()
+            rest = {i: z3.And(*[self.encoder.condition(c) for c in split.rest[i]])
+                    for i in candidates}
+            reads = {i: set().union(names(self.rules.rules[i].require),
+                                    *(names(c) for c in split.rest[i])) for i in candidates}
+            for active in split.active_sets:
+                for part in components(active, reads.__getitem__):
+                    found |= self.search(part, rest)
+        return [(sorted(m), self.conflict(sorted(m))) for m in found]
+
+    def search(self, part: list[int], whens: dict[int, z3.BoolRef]) -> set[frozenset[int]]:
+        """The minimal conflicts among ``part``, each rule's ``when`` given by ``whens``."""
+        if len(part) < 2:
+            return set()
+        domain = self.encoder.domain(self.ordered(self.reads(part)))
+        bodies = [z3.And(whens[i], self.formulas[i][1]) for i in part]
+        finder = ConflictFinder(domain, [whens[i] for i in part], bodies)
+        return {frozenset(part[i] for i in local) for local in finder.conflicts()}
 
     def conflict(self, members: list[int]) -> Conflict:
         """The conflict's witness: a point where all its ``when``s hold (so some rule breaks)."""
@@ -181,20 +176,57 @@ class _Verifier:
             others = [j for j in members if j != i]
             if check(solver, [broken[i]] + [keep[j] for j in others]):
                 continue  # not implied even by all the others together
-            chooser = self.solver(reads)
-            chooser.add(self.formulas[i][0])
-            while check(chooser):
-                q = chooser.model()
-                support = [j for j in others if z3.is_true(q.eval(holds[j], True))]
-                if not check(solver, [broken[i]] + [keep[j] for j in support]):
-                    core = {str(c) for c in solver.unsat_core()}
-                    used = [j for j in support if str(keep[j]) in core]
-                    result.append((i, self.minimise(solver, broken[i], keep, used)))
-                    break
-                p = solver.model()
-                refuted = [holds[j] for j in others if not z3.is_true(p.eval(holds[j], True))]
-                chooser.add(z3.Or(*refuted) if refuted else z3.BoolVal(False))
+            core = core_ids(solver)
+            used = [j for j in others if keep[j].get_id() in core]
+            if check(solver, [self.formulas[i][0]] + [keep[j] for j in others]):
+                # all the others hold together somewhere r applies: they are the K sought
+                result.append((i, self.minimise(solver, broken[i], keep, used)))
+                continue
+            found = self.supported(solver, i, others, keep, broken, holds, reads)
+            if found is not None:
+                result.append((i, found))
         return result
+
+    def supported(
+        self,
+        solver: z3.Solver,
+        i: int,
+        others: list[int],
+        keep: dict[int, z3.BoolRef],
+        broken: dict[int, z3.BoolRef],
+        holds: dict[int, z3.BoolRef],
+        reads: set[str],
+    ) -> list[int] | None:
+        """A set of ``others`` that implies rule ``i`` and holds somewhere ``i`` applies.
+
+        Counterexample-guided: pick a point q where i applies and a maximal set K of others
+        holds (dropping rules named by unsat cores until satisfiable); if K implies i, done;
+        else the check's model p (K holds, i breaks) rules out every K' that holds at p: the
+        next q must make some rule broken at p hold, so no K comes twice and the search ends.
+        """
+        chooser = self.solver(reads)
+        chooser.add(self.formulas[i][0])
+        for j in others:
+            chooser.add(z3.Implies(keep[j], holds[j]))
+        while True:
+            kept = list(others)
+            while not check(chooser, [keep[j] for j in kept]):
+                core = core_ids(chooser)
+                dropped = [j for j in kept if keep[j].get_id() in core]
+                if not dropped:
+                    return None  # the blocking clauses alone exclude every q: none left
+                kept.remove(dropped[-1])
+            q = chooser.model()  # K_q: every other rule holding at q (the kept ones and more)
+            kept = [j for j in others if z3.is_true(q.eval(holds[j], True))]
+            if not check(solver, [broken[i]] + [keep[j] for j in kept]):
+                core = core_ids(solver)
+                return self.minimise(solver, broken[i], keep,
+                                     [j for j in kept if keep[j].get_id() in core])
+            p = solver.model()
+            refuted = [holds[j] for j in others if not z3.is_true(p.eval(holds[j], True))]
+            if not refuted:
+                return None  # every other rule holds at p, where i breaks: nothing implies i
+            chooser.add(z3.Or(*refuted))
 
     def minimise(
         self, solver: z3.Solver, broken: z3.BoolRef, keep: dict[int, z3.BoolRef], used: list[int]
@@ -209,6 +241,6 @@ class _Verifier:
             if check(solver, [broken] + [keep[j] for j in needed + rest]):
                 needed.append(candidate)
             else:
-                core = {str(c) for c in solver.unsat_core()}
-                rest = [j for j in rest if str(keep[j]) in core]
+                core = core_ids(solver)
+                rest = [j for j in rest if keep[j].get_id() in core]
         return sorted(needed + rest)

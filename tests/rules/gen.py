@@ -59,3 +59,28 @@ def rules_files(draw, min_rules: int = 1, max_rules: int = 6) -> str:
             lines.append(f"    when: {json.dumps(draw(conditions))}")
         lines.append(f"    require: {json.dumps(draw(conditions))}")
     return "\n".join(lines) + "\n"
+
+
+numeric_atoms = st.one_of(_cmp("x"), _cmp("y"), _cmp("x + y"), _cmp("y * 2 - x"), _cmp("abs(y)"))
+guard_atoms = st.one_of(
+    st.builds(lambda op, v: f'm {op} "{v}"', st.sampled_from(["==", "!="]),
+              st.sampled_from("abc")),
+    st.sampled_from(["f", "not f", 'f or m == "a"']),
+)
+numeric_conditions = st.recursive(numeric_atoms, _combine, max_leaves=2)
+
+
+@st.composite
+def guarded_rules_files(draw, max_rules: int = 7) -> str:
+    """Rules guarded by modes and flags (m, f) that no ``require`` reads: the split's domain."""
+    count = draw(st.integers(2, max_rules))
+    lines = [VARIABLES, "rules:"]
+    for index in range(count):
+        lines.append(f"  - name: r{index}")
+        parts = draw(st.lists(st.one_of(guard_atoms, numeric_atoms), max_size=2))
+        if index == 0:  # at least one guard, so that the split applies
+            parts.append(draw(guard_atoms))
+        if parts:
+            lines.append("    when: " + json.dumps(" and ".join(f"({p})" for p in parts)))
+        lines.append(f"    require: {json.dumps(draw(numeric_conditions))}")
+    return "\n".join(lines) + "\n"

@@ -88,7 +88,7 @@ WRONG = st.one_of(
 )
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(st.fixed_dictionaries({}, optional={k: WRONG for k in GOOD}))
 def test_any_plan_gets_a_decision_never_an_exception(plan):
     engine = CompiledRules(parse_rules(RULES, source="r.yaml"))
@@ -111,7 +111,7 @@ def test_wrong_types_are_rejections_naming_the_rule(engine):
     assert "slow_docking" in decision.broken
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rules_files())
 def test_engine_breaks_exactly_the_rules_whose_when_holds_and_require_fails(text):
     rules = parse_rules(text, source="gen.yaml")
@@ -122,7 +122,7 @@ def test_engine_breaks_exactly_the_rules_whose_when_holds_and_require_fails(text
         assert engine.evaluate(point).broken == expected
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rules_files(max_rules=3))
 def test_z3_translation_agrees_with_evaluation_at_every_point(text):
     rules = parse_rules(text, source="gen.yaml")
@@ -195,7 +195,7 @@ def test_swap_file(tmp_path):
     assert RuleSet.load(good).rules.source == str(good)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rules_files())
 def test_a_swap_takes_effect_exactly_when_enumeration_finds_the_set_consistent(text):
     rule_set = RuleSet(parse_rules("variables: {}\nrules: []\n", source="empty.yaml"))

@@ -99,7 +99,7 @@ def test_many_pairwise_conflicts_are_all_found(count):
     assert len(report.conflicts) == count * (count - 1) // 2
 
 
-@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rules_files(max_rules=4), conditions)
 def test_against_finds_an_admitted_violation_iff_one_exists(text, invariant):
     rules = parse_rules(text, source="gen.yaml")
@@ -115,7 +115,7 @@ def test_against_finds_an_admitted_violation_iff_one_exists(text, invariant):
         assert not truth(prop, point)
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=11, deadline=None)
 @given(st.integers(0, 10))
 def test_a_threshold_redundancy_chain_reports_all_but_the_strongest(k):
     rules = [rule(f"le_{j}", f"stops <= {j}") for j in range(k, 11)]

@@ -5,12 +5,13 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 
 from rasm.rules import parse_rules, verify
+from rasm.rules.split import guard_split
 from rasm.spec import evaluate
 
 from .brute import Oracle, truth
-from .gen import rules_files
+from .gen import guarded_rules_files, rules_files
 
-SETTINGS = settings(max_examples=100, deadline=None,
+SETTINGS = settings(max_examples=50, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
 
 
@@ -84,3 +85,13 @@ def test_evaluate_is_the_oracles_semantics():
     )
     assert evaluate(rules.rules[0].require, {"x": 1}) is False
     assert verify(rules).unsatisfiable == ["r"]
+
+
+@SETTINGS
+@given(guarded_rules_files())
+def test_mode_guarded_rule_sets_are_split_by_context_without_losing_a_finding(text):
+    rules, report, oracle = _judge(text)
+    assert guard_split(rules.rules, rules.variables, range(len(rules.rules))) is not None
+    assert {frozenset(c.rules) for c in report.conflicts} == oracle.conflicts
+    assert set(report.redundant) == oracle.redundant
+    assert set(report.unsatisfiable) == oracle.unsatisfiable
