@@ -59,11 +59,15 @@ def parse_trace(
     signals = signals or {}
     records: list[tuple[float, dict]] = []
     errors: list[SourceError] = []
+    hidden = 0
     last_time = -math.inf
 
     def fail(message: str, number: int, col: int = 1) -> None:
+        nonlocal hidden
         if len(errors) < MAX_REPORTED:
             errors.append(SourceError(message, Location(source, number, col)))
+        else:
+            hidden += 1
 
     for number, line in enumerate(lines, start=1):
         if not line.strip():
@@ -105,6 +109,11 @@ def parse_trace(
         last_time = time
         records.append((time, record))
     if errors:
+        if hidden:
+            errors.append(SourceError(
+                f"… and {hidden} more malformed records (fix the ones above first)",
+                Location(source),
+            ))
         raise SourceErrors(errors)
     return records
 

@@ -55,7 +55,17 @@ def numeric_atoms(draw) -> str:
 @st.composite
 def formulas(draw, depth: int = 3, future: bool = True) -> str:
     if depth <= 0 or draw(st.integers(0, 3)) == 0:
-        kind = draw(st.integers(0, 5))
+        kind = draw(st.integers(0, 6 if future else 5))
+        if kind == 6:
+            # past and pointwise operators above a future one: values that come late
+            inner = f"eventually{draw(bounds(False))} {draw(st.sampled_from(['p', 'q']))}"
+            k = draw(st.integers(0, 2))
+            return draw(st.sampled_from([
+                f"count{draw(bounds(True))}({inner}) >= {k}",
+                f"prev({inner})",
+                "not prev(always[0, 1] r)",
+                f"max[0, 2](x + count[0, 1]({inner})) > 1",
+            ]))
         if kind == 0:
             return draw(st.sampled_from(["p", "q", "r", "true", "false", "prev(p)"]))
         if kind <= 2:

@@ -211,3 +211,13 @@ def test_platform_properties_catch_an_unlegitimated_execution(tmp_path, capsys):
     assert report["stage_order"]["verdict"] == "violated"  # plan -> execute skips a stage
     assert report["execute_only_legitimate_plans"]["verdict"] == "violated"
     assert report["rejected_plans_stay_rejected"]["verdict"] == "satisfied"
+
+
+def test_a_broken_file_is_reported_by_its_first_problems():
+    lines = ["[]"] * 80
+    with pytest.raises(SourceErrors) as info:
+        parse_trace(lines, {}, source="t.jsonl")
+    errors = info.value.errors
+    assert len(errors) == 51
+    assert str(errors[49]).startswith("t.jsonl:50:1: a record must be a JSON object")
+    assert str(errors[50]) == "t.jsonl: … and 30 more malformed records (fix the ones above first)"
