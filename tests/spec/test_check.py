@@ -5,10 +5,14 @@ from __future__ import annotations
 import json
 
 import pytest
+from hypothesis import given, settings
 
 from rasm.cli import main
 from rasm.errors import SourceErrors
+from rasm.spec.printer import unparse
 from rasm.spec.trace import parse_trace
+
+from .strategies import HEADER, formulas, traces
 
 PROPS = """\
 input velocity: float
@@ -221,3 +225,21 @@ def test_a_broken_file_is_reported_by_its_first_problems():
     assert len(errors) == 51
     assert str(errors[49]).startswith("t.jsonl:50:1: a record must be a JSON object")
     assert str(errors[50]) == "t.jsonl: … and 30 more malformed records (fix the ones above first)"
+
+
+@settings(max_examples=60, deadline=None)
+@given(formulas(3), traces())
+def test_every_violation_is_explained(formula, records):
+    from rasm.spec import load_specification
+    from rasm.spec.check import check_records, format_text
+
+    spec = load_specification(HEADER + f"property p0: {formula}\n", source="p.rv")
+    report = check_records(spec, records)
+    (prop,) = report.properties
+    assert len(prop.explanations) == min(len(prop.violations), 5)
+    for explanation, (index, _) in zip(prop.explanations, prop.violations, strict=False):
+        assert explanation.index == index
+        assert explanation.lines  # which sub-formula failed
+        assert explanation.lines[0].startswith(unparse(spec.properties[0].formula)[:20])
+    text = format_text(report)
+    assert ("VIOLATED" in text) == bool(prop.violations)
