@@ -33,7 +33,7 @@ from typing import Any
 from rasm.comm.message import Message
 from rasm.comm.topics import validate_pattern, validate_topic
 from rasm.comm.transport import Subscription, Transport
-from rasm.errors import CommError, Location, SourceError
+from rasm.errors import CommError, Location, RasmError, SourceError
 from rasm.spec import Verdict, load_specification
 from rasm.spec.monitor import Monitor
 
@@ -217,7 +217,7 @@ class Attachment:
         for src in self.topics.values():
             self._by_topic[src.topic].append(src)
         self._lock = threading.Lock()
-        self._subscriptions: list[Subscription] = []
+        self._subscriptions: dict[str, Subscription] = {}
         self._started = 0.0
         self._stopped = False
 
@@ -228,10 +228,53 @@ class Attachment:
     def start(self) -> Attachment:
         """Subscribe to every mapped topic (returns once the broker confirmed); returns self."""
         self._started = _time.monotonic()
-        for topic in self.subscribed_topics:
-            validate_pattern(topic)
-            self._subscriptions.append(self.transport.subscribe(topic, self._receive, qos=self.qos))
+        self._subscribe(self.subscribed_topics)
         return self
+
+    def _subscribe(self, topics: list[str]) -> None:
+        for topic in topics:
+            if topic not in self._subscriptions:
+                validate_pattern(topic)
+                self._subscriptions[topic] = self.transport.subscribe(
+                    topic, self._receive, qos=self.qos
+                )
+
+    def replace(self, text: str, *, source: str = "<update>") -> tuple[bool, str]:
+        """Replace the properties by those of ``text``; returns ``(accepted, reason)``.
+
+        The public checker's ``reconfig``, reached here through a *signed* update:
+        ``UpdateReceiver(transport, key, properties=attachment.replace)``. A file that does not
+        load is refused and the properties in force stay. Otherwise the old monitor is settled
+        (its decided verdicts published), new signals are read where the topic map says (by
+        default the topic of their name) and topics no longer read are left.
+        """
+        try:
+            spec = load_specification(text, source=source)
+            monitor = Monitor(spec)
+            for name in monitor.properties:
+                validate_topic(self.verdict_topic.format(property=name))
+        except RasmError as exc:
+            return False, f"properties kept: the new file does not load: {exc}"
+        signals = list(spec.signals)
+        for signal in signals:
+            self.topics.setdefault(signal, Source(signal, signal))
+        by_topic: dict[str, list[Source]] = defaultdict(list)
+        for signal in signals:
+            by_topic[self.topics[signal].topic].append(self.topics[signal])
+        self._subscribe(sorted(by_topic))  # before the swap: no record of the new set is missed
+        with self._lock:
+            if self._stopped:
+                return False, "properties kept: the monitor is stopped"
+            settled = self.monitor.finish()
+            self._count(settled)
+            self.spec, self.monitor, self.signals = spec, monitor, signals
+            self._by_topic = by_topic
+            known = self.summary.properties
+            known += [name for name in monitor.properties if name not in known]
+        for topic in [t for t in self._subscriptions if t not in by_topic]:
+            self._subscriptions.pop(topic).cancel()
+        self._publish(settled)
+        return True, f"properties replaced by {source}: {', '.join(monitor.properties)}"
 
     # -- one message ----------------------------------------------------------------------------
     def _malformed(self, message: Message, why: str) -> None:
@@ -308,7 +351,7 @@ class Attachment:
     def stop(self) -> MonitorSummary:
         """Unsubscribe, settle the monitor (publishing the verdicts it decides), return the
         summary (idempotent)."""
-        for subscription in self._subscriptions:
+        for subscription in list(self._subscriptions.values()):
             subscription.cancel()
         self._subscriptions.clear()
         with self._lock:

@@ -93,7 +93,10 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
-    # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated
+    # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated.
+    # With RASM_UPDATE_KEY (hex) set, HMAC-signed {"spec": …} on rasm/update/properties replace
+    # the properties at run time (the public checker's unsigned `reconfig`, made safe).
+    import os
     import signal
     import threading
 
@@ -124,9 +127,18 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     attachment = Attachment(
         text, transport, source=args.props, topics=topics, on_verdict=show
     )
+    key_text = os.environ.get("RASM_UPDATE_KEY")
+    try:
+        key = bytes.fromhex(key_text) if key_text else None
+    except ValueError:
+        raise UsageError("RASM_UPDATE_KEY must be the signing key in hexadecimal") from None
     transport.connect()
     try:
         attachment.start()
+        if key:
+            from rasm.comm import UpdateReceiver
+
+            UpdateReceiver(transport, key, properties=attachment.replace).start()
         print(
             f"rasm monitor: {len(attachment.monitor.properties)} properties on "
             f"{len(attachment.subscribed_topics)} topic(s) of {args.transport}; "

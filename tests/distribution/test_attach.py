@@ -207,3 +207,40 @@ def test_the_command_reports_bad_input(broker, tmp_path):
         timeout=60,
     )
     assert done.returncode == 2 and "bad transport URL" in done.stderr
+
+
+NEW_PROPS = """
+property slow:
+    always (speed <= 2)
+"""
+
+
+def test_signed_property_updates_replace_the_monitors(mqtt):
+    from rasm.comm import UpdateReceiver, sign
+
+    key = b"operator key"
+    bus, operator = mqtt(), mqtt()
+    limit, slow, results = Inbox(), Inbox(), Inbox()
+    operator.subscribe("velocity_limit", limit, qos=1)
+    operator.subscribe("slow", slow, qos=1)
+    operator.subscribe("rasm/update/result", results, qos=1)
+    attachment = Attachment(PROPS, bus, qos=1).start()
+    UpdateReceiver(bus, key, properties=attachment.replace).start()
+
+    operator.publish("rasm/update/properties", {"spec": NEW_PROPS}, qos=1)
+    assert results.get().payload["reason"] == "unsigned"
+    operator.publish("rasm/update/properties", sign({"spec": "property p: always ("}, key), qos=1)
+    refused = results.get().payload
+    assert refused["accepted"] is False and "the new file does not load" in refused["reason"]
+    operator.publish("velocity", {"value": 0.9, "time": 1.0}, qos=1)
+    assert limit.get().payload == {"value": False, "time": 1.0}  # still the old properties
+
+    operator.publish("rasm/update/properties", sign({"spec": NEW_PROPS}, key), qos=1)
+    accepted = results.get().payload
+    assert accepted["accepted"] is True and accepted["reason"].endswith(": slow")
+    assert attachment.subscribed_topics == ["speed"]
+    operator.publish("speed", {"value": 3, "time": 2.0}, qos=1)
+    assert slow.get().payload == {"value": False, "time": 2.0}
+    summary = attachment.stop()
+    assert summary.properties == ["velocity_limit", "timely_adaptation", "slow"]
+    assert summary.violated == {"velocity_limit": 1, "slow": 1}
