@@ -411,9 +411,10 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     ``reads`` overrides, per property, the signals whose first values end its warm-up (by
     default: those it reads); explanations use it to evaluate sub-formulas in context.
 
-    The source defines ``factory()`` returning ``(step, run)``; it reads the names in
-    ``Program.constants`` plus ``STATE`` (initial values), ``VERDICT``, ``NAMES``, ``STARTS``,
-    ``VALUES``, ``REJECT_STEP`` and ``REJECT_RUN``, which the monitor provides.
+    The source defines ``factory()`` returning ``(step, run, finish_step, finish_run)``; it
+    reads the names in ``Program.constants`` plus ``STATE`` (initial values), ``TUPLE_NEW``,
+    ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``NUMERIC``, ``SCALAR``, ``UNSET``,
+    ``REJECT_STEP`` and ``REJECT_RUN``, which the monitor provides.
     """
     gen = _Generator(spec)
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}

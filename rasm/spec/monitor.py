@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from functools import partial
 from typing import NamedTuple
 
 from rasm.errors import SpecError
@@ -94,8 +92,7 @@ class Monitor:
         namespace = dict(self.program.constants)
         namespace.update(
             STATE=self.program.state,
-            VERDICT=partial(tuple.__new__, Verdict),
-            TUPLE_NEW=tuple.__new__,
+            TUPLE_NEW=tuple.__new__,  # Verdict((…)) without NamedTuple's Python-level __new__
             Verdict=Verdict,
             NAMES=self.names,
             STARTS=self.starts,
@@ -171,5 +168,3 @@ def compile(text: str, *, source: str = "<text>") -> Monitor:  # noqa: A001 - SP
     """Parse, check and compile a property file into a fresh :class:`Monitor`."""
     return Monitor(load_specification(text, source=source))
 
-
-INF = math.inf

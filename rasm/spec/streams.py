@@ -9,7 +9,6 @@ appear when an offline trace ends.
 
 from __future__ import annotations
 
-import math
 from collections import deque
 
 from rasm.spec.operators import Kleene, WindowCore
@@ -191,5 +190,3 @@ def kleene_function(op: str, plain):
 
     return lifted
 
-
-UNDEFINED = math.nan
