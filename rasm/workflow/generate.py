@@ -163,8 +163,8 @@ def generate_app(model: ArchitectureModel, folder: str | Path) -> Generated:
     for check in model.checks:
         template = "app/properties.rv.j2" if check.kind == "properties" else "app/rules.yaml.j2"
         once[check.file] = (template, {"check": check, "rules_yaml": _rules_stub(model)})
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, template in owned.items():
+    rendered: list[tuple[str, Path, str, list[Region]]] = []
+    for name, template in owned.items():  # merge everything first: broken markers write nothing
         path = folder / name
         fresh = env.get_template(template).render(**ctx)
         old = path.read_text(encoding="utf-8") if path.is_file() else None
@@ -172,9 +172,11 @@ def generate_app(model: ArchitectureModel, folder: str | Path) -> Generated:
             text, orphans = merge(fresh, old, str(path))
         except RegionError as exc:
             raise GenerateError(f"cannot regenerate {path}: {exc}") from None
+        rendered.append((name, path, text, [r for r in orphans if r.written]))
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, path, text, lost in rendered:
         path.write_text(text, encoding="utf-8")
         result.written.append(path)
-        lost = [r for r in orphans if r.written]
         if lost:
             result.orphans[path] = lost
             _save_orphans(folder, name, lost)

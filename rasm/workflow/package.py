@@ -90,12 +90,19 @@ def platform_tag(unit: ComputeUnit) -> str:
     return f"{unit.os}_{_MACHINE.get(unit.arch, unit.arch)}"
 
 
+def _pip_command(args: list[str]) -> list[str]:
+    return [sys.executable, "-m", "pip", *args, "--disable-pip-version-check"]
+
+
+def _pip_failed(args: list[str], what: str, output: str) -> PackageError:
+    tail = "\n".join(output.strip().splitlines()[-15:])
+    return PackageError(f"{what} failed (pip {' '.join(args[:2])}):\n{tail}")
+
+
 def _pip(args: list[str], what: str) -> str:
-    command = [sys.executable, "-m", "pip", *args, "--disable-pip-version-check"]
-    done = subprocess.run(command, capture_output=True, text=True)
+    done = subprocess.run(_pip_command(args), capture_output=True, text=True)
     if done.returncode != 0:
-        tail = "\n".join((done.stderr or done.stdout).strip().splitlines()[-15:])
-        raise PackageError(f"{what} failed (pip {' '.join(args[:2])}):\n{tail}")
+        raise _pip_failed(args, what, done.stderr or done.stdout)
     return done.stdout
 
 
@@ -110,14 +117,21 @@ def _rasm_source() -> Path:
     return root
 
 
-def _build_wheels(app: Path, name: str, binaries: Path, work: Path) -> list[Path]:
-    before = set(binaries.glob("*.whl"))
-    _pip(
-        ["wheel", "--no-deps", "--wheel-dir", str(binaries), str(_rasm_source())],
-        "building rasm's wheel",
-    )
+# rasm's wheel, built once per process and source state (packaging several apps in one go)
+_RASM_WHEELS: dict[tuple[Path, int], tuple[str, bytes]] = {}
+
+
+def _fingerprint(root: Path) -> int:
+    newest = (root / "pyproject.toml").stat().st_mtime_ns
+    for folder in ("rasm", "statecharts", "monitors", "properties"):
+        for path in (root / folder).rglob("*"):
+            if "__pycache__" not in path.parts and path.is_file():
+                newest = max(newest, path.stat().st_mtime_ns)
+    return newest
+
+
+def _stage_app(app: Path, name: str, stage: Path) -> None:
     version = metadata.version("rasm")
-    stage = work / "app-project"
     package = stage / app_module(name)
     shutil.copytree(
         app,
@@ -144,11 +158,36 @@ def _build_wheels(app: Path, name: str, binaries: Path, work: Path) -> list[Path
         f'packages = ["{app_module(name)}"]\n',
         encoding="utf-8",
     )
-    _pip(
-        ["wheel", "--no-deps", "--wheel-dir", str(binaries), str(stage)],
-        f"building the wheel of {name}",
-    )
-    return sorted(set(binaries.glob("*.whl")) - before)
+
+
+def _build_wheels(app: Path, name: str, binaries: Path, work: Path) -> list[Path]:
+    """``pip wheel --no-deps`` of rasm and of the app, side by side; returns the wheels."""
+    root = _rasm_source()
+    key = (root, _fingerprint(root))
+    stage = work / "app-project"
+    _stage_app(app, name, stage)
+    builds = {f"building the wheel of {name}": (work / "app-wheel", str(stage))}
+    if key not in _RASM_WHEELS:
+        builds["building rasm's wheel"] = (work / "rasm-wheel", str(root))
+    running = []
+    for what, (out, source) in builds.items():
+        args = ["wheel", "--no-deps", "--wheel-dir", str(out), source]
+        process = subprocess.Popen(
+            _pip_command(args), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        running.append((what, args, out, process))
+    for what, args, _out, process in running:
+        output, _ = process.communicate()
+        if process.returncode != 0:
+            raise _pip_failed(args, what, output)
+    if key not in _RASM_WHEELS:
+        [wheel] = sorted((work / "rasm-wheel").glob("rasm-*.whl"))
+        _RASM_WHEELS[key] = (wheel.name, wheel.read_bytes())
+    rasm_name, rasm_bytes = _RASM_WHEELS[key]
+    (binaries / rasm_name).write_bytes(rasm_bytes)
+    [app_wheel] = sorted((work / "app-wheel").glob("*.whl"))
+    shutil.copy(app_wheel, binaries / app_wheel.name)
+    return [binaries / rasm_name, binaries / app_wheel.name]
 
 
 def _download_dependencies(rasm_wheel: Path, unit: ComputeUnit, dest: Path) -> None:

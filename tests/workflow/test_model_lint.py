@@ -37,8 +37,15 @@ def test_the_example_models_lint_clean() -> None:
 
 def test_the_schema_is_a_json_schema_with_the_recognising_key() -> None:
     assert "architecture" in SCHEMA["required"]
-    assert {"components", "compute_units", "deployment", "communication", "trustworthiness",
-            "interface", "messages"} <= set(SCHEMA["properties"])
+    assert {
+        "components",
+        "compute_units",
+        "deployment",
+        "communication",
+        "trustworthiness",
+        "interface",
+        "messages",
+    } <= set(SCHEMA["properties"])
 
 
 def test_unknown_key_is_reported_at_the_key(tmp_path: Path) -> None:
@@ -56,15 +63,21 @@ def test_bad_enum_value_is_reported_at_the_value(tmp_path: Path) -> None:
 
 
 def test_dangling_message_type(tmp_path: Path) -> None:
-    text = BASE.replace("readings: {direction: out, message: HotboxSensors}",
-                        "readings: {direction: out, message: HotboxSensor}")
+    text = BASE.replace(
+        "readings: {direction: out, message: HotboxSensors}",
+        "readings: {direction: out, message: HotboxSensor}",
+    )
     errors = lint(tmp_path, text)
     where = position(text, "HotboxSensor}")
-    assert (*where, "port sensors.readings: unknown message type 'HotboxSensor' "
-            "(known: HeaterSettings, HotboxSensors)") in errors
+    assert (
+        *where,
+        "port sensors.readings: unknown message type 'HotboxSensor' "
+        "(known: HeaterSettings, HotboxSensors)",
+    ) in errors
     # the subscriber's type no longer matches what the publisher declares
-    assert any("expects HotboxSensors but sensors.readings publishes HotboxSensor" in e[2]
-               for e in errors)
+    assert any(
+        "expects HotboxSensors but sensors.readings publishes HotboxSensor" in e[2] for e in errors
+    )
 
 
 def test_dangling_compute_unit_in_deployment(tmp_path: Path) -> None:
@@ -85,16 +98,20 @@ def test_dangling_port_in_the_matrix(tmp_path: Path) -> None:
     text = BASE.replace("subscribers: [monitor.readings]", "subscribers: [monitor.reading]")
     errors = lint(tmp_path, text)
     at = position(text, "monitor.reading]")
-    assert (*at, "topic hotbox/sensors: component 'monitor' has no port 'reading' "
-            "(it has readings)") in errors
+    assert (
+        *at,
+        "topic hotbox/sensors: component 'monitor' has no port 'reading' (it has readings)",
+    ) in errors
     # and the port it meant to connect is now left without a peer
     port = position(text, "readings: {direction: in")
     assert any((e[0], e[1]) == port and "has no peer" in e[2] for e in errors)
 
 
 def test_dangling_runs_on(tmp_path: Path) -> None:
-    text = BASE.replace("- file: rules/hotbox.yaml\n      runs_on: edge",
-                        "- file: rules/hotbox.yaml\n      runs_on: cloud")
+    text = BASE.replace(
+        "- file: rules/hotbox.yaml\n      runs_on: edge",
+        "- file: rules/hotbox.yaml\n      runs_on: cloud",
+    )
     line, col, message = one(tmp_path, text)
     assert (line, col) == position(text, "cloud")
     assert "rules/hotbox.yaml runs on an unknown compute unit 'cloud'" in message
@@ -112,17 +129,23 @@ def test_port_with_no_peer(tmp_path: Path) -> None:
 
 
 def test_publisher_subscriber_type_mismatch(tmp_path: Path) -> None:
-    text = BASE.replace("settings: {direction: in, message: HeaterSettings}",
-                        "settings: {direction: in, message: HotboxSensors}")
+    text = BASE.replace(
+        "settings: {direction: in, message: HeaterSettings}",
+        "settings: {direction: in, message: HotboxSensors}",
+    )
     line, col, message = one(tmp_path, text)
     assert (line, col) == position(text, "heater.settings]")
-    assert message == ("topic hotbox/heater: heater.settings expects HotboxSensors but "
-                       "execute.settings publishes HeaterSettings")
+    assert message == (
+        "topic hotbox/heater: heater.settings expects HotboxSensors but "
+        "execute.settings publishes HeaterSettings"
+    )
 
 
 def test_direction_mismatch(tmp_path: Path) -> None:
-    text = BASE.replace("settings: {direction: out, message: HeaterSettings}",
-                        "settings: {direction: in, message: HeaterSettings}")
+    text = BASE.replace(
+        "settings: {direction: out, message: HeaterSettings}",
+        "settings: {direction: in, message: HeaterSettings}",
+    )
     line, col, message = one(tmp_path, text)
     assert (line, col) == position(text, "execute.settings")
     assert "publisher execute.settings is an 'in' port" in message
@@ -136,18 +159,25 @@ def test_component_on_no_compute_unit(tmp_path: Path) -> None:
 
 
 def test_unit_whose_transports_cannot_reach_a_peer(tmp_path: Path) -> None:
-    text = BASE.replace("    memory_mb: 4096\n    transports: [local, mqtt]",
-                        "    memory_mb: 4096\n    transports: [local]")
+    text = BASE.replace(
+        "    memory_mb: 4096\n    transports: [local, mqtt]",
+        "    memory_mb: 4096\n    transports: [local]",
+    )
     errors = lint(tmp_path, text)
     assert [(e[0], e[1]) for e in errors] == [
-        position(text, "monitor.readings]"), position(text, "heater.settings]")]
-    assert errors[0][2] == ("compute unit 'edge' (transports: local) cannot reach 'sensors' on "
-                            "'box' over mqtt (topic hotbox/sensors)")
+        position(text, "monitor.readings]"),
+        position(text, "heater.settings]"),
+    ]
+    assert errors[0][2] == (
+        "compute unit 'edge' (transports: local) cannot reach 'sensors' on "
+        "'box' over mqtt (topic hotbox/sensors)"
+    )
 
 
 def test_local_protocol_cannot_cross_units(tmp_path: Path) -> None:
     text = BASE.replace("    transports: [mqtt]\n", "    transports: [local, mqtt]\n").replace(
-        "    protocol: mqtt\n    qos: 1", "    protocol: local\n    qos: 1")
+        "    protocol: mqtt\n    qos: 1", "    protocol: local\n    qos: 1"
+    )
     line, col, message = one(tmp_path, text)
     assert (line, col) == position(text, "monitor.readings]")
     assert "over local (an in-process bus); use protocol: mqtt" in message
@@ -191,8 +221,10 @@ def test_property_reading_a_signal_nobody_produces(tmp_path: Path) -> None:
 
 
 def test_property_in_a_file_beside_the_model(tmp_path: Path) -> None:
-    text = BASE.replace("    - file: properties/hotbox.rv\n      runs_on: edge\n      text: |",
-                        "    - file: props.rv\n      runs_on: edge\n      unused: |")
+    text = BASE.replace(
+        "    - file: properties/hotbox.rv\n      runs_on: edge\n      text: |",
+        "    - file: props.rv\n      runs_on: edge\n      unused: |",
+    )
     start = text.index("      unused: |")
     end = text.index("  rules:")
     text = text[:start] + text[end:]
@@ -220,8 +252,9 @@ def test_bad_rules_text_is_reported_inside_the_model(tmp_path: Path) -> None:
 
 def test_not_a_model(tmp_path: Path) -> None:
     errors = lint(tmp_path, "components: {}\n")
-    assert errors == [(1, 1, "an architecture model is a mapping with a top-level "
-                       "'architecture: NAME'")]
+    assert errors == [
+        (1, 1, "an architecture model is a mapping with a top-level 'architecture: NAME'")
+    ]
 
 
 def test_yaml_syntax_error_has_a_position(tmp_path: Path) -> None:
@@ -235,5 +268,7 @@ def test_load_model_reads_every_section() -> None:
     assert model.managing_unit == "edge"
     assert {c.name for c in model.components_on("box")} == {"sensors", "heater"}
     assert [link.topic for link in model.links] == ["hotbox/sensors", "hotbox/heater"]
-    assert [(c.kind, c.runs_on) for c in model.checks] == [("properties", "edge"),
-                                                           ("rules", "edge")]
+    assert [(c.kind, c.runs_on) for c in model.checks] == [
+        ("properties", "edge"),
+        ("rules", "edge"),
+    ]
