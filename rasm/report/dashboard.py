@@ -130,11 +130,19 @@ class Dashboard:
     # ------------------------------------------------------------------ the browser's side
 
     def snapshot(self) -> tuple[int, str]:
-        """The current model as JSON, and its version (serialised once per version)."""
+        """The current model as JSON, and its version (serialised once per version).
+
+        Only the copy is taken under the lock: the loop thread waits for that, not for JSON.
+        """
         with self._cond:
-            if self._cache[0] != self._version:
-                self._cache = (self._version, json.dumps(self._model(), separators=(",", ":")))
-            return self._cache
+            if self._cache[0] == self._version:
+                return self._cache
+            version, model = self._version, self._model()
+        text = json.dumps(_json_safe(model), separators=(",", ":"), allow_nan=False)
+        with self._cond:
+            if self._cache[0] < version:
+                self._cache = (version, text)
+        return version, text
 
     def _model(self) -> dict[str, Any]:
         p = self.platform
@@ -157,7 +165,7 @@ class Dashboard:
             f"role {getattr(p, 'role', 'all')})",
         }
         data["missing"] = []
-        return _json_safe(data)
+        return data
 
     def page(self) -> str:
         name = getattr(getattr(self.platform, "manifest", None), "name", "platform")

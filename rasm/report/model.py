@@ -250,19 +250,26 @@ class TraceModel:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON-able data the page draws."""
+        """The JSON-able data the page draws: a copy, safe to serialise while records arrive."""
         return {
             "records": self.records,
             "start": self.first_time,
             "end": self.last_time,
             "stages": list(STAGES),
             "other_stages": sorted(self.other_stages),
-            "iterations": self.iterations,
+            "iterations": [
+                {"time": it["time"], "stages": dict(it["stages"])} for it in self.iterations
+            ],
             "timing": {
                 stage: percentiles(values) for stage, values in self.durations.items() if values
             },
-            "durations": {stage: values for stage, values in self.durations.items() if values},
-            "signals": self.signals,
+            "durations": {
+                stage: list(values) for stage, values in self.durations.items() if values
+            },
+            "signals": {
+                name: {"kind": s["kind"], "t": list(s["t"]), "v": list(s["v"])}
+                for name, s in self.signals.items()
+            },
             "adaptations": [asdict(a) for a in self.adaptations],
             "counts": self.counts(),
         }

@@ -86,12 +86,13 @@ class VerdictTimeline:
         return "satisfied"
 
     def to_dict(self) -> dict[str, Any]:
+        """The JSON-able timeline (a copy)."""
         return {
             "name": self.name,
             "source": self.source,
-            "reads": self.reads,
-            "runs": self.runs,
-            "violations": self.violations,
+            "reads": list(self.reads),
+            "runs": [list(run) for run in self.runs],
+            "violations": [dict(v) for v in self.violations],
             "judged": self.judged,
             "inconclusive": self.inconclusive,
             "verdict": self.verdict,

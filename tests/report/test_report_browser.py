@@ -37,8 +37,10 @@ def test_report_is_self_contained(hotbox_report: Path) -> None:
 
 
 def test_every_view_renders_with_data(page, hotbox_report: Path, tmp_path: Path) -> None:
-    _open(page, hotbox_report)
     p = page.page
+    fetched: list[str] = []  # the page must need no network: any request is refused and noted
+    p.route("http*://**", lambda route: (fetched.append(route.request.url), route.abort()))
+    _open(page, hotbox_report)
     for figure in ("gantt", "gantt-detail", "timing", "verdicts", "signals"):
         assert p.evaluate(TRACES, figure) > 0, figure
         assert p.locator(f"#{figure} .main-svg").count() > 0, figure  # plotly drew SVG
@@ -57,6 +59,7 @@ def test_every_view_renders_with_data(page, hotbox_report: Path, tmp_path: Path)
     print(f"report screenshot: {shot}")
     assert shot.stat().st_size > 10_000
     assert page.errors == []
+    assert fetched == []
 
 
 def test_app_properties_are_drawn_with_props(page, hotbox_trace: Path, tmp_path: Path) -> None:
