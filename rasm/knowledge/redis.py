@@ -171,6 +171,7 @@ class RedisKnowledgeBase(KnowledgeBase):
         self._checks: dict[str, tuple[Declaration, str, Check]] = {}
         self._listener: threading.Thread | None = None
         self._pubsub: Any = None
+        self._closing = threading.Event()
         try:
             client.ping()
         except redis.RedisError as exc:
@@ -451,17 +452,25 @@ class RedisKnowledgeBase(KnowledgeBase):
         self._listener.start()
 
     def _listen(self, pubsub: Any) -> None:
+        lost = False
         while True:
             try:
                 message = pubsub.get_message(timeout=1.0)
-            except (redis.RedisError, ValueError, AttributeError):
+            except (redis.RedisError, OSError, ValueError, AttributeError) as exc:
                 if self._pubsub is None:
                     return  # closed
-                _log.exception("lost the Redis registration feed; other processes' writes "
-                               "are no longer notified")
-                return
+                if not lost:
+                    # redis-py reconnects and subscribes again on the next read; notices
+                    # published meanwhile are lost (pub/sub keeps nothing), samples are not
+                    _log.warning("lost the Redis registration feed (%s); reconnecting", exc)
+                    lost = True
+                self._closing.wait(0.2)  # a pause between attempts; close() ends it at once
+                continue
             if self._pubsub is None:
                 return
+            if lost:
+                _log.info("the Redis registration feed is back")
+                lost = False
             if message is None or message.get("type") != "message":
                 continue
             try:
@@ -484,6 +493,7 @@ class RedisKnowledgeBase(KnowledgeBase):
     def close(self) -> None:
         """Stop the listener and release the connections (idempotent)."""
         pubsub, self._pubsub = self._pubsub, None
+        self._closing.set()
         if pubsub is not None:
             try:
                 pubsub.close()

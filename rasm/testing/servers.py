@@ -276,6 +276,11 @@ class _Server:
             process.kill()
             process.wait(timeout=5)
 
+    def restart(self) -> None:
+        """Stop the server and start it again on the same port (Redis: no data survives)."""
+        self.stop()
+        self.start()
+
     def __enter__(self) -> _Server:
         return self
 
