@@ -171,9 +171,18 @@ class _Verifier:
             when, require = self.formulas[i]
             solver.add(z3.Implies(keep[i], holds[i]))
             solver.add(z3.Implies(broken[i], z3.And(when, z3.Not(require))))
+        # Rules whose discrete guards never hold together with r's cannot help imply r (r holds
+        # wherever its guard is false), so each rule is judged against its partners only.
+        split = guard_split(self.rules.rules, self.rules.variables, members)
+        partners: dict[int, set[int]] = {i: set(members) for i in members}
+        if split is not None:
+            partners = {i: set() for i in members}
+            for active in split.active_sets:
+                for i in active:
+                    partners[i].update(active)
         result = []
         for i in members:
-            others = [j for j in members if j != i]
+            others = [j for j in members if j != i and j in partners[i]]
             if check(solver, [broken[i]] + [keep[j] for j in others]):
                 continue  # not implied even by all the others together
             core = core_ids(solver)
