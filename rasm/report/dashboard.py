@@ -210,10 +210,22 @@ class Dashboard:
             self._version += 1
             self._cond.notify_all()
 
+    def hold(self) -> None:
+        """Finish, then keep showing the finished run until Ctrl-C (or :meth:`close` from
+        another thread), then close. For ``rasm run --dashboard`` at an interactive terminal."""
+        self.finish()
+        try:
+            self._thread.join()  # until the server stops
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+
     def close(self, timeout: float = 2.0) -> None:
         """Finish, let the browsers have the final model (``timeout`` at most), stop serving."""
-        if self._closed:
-            return
+        with self._cond:
+            if self._closed:
+                return
         self.finish()
         with self._cond:
             self._cond.wait_for(lambda: self._streams == 0, timeout=timeout)

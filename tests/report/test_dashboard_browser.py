@@ -115,3 +115,19 @@ def test_a_taken_port_is_a_clear_error() -> None:
         port = taken.getsockname()[1]
         with pytest.raises(PlatformError, match=f"127.0.0.1:{port}.*--dashboard PORT"):
             serve(_hotbox("simulated"), port)
+
+
+def test_hold_keeps_the_finished_run_until_closed() -> None:
+    platform = _hotbox("simulated")
+    dashboard = serve(platform, 0)
+    platform.run(2.0)
+    holder = threading.Thread(target=dashboard.hold, daemon=True)
+    holder.start()
+    status, _, body = _get(dashboard.url + "model.json")
+    assert status == 200  # still served after the run
+    holder.join(0.2)
+    assert holder.is_alive()
+    dashboard.close()  # what Ctrl-C does in the holding thread
+    holder.join(10)
+    assert not holder.is_alive()
+    assert json.loads(body)["records"] > 0
