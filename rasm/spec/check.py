@@ -20,7 +20,8 @@ from rasm.spec.printer import format_value
 __all__ = ["CheckReport", "PropertyReport", "check_records", "format_json", "format_text",
            "format_verdicts"]
 
-EXPLAINED = 5  # violations explained per property in the text report
+EXPLAINED = 5  # violations explained in full per property in the text report
+SUMMARISED = 100  # further violations explained in one line each
 
 
 @dataclass
@@ -78,7 +79,8 @@ def check_records(
                            undecided, run)
         )
     if explain_violations:
-        wanted = {r.name: [i for i, _ in r.violations[:EXPLAINED]] for r in reports if r.violations}
+        limit = EXPLAINED + SUMMARISED
+        wanted = {r.name: [i for i, _ in r.violations[:limit]] for r in reports if r.violations}
         if wanted:
             explanations = explain(spec, records, wanted)
             for report in reports:
@@ -120,6 +122,29 @@ def format_verdicts(report: CheckReport) -> str:
     return "\n".join(lines) + ("\n" if lines else "")
 
 
+def _one_line(e: Explanation) -> str:
+    # the innermost reasons (the most indented lines, with the line they hang from) say the
+    # most in the least space: "velocity <= 0.5 failed: velocity = 0.7"
+    def depth(line: str) -> int:
+        return len(line) - len(line.lstrip())
+
+    deepest = max((depth(line) for line in e.lines), default=0)
+    groups: list[list[str]] = []
+    parent = None
+    for line in e.lines:
+        if depth(line) < deepest:
+            parent = line.strip()
+        elif groups and groups[-1][0] == parent:
+            groups[-1].append(line.strip())
+        else:
+            groups.append([parent, line.strip()])
+    parts = [
+        (f"{g[0].rstrip(':')}: " if g[0] else "") + ", ".join(g[1:]) for g in groups
+    ]
+    text = "; ".join(parts)
+    return text if len(text) <= 160 else text[:157] + "…"
+
+
 def format_text(report: CheckReport) -> str:
     """A human report: each property's verdict; each violation explained (the first few)."""
     out = [f"{report.source}: {len(report.properties)} properties over {report.records} "
@@ -131,12 +156,14 @@ def format_text(report: CheckReport) -> str:
                 f"  {p.name}: VIOLATED at {len(p.violations)} of {p.judged} judged records "
                 f"(first: record {first_index}, time {first_time:g})  [{p.location}]"
             )
-            for e in p.explanations:
+            for e in p.explanations[:EXPLAINED]:
                 out.append(f"    at record {e.index} (time {e.time:g}):")
                 out.extend("      " + line for line in e.lines)
                 values = ", ".join(f"{k} = {format_value(v)}" for k, v in e.signals.items())
                 if values:
                     out.append(f"      signals: {values}")
+            for e in p.explanations[EXPLAINED:]:
+                out.append(f"    at record {e.index} (time {e.time:g}): {_one_line(e)}")
             hidden = len(p.violations) - len(p.explanations)
             if hidden > 0:
                 more = ", ".join(f"{i}" for i, _ in p.violations[len(p.explanations):][:20])

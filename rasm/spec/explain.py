@@ -9,6 +9,7 @@ the window where the operand failed, for a comparison the values of both sides, 
 
 from __future__ import annotations
 
+from bisect import bisect_left, bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -110,21 +111,38 @@ class _Explainer:
     def shown(self, node: Expr, j: int) -> str:
         return f"{unparse(node)} = {format_value(self.val(node, j))}"
 
-    def past_window(self, node, i: int) -> list[int]:
+    def past_window(self, node, i: int) -> range:
+        """The records j <= i with a <= t_i - t_j <= b, newest first (found by bisection)."""
         a, b = node.bound.low, node.bound.high
         t = self.times
-        return [j for j in range(i, self.start - 1, -1) if a <= t[i] - t[j] <= b]
 
-    def future_window(self, node, i: int) -> list[int]:
+        def inside(j: int) -> bool:
+            return a <= t[i] - t[j] <= b
+
+        low = max(bisect_left(t, t[i] - b, self.start, i + 1) - 1, self.start)
+        high = min(bisect_right(t, t[i] - a, self.start, i + 1), i)
+        while low <= high and not inside(low):  # the bisection is on t_i - b, not on the
+            low += 1  # difference the semantics compares: settle the edges exactly
+        while high >= low and not inside(high):
+            high -= 1
+        return range(high, low - 1, -1)
+
+    def future_window(self, node, i: int) -> range:
+        """The records j >= i with a <= t_j - t_i <= b, oldest first."""
         a, b = node.bound.low, node.bound.high
         t = self.times
-        out = []
-        for j in range(i, len(t)):
-            if t[j] - t[i] > b:
-                break
-            if t[j] - t[i] >= a:
-                out.append(j)
-        return out
+        last = len(t) - 1
+
+        def inside(j: int) -> bool:
+            return a <= t[j] - t[i] <= b
+
+        low = max(bisect_left(t, t[i] + a, i) - 1, i)
+        high = min(bisect_right(t, t[i] + b, i), last)
+        while low <= high and not inside(low):
+            low += 1
+        while high >= low and not inside(high):
+            high -= 1
+        return range(low, high + 1)
 
     def leaves(self, node: Expr, i: int, depth: int) -> None:
         # the values of the operands that are not literals, e.g. "velocity = 0.7"
@@ -187,7 +205,7 @@ class _Explainer:
         self.say(depth, f"{text} {failed}")
 
 
-def _span(times: Sequence[float], window: list[int]) -> str:
+def _span(times: Sequence[float], window: range) -> str:
     if not window:
         return "(no record in the window)"
     first, last = min(window), max(window)
