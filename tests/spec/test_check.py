@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import itertools
 import json
+import math
 
 import pytest
 from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rasm.cli import main
 from rasm.errors import SourceErrors
@@ -245,3 +248,27 @@ def test_every_violation_is_explained(formula, records):
         assert explanation.lines[0].startswith(unparse(spec.properties[0].formula)[:20])
     text = format_text(report)
     assert ("VIOLATED" in text) == bool(prop.violations)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.sampled_from([0, 0.1, 0.2, 0.5, 1]), min_size=1, max_size=30),
+    st.sampled_from([0, 0.1, 0.3, 1]),
+    st.sampled_from([0, 0.1, 0.2, 0.7, 2, math.inf]),
+    st.data(),
+)
+def test_explanation_windows_are_the_semantic_ones(steps, low, width, data):
+    # the explainer finds windows by bisection; they must be exactly §5's windows
+    from rasm.spec.ast import Bound, Name, Past
+    from rasm.spec.explain import _Explainer
+
+    times = list(itertools.accumulate(steps))
+    i = data.draw(st.integers(0, len(times) - 1))
+    start = data.draw(st.integers(0, i))
+    node = Past("once", Bound(low, low + width), Name("p"))
+    explainer = _Explainer(None, times, start)
+    t = times
+    past = [j for j in range(i, start - 1, -1) if low <= t[i] - t[j] <= low + width]
+    future = [j for j in range(i, len(t)) if low <= t[j] - t[i] <= low + width]
+    assert list(explainer.past_window(node, i)) == past
+    assert list(explainer.future_window(node, i)) == future
