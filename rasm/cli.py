@@ -197,12 +197,29 @@ def _cmd_run(args: argparse.Namespace) -> int:
     duration = args.duration if args.duration is not None else manifest.duration
     console = Console(stderr=args.trace == "-")  # keep stdout for the trace
     platform.build()
-    if console.is_terminal and args.role != "managed":
-        with LiveView(platform, console, duration=duration):
+    dashboard = None
+    if args.dashboard is not None:
+        from rasm.report.dashboard import serve
+
+        dashboard = serve(platform, args.dashboard)  # attaches before the run starts
+        console.print(f"dashboard: {dashboard.url}")
+    try:
+        if console.is_terminal and args.role != "managed":
+            with LiveView(platform, console, duration=duration):
+                summary = platform.run(duration)
+        else:
             summary = platform.run(duration)
-    else:
-        summary = platform.run(duration)
+    except BaseException:
+        if dashboard is not None:
+            dashboard.close()
+        raise
     print_summary(summary, console)
+    if dashboard is not None:
+        if sys.stdin.isatty():
+            console.print(f"dashboard: {dashboard.url} shows the finished run; Ctrl-C stops it")
+            dashboard.hold()
+        else:
+            dashboard.close()
     return EXIT_OK if summary.ok else EXIT_FAILED
 
 
@@ -351,6 +368,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("report", _cmd_report, "render a trace as a self-contained HTML page")
     p.add_argument("trace")
     p.add_argument("-o", "--output", required=True)
+    p.add_argument("--props", action="append", default=[], metavar="PROPS.rv",
+                   help="property file to check the trace against (repeatable)")
+    p.add_argument("--no-platform-props", dest="platform_props", action="store_false",
+                   help="leave out the platform's own properties")
 
     p = command("new", _cmd_new, "create an application skeleton")
     p.add_argument("name")
