@@ -91,9 +91,11 @@ class OcclusionAnalyse:
         if need is not None and active + 1e-9 >= need * 360.0 / rays:
             return None  # the plan in force already covers every window
         self.raised_at = ctx.time
-        sectors = ", ".join(
-            "{:.0f} deg wide at {:.0f} deg".format(*reversed(w.degrees(rays))) for w in windows
-        )
+        described = []
+        for w in windows:
+            centre, width = w.degrees(rays)
+            described.append(f"{width:.0f} deg wide at {centre:.0f} deg")
+        sectors = ", ".join(described)
         return Anomaly(f"LiDAR occluded: {sectors}", data)
 
 

@@ -98,8 +98,9 @@ def spin_plan(
     return {
         "rotation": rotation,
         "angular_velocity": float(angular_velocity),
-        # rounded up to the millisecond, so the duration always fits the sweep
-        "spin_duration": math.ceil(4000.0 * rotation / angular_velocity) / 1000.0,
+        # rounded up to the millisecond (and a hair more, so float products stay above the
+        # sweep at exact boundaries): the duration always fits the sweep
+        "spin_duration": math.ceil(4000.0 * rotation / angular_velocity + 1e-6) / 1000.0,
         "stop_every": round((mark_range - lookahead) / cruise, 3),
         "velocity": cruise,
     }

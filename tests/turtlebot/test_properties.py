@@ -1,0 +1,97 @@
+"""The application's properties catch what they name, on small hand-made traces."""
+
+from __future__ import annotations
+
+from rasm.spec import compile
+
+from .conftest import APP
+
+PROPERTIES = (APP / "properties" / "turtlebot.rv").read_text()
+BASE = {"velocity": 0.2, "yaw_rate": 0.0}
+
+
+def violated(records):
+    """The properties false at some record of ``records`` (``(time, values)`` pairs)."""
+    monitor = compile(PROPERTIES, source="turtlebot.rv")
+    runs = monitor.run(
+        [(t, {**BASE, **r}) if i == 0 else (t, r) for i, (t, r) in enumerate(records)]
+    )
+    return {run.name for run in runs if any(v is False for v in run.values)}
+
+
+def iteration(t, *stages, anomaly=False, rejected_after_first_plan=False):
+    """Stage records of one loop iteration at time ``t`` with the events the loop writes."""
+    out = []
+    for stage in stages:
+        out.append((t, {"stage": stage, "duration": 0.001}))
+        if stage == "analyse" and anomaly:
+            out.append((t, {"anomaly": True}))
+        if stage == "plan":
+            out.append((t, {"planned": True}))
+        if stage == "legitimate":
+            if rejected_after_first_plan:
+                out.append((t, {"rejected": True}))
+                rejected_after_first_plan = False
+            else:
+                out.append((t, {"legitimate": True}))
+        if stage == "execute":
+            out.append((t, {"executed": True}))
+    return out
+
+
+FULL = ("monitor", "analyse", "plan", "legitimate", "execute")
+
+
+def test_a_well_ordered_loop_with_a_replan_satisfies_every_property():
+    trace = [
+        *iteration(0.2, "monitor", "analyse"),
+        *iteration(
+            0.4,
+            "monitor",
+            "analyse",
+            "plan",
+            "legitimate",
+            "plan",
+            "legitimate",
+            "execute",
+            anomaly=True,
+            rejected_after_first_plan=True,
+        ),
+        *iteration(0.6, "monitor", "analyse"),
+    ]
+    assert violated(trace) == set()
+
+
+def test_skipping_legitimate_breaks_the_stage_order():
+    trace = [*iteration(0.2, "monitor", "analyse", "plan", "execute", anomaly=True)]
+    assert violated(trace) == {"maple_stage_order"}
+
+
+def test_analysing_without_monitoring_breaks_the_stage_order():
+    trace = [*iteration(0.2, *FULL, anomaly=True), *iteration(0.4, "analyse")]
+    assert violated(trace) == {"maple_stage_order"}
+
+
+def test_an_unanswered_anomaly_breaks_timeliness():
+    trace = [*iteration(0.2, "monitor", "analyse", anomaly=True), *iteration(1.4, "monitor")]
+    assert violated(trace) == {"timely_spin_plan"}
+
+
+def test_speeding_spinning_too_fast_and_bumping_are_caught():
+    start = iteration(0.2, "monitor")
+    assert violated([*start, (0.3, {"velocity": 0.35})]) == {"velocity_limit"}
+    assert violated([*start, (0.3, {"yaw_rate": -1.7})]) == {"velocity_limit"}
+    assert violated([*start, (0.3, {"collision": True})]) == {"no_collision"}
+
+
+def test_new_debris_must_be_answered_within_four_seconds():
+    start = [*iteration(0.2, "monitor"), (0.3, {"debris": 0})]
+    late = [*start, (1.0, {"debris": 1}), *iteration(5.2, *FULL, anomaly=True)]
+    timely = [
+        *start,
+        (1.0, {"debris": 1}),
+        *iteration(2.4, *FULL, anomaly=True),
+        (6.0, {"debris": 1}),
+    ]
+    assert violated(late) == {"occlusion_compensated"}
+    assert violated(timely) == set()
