@@ -541,8 +541,16 @@ def _used(spec: Specification) -> list[str]:
 
 
 def _update_lines(spec: Specification, events: set[str]) -> list[str]:
-    """Validate a record's time and values, then update the held signals (all or nothing)."""
-    lines = [
+    """Validate a record's time and values, then update the held signals (all or nothing).
+
+    The fast tests look at exact classes; anything else (a numpy float, an int subclass) takes
+    the slow path through COERCE, which converts what it can and refuses the rest.
+    """
+    checks = [
+        "if t.__class__ not in NUMERIC:",
+        "    _t = COERCE(t, 'float')",
+        "    if _t is BAD: return REJECT(i + 1, t, rec, None, 'time')",
+        "    t = _t",
         # one test for both a nan and a time going back: neither is >= last_t
         "if t.__class__ not in NUMERIC or not t >= last_t: return REJECT(i + 1, t, rec, None, "
         "'time' if t.__class__ not in NUMERIC or t != t else 'backwards')",
@@ -553,14 +561,14 @@ def _update_lines(spec: Specification, events: set[str]) -> list[str]:
         var = signal_variable(name)
         tmp = f"n_{name}"
         if name in events:
-            lines.append(f"{tmp} = rec.get({name!r}, False)")
-            lines.append(
-                f"if {tmp} is not True and {tmp} is not False: "
-                f"return REJECT(i + 1, t, rec, {name!r}, 'bool')"
-            )
+            checks += [
+                f"{tmp} = rec.get({name!r}, False)",
+                f"if {tmp} is not True and {tmp} is not False:",
+                f"    {tmp} = COERCE({tmp}, 'bool')",
+                f"    if {tmp} is BAD: return REJECT(i + 1, t, rec, {name!r}, 'bool')",
+            ]
             assigns.append(f"{var} = {tmp}")
             continue
-        lines.append(f"{tmp} = rec.get({name!r}, UNSET)")
         check = {
             "float": f"{tmp}.__class__ not in NUMERIC",
             "int": f"{tmp}.__class__ is not int",
@@ -568,9 +576,15 @@ def _update_lines(spec: Specification, events: set[str]) -> list[str]:
             "str": f"{tmp}.__class__ is not str",
             "any": f"{tmp}.__class__ not in SCALAR",
         }[kind]
-        lines.append(
-            f"if {tmp} is not UNSET and {check}: "
-            f"return REJECT(i + 1, t, rec, {name!r}, {kind!r})"
-        )
+        checks += [
+            f"{tmp} = rec.get({name!r}, UNSET)",
+            f"if {tmp} is not UNSET and {check}:",
+            f"    {tmp} = COERCE({tmp}, {kind!r})",
+            f"    if {tmp} is BAD: return REJECT(i + 1, t, rec, {name!r}, {kind!r})",
+        ]
         assigns.append(f"if {tmp} is not UNSET: {var} = {tmp}")
-    return lines + assigns + ["last_t = t"]
+    # a record that is not a mapping (no .get), or a time that cannot be compared
+    guarded = ["try:", *("    " + line for line in checks),
+               "except (AttributeError, TypeError):",
+               "    return REJECT(i + 1, t, rec, None, 'record')"]
+    return guarded + assigns + ["last_t = t"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -51,8 +52,31 @@ class PropertyRun:
     values: list
 
 
+BAD = type("Bad", (), {"__repr__": lambda self: "<bad value>"})()
+
+
+def coerce(value, kind: str):
+    """The slow path of the generated checks: convert numpy-like scalars, refuse the rest.
+
+    Returns the plain Python value, or :data:`BAD`.
+    """
+    if isinstance(value, bool) or type(value).__name__ in ("bool_", "bool8"):
+        return bool(value) if kind in ("bool", "any") else BAD
+    if kind == "bool":
+        return BAD
+    if isinstance(value, numbers.Integral):
+        return int(value) if kind in ("int", "float", "any") else BAD
+    if isinstance(value, numbers.Real):
+        return float(value) if kind in ("float", "any") else BAD
+    if isinstance(value, str):
+        return str(value) if kind in ("str", "any") else BAD
+    return BAD
+
+
 def describe_rejection(time, record, signal: str | None, kind: str) -> str:
     """Why a record was rejected, in words (shared with the trace reader)."""
+    if kind == "record":
+        return f"a record must map signal names to values, not {type(record).__name__}"
     if kind == "time":
         return f"'time' must be a number, not {time!r}"
     if kind == "backwards":
@@ -102,6 +126,8 @@ class Monitor:
             NUMERIC=NUMERIC,
             SCALAR=SCALAR,
             UNSET=UNSET,
+            COERCE=coerce,
+            BAD=BAD,
         )
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)

@@ -123,3 +123,25 @@ def test_memory_is_bounded_by_the_window(bound):
     for t in range(3 * bound):
         mon.step(t, {"a": True})
         assert len(waiting) <= bound + 1
+
+
+def test_numeric_subclasses_are_accepted_and_non_records_refused():
+    from fractions import Fraction
+
+    class Stamp(float):
+        pass
+
+    class Count(int):
+        pass
+
+    mon = compile("input x: float\ninput n: int\nproperty p: x < 1 and n >= 0\n")
+    assert mon.step(Stamp(0), {"x": Fraction(1, 2), "n": Count(2)}) == [Verdict("p", 0, 0.0, True)]
+    assert mon.step(1, [("x", 1)]) == []
+    assert mon.step("2", {}) == []
+    assert mon.step(2, {"n": True}) == []
+    assert [r.reason for r in mon.rejected] == [
+        "a record must map signal names to values, not list",
+        "'time' must be a number, not '2'",
+        "'n' must be an integer, not true",
+    ]
+    assert mon.step(3, {"x": 2})[0] == Verdict("p", 1, 3, False)
