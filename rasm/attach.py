@@ -11,7 +11,8 @@ Where a signal comes from (a :class:`TopicMap`): by default signal ``x`` is read
 
     velocity: robot/odometry                 # field "value", else "velocity"
     mode: {topic: robot/state, field: mode}  # an explicit field
-    anomaly: {topic: rasm/trace}             # several signals may share one topic
+    anomaly: {topic: robot/state, field: alarm}  # several signals may share one topic
+    "*": rasm/trace                          # every other signal: this topic, field of its name
 
 A message's time is its ``time`` field (seconds), else the sender's envelope timestamp, else the
 time it arrived. A message that gives no mapped signal, a bad ``time``, or a record the monitor
@@ -70,7 +71,9 @@ class Source:
 
 
 TopicMap = dict[str, Source]
-"""Signal name -> :class:`Source`."""
+"""Signal name -> :class:`Source`; the key ``*`` names the topic of every unmapped signal."""
+
+ALL = "*"
 
 
 def default_topic_map(signals: list[str]) -> TopicMap:
@@ -105,9 +108,20 @@ def load_topic_map(
             Location(source, 1, 1),
         )
     lines = text.splitlines()
-    mapping = default_topic_map(signals)
+    mapping: TopicMap = {}
     for signal, entry in data.items():
         where = _find_line(source, lines, str(signal))
+        if signal == ALL:
+            if not isinstance(entry, str):
+                raise SourceError(
+                    f"'{ALL}': write the topic every other signal is read from", where
+                )
+            try:
+                validate_topic(entry)
+            except CommError as exc:
+                raise SourceError(f"'{ALL}': {exc}", where) from None
+            mapping[ALL] = Source(ALL, entry)
+            continue
         if signal not in signals:
             known = ", ".join(signals) or "none"
             raise SourceError(
@@ -128,7 +142,16 @@ def load_topic_map(
         except CommError as exc:
             raise SourceError(f"{signal!r}: {exc}", where) from None
         mapping[signal] = Source(signal, topic, fld)
+    for signal in signals:
+        mapping.setdefault(signal, _fallback(signal, mapping.get(ALL)))
     return mapping
+
+
+def _fallback(signal: str, everything: Source | None) -> Source:
+    """Where an unmapped signal is read: the ``*`` topic (field of its name), else its own."""
+    if everything is not None:
+        return Source(signal, everything.topic, signal)
+    return Source(signal, signal)
 
 
 def _find_line(source: str, lines: list[str], key: str) -> Location:
@@ -202,10 +225,10 @@ class Attachment:
         self.spec = load_specification(text, source=source)
         self.monitor = Monitor(self.spec)
         self.signals = list(self.spec.signals)
-        self.topics: TopicMap = topics if topics is not None else default_topic_map(self.signals)
-        missing = [s for s in self.signals if s not in self.topics]
-        if missing:
-            raise CommError(f"no topic given for signal(s) {', '.join(missing)}")
+        self.topics: TopicMap = dict(topics) if topics is not None else {}
+        self._everything = self.topics.pop(ALL, None)
+        for signal in self.signals:
+            self.topics.setdefault(signal, _fallback(signal, self._everything))
         for name in self.monitor.properties:
             validate_topic(verdict_topic.format(property=name))
         self.transport = transport
@@ -257,7 +280,7 @@ class Attachment:
             return False, f"properties kept: the new file does not load: {exc}"
         signals = list(spec.signals)
         for signal in signals:
-            self.topics.setdefault(signal, Source(signal, signal))
+            self.topics.setdefault(signal, _fallback(signal, self._everything))
         by_topic: dict[str, list[Source]] = defaultdict(list)
         for signal in signals:
             by_topic[self.topics[signal].topic].append(self.topics[signal])

@@ -244,3 +244,44 @@ def test_signed_property_updates_replace_the_monitors(mqtt):
     summary = attachment.stop()
     assert summary.properties == ["velocity_limit", "timely_adaptation", "slow"]
     assert summary.violated == {"velocity_limit": 1, "slow": 1}
+
+
+def test_a_whole_trace_on_one_topic(mqtt):
+    """``"*": rasm/trace``: every unmapped signal is the field of its name on one topic, so a
+    loop that publishes its trace records there is monitored as `rasm check` reads the file."""
+    mapping = load_topic_map(
+        "map.yaml",
+        ["velocity", "mode", "anomaly", "adapted"],
+        text='"*": rasm/trace\nmode: {topic: robot/state, field: mode}\n',
+    )
+    assert mapping["velocity"] == Source("velocity", "rasm/trace", "velocity")
+    assert mapping["mode"] == Source("mode", "robot/state", "mode")
+    bus, loop = mqtt(), mqtt()
+    limit, timely = Inbox(), Inbox()
+    loop.subscribe("velocity_limit", limit, qos=1)
+    loop.subscribe("timely_adaptation", timely, qos=1)
+    attachment = Attachment(PROPS, bus, topics=mapping, qos=1).start()
+    assert attachment.subscribed_topics == ["rasm/trace", "robot/state"]
+    records = [
+        {"time": 0.0, "velocity": 0.2, "adapted": False},
+        {"time": 1.0, "velocity": 0.9, "anomaly": True},
+        {"time": 1.5, "adapted": True},
+        {"time": 4.0, "velocity": 0.1},
+    ]
+    for record in records:
+        loop.publish("rasm/trace", record, qos=1)
+    # velocity is held at 0.9 on the record at 1.5 (sample-and-hold)
+    assert [m.payload["value"] for m in limit.take(4)] == [True, False, False, True]
+    assert {"value": True, "time": 1.0} in [m.payload for m in timely.take(3)]
+    # a property update may read a new signal: it comes from the "*" topic too
+    ok, _ = attachment.replace("property quick: always (latency <= 1)")
+    assert ok and attachment.subscribed_topics == ["rasm/trace"]
+    quick = Inbox()
+    loop.subscribe("quick", quick, qos=1)
+    loop.publish("rasm/trace", {"time": 5.0, "latency": 3}, qos=1)
+    loop.publish("rasm/trace", {"time": 6.0, "latency": 0.5}, qos=1)
+    assert [m.payload for m in quick.take(2)] == [
+        {"value": False, "time": 5.0},
+        {"value": True, "time": 6.0},
+    ]
+    attachment.stop()
