@@ -10,8 +10,17 @@ import sys
 import textwrap
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from rasm.comm import MqttTransport, Presence, PresenceTracker, presence_topic, presence_will
+from rasm.comm import (
+    LocalTransport,
+    MqttTransport,
+    Presence,
+    PresenceTracker,
+    presence_topic,
+    presence_will,
+)
 from rasm.errors import CommError
 
 NODE = textwrap.dedent(
@@ -154,3 +163,30 @@ def test_names_and_numbers_are_checked():
     will = presence_will("n", "planner")
     assert (will.topic, will.retain, will.qos) == ("rasm/presence/n", True, 1)
     assert will.payload == {"state": "offline", "role": "planner", "reason": "lost"}
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["a", "b", "c"]), st.sampled_from(["online", "offline"])),
+        max_size=30,
+    )
+)
+def test_on_change_reports_each_change_once_in_order(messages):
+    """Whatever the sequence of announcements, ``on_change`` sees exactly the changes."""
+    bus = LocalTransport()
+    bus.connect()
+    seen: list[tuple[str, str]] = []
+    tracker = PresenceTracker(bus, timeout=3600, on_change=lambda n, s: seen.append((n, s)))
+    tracker.start()
+    for node, state in messages:
+        bus.publish(presence_topic(node), {"state": state, "role": None})
+    expected, last = [], {}
+    for node, state in messages:
+        if last.get(node) != state:
+            expected.append((node, state))
+            last[node] = state
+    assert seen == expected
+    assert {n: s.state for n, s in tracker.nodes().items()} == last
+    tracker.stop()
+    bus.close()
