@@ -174,12 +174,12 @@ class _Generator:
         return False if self.types.check(node) == "bool" else math.nan
 
     def once(self, a: float, b: float, value: str) -> str:
+        if a == 0 and b == INF:  # once, unbounded: a flag
+            seen = self.variable("f", False)
+            self.lines.append(f"if {value}: {seen} = True")
+            return seen
         last = self.variable("l", None)
         out = self.fresh("v")
-        if a == 0 and b == INF:
-            self.lines.append(f"if {value}: {last} = True")
-            self.lines.append(f"{out} = {last} is not None")
-            return out
         if a == 0:
             self.lines.append(f"if {value}: {last} = t")
         else:
@@ -504,11 +504,29 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             lines.append("    out = []")
             indent = "    "
             reject = "REJECT_STEP"
-        for line in [*update, "i += 1", *properties]:
+        body = [*update, "i += 1", *properties]
+        # one past-only property: its verdict is the body's last statement, so the step
+        # function can return a one-element list directly (cheaper than append + return)
+        single = (
+            mode == "step"
+            and len(blocks) == 1
+            and isinstance(properties[-1], tuple)
+            and properties[-1][0] == "EMIT"
+            and properties[-1][2] == "i"
+        )
+        if single:
+            lines.pop()  # no "out = []"
+        for line in body:
             text = _render(line, mode)
-            if text is not None:
-                lines.append(indent + text.replace("REJECT(", reject + "("))
-        lines.append("    return out" if mode == "step" else "    return None")
+            if text is None:
+                continue
+            if single and line is properties[-1]:
+                text = text.replace("out.append(", "return [", 1)[:-1] + "]"
+            lines.append(indent + text.replace("REJECT(", reject + "("))
+        if mode == "run":
+            lines.append("    return None")
+        else:
+            lines.append("    return []" if single else "    return out")
         return lines
 
     factory = ["def factory():"]
