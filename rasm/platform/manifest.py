@@ -83,6 +83,9 @@ class AppManifest:
     veto_properties: tuple[str, ...] = ()
     mode_signal: str | None = None
     logging: dict[str, Any] = field(default_factory=dict)
+    twin: str | None = None
+    twin_horizon: float = 20.0
+    twin_dt: float = 0.5
     raw: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -179,6 +182,14 @@ def load_manifest(app: str | Path) -> AppManifest:
                     f"'{ref}' is not module:Class", _path_location(src, ["components", stage])
                 )
             )
+    twin = data.get("twin") or {}
+    if "component" in twin and not _REF.match(str(twin["component"])):
+        problems.append(
+            src.error(
+                f"'{twin['component']}' is not module:Class",
+                _path_location(src, ["twin", "component"]),
+            )
+        )
     managed = data.get("managed_system", {}) or {}
     probes = []
     for i, probe in enumerate(data.get("probes", [])):
@@ -244,5 +255,8 @@ def load_manifest(app: str | Path) -> AppManifest:
         veto_properties=tuple(trust.get("veto_properties", ())),
         mode_signal=trust.get("mode_signal"),
         logging=plain(data.get("logging", {}) or {}),
+        twin=(data.get("twin") or {}).get("component"),
+        twin_horizon=float((data.get("twin") or {}).get("horizon", 20.0)),
+        twin_dt=float((data.get("twin") or {}).get("dt", 0.5)),
         raw=plain(data),
     )

@@ -74,8 +74,16 @@ class AdaptationOrchestrator(Block):
         stage_budget: float = 1.0,
         max_replans: int = 2,
         isolate_stages: bool = True,
+        twin: Any = None,
+        twin_properties: list[tuple[str, str]] = (),  # type: ignore[assignment]
+        twin_horizon: float = 20.0,
+        twin_dt: float = 0.5,
         **kw: Any,
     ) -> None:
+        self.twin = twin
+        self.twin_properties = list(twin_properties)
+        self.twin_horizon = twin_horizon
+        self.twin_dt = twin_dt
         self.components = components
         self.knowledge = knowledge
         self.rules = rules
@@ -214,6 +222,10 @@ class AdaptationOrchestrator(Block):
             if not ok:
                 broken.append("application")
                 reasons.append(why)
+            if not broken and self.twin is not None:
+                for name, why in self._twin_check(plan, context):
+                    broken.append(f"twin:{name}")
+                    reasons.append(why)
             if broken:
                 self.stats.rejected += 1
                 ctx.rejections.append((plan, broken, "; ".join(reasons)))
@@ -233,6 +245,29 @@ class AdaptationOrchestrator(Block):
             return "accepted"
 
         self._stage("legitimate", "legitimate", done)
+
+    def _twin_check(self, plan: Any, context: dict[str, Any]) -> list[tuple[str, str]]:
+        """Simulate ``plan`` on the digital twin; the properties it predicts will break."""
+        from rasm.spec import compile as compile_properties
+
+        try:
+            predicted = self.twin.simulate(plan.values, context, self.twin_horizon, self.twin_dt)
+        except Exception as exc:  # fail closed: a plan the twin cannot judge is not legitimate
+            return [("simulation", f"the twin could not simulate the plan: {exc}")]
+        broken: dict[str, str] = {}
+        for source, text in self.twin_properties:
+            monitor = compile_properties(text, source=source)
+            verdicts = []
+            for offset, values in predicted:
+                verdicts.extend(monitor.step(self.clock.time + offset, values))
+            verdicts.extend(monitor.finish())
+            for verdict in verdicts:
+                if verdict.value is False and verdict.property not in broken:
+                    broken[verdict.property] = (
+                        f"the twin predicts {verdict.property} is violated "
+                        f"{verdict.time - self.clock.time:.1f} s after the plan"
+                    )
+        return list(broken.items())
 
     def on_enter_executing(self) -> None:
         def done(ctx: StageContext, result: Any) -> str:

@@ -123,6 +123,8 @@ class Platform:
         self._built = False
         self._started_at = 0.0
         self._timeline_start = 0.0
+        self.twin: Any = None
+        self._twin_inputs: frozenset[str] = frozenset()
 
     # ------------------------------------------------------------------ assembly
 
@@ -251,8 +253,13 @@ class Platform:
             for stage, ref in m.components.items()
         }
         components.update(self._component_overrides)
+        self.twin = self._load_twin(package)
         self.ao = AdaptationOrchestrator(
             chart=self._chart("adaptation_orchestrator"),
+            twin=self.twin,
+            twin_properties=[(str(p), p.read_text(encoding="utf-8")) for p in m.properties],
+            twin_horizon=m.twin_horizon,
+            twin_dt=m.twin_dt,
             components=components,
             knowledge=self.kb,
             rules=self.rules,
@@ -269,6 +276,43 @@ class Platform:
         )
         self.trace.observers.append(self.tc.observe)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+
+    def _load_twin(self, package: str) -> Any:
+        """The app's digital twin (manifest ``twin:``), restored from knowledge if it learned
+        before a restart."""
+        m = self.manifest
+        twin = self._component_overrides.get("twin")
+        if twin is None and m.twin:
+            twin = load_component(m.twin, m.folder, package=package)
+        if twin is not None:
+            model = self.kb.read_knowledge("twin_model")
+            if model:
+                try:
+                    twin.load(model)
+                except Exception as exc:  # a stale model is relearned, never fatal
+                    _log.warning("the twin's stored model was not restored: %s", exc)
+            self._twin_inputs = frozenset(twin.inputs)
+        return twin
+
+    def _observe_twin(self, keys: set[str], time: float) -> None:
+        """Let the twin learn from the latest inputs; publish its residual, model and drift."""
+        twin = self.twin
+        values = {key: self.kb.read_knowledge(key) for key in twin.inputs}
+        try:
+            update = twin.observe(time, values)
+        except Exception as exc:  # a twin fault is logged; learning goes on with the next record
+            _log.error("digital twin failed to learn: %s: %s", type(exc).__name__, exc)
+            return
+        if update is None:
+            return
+        self._register({"twin_residual": float(update.residual)}, time)
+        if update.model_changed:
+            model = twin.model()
+            self._register({"twin_model": model}, time)
+            self._emit(time, {"twin_model_version": model.get("version")})
+        if update.drift:
+            self._emit(time, {"drift": True, "explanation": "the digital twin detected drift"})
+            self.scheduler.submit(lambda: self.ao.send("drift_detected"))
 
     def _chart(self, name: str) -> Path | None:
         """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
@@ -292,6 +336,8 @@ class Platform:
                 stored[key] = value
         if stored:
             self._emit(time, stored)
+        if self.twin is not None and not self._twin_inputs.isdisjoint(values):
+            self._observe_twin(set(values), time)
 
     def _knowledge_updated(self, key: str, sample: Any) -> None:
         self.stom.register_knowledge_update(key, sample)
