@@ -51,9 +51,10 @@ def test_a_relative_path_without_base_folder_is_taken_from_the_current_one(tmp_p
     assert (tmp_path / "k.db").exists()
 
 
-def test_redis_is_not_available_yet():
-    with pytest.raises(KnowledgeError, match="Redis is not available yet; use memory or sqlite"):
-        open_knowledge("redis://localhost:6379/0")
+def test_an_unreachable_redis_is_a_clear_error():
+    # port 1 on loopback: nothing listens there (the Redis store itself: tests/distribution)
+    with pytest.raises(KnowledgeError, match="cannot reach the Redis knowledge store"):
+        open_knowledge("redis://127.0.0.1:1/0")
 
 
 @pytest.mark.parametrize(
