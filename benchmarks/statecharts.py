@@ -1,0 +1,193 @@
+"""Statechart execution speed: stock sismic against rasm's FastInterpreter.
+
+Runs both interpreters on the same charts and the same event sequences, in one process, and prints
+events per second for each case with the ratio rasm/stock. The last line is ``min_ratio=X.XX``.
+
+Cases (see docs/performance-statecharts.md for the figures):
+
+- ``flat``: a flat 3-state cycle, one ``next`` event per step;
+- ``parallel-all``: six parallel 5-state lifecycles, every region firing on each event;
+- ``parallel-one``: the same chart, one region firing per event;
+- ``parallel-all+property`` / ``parallel-one+property``: the same with a property statechart bound;
+- ``orchestrator``: the platform's MAPLE-K orchestrator
+  (``statecharts/adaptation_orchestrator.yaml``) through full loop iterations, if that chart exists.
+
+Run: ``.venv/bin/python benchmarks/statecharts.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from sismic.interpreter import Interpreter
+from sismic.io import import_from_yaml
+from sismic.model import Statechart
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from rasm.statechart.fast import FastInterpreter  # noqa: E402
+
+FLAT = """
+statechart:
+  name: flat
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      transitions:
+      - {target: b, event: next}
+    - name: b
+      transitions:
+      - {target: c, event: next}
+    - name: c
+      transitions:
+      - {target: a, event: next}
+"""
+
+REGIONS = 6
+LIFECYCLE = ["created", "configured", "running", "paused", "stopped"]
+
+
+def lifecycles_yaml() -> str:
+    """Six parallel 5-state lifecycles; region i answers ``step`` (all) and ``step_i`` (one)."""
+    lines = [
+        "statechart:",
+        "  name: lifecycles",
+        "  root state:",
+        "    name: root",
+        "    initial: running_all",
+        "    states:",
+        "    - name: running_all",
+        "      parallel states:",
+    ]
+    for i in range(REGIONS):
+        lines += [f"      - name: r{i}", f"        initial: r{i}_{LIFECYCLE[0]}", "        states:"]
+        for k, name in enumerate(LIFECYCLE):
+            nxt = LIFECYCLE[(k + 1) % len(LIFECYCLE)]
+            lines += [
+                f"        - name: r{i}_{name}",
+                "          transitions:",
+                f"          - {{target: r{i}_{nxt}, event: step}}",
+                f"          - {{target: r{i}_{nxt}, event: step_{i}}}",
+            ]
+    return "\n".join(lines) + "\n"
+
+
+# A typical timeliness property: once region 0 is running it must pause within 10 s.
+PROPERTY = """
+statechart:
+  name: r0 pauses within 10 s of running
+  root state:
+    name: root
+    initial: idle
+    states:
+    - name: idle
+      transitions:
+      - target: waiting
+        event: state entered
+        guard: event.state == 'r0_running'
+    - name: waiting
+      transitions:
+      - target: idle
+        event: state entered
+        guard: event.state == 'r0_paused'
+      - target: failure
+        guard: after(10)
+    - name: failure
+      type: final
+"""
+
+
+def run_events(make: Callable[[], Interpreter], events: Sequence[str], dt: float) -> float:
+    """Queue and execute ``events`` one at a time, advancing the clock; return events/s."""
+    interp = make()
+    interp.execute()
+    start = time.perf_counter()
+    for name in events:
+        interp.clock.time += dt
+        interp.queue(name)
+        interp.execute()
+    return len(events) / (time.perf_counter() - start)
+
+
+def case(chart: Statechart, events: Sequence[str], prop: Statechart | None, dt: float = 0.1):
+    """Return (stock factory, rasm factory, events, dt) for a chart and optional property."""
+
+    def factory(klass):
+        def make():
+            interp = klass(chart)
+            if prop is not None:
+                interp.bind_property_statechart(prop, interpreter_klass=klass)
+            return interp
+
+        return make
+
+    return factory(Interpreter), factory(FastInterpreter), events, dt
+
+
+def orchestrator_case(n_iterations: int):
+    """The MAPLE-K orchestrator through full loop iterations, or None if the chart is absent."""
+    path = ROOT / "statecharts" / "adaptation_orchestrator.yaml"
+    if not path.exists():
+        return None
+    chart = import_from_yaml(filepath=str(path))
+    setup = ["configure", "configuration_done", "initialization_done"]
+    loop = ["tick", "monitored", "anomaly", "planned", "accepted", "executed"]
+    events = setup + loop * n_iterations
+    return case(chart, events, None)
+
+
+def measure(stock, rasm, events, dt, repeats: int) -> tuple[float, float]:
+    """Median events/s of stock and rasm over ``repeats`` interleaved runs."""
+    s, r = [], []
+    for _ in range(repeats):
+        s.append(run_events(stock, events, dt))
+        r.append(run_events(rasm, events, dt))
+    return statistics.median(s), statistics.median(r)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer events and repeats")
+    parser.add_argument("--repeats", type=int, default=None)
+    args = parser.parse_args(argv)
+    n = 600 if args.quick else 3000
+    repeats = args.repeats or (3 if args.quick else 5)
+
+    flat = import_from_yaml(FLAT)
+    lifecycles = import_from_yaml(lifecycles_yaml())
+    prop = import_from_yaml(PROPERTY)
+    one = [f"step_{i % REGIONS}" for i in range(n)]
+    cases = {
+        "flat": case(flat, ["next"] * n, None),
+        "parallel-all": case(lifecycles, ["step"] * (n // 3), None),
+        "parallel-one": case(lifecycles, one, None),
+        "parallel-all+property": case(lifecycles, ["step"] * (n // 6), prop),
+        "parallel-one+property": case(lifecycles, one[: n // 3], prop),
+    }
+    orch = orchestrator_case(n // 6)
+    if orch is None:
+        print("note: statecharts/adaptation_orchestrator.yaml absent, orchestrator case skipped")
+    else:
+        cases["orchestrator"] = orch
+    print("note: the simulated Hotbox case needs the platform runtime, not built yet: skipped")
+
+    ratios = []
+    print(f"{'case':<24}{'stock ev/s':>12}{'rasm ev/s':>12}{'ratio':>8}")
+    for name, (stock, rasm, events, dt) in cases.items():
+        s, r = measure(stock, rasm, events, dt, repeats)
+        ratios.append(r / s)
+        print(f"{name:<24}{s:>12,.0f}{r:>12,.0f}{r / s:>8.2f}")
+    print(f"min_ratio={min(ratios):.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

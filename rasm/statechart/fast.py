@@ -1,0 +1,577 @@
+"""A faster sismic interpreter with exactly the stock semantics.
+
+:class:`FastInterpreter` subclasses :class:`sismic.interpreter.Interpreter` and overrides its
+private step machinery. It takes the same decisions in the same order (same macro and micro steps,
+same guard, action and contract evaluations, same meta-events, same errors and messages); only the
+bookkeeping is cheaper:
+
+- tree queries (ancestors, descendants, depth, least common ancestor) come from tables computed
+  once per chart (:mod:`rasm.statechart.fast_tables`);
+- transitions are looked up in an index by event name, already in stock selection order;
+- the pairwise conflict check of simultaneous transitions is cached per pair;
+- the sorted configuration is cached until the configuration changes;
+- contract evaluation is skipped for objects that declare no contract (with sismic's evaluators,
+  whose contract methods then do nothing at all);
+- meta-events are not built when nobody listens;
+- a bound property statechart is executed only for the meta-events it could react to (see
+  :class:`PropertyListener`).
+
+Attributes keep the names, types and meaning of stock sismic (``_configuration``, ``_memory``,
+``_time``, queues, ...), so code that snapshots and restores them keeps working: the cached
+configuration order is keyed by the identity of the ``_configuration`` set and a version counter
+bumped at each change this class makes.
+"""
+
+from __future__ import annotations
+
+import bisect
+import warnings
+from collections.abc import Callable, Iterable
+from itertools import combinations
+from typing import Any
+
+from sismic.clock import SynchronizedClock
+from sismic.code import Evaluator, PythonEvaluator
+from sismic.exceptions import (
+    ConflictingTransitionsError,
+    NonDeterminismError,
+    PropertyStatechartError,
+)
+from sismic.interpreter import Interpreter
+from sismic.interpreter.listener import PropertyStatechartListener
+from sismic.model import (
+    Event,
+    InternalEvent,
+    MacroStep,
+    MetaEvent,
+    MicroStep,
+    Statechart,
+    Transition,
+)
+
+from rasm.statechart import fast_tables as ft
+
+__all__ = ["FastInterpreter", "PropertyListener"]
+
+# Event classes whose ``delay`` can only come from their data (no attribute, no __getattr__
+# override): reading ``data`` directly avoids the exception stock ``getattr`` goes through.
+_PLAIN_EVENTS = (Event, InternalEvent, MetaEvent)
+
+
+def _delay(event: Event) -> Any:
+    if type(event) in _PLAIN_EVENTS:
+        return event.data.get("delay", 0)
+    return getattr(event, "delay", 0)
+
+
+def _has_delay(event: Event) -> bool:
+    if type(event) in _PLAIN_EVENTS:
+        return "delay" in event.data
+    return hasattr(event, "delay")
+
+
+def _standard_contracts(evaluator: Evaluator) -> bool:
+    """True if the evaluator's contract methods are sismic's own (so no-contract means no-op)."""
+    klass = type(evaluator)
+    return all(
+        getattr(klass, name) in (getattr(PythonEvaluator, name), getattr(Evaluator, name))
+        for name in ("evaluate_preconditions", "evaluate_postconditions", "evaluate_invariants")
+    )
+
+
+def _standard_actions(evaluator: Evaluator) -> bool:
+    """True if entry/exit actions go through sismic's base methods (no code means no call)."""
+    klass = type(evaluator)
+    return (
+        klass.execute_on_entry is Evaluator.execute_on_entry
+        and klass.execute_on_exit is Evaluator.execute_on_exit
+    )
+
+
+class FastInterpreter(Interpreter):
+    """Drop-in replacement for :class:`sismic.interpreter.Interpreter`, several times faster.
+
+    Same constructor, public API and semantics. The statechart must not be modified while an
+    interpreter runs it (tables are rebuilt for interpreters created after an edit).
+    """
+
+    def __init__(
+        self,
+        statechart: Statechart,
+        *,
+        evaluator_klass: Callable[..., Evaluator] = PythonEvaluator,
+        initial_context: Any = None,
+        clock: Any = None,
+        ignore_contract: bool = False,
+    ) -> None:
+        # Set before the stock constructor: it runs the preamble, which may call active().
+        self._tables = ft.tables_for(statechart)
+        self._conf_version = 0
+        self._conf_cache_key: tuple[Any, int, int] | None = None
+        self._conf_cache: list[str] = []
+        self._reactive_key: tuple[Any, int, int] | None = None
+        self._reactive: frozenset[str] = frozenset()
+        self._fast_events = False
+        self._contracts_possible = True
+        super().__init__(
+            statechart,
+            evaluator_klass=evaluator_klass,
+            initial_context=initial_context,
+            clock=clock,
+            ignore_contract=ignore_contract,
+        )
+        klass = type(self)
+        # Skipping a call is only equivalent when the callee is the one this module knows.
+        self._fast_events = klass._raise_event is FastInterpreter._raise_event
+        self._fast_contracts = (
+            klass._evaluate_contract_conditions is FastInterpreter._evaluate_contract_conditions
+            and _standard_contracts(self._evaluator)
+        )
+        # Whether any contract evaluation can do something (``_ignore_contract`` is read live).
+        self._contracts_possible = self._tables.has_contracts or not self._fast_contracts
+        self._skip_noop_actions = _standard_actions(self._evaluator)
+
+    def __repr__(self) -> str:
+        # Stock text for this class itself, so that messages embedding the repr of a property
+        # interpreter (PropertyStatechartError) read exactly as with stock sismic.
+        name = "Interpreter" if type(self) is FastInterpreter else type(self).__name__
+        return f"{name}({self._statechart!r})"
+
+    # ---- public API -----------------------------------------------------------------------
+
+    @property
+    def configuration(self) -> list[str]:
+        """Active state names ordered by depth, ties broken by name (as stock sismic)."""
+        conf = self._configuration
+        key = (conf, self._conf_version, len(conf))
+        cached = self._conf_cache_key
+        # ``is`` on the set itself (held by the key, so its id cannot be reused) detects the
+        # attribute being reassigned, e.g. by a snapshot restore.
+        if cached is None or cached[0] is not conf or cached[1:] != key[1:]:
+            table = self._tables.config_key
+            try:
+                self._conf_cache = sorted(conf, key=table.__getitem__)
+            except KeyError:  # an unknown name: let stock raise its StatechartError
+                return super().configuration
+            self._conf_cache_key = key
+        return list(self._conf_cache)
+
+    def bind_property_statechart(
+        self,
+        statechart: Statechart,
+        *,
+        interpreter_klass: Callable | None = None,
+    ) -> Callable[[MetaEvent], Any]:
+        """Bind a property statechart, executed by a :class:`FastInterpreter` by default.
+
+        Same behaviour as stock sismic; the returned listener is a :class:`PropertyListener`,
+        which skips the meta-events the property statechart cannot react to.
+        """
+        if isinstance(statechart, Interpreter):
+            return super().bind_property_statechart(statechart)
+        klass = FastInterpreter if interpreter_klass is None else interpreter_klass
+        listener = PropertyListener(klass(statechart, clock=SynchronizedClock(self)))
+        self.attach(listener)
+        return listener
+
+    def reactive_events(self) -> frozenset[str]:
+        """Names of the events some transition of an active state listens to."""
+        conf = self._configuration
+        key = self._reactive_key
+        if key is None or key[0] is not conf or key[1] != self._conf_version or key[2] != len(conf):
+            events_from = self._tables.events_from
+            found: set[str] = set()
+            for name in conf:
+                found |= events_from.get(name, frozenset())
+            self._reactive = frozenset(found)
+            self._reactive_key = (conf, self._conf_version, len(conf))
+        return self._reactive
+
+    # ---- macro step -----------------------------------------------------------------------
+
+    def execute_once(self) -> MacroStep | None:
+        """Stock ``execute_once`` with cheap contract and meta-event bookkeeping."""
+        self._time = self.clock.time
+        self._sent_events.clear()
+        fast_events = self._fast_events
+        if self._listeners or not fast_events:
+            self._raise_event(MetaEvent("step started", time=self.time))
+
+        computed_steps = self._compute_steps()
+
+        if len(computed_steps) > 0:
+            if computed_steps[0].event is not None:
+                event = self._select_event(consume=True)
+                if self._listeners or not fast_events:
+                    self._raise_event(MetaEvent("event consumed", event=event))
+            else:
+                event = None
+
+            if hasattr(self._evaluator, "on_step_starts"):
+                warnings.warn(  # noqa: B028 (stock's warning, same stack level)
+                    "Evaluator.on_step_starts is deprecated since 1.4.0.",
+                    DeprecationWarning,
+                )
+                self._evaluator.on_step_starts(event)
+
+            executed_steps = []
+            for step in computed_steps:
+                executed_steps.append(self._apply_step(step))
+                executed_steps.extend(self._stabilize())
+            macro_step: MacroStep | None = MacroStep(time=self.time, steps=executed_steps)
+        else:
+            macro_step = None
+
+        if self._contracts_possible and not self._ignore_contract:
+            states = self._tables.state
+            wanted = self._tables.invariant_states if self._fast_contracts else None
+            for name in self.configuration:
+                if wanted is None or name in wanted:
+                    state = states[name] if name in states else self._statechart.state_for(name)
+                    self._evaluate_contract_conditions(state, "invariants", macro_step)
+
+        if self._listeners or not fast_events:
+            self._raise_event(MetaEvent("step ended"))
+        return macro_step
+
+    def _evaluate_contract_conditions(
+        self,
+        obj: Any,
+        cond_type: str,
+        step: MacroStep | MicroStep | None = None,
+    ) -> None:
+        """Stock contract check, skipped where sismic's evaluator would find nothing to check."""
+        if self._ignore_contract:
+            return
+        if self._fast_contracts:
+            tables = self._tables
+            needs = {
+                "preconditions": tables.needs_pre,
+                "postconditions": tables.needs_post,
+                "invariants": tables.needs_inv,
+            }[cond_type]
+            if id(obj) not in needs:
+                return
+        super()._evaluate_contract_conditions(obj, cond_type, step)
+
+    # ---- events ---------------------------------------------------------------------------
+
+    def _queue_event(self, event: Event) -> None:
+        """Stock queueing; appends directly when the event goes last (the usual case)."""
+        internal = isinstance(event, InternalEvent)
+        queue: list = self._internal_queue if internal else self._external_queue
+        time = self.time + _delay(event)
+        if queue:
+            last_time, last_event = queue[-1]
+            # bisect_right on (time, not internal): equal keys go after, hence <=.
+            if (last_time, not isinstance(last_event, InternalEvent)) > (time, not internal):
+                keys = [(t, not isinstance(e, InternalEvent)) for t, e in queue]
+                queue.insert(bisect.bisect_right(keys, (time, not internal)), (time, event))
+                return
+        queue.append((time, event))
+
+    def _raise_event(self, event: InternalEvent | MetaEvent) -> None:
+        """Stock ``_raise_event``; meta-events about a sent event are built only if heard."""
+        if isinstance(event, InternalEvent):
+            self._queue_event(event)
+            if self._listeners or not self._fast_events:
+                self._raise_event(MetaEvent("event sent", event=event))
+                if _has_delay(event):
+                    self._raise_event(MetaEvent("delayed event sent", event=event))
+        elif isinstance(event, MetaEvent):
+            for listener in self._listeners:
+                listener(event)
+        else:
+            super()._raise_event(event)
+
+    def _select_event(self, *, consume: bool = False) -> Event | None:
+        """Next event to process: internal queue first, then external (as stock)."""
+        now = self.time
+        for queue in (self._internal_queue, self._external_queue):
+            if queue:
+                time, event = queue[0]
+                if time <= now:
+                    if consume:
+                        queue.pop(0)
+                    return event
+        return None
+
+    # ---- transition selection ---------------------------------------------------------------
+
+    def _select_transitions(
+        self,
+        event: Event | None,
+        states: set[str],
+        *,
+        eventless_first: bool = True,
+        inner_first: bool = True,
+    ) -> list[Transition]:
+        """Stock selection (eventless first, inner-first, priorities) from the event index."""
+        tables = self._tables
+        if not (eventless_first and inner_first and tables.selection_ok):
+            return super()._select_transitions(
+                event, states, eventless_first=eventless_first, inner_first=inner_first
+            )
+        name = getattr(event, "name", None)
+        selection = tables.selection
+        selected: list[Transition] = []
+        ignored: set[str] = set()
+        evaluate_guard = self._evaluator.evaluate_guard
+        groups = [(selection.get(None, ()), None)]
+        if name is not None:
+            groups.append((selection.get(name, ()), event))
+        for entries, exposed_event in groups:
+            if selected:
+                break
+            for source, ancestors, classes in entries:
+                if source not in states or source in ignored:
+                    continue
+                for transitions in classes:
+                    found = False
+                    for transition in transitions:
+                        if transition.guard is None or evaluate_guard(transition, exposed_event):
+                            selected.append(transition)
+                            found = True
+                    if found:
+                        ignored.update(ancestors)
+                        ignored.add(source)
+                        break
+        return selected
+
+    def _sort_transitions(self, transitions: list[Transition]) -> list[Transition]:
+        """Stock order and conflict checks, with the pairwise verdicts cached per chart."""
+        if len(transitions) > 1:
+            tables = self._tables
+            for t1, t2 in combinations(transitions, 2):
+                verdict = tables.pair_verdict(t1, t2)
+                if verdict == ft.PAIR_OK:
+                    continue
+                if verdict == ft.PAIR_NO_LCA:
+                    self._statechart.state_for(None)  # type: ignore[arg-type]  # raises
+                klass = (
+                    NonDeterminismError
+                    if verdict == ft.PAIR_NON_DETERMINISM
+                    else ConflictingTransitionsError
+                )
+                what = (
+                    "Non-determinist choice between transitions"
+                    if verdict == ft.PAIR_NON_DETERMINISM
+                    else "Conflicting transitions:"
+                )
+                raise klass(
+                    f"{what} {t1} and {t2}"
+                    f"\nConfiguration is {self.configuration}\nEvent is {t1.event}"
+                    f"\nTransitions are:{transitions}\n",
+                )
+            key = tables.source_key
+            transitions = sorted(transitions, key=lambda t: key[t.source])
+        return transitions
+
+    def _create_steps(
+        self,
+        event: Event | None,
+        transitions: Iterable[Transition],
+    ) -> list[MicroStep]:
+        """One micro step per transition, from the precomputed exit/entry lists."""
+        steps = []
+        conf = self._configuration
+        steps_for = self._tables.steps_for
+        for transition in transitions:
+            if transition.target is None:
+                steps.append(MicroStep(event=event, transition=transition))
+                continue
+            exits, entered = steps_for(transition)
+            steps.append(
+                MicroStep(
+                    event=event,
+                    transition=transition,
+                    entered_states=list(entered),
+                    exited_states=[s for s in exits if s in conf],
+                )
+            )
+        return steps
+
+    # ---- stabilisation --------------------------------------------------------------------
+
+    def _create_stabilization_step(self, names: Iterable[str]) -> MicroStep | None:
+        """Stock stabilisation: act on the deepest (then first by name) actionable leaf."""
+        tables = self._tables
+        active = names if isinstance(names, (set, frozenset)) else set(names)
+        kinds = tables.stabilization
+        source_key = tables.source_key
+        descendant_set = tables.descendant_set
+        best = None
+        best_key = None
+        for name in active:
+            if name not in kinds:
+                if name not in tables.state:
+                    return super()._create_stabilization_step(names)  # stock raises
+                continue
+            if not active.isdisjoint(descendant_set[name]):
+                continue  # not a leaf
+            key = source_key[name]
+            if best_key is None or key < best_key:
+                best, best_key = name, key
+        if best is None:
+            return None
+        kind = kinds[best]
+        if kind == ft.FINAL_CHILD_OF_ROOT:
+            return MicroStep(exited_states=[best, tables.root])  # type: ignore[list-item]
+        if kind == ft.HISTORY:
+            states_to_enter = self._memory.get(best, [tables.state[best].memory])  # type: ignore
+            depth = tables.depth
+            chart = self._statechart
+            states_to_enter.sort(  # type: ignore[union-attr]
+                key=lambda x: (depth[x] if x in depth else chart.depth_for(x), x)
+            )
+            return MicroStep(entered_states=states_to_enter, exited_states=[best])
+        if kind == ft.PARALLEL:
+            return MicroStep(entered_states=list(tables.parallel_children[best]))
+        return MicroStep(entered_states=[tables.state[best].initial])  # type: ignore
+
+    # ---- micro step -----------------------------------------------------------------------
+
+    def _apply_step(self, step: MicroStep) -> MicroStep:
+        """Apply a micro step: same calls, same order, same meta-events as stock sismic."""
+        tables = self._tables
+        table = tables.state
+        chart = self._statechart
+        # Unknown names go through state_for, which raises stock's StatechartError.
+        entered_states = [
+            table[n] if n in table else chart.state_for(n) for n in step.entered_states
+        ]
+        exited_states = [table[n] if n in table else chart.state_for(n) for n in step.exited_states]
+
+        conf = self._configuration
+        history = tables.history_children
+        active_configuration = set(conf) if history else conf  # copy only if memory may need it
+        evaluator = self._evaluator
+        check = self._contracts_possible and not self._ignore_contract
+        fast_events = self._fast_events
+        skip_noop = self._skip_noop_actions
+        now = self.time
+        sent_events: list[Event] = []
+
+        for state in exited_states:
+            name = state.name
+            if not skip_noop or getattr(state, "on_exit", None):
+                sent_events.extend(evaluator.execute_on_exit(state))
+            if name in history:
+                for child, deep in history[name]:
+                    if deep:
+                        active = active_configuration.intersection(tables.descendants[name])
+                        # Stock's asserts, spelt out: pytest rewrites asserts of plugin packages
+                        # (rasm is one), which would change the exception's message.
+                        if __debug__ and not len(active) >= 1:
+                            raise AssertionError
+                    else:
+                        active = active_configuration.intersection(tables.children[name])
+                        if __debug__ and not len(active) == 1:
+                            raise AssertionError
+                    self._memory[child] = list(active)
+            conf.remove(name)
+            self._conf_version += 1
+            if check:
+                self._evaluate_contract_conditions(state, "postconditions", step)
+            if self._listeners or not fast_events:
+                self._raise_event(MetaEvent("state exited", state=name))
+
+        transition = step.transition
+        if transition:
+            if check:
+                self._evaluate_contract_conditions(transition, "preconditions", step)
+                self._evaluate_contract_conditions(transition, "invariants", step)
+            sent_events.extend(evaluator.execute_action(transition, step.event))
+            if check:
+                self._evaluate_contract_conditions(transition, "postconditions", step)
+                self._evaluate_contract_conditions(transition, "invariants", step)
+            self._idle_time[transition.source] = now
+            if self._listeners or not fast_events:
+                self._raise_event(
+                    MetaEvent(
+                        "transition processed",
+                        source=transition.source,
+                        target=transition.target,
+                        event=step.event,
+                    ),
+                )
+
+        for state in entered_states:
+            name = state.name
+            if check:
+                self._evaluate_contract_conditions(state, "preconditions", step)
+            if not skip_noop or getattr(state, "on_entry", None):
+                sent_events.extend(evaluator.execute_on_entry(state))
+            conf.add(name)
+            self._conf_version += 1
+            self._entry_time[name] = now
+            self._idle_time[name] = now
+            if self._listeners or not fast_events:
+                self._raise_event(MetaEvent("state entered", state=name))
+
+        for event in sent_events:
+            self._raise_event(event)  # type: ignore[arg-type]
+            self._sent_events.append(event)
+
+        return MicroStep(
+            event=step.event,
+            transition=step.transition,
+            entered_states=step.entered_states,
+            exited_states=step.exited_states,
+            sent_events=sent_events,
+        )
+
+
+class PropertyListener(PropertyStatechartListener):
+    """Feeds meta-events to a property statechart, skipping those it cannot react to.
+
+    Stock sismic queues every meta-event to the property interpreter and executes it. When the
+    property interpreter is *settled* (its last execution completed, at the current time, with no
+    event pending) and no transition of an active state listens to the event's name, that
+    execution could only consume the event in an empty step: eventless transitions were already
+    found disabled at this time and nothing they read has changed. Such events are skipped. The
+    first meta-event at a new time is always delivered, so time-triggered (``after``, ``idle``)
+    transitions fire exactly when stock sismic fires them.
+
+    Skipping is disabled when it could be observed: a property chart with invariants (they see
+    the consumed event), a property interpreter with listeners of its own, or one that is not a
+    :class:`FastInterpreter` using sismic's Python evaluator (or a subclass of it). Guards of
+    eventless transitions are assumed to depend only on the property's own context, configuration
+    and time. Delayed meta-events are always delivered (they wait in the property's queue).
+    """
+
+    def __init__(self, interpreter: Interpreter) -> None:
+        super().__init__(interpreter)
+        self._settled = False
+        self._can_skip = (
+            isinstance(interpreter, FastInterpreter)
+            and isinstance(interpreter._evaluator, PythonEvaluator)
+            and not interpreter._tables.invariant_states
+        )
+
+    @property
+    def interpreter(self) -> Interpreter:
+        """The property statechart's interpreter."""
+        return self._interpreter
+
+    def _skippable(self, event: MetaEvent) -> bool:
+        interp = self._interpreter
+        if interp._listeners or event.name in interp.reactive_events() or _has_delay(event):
+            return False
+        now = interp.clock.time
+        if interp._time != now or interp.final:
+            return False
+        for queue in (interp._internal_queue, interp._external_queue):
+            if queue and queue[0][0] <= now:
+                return False
+        return True
+
+    def __call__(self, event: MetaEvent) -> None:
+        if self._settled and self._can_skip and self._skippable(event):
+            return
+        self._settled = False
+        self._interpreter.queue(event)
+        self._interpreter.execute()
+        if self._interpreter.final:
+            raise PropertyStatechartError(self._interpreter)
+        self._settled = True

@@ -1,0 +1,213 @@
+"""Targeted checks of FastInterpreter: errors, shipped charts, property wake-ups, copies."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+from pathlib import Path
+
+import pytest
+from sismic.exceptions import (
+    ConflictingTransitionsError,
+    InvariantError,
+    NonDeterminismError,
+    PropertyStatechartError,
+)
+from sismic.interpreter import Interpreter
+from sismic.io import import_from_yaml
+
+from rasm.statechart.fast import FastInterpreter, PropertyListener
+from tests.statechart_fast import harness
+
+CHARTS = Path(__file__).resolve().parents[2] / "statecharts"
+
+
+def chart(text: str):
+    return import_from_yaml(text)
+
+
+NON_DETERMINISTIC = chart("""
+statechart:
+  name: nd
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      transitions:
+      - {target: b, event: e}
+      - {target: c, event: e}
+    - name: b
+    - name: c
+""")
+
+CONFLICTING = chart("""
+statechart:
+  name: conflict
+  root state:
+    name: root
+    initial: p
+    states:
+    - name: p
+      parallel states:
+      - name: r1
+        initial: x
+        states:
+        - name: x
+          transitions:
+          - {target: out, event: e}
+      - name: r2
+        initial: y
+        states:
+        - name: y
+          transitions:
+          - {target: y, event: e}
+    - name: out
+""")
+
+INVARIANT = chart("""
+statechart:
+  name: inv
+  preamble: x = 0
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      contract:
+      - always: x < 2
+      transitions:
+      - {target: a, event: e, action: x += 1}
+""")
+
+PROPERTY = chart("""
+statechart:
+  name: never b twice
+  root state:
+    name: root
+    initial: idle
+    states:
+    - name: idle
+      transitions:
+      - {target: seen, event: state entered, guard: event.state == 'b'}
+    - name: seen
+      transitions:
+      - {target: fail, event: state entered, guard: event.state == 'b'}
+      - {target: idle, event: state entered, guard: event.state == 'c'}
+    - name: fail
+      type: final
+""")
+
+
+CYCLE = chart("""
+statechart:
+  name: cycle
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      transitions:
+      - {target: b, event: n}
+    - name: b
+      transitions:
+      - {target: c, event: n}
+    - name: c
+      transitions:
+      - {target: a, event: n}
+""")
+
+
+TOGGLE = chart("""
+statechart:
+  name: toggle
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      transitions:
+      - {target: b, event: n}
+    - name: b
+      transitions:
+      - {target: a, event: n}
+""")
+
+
+def errors(klass, statechart, events, prop=None):
+    interp = klass(statechart)
+    if prop is not None:
+        interp.bind_property_statechart(prop, interpreter_klass=klass)
+    interp.execute()
+    found = []
+    for name in events:
+        interp.queue(name)
+        try:
+            interp.execute(max_steps=5)
+        except Exception as e:  # noqa: BLE001 - compared below
+            found.append((type(e), str(e)))
+    return found
+
+
+@pytest.mark.parametrize(
+    ("statechart", "events", "prop", "expected"),
+    [
+        (NON_DETERMINISTIC, ["e"], None, NonDeterminismError),
+        (CONFLICTING, ["e"], None, ConflictingTransitionsError),
+        (INVARIANT, ["e", "e", "e"], None, InvariantError),
+        (TOGGLE, ["n"] * 4, PROPERTY, PropertyStatechartError),
+    ],
+    ids=["non-determinism", "conflict", "invariant", "property"],
+)
+def test_same_error_type_and_message(statechart, events, prop, expected):
+    stock = errors(Interpreter, statechart, events, prop)
+    fast = errors(FastInterpreter, statechart, events, prop)
+    assert stock, "the scenario must raise"
+    assert stock[0][0] is expected
+    assert fast == stock
+
+
+@pytest.mark.skipif(not CHARTS.is_dir(), reason="no shipped statecharts")
+@pytest.mark.parametrize("path", sorted(CHARTS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_shipped_charts_run_identically(path):
+    statechart = import_from_yaml(filepath=str(path))
+    names = statechart.events_for() + ["unknown"]
+    script = [(0.5 * (i % 3), names[(i * 7) % len(names)], {}) for i in range(60)]
+    expected = harness.run(Interpreter, statechart, script)
+    assert harness.run(FastInterpreter, statechart, script) == expected
+
+
+def test_property_statechart_is_woken_only_when_it_can_react():
+    delivered: list[str] = []
+
+    class Counting(FastInterpreter):
+        def queue(self, event, *events, **parameters):
+            delivered.append(event.name)
+            return super().queue(event, *events, **parameters)
+
+    interp = FastInterpreter(CYCLE)
+    listener = interp.bind_property_statechart(PROPERTY, interpreter_klass=Counting)
+    assert isinstance(listener, PropertyListener)
+    interp.execute()
+    for _ in range(2):
+        interp.queue("n")
+        interp.execute()
+    # Stock delivers every meta-event (step started/ended, event consumed, state exited/entered,
+    # transition processed): about 20 here. The property listens to "state entered" only; the
+    # first delivery initialises it. Time never advances, so no extra wake-up.
+    assert delivered[0] == "step started"
+    assert delivered[1:] == ["state entered"] * 4
+    assert listener.interpreter.configuration == ["root", "idle"]
+
+
+def test_copies_share_tables_and_keep_running_identically():
+    interp = FastInterpreter(INVARIANT)
+    interp.execute()
+    clone = copy.deepcopy(interp, {id(INVARIANT): INVARIANT})
+    assert clone._tables is interp._tables
+    restored = pickle.loads(pickle.dumps(interp))
+    for other in (interp, clone, restored):
+        other.queue("e")
+        other.execute()
+        assert other.configuration == ["root", "a"]
+        assert other.context["x"] == 1
