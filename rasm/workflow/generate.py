@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import io
 import shutil
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 from ruamel.yaml import YAML
+from ruamel.yaml.scalarstring import LiteralScalarString
 
 from rasm.errors import Location, RasmError, SourceError, SourceErrors
 from rasm.workflow.checks import check_model, produced_signals
@@ -55,8 +57,22 @@ def templates() -> Environment:
         autoescape=False,
     )
     env.filters["pytype"] = lambda t: _PYTYPES[t]
+    env.filters["oneline"] = _oneline
+    env.filters["wrap"] = _wrap
     env.filters["pydefault"] = _default
     return env
+
+
+def _oneline(text: str) -> str:
+    """Free text made safe for one line of a docstring or a comment."""
+    return " ".join(str(text).split()).replace("\\", "/").replace('"', "'")
+
+
+def _wrap(text: str, indent: int) -> str:
+    """Free text as docstring lines of at most 96 characters, indented by ``indent``."""
+    return textwrap.fill(
+        _oneline(text), width=96, initial_indent="", subsequent_indent=" " * indent
+    )
 
 
 def _default(spec: dict[str, Any]) -> str:
@@ -78,6 +94,8 @@ def _default(spec: dict[str, Any]) -> str:
 
 
 def _yaml(data: Any) -> str:
+    if isinstance(data, dict) and "\n" in str(data.get("description", "")).strip():
+        data = {**data, "description": LiteralScalarString(str(data["description"]))}
     yaml = YAML()
     yaml.default_flow_style = False
     yaml.indent(mapping=2, sequence=4, offset=2)

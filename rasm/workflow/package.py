@@ -48,7 +48,14 @@ from rasm.workflow.generate import templates
 from rasm.workflow.integrity import MANIFEST, SIGNATURE, digest, manifest_bytes, sign
 from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel, ComputeUnit, load_model
 
-__all__ = ["PackageError", "PackageReport", "app_module", "package_app", "platform_tag"]
+__all__ = [
+    "PackageError",
+    "PackageReport",
+    "app_module",
+    "package_app",
+    "platform_tag",
+    "wheelhouse",
+]
 
 FORMAT = "rasm-package/1"
 _MACHINE = {
@@ -190,18 +197,48 @@ def _build_wheels(app: Path, name: str, binaries: Path, work: Path) -> list[Path
     return [binaries / rasm_name, binaries / app_wheel.name]
 
 
+def wheelhouse() -> Path:
+    """Where downloaded dependency wheels are kept between packagings (``RASM_WHEELHOUSE``)."""
+    configured = os.environ.get("RASM_WHEELHOUSE")
+    if configured:
+        return Path(configured)
+    cache = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(cache) / "rasm" / "wheelhouse"
+
+
 def _download_dependencies(rasm_wheel: Path, unit: ComputeUnit, dest: Path) -> None:
+    """rasm's dependencies for ``unit``'s platform into ``dest``: from the wheelhouse when it
+    has them all (no network), else downloaded into the wheelhouse first."""
     dest.mkdir(parents=True, exist_ok=True)
-    args = ["download", "--only-binary=:all:", "--dest", str(dest), str(rasm_wheel)]
+    house = wheelhouse() / platform_tag(unit)
+    house.mkdir(parents=True, exist_ok=True)
+    target: list[str] = []
     python = unit.python or f"{sys.version_info.major}.{sys.version_info.minor}"
     if unit.arch != host_arch() or python != f"{sys.version_info.major}.{sys.version_info.minor}":
         machine = _MACHINE.get(unit.arch, unit.arch)
         for tag in ("manylinux2014", "manylinux_2_17", "manylinux_2_28", "linux"):
-            args += ["--platform", f"{tag}_{machine}"]
-        args += ["--python-version", python, "--implementation", "cp"]
-    _pip(args, f"downloading rasm's dependencies for {unit.name} ({platform_tag(unit)})")
-    for copy in dest.glob(rasm_wheel.name):
-        copy.unlink()  # the rasm wheel itself lives one folder up
+            target += ["--platform", f"{tag}_{machine}"]
+        target += ["--python-version", python, "--implementation", "cp"]
+    common = ["download", "--only-binary=:all:", *target, "--find-links", str(rasm_wheel.parent)]
+    offline = [
+        *common,
+        "--no-index",
+        "--find-links",
+        str(house),
+        "--dest",
+        str(dest),
+        str(rasm_wheel),
+    ]
+    done = subprocess.run(_pip_command(offline), capture_output=True, text=True)
+    if done.returncode != 0:
+        _pip(
+            [*common, "--dest", str(house), str(rasm_wheel)],
+            f"downloading rasm's dependencies for {unit.name} ({platform_tag(unit)})",
+        )
+        _pip(offline, f"collecting rasm's dependencies for {unit.name}")
+    for name in (rasm_wheel.name,):
+        (dest / name).unlink(missing_ok=True)  # the rasm wheel itself lives one folder up
+        (house / name).unlink(missing_ok=True)
 
 
 def _dump(data: Any) -> str:

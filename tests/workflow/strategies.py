@@ -9,6 +9,11 @@ from hypothesis import strategies as st
 from ruamel.yaml import YAML
 
 STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
+# free text with quotes, backslashes and line breaks: it ends up in docstrings and YAML
+DESCRIPTIONS = st.text(
+    st.characters(codec="utf-8", exclude_categories=("Cc", "Cs"), include_characters="\n"),
+    max_size=150,
+)
 
 
 @st.composite
@@ -88,7 +93,7 @@ def models(draw: st.DrawFn, name: str = "gen") -> dict[str, Any]:
                     draw,
                 )
             )
-        components[comp] = {"role": role, "ports": ports}
+        components[comp] = {"role": role, "ports": ports, "description": draw(DESCRIPTIONS)}
         deployment[comp] = unit
     trust: dict[str, Any] = {
         "properties": [{"file": f"properties/{name}.rv", "runs_on": loop_unit}],
