@@ -156,6 +156,7 @@ class StateManager(Block):
 
     def __init__(self, *, timing_history: int = 1000, **kw: Any) -> None:
         self.modes: dict[str, str] = {}
+        self.nodes: dict[str, str] = {}  # remote node -> online | offline | silent (presence)
         self.stage_timing: dict[str, deque[tuple[float, float]]] = defaultdict(
             lambda: deque(maxlen=timing_history)
         )
@@ -480,8 +481,10 @@ class TrustworthinessChecker(Block):
         send: Callable[[Effector, Action], Any],
         mode_of: Callable[[], str | None],
         on_verdict: Callable[[Any], Any] | None = None,
+        online: Callable[[], bool] = lambda: True,
         **kw: Any,
     ) -> None:
+        self.online = online
         self.monitors = monitors
         self.effectors = effectors
         self.send_to_effector = send
@@ -526,6 +529,10 @@ class TrustworthinessChecker(Block):
         effector = self.effectors.get(action.effector) if action else None
         if action is None or effector is None:
             self._outcome = (False, f"unknown effector {action.effector if action else None!r}")
+            self.post("action_refused")
+            return
+        if not self.online():
+            self._outcome = (False, "the managed system is offline")
             self.post("action_refused")
             return
         mode = self.mode_of()

@@ -83,6 +83,7 @@ class AppManifest:
     veto_properties: tuple[str, ...] = ()
     mode_signal: str | None = None
     logging: dict[str, Any] = field(default_factory=dict)
+    timing: str | None = None
     twin: str | None = None
     twin_horizon: float = 20.0
     twin_dt: float = 0.5
@@ -255,6 +256,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         veto_properties=tuple(trust.get("veto_properties", ())),
         mode_signal=trust.get("mode_signal"),
         logging=plain(data.get("logging", {}) or {}),
+        timing=data.get("timing"),
         twin=(data.get("twin") or {}).get("component"),
         twin_horizon=float((data.get("twin") or {}).get("horizon", 20.0)),
         twin_dt=float((data.get("twin") or {}).get("dt", 0.5)),

@@ -36,6 +36,7 @@ from rasm.platform.blocks import (
 )
 from rasm.platform.components import Action, load_component
 from rasm.platform.core import Core
+from rasm.platform.distribution import Distribution
 from rasm.platform.manifest import AppManifest, Effector
 from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
@@ -125,6 +126,7 @@ class Platform:
         self._timeline_start = 0.0
         self.twin: Any = None
         self._twin_inputs: frozenset[str] = frozenset()
+        self._effector_gates: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ assembly
 
@@ -135,7 +137,8 @@ class Platform:
         m = self.manifest
         storage = self._open_knowledge() if self.role in ("all", "managing") else None
         clock = self.clock
-        self.transport = open_transport(self.transport_url)
+        self.dist = Distribution(self)
+        self.transport = open_transport(self.transport_url, **self.dist.transport_options())
         log = self.manifest.logging
         self.lt = LoggingAndTracking(
             chart=self._chart("logging_and_tracking"),
@@ -226,6 +229,7 @@ class Platform:
             effectors=m.effectors,
             send=self._send_action,
             mode_of=lambda: self.kb.read_knowledge(m.mode_signal) if m.mode_signal else None,
+            online=lambda: self.dist.managed_online,
             on_verdict=self.verdict_log.append,
             clock=clock,
             depends_on=("sm", "cm"),
@@ -349,7 +353,7 @@ class Platform:
 
     def _send_action(self, effector: Effector, action: Action) -> None:
         payload = {**action.payload, "plan": action.plan, "kind": action.kind}
-        self.cm.publish_message(effector.topic, payload)
+        self.cm.publish_message(effector.topic, self.dist.sign(payload))
 
     def _on_probe(self, message: Any) -> None:
         # Delivered on the transport's thread: hand it to the loop thread.
@@ -358,9 +362,14 @@ class Platform:
 
     def _on_effector(self, name: str, message: Any) -> None:
         payload = dict(message.payload)
-        self.scheduler.submit(
-            lambda: self.simulator.apply(name, payload, self.clock.time - self._started_at)
-        )
+        gate = self._effector_gates.get(name)
+        if gate is None:  # the gate checks signatures when RASM_ACTION_KEY is set
+            gate = self._effector_gates[name] = self.dist.effector_gate(
+                lambda action, name=name: self.simulator.apply(
+                    name, action, self.clock.time - self._started_at
+                )
+            )
+        self.scheduler.submit(lambda: gate(payload))
 
     def _schedule_block(self, block: Any, due: float) -> None:
         self.scheduler.at(due, block.wake)
@@ -380,6 +389,7 @@ class Platform:
             self.clock.start_at(self._timeline_start)
         self.core.initialize()
         self._started_at = self.clock.time
+        self.dist.start()
         m = self.manifest
         if self.role in ("all", "managing"):
             for probe in m.probes:
@@ -414,6 +424,8 @@ class Platform:
         return self.summary(length)
 
     def stop(self) -> None:
+        if self._built:
+            self.dist.stop()
         if self.core is not None and self.core.mode != "terminated":
             self.core.deinitialize()
         self.trace.flush()
