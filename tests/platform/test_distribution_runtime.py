@@ -1,0 +1,124 @@
+"""The runtime over a real broker: a killed managed process suspends the loop, actions are
+signed end to end, signed rule updates are applied only when consistent, timing is written."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+
+from rasm.comm import open_transport, sign
+from rasm.platform.runtime import Platform
+from rasm.testing.servers import start_mosquitto
+
+from .conftest import HOTBOX, read_trace
+
+ACTION_KEY = "a1" * 16
+UPDATE_KEY = "b2" * 16
+
+
+def test_killed_managed_process_suspends_the_loop_and_signed_actions_flow(
+    hotbox, tmp_path, monkeypatch
+):
+    monkeypatch.setenv("RASM_ACTION_KEY", ACTION_KEY)
+    broker = start_mosquitto(tmp_path)
+    managed = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rasm.cli",
+            "run",
+            str(HOTBOX),
+            "--role",
+            "managed",
+            "--transport",
+            broker.url,
+            "--duration",
+            "60",
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env={**os.environ, "RASM_ACTION_KEY": ACTION_KEY},
+    )
+    trace_file = tmp_path / "managing.jsonl"
+    platform = Platform(
+        hotbox, role="managing", transport=broker.url, trace=trace_file, knowledge="memory"
+    )
+    platform.build()
+    boosted, suspended = threading.Event(), threading.Event()
+
+    def watch(time, record):
+        if record.get("heater_mode") == "boost" and not boosted.is_set():
+            boosted.set()  # the signed action reached the managed process and was applied
+            managed.send_signal(signal.SIGKILL)
+
+    def on_enter_suspended():  # the orchestrator's chart entered `suspended`
+        suspended.set()
+        platform.scheduler.stop()
+
+    platform.on_record.append(watch)
+    platform.ao.on_enter_suspended = on_enter_suspended
+    runner = threading.Thread(target=platform.run, args=(40.0,))
+    try:
+        runner.start()
+        runner.join(60)
+    finally:
+        if managed.poll() is None:
+            managed.kill()
+        managed.wait(10)
+        broker.stop()
+    assert boosted.is_set(), "no signed action was applied by the managed process"
+    assert suspended.is_set(), "the loop did not notice the managed process died"
+    assert list(platform.sm.nodes.values()) == ["offline"]
+    trace = read_trace(trace_file)
+    assert any(r.get("executed") for r in trace)
+
+
+def test_signed_rule_updates_and_timing(hotbox, tmp_path, monkeypatch):
+    monkeypatch.setenv("RASM_UPDATE_KEY", UPDATE_KEY)
+    broker = start_mosquitto(tmp_path)
+    platform = Platform(
+        hotbox, transport=broker.url, knowledge="memory", clock="wall", state_dir=tmp_path / "state"
+    )
+    platform.build()
+    results = []
+    done = threading.Event()
+    admin = open_transport(broker.url)
+    admin.connect()
+
+    def answered(message):
+        results.append(message.payload)
+        if len(results) == 3:
+            done.set()
+
+    admin.subscribe("rasm/update/result", answered)
+    rules_text = (HOTBOX / "rules" / "hotbox.yaml").read_text()
+    inconsistent = rules_text + "  - name: never\n    require: power_limit > 150\n"
+    tighter = rules_text.replace("power_limit <= 100", "power_limit <= 90")
+    key = bytes.fromhex(UPDATE_KEY)
+
+    def push():
+        admin.publish("rasm/update/rules", {"rules": tighter})  # unsigned
+        admin.publish("rasm/update/rules", sign({"rules": inconsistent}, key))
+        admin.publish("rasm/update/rules", sign({"rules": tighter}, key))
+
+    platform.on_record.append(
+        lambda t, r: (push(), platform.on_record.clear()) if t > 0.5 else None
+    )
+    stopper = threading.Thread(target=lambda: done.wait(30) and platform.scheduler.stop())
+    stopper.start()
+    platform.run(30.0)
+    stopper.join()
+    admin.close()
+    broker.stop()
+    assert [r["accepted"] for r in results] == [False, False, True], results
+    assert "heater_rating" in [r.name for r in platform.rules[0].rules.rules]
+    assert any(r.require_text == "power_limit <= 90" for r in platform.rules[0].rules.rules)
+    lines = (tmp_path / "state" / "timing.lp").read_text().splitlines()
+    assert any(line.startswith("maple_stage,stage=monitor") for line in lines)
+    json.dumps(results)
