@@ -364,6 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("props")
     p.add_argument("--transport", required=True)
     p.add_argument("--topics", default=None, metavar="MAP.yaml")
+    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
 
     p = command("report", _cmd_report, "render a trace as a self-contained HTML page")
     p.add_argument("trace")

@@ -182,6 +182,8 @@ class Platform:
             # a simulation is a fresh world: no knowledge from an earlier run
             _remove_sqlite(Path(url[len("sqlite:") :]))
         self.kb, storage = open_knowledge(url, base_dir=Path.cwd())
+        if url.startswith(("redis://", "rediss://")) and self.clock_kind == "simulated":
+            self.kb.clear()  # a simulation is a fresh world here too
         if storage is not None:
             storage.detach()  # the Storage Manager block feeds it (and steps its chart)
         restored = [self.kb.read_sample(k) for k in self.kb.keys()]
