@@ -16,7 +16,8 @@ record) and produces one verdict per record. Reported, in events (records) per s
   first ``--rtamt-records`` records only, and at most ~2 s per run (its bounded ``since``
   costs O(bound) per record); its rate is still events per second.
 
-Each figure is the median of ``--repeat`` runs. Ratios are rasm's rate over the peer's.
+Each figure is the median of ``--repeat`` runs; rasm's and reelay's runs are interleaved so
+that load on a shared machine hits them alike. Ratios are rasm's rate over the peer's.
 """
 
 from __future__ import annotations
@@ -55,52 +56,48 @@ def basic_trace(n: int, seed: int = 1) -> list[dict]:
     ]
 
 
-def median_rate(function, n: int, repeat: int) -> float:
-    rates = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        rates.append(n / (time.perf_counter() - start))
-    return statistics.median(rates)
+def timed(function, n: int) -> float:
+    start = time.perf_counter()
+    function()
+    return n / (time.perf_counter() - start)
 
 
-def measure_rasm(header: str, formula: str, trace: list[dict], repeat: int) -> tuple[float, float]:
+def measure_case(header: str, formula: str, pattern: str | None, trace: list[dict],
+                 repeat: int) -> tuple[float, float, float | None]:
+    """Median rates of rasm run, rasm step and reelay, their repetitions interleaved.
+
+    Interleaving (run, step, reelay, run, step, reelay, …) makes a load spike on a shared
+    machine hit every tool alike, so the ratios stay meaningful. Building the monitors
+    (``compile``, ~5-10 ms; reelay's constructor) is not timed.
+    """
     text = header + f"property p: {formula}\n"
     records = [(r["time"], {k: v for k, v in r.items() if k != "time"}) for r in trace]
+    plain = [{k: v for k, v in r.items() if k != "time"} for r in trace]
+    rates: dict[str, list[float]] = {"run": [], "step": [], "reelay": []}
+    for _ in range(repeat):
+        batch = compile(text)
+        rates["run"].append(timed(lambda m=batch: m.run(records), len(records)))
+        online = compile(text)
 
-    batch = [compile(text) for _ in range(repeat)]
+        def step(monitor=online):
+            feed = monitor.step
+            for t, values in records:
+                feed(t, values)
+            monitor.finish()
 
-    def run():
-        batch.pop().run(records)
+        rates["step"].append(timed(step, len(records)))
+        if pattern is not None:
+            import reelay
 
-    monitors = [compile(text) for _ in range(repeat)]
+            update = reelay.discrete_timed_monitor(pattern=pattern, condense=False).update
 
-    def step():
-        monitor = monitors.pop()
-        step = monitor.step
-        for t, values in records:
-            step(t, values)
-        monitor.finish()
+            def peer(update=update):
+                for record in plain:
+                    update(record)
 
-    # compile() (~5-10 ms) is outside the timed part, as building reelay's monitor is
-    return median_rate(run, len(records), repeat), median_rate(step, len(records), repeat)
-
-
-def measure_reelay(pattern: str | None, trace: list[dict], repeat: int) -> float | None:
-    if pattern is None:
-        return None
-    import reelay
-
-    records = [{k: v for k, v in r.items() if k != "time"} for r in trace]
-    monitors = [reelay.discrete_timed_monitor(pattern=pattern, condense=False)
-                for _ in range(repeat)]
-
-    def run():
-        update = monitors.pop().update
-        for record in records:
-            update(record)
-
-    return median_rate(run, len(records), repeat)
+            rates["reelay"].append(timed(peer, len(plain)))
+    reelay_rate = statistics.median(rates["reelay"]) if rates["reelay"] else None
+    return statistics.median(rates["run"]), statistics.median(rates["step"]), reelay_rate
 
 
 def measure_rtamt(formula: str, variables: list[str], trace: list[dict], future: bool,
@@ -199,8 +196,7 @@ def main(argv=None) -> int:
     trace = basic_trace(n)
     basic_header = "input x: float\ninput a: bool\ninput b: bool\n"
     for name, mine, theirs, rt in BASIC:
-        run, step = measure_rasm(basic_header, mine, trace, repeat)
-        reelay_rate = measure_reelay(theirs, trace, repeat)
+        run, step, reelay_rate = measure_case(basic_header, mine, theirs, trace, repeat)
         rtamt_rate = None if args.no_rtamt else measure_rtamt(
             rt, ["x", "a", "b"], trace[:n_rtamt], "eventually" in rt, repeat)
         report(name, run, step, reelay_rate, rtamt_rate)
@@ -209,8 +205,8 @@ def main(argv=None) -> int:
     for name in timescales.PATTERNS:
         for bound in bounds:
             p = timescales.pattern(name, bound // 2, bound)
-            run, step = measure_rasm(timescales.RASM_HEADER, p.rasm, ts_trace, repeat)
-            reelay_rate = measure_reelay(p.reelay, ts_trace, repeat)
+            run, step, reelay_rate = measure_case(timescales.RASM_HEADER, p.rasm, p.reelay,
+                                                  ts_trace, repeat)
             rtamt_rate = None if args.no_rtamt else measure_rtamt(
                 p.rtamt, ["p", "q", "r", "s"], ts_trace[:n_rtamt], False, repeat)
             report(f"{name} u={bound}", run, step, reelay_rate, rtamt_rate)
