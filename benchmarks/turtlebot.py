@@ -119,10 +119,11 @@ def plot(outcomes: dict[bool, list[Outcome]], seeds: list[int], path: Path) -> N
         xlabel="scenario seed", ylabel="time to goal (s)", title="Time to goal (runs that reach it)"
     )
     for ax in (left, right):
-        ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3)
+    handles, labels = left.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=9)
     fig.suptitle("TurtleBot 4 with LiDAR debris: the MAPLE-K loop stops and looks around")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
 
