@@ -38,6 +38,7 @@ def check_model(model: ArchitectureModel) -> list[SourceError]:
     """Every cross-check problem of ``model``, in file order."""
     errors = [
         *_references(model),
+        *_signal_clashes(model),
         *_ports(model),
         *_deployment(model),
         *_reachability(model),
@@ -95,6 +96,35 @@ def _references(model: ArchitectureModel) -> Iterator[SourceError]:
                 f"{check.file} runs on an unknown compute unit '{check.runs_on}'",
                 check.runs_on_location,
             )
+
+
+def _signal_clashes(model: ArchitectureModel) -> Iterator[SourceError]:
+    """Fields reaching knowledge under one name with two types (probes share one key space)."""
+    from rasm.workflow.derive import probes
+
+    seen: dict[str, tuple[str, str]] = {}
+    for message_name in dict.fromkeys(probes(model).values()):
+        message = model.messages.get(message_name)
+        if message is None:
+            continue
+        for field_name, spec in message.fields.items():
+            kind = str(spec["type"])
+            if field_name in seen and seen[field_name][1] != kind:
+                other, other_kind = seen[field_name]
+                where = (
+                    model.source.key(
+                        model.source.data["messages"][message_name]["fields"], field_name
+                    )
+                    if model.source
+                    else message.location
+                )
+                yield _error(
+                    model,
+                    f"field '{field_name}' of {message_name} is {kind} but {other}'s is "
+                    f"{other_kind}: both reach knowledge as '{field_name}'",
+                    where,
+                )
+            seen.setdefault(field_name, (message_name, kind))
 
 
 def _ports(model: ArchitectureModel) -> Iterator[SourceError]:

@@ -136,6 +136,16 @@ def _env_file(config: dict[str, Any], target: Path, python: str) -> str:
     )
 
 
+def _alive(pid: str) -> bool:
+    try:
+        os.kill(int(pid), 0)
+    except (ValueError, ProcessLookupError):
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def run_workflow(target: Path, name: str, env: dict[str, str] | None = None) -> list[StepResult]:
     """Run the workflow ``name`` of a deployed unit, stopping at the first failed action."""
     package = target / "package"
@@ -182,6 +192,12 @@ def deploy_package(
             "on its own hardware"
         )
     target = Path(target).resolve()
+    pidfile = target / "run" / f"{unit}.pid"
+    if pidfile.is_file() and _alive(pidfile.read_text().strip()):
+        raise DeployError(
+            f"unit '{unit}' is running in {target} (pid {pidfile.read_text().strip()}): stop it "
+            f"first (RASM_DIR={target} sh {target}/package/05_Actions/stop.sh)"
+        )
     extracted = target / "package"
     if extracted.exists():
         shutil.rmtree(extracted)

@@ -228,7 +228,9 @@ def _save_orphans(folder: Path, name: str, regions: list[Region]) -> None:
 
 
 def _starter_model(name: str) -> str:
-    return templates().get_template("app/model.yaml.j2").render(name=name)
+    from rasm.workflow.derive import host_arch
+
+    return templates().get_template("app/model.yaml.j2").render(name=name, arch=host_arch())
 
 
 def new_app(target: str | Path, model_file: str | Path | None = None) -> Generated:

@@ -272,3 +272,36 @@ def test_load_model_reads_every_section() -> None:
         ("properties", "edge"),
         ("rules", "edge"),
     ]
+
+
+def test_two_probe_messages_giving_one_signal_two_types(tmp_path: Path) -> None:
+    text = BASE.replace(
+        "      mode: {type: str}\n      setpoint: {type: float, min: 0, max: 100}\n"
+        "      power_limit",
+        "      mode: {type: str}\n      setpoint: {type: float, min: 0, max: 100}\n"
+        "      power_limit",
+    )
+    text = text.replace(
+        "  HeaterSettings:\n",
+        "  LidSensor:\n    fields:\n      lid_open: {type: float}\n  HeaterSettings:\n",
+    )
+    text = text.replace(
+        "      readings: {direction: out, message: HotboxSensors}\n",
+        "      readings: {direction: out, message: HotboxSensors}\n"
+        "      lid: {direction: out, message: LidSensor}\n",
+    ).replace(
+        "      readings: {direction: in, message: HotboxSensors}\n",
+        "      readings: {direction: in, message: HotboxSensors}\n"
+        "      lid: {direction: in, message: LidSensor}\n",
+    )
+    text = text.replace(
+        "\ntrustworthiness:",
+        "  - {topic: hotbox/lid, publisher: sensors.lid, subscribers: [monitor.lid],"
+        " protocol: mqtt}\n\ntrustworthiness:",
+    )
+    line, col, message = one(tmp_path, text)
+    assert (line, col) == position(text, "lid_open: {type: float}")
+    assert message == (
+        "field 'lid_open' of LidSensor is float but HotboxSensors's is bool: "
+        "both reach knowledge as 'lid_open'"
+    )

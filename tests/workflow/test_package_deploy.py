@@ -127,12 +127,14 @@ def test_deploy_installs_without_network_validates_and_the_folder_runs_the_hotbo
     assert "temperature_band" in done.stdout and "violated" not in done.stdout
 
 
-def test_start_and_stop_the_units_nodes(deployed: Path) -> None:
+def test_start_and_stop_the_units_nodes(deployed: Path, hotbox_zip: Path) -> None:
     env = {"RASM_RUN_DURATION": "120"}
     [started] = run_workflow(deployed, "start", env)
     assert started.ok, started.output
     pid = int((deployed / "run" / "local.pid").read_text())
     os.kill(pid, 0)  # alive
+    with pytest.raises(DeployError, match="unit 'local' is running"):
+        deploy_package(hotbox_zip, "local", deployed, key=KEY)
     [stopped] = run_workflow(deployed, "stop", env)
     assert stopped.ok, stopped.output
     with pytest.raises(ProcessLookupError):
