@@ -8,8 +8,11 @@ Two families, both seeded and reproducible:
 * ``modular``: the same kinds of rules over a variable pool that grows with the rule count (one
   variable per 5 rules), as in a large robot where each subsystem has its own rules.
 
-Each rule bounds one variable or a sum of two under a guard; some are planted conflicts,
-unsatisfiable, dead or redundant. Prints, per size, the median wall time of ``verify`` and of
+Each rule bounds one variable or a sum of two under a guard. Ordinary rules are mutually
+consistent (upper bounds from 50, lower bounds up to 40) and often imply each other; 4 % are
+tight upper bounds (<= 4) that conflict with the lower bounds of their mode, 2 % are
+unsatisfiable and 3 % dead. The conflict search costs grow with the number of *independent*
+conflicts inside one group of coupled rules (``--planted K`` measures that worst case). Prints, per size, the median wall time of ``verify`` and of
 judging one plan with the compiled engine, the findings, and the growth exponent between sizes
 (time ~ n^k; the target is k <= 2, and under 30 s for 500 rules).
 
@@ -53,6 +56,8 @@ def _rule(rng: random.Random, index: int, numeric: int) -> list[str]:
         when, require = f"{var} > 150", f"{var} <= 10"
     elif kind < 0.05:  # unsatisfiable in its mode
         when, require = f'mode == "{mode}"', f"{var} > 120"
+    elif kind < 0.09:  # half of a planted conflict: far below any lower bound of its mode
+        when, require = f'mode == "{mode}"', f"{var} <= {rng.randrange(0, 5)}"
     else:
         guard = rng.random()
         if guard < 0.6:
@@ -63,15 +68,14 @@ def _rule(rng: random.Random, index: int, numeric: int) -> list[str]:
             when = f"flag{rng.randrange(3)}"
         else:
             when = None
-        bound = rng.randrange(5, 100)
         shape = rng.random()
-        if shape < 0.45:
-            require = f"{var} <= {bound}"
-        elif shape < 0.75:
-            require = f"{var} >= {bound // 3}"
+        if shape < 0.45:  # upper bounds stay above every ordinary lower bound...
+            require = f"{var} <= {rng.randrange(50, 101)}"
+        elif shape < 0.75:  # ...so that ordinary rules overlap, and many imply each other
+            require = f"{var} >= {rng.randrange(5, 41)}"
         else:
             other = f"v{rng.randrange(numeric)}"
-            require = f"{var} + {other} <= {bound + 40}"
+            require = f"{var} + {other} <= {rng.randrange(100, 201)}"
     out = [f"  - name: rule_{index}"]
     if when is not None:
         out.append(f"    when: '{when}'")

@@ -33,6 +33,10 @@ from rasm.rules.split import components, guard_split, names
 
 #: Solver calls spent making one redundant rule's "implied by" set minimal, at most.
 IMPLIED_BY_BUDGET = 12
+#: Rounds of the counterexample-guided redundancy search per rule, at most. Only rules that
+#: apply where a conflict does reach it; past the budget the rule is reported as not redundant
+#: (never the reverse: every reported redundancy comes with a checked ``implied_by``).
+REDUNDANCY_ROUNDS = 16
 
 
 def verify(rules: Rules, *, redundancy: bool = True) -> Report:
@@ -81,7 +85,7 @@ class _Verifier:
             sound = set(range(len(self.names))) - dead - unsat
             for group in self.groups():
                 members = [i for i in group if i in sound]
-                for index, implied_by in self.redundant(members):
+                for index, implied_by in self.redundant(members, in_conflict):
                     report.redundant.append(self.names[index])
                     report.implied_by[self.names[index]] = [self.names[i] for i in implied_by]
             order = {n: i for i, n in enumerate(self.names)}
@@ -150,7 +154,9 @@ class _Verifier:
             broken=broken,
         )
 
-    def redundant(self, members: list[int]) -> list[tuple[int, list[int]]]:
+    def redundant(
+        self, members: list[int], in_conflict: set[int]
+    ) -> list[tuple[int, list[int]]]:
         """Each member genuinely implied by other members, with a small set that implies it.
 
         "Implied by the others" alone would flag every rule that applies where a conflict does
@@ -187,10 +193,19 @@ class _Verifier:
                 continue  # not implied even by all the others together
             core = core_ids(solver)
             used = [j for j in others if keep[j].get_id() in core]
-            if check(solver, [self.formulas[i][0]] + [keep[j] for j in others]):
-                # all the others hold together somewhere r applies: they are the K sought
-                result.append((i, self.minimise(solver, broken[i], keep, used)))
+            # Fast paths, each a K for the definition: the (minimised) core itself, then the
+            # rules outside every conflict (a conflict where r applies implies anything).
+            used = self.minimise(solver, broken[i], keep, used)
+            if check(solver, [self.formulas[i][0]] + [keep[j] for j in used]):
+                result.append((i, used))
                 continue
+            calm = [j for j in others if j not in in_conflict]
+            if not check(solver, [broken[i]] + [keep[j] for j in calm]):
+                core = core_ids(solver)
+                used = [j for j in calm if keep[j].get_id() in core]
+                if check(solver, [self.formulas[i][0]] + [keep[j] for j in calm]):
+                    result.append((i, self.minimise(solver, broken[i], keep, used)))
+                    continue
             found = self.supported(solver, i, others, keep, broken, holds, reads)
             if found is not None:
                 result.append((i, found))
@@ -217,7 +232,7 @@ class _Verifier:
         chooser.add(self.formulas[i][0])
         for j in others:
             chooser.add(z3.Implies(keep[j], holds[j]))
-        while True:
+        for _ in range(REDUNDANCY_ROUNDS):
             kept = list(others)
             while not check(chooser, [keep[j] for j in kept]):
                 core = core_ids(chooser)
@@ -225,17 +240,23 @@ class _Verifier:
                 if not dropped:
                     return None  # the blocking clauses alone exclude every q: none left
                 kept.remove(dropped[-1])
-            q = chooser.model()  # K_q: every other rule holding at q (the kept ones and more)
-            kept = [j for j in others if z3.is_true(q.eval(holds[j], True))]
+            # K_q: every other rule holding at q: the kept ones, and any dropped one that holds
+            q = chooser.model()
+            kept_set = set(kept)
+            kept += [j for j in others
+                     if j not in kept_set and z3.is_true(q.eval(holds[j], True))]
             if not check(solver, [broken[i]] + [keep[j] for j in kept]):
                 core = core_ids(solver)
                 return self.minimise(solver, broken[i], keep,
                                      [j for j in kept if keep[j].get_id() in core])
-            p = solver.model()
-            refuted = [holds[j] for j in others if not z3.is_true(p.eval(holds[j], True))]
+            p = solver.model()  # all of K_q holds at p: only rules outside it can be broken
+            kept_set = set(kept)
+            refuted = [holds[j] for j in others
+                       if j not in kept_set and not z3.is_true(p.eval(holds[j], True))]
             if not refuted:
                 return None  # every other rule holds at p, where i breaks: nothing implies i
             chooser.add(z3.Or(*refuted))
+        return None
 
     def minimise(
         self, solver: z3.Solver, broken: z3.BoolRef, keep: dict[int, z3.BoolRef], used: list[int]
