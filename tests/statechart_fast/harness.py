@@ -104,9 +104,11 @@ def run(
     prop: Statechart | None = None,
     ignore_contract: bool = False,
     restore_every: int = 0,
+    record_meta: bool = False,
 ) -> list[Any]:
     """Record a run of ``chart`` on ``klass`` fed with ``script`` (see module docstring).
 
+    ``record_meta`` attaches a listener that records every meta-event, in order.
     ``restore_every`` > 0 snapshots the state attributes before every step and, every that many
     steps, restores them by reassigning copies (what the platform's atomic-step layer does).
     """
@@ -117,6 +119,8 @@ def run(
             interp.bind_property_statechart(prop, interpreter_klass=klass)
     except Exception as e:  # noqa: BLE001 - the error itself is what is compared
         return [("init error", type(e).__name__, str(e))]
+    if record_meta:
+        interp.attach(lambda meta: records.append(("meta", repr(meta))))
     counter = 0
 
     def steps() -> None:

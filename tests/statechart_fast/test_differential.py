@@ -55,3 +55,10 @@ def test_same_runs_when_state_is_restored_by_reassignment(chart, prop, script, e
     # The atomic-step layer restores the state attributes by reassigning copies; cached
     # orders must follow.
     assert_same(chart, script, prop=prop, restore_every=every)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
+def test_same_meta_events_for_attached_listeners(chart, prop, script):
+    records = assert_same(chart, script, prop=prop, record_meta=True)
+    assert any(record[0] == "meta" for record in records) or records[0][0] == "init error"
