@@ -1,0 +1,87 @@
+"""``assert_properties(props, trace)``: a property file must hold on a trace, or the test fails
+with each violation explained as ``rasm check`` explains it, and the trace saved to replay it."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from rasm.spec.ast import Specification
+from rasm.spec.check import CheckReport, check_records, format_text
+from rasm.spec.trace import parse_trace
+from rasm.testing._props import property_file
+from rasm.testing.failures import is_final_example, save_jsonl
+
+__all__ = ["PropertyViolation", "assert_properties", "check_trace"]
+
+
+class PropertyViolation(AssertionError):
+    """A property was violated on a trace; ``report`` is the full check report."""
+
+    def __init__(self, message: str, report: CheckReport, saved: Path | None) -> None:
+        super().__init__(message)
+        self.report = report
+        self.saved = saved
+
+
+def _records(trace: Iterable[Mapping[str, Any]] | str | Path) -> tuple[list[dict], str]:
+    if isinstance(trace, str | Path):
+        path = Path(trace)
+        return [json.loads(line) for line in path.read_text().splitlines() if line.strip()], str(
+            path
+        )
+    return [dict(r) for r in trace], "<trace>"
+
+
+def check_trace(
+    props: str | Path | Specification,
+    trace: Iterable[Mapping[str, Any]] | str | Path,
+    *,
+    explain: bool = True,
+) -> CheckReport:
+    """Check ``props`` on ``trace`` (records, a :class:`~rasm.testing.Trace`, or a JSONL path),
+    exactly as ``rasm check`` does; malformed records raise :class:`rasm.errors.SourceErrors`."""
+    file = property_file(props)
+    records, name = _records(trace)
+    lines = [json.dumps(r) for r in records]
+    parsed = parse_trace(lines, file.spec.signals, source=name)
+    return check_records(file.spec, parsed, trace=name, explain_violations=explain)
+
+
+def assert_properties(
+    props: str | Path | Specification,
+    trace: Iterable[Mapping[str, Any]] | str | Path,
+    *,
+    only: Iterable[str] | None = None,
+) -> CheckReport:
+    """Fail (``PropertyViolation``, an ``AssertionError``) if a property of ``props`` is violated
+    on ``trace``; ``only`` restricts the verdict to the named properties.
+
+    The message is ``rasm check``'s report, each violation explained. The trace is saved under
+    ``.rasm/failures/`` (inside hypothesis: for the reported example only) and the message gives
+    the ``rasm check`` command that reproduces the report. Returns the report when all hold.
+    """
+    file = property_file(props)
+    records, _ = _records(trace)
+    report = check_trace(file, records)
+    names = {p.name for p in report.properties}
+    wanted = set(only) if only is not None else names
+    unknown = sorted(wanted - names)
+    if unknown:
+        raise ValueError(
+            f"{file.source} has no property {unknown[0]!r}; its properties: "
+            f"{', '.join(sorted(names))}"
+        )
+    violated = [p for p in report.properties if p.verdict == "violated" and p.name in wanted]
+    if not violated:
+        return report
+    text = format_text(report)
+    saved = None
+    if is_final_example():
+        saved = save_jsonl(file.stem, records)
+        props_arg = file.source if file.source != "<text>" else "PROPS.rv"
+        text += f"trace saved: {saved}\nreproduce: rasm check {props_arg} {saved}\n"
+    names_text = ", ".join(p.name for p in violated)
+    raise PropertyViolation(f"violated: {names_text}\n{text}", report, saved)

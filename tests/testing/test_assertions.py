@@ -1,0 +1,90 @@
+"""assert_properties and run_app: failures explained as `rasm check` explains them, traces saved."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from rasm.cli import main
+from rasm.testing import PropertyViolation, Trace, assert_properties, check_trace, run_app
+
+from .conftest import HOTBOX, HOTBOX_PROPS
+
+PROPS = """
+input velocity: float
+event anomaly, adapted
+property velocity_limit: always (velocity <= 0.5)
+property timely: always (anomaly -> eventually[0, 2s] adapted)
+"""
+
+GOOD = [
+    {"time": 0.0, "velocity": 0.1},
+    {"time": 1.0, "anomaly": True},
+    {"time": 2.0, "adapted": True},
+]
+BAD = [{"time": 0.0, "velocity": 0.1}, {"time": 0.5, "velocity": 0.62}, {"time": 1.0}]
+
+
+def test_properties_that_hold_return_the_report():
+    report = assert_properties(PROPS, GOOD)
+    assert {p.name: p.verdict for p in report.properties} == {
+        "velocity_limit": "satisfied",
+        "timely": "satisfied",
+    }
+
+
+def test_a_violation_is_explained_like_rasm_check_and_the_trace_saved(tmp_path, capsys):
+    props = tmp_path / "robot.rv"
+    props.write_text(PROPS)
+    with pytest.raises(PropertyViolation) as caught:
+        assert_properties(str(props), BAD)
+    message = str(caught.value)
+    assert message.startswith("violated: velocity_limit")
+    assert (
+        "velocity_limit: VIOLATED at 2 of 3 judged records (first: record 1, time 0.5)" in message
+    )
+    assert "velocity = 0.62" in message  # the explanation names the value that broke it
+    saved = caught.value.saved
+    assert saved.name.startswith("robot-") and saved.suffix == ".jsonl"
+    assert f"reproduce: rasm check {props} {saved}" in message
+    assert [json.loads(line) for line in saved.read_text().splitlines()] == BAD
+    # the command it prints reproduces the same report
+    capsys.readouterr()
+    assert main(["check", str(props), str(saved)]) == 1
+    out = capsys.readouterr().out
+    assert "velocity_limit: VIOLATED" in out and "velocity = 0.62" in out
+
+
+def test_only_restricts_the_verdict_and_checks_the_names():
+    assert_properties(PROPS, BAD, only=["timely"])  # velocity_limit is violated, not asked
+    with pytest.raises(ValueError, match="no property 'timley'; its properties: timely"):
+        assert_properties(PROPS, BAD, only=["timley"])
+
+
+def test_a_trace_file_is_accepted(tmp_path):
+    path = tmp_path / "trace.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in GOOD))
+    assert not check_trace(PROPS, path).violated
+
+
+def test_run_app_returns_the_records_rasm_run_writes(tmp_path):
+    written = tmp_path / "trace.jsonl"
+    trace = run_app(HOTBOX, seed=5, duration=12, scenario={"openings": [[2, 6]]}, trace=written)
+    assert isinstance(trace, Trace) and len(trace) > 100
+    assert trace.records == [json.loads(line) for line in written.read_text().splitlines()]
+    assert trace.summary.stats.executed >= 1
+    assert trace.when("executed") and trace.when("anomaly")[0] <= trace.when("executed")[0]
+    saved = trace.save(tmp_path / "again.jsonl")
+    assert [json.loads(line) for line in saved.read_text().splitlines()] == trace.records
+    assert not check_trace(HOTBOX_PROPS, saved).violated
+
+
+def test_run_app_overrides_and_their_errors():
+    trace = run_app(HOTBOX, seed=1, duration=3, period=0.25)
+    ticks = [r["time"] for r in trace if r.get("stage") == "monitor"]
+    assert ticks[:3] == [0.25, 0.5, 0.75]
+    with pytest.raises(TypeError, match="neither one of its arguments nor a manifest field"):
+        run_app(HOTBOX, seed=1, duration=3, stage_budgt=0.1)
+    with pytest.raises(ValueError, match="positive number of seconds"):
+        run_app(HOTBOX, seed=1, duration=0)

@@ -1,0 +1,89 @@
+"""The Hotbox under generated lid schedules: timely adaptation holds; a slow planner is caught."""
+
+from __future__ import annotations
+
+import time
+
+from hypothesis import Phase, find, given, settings
+
+from rasm.testing import assert_properties, check_trace, run_app, scenarios
+
+from .conftest import HOTBOX, HOTBOX_PROPS
+
+DURATION = 30  # simulated seconds; a run costs about 0.2 s here
+# no explain phase: it re-runs the failing example under a tracer, costly for a whole loop
+PHASES = [Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink]
+
+
+@settings(max_examples=10, deadline=None, phases=PHASES, database=None)
+@given(scenario=scenarios(HOTBOX, duration=DURATION))
+def test_timely_adaptation_holds_for_any_lid_schedule(scenario):
+    trace = run_app(HOTBOX, seed=3, duration=DURATION, scenario=scenario)
+    assert trace.scenario == scenario
+    assert_properties(HOTBOX_PROPS, trace, only=["timely_adaptation"])
+    # the trace is the adaptation trace: the lid schedule shows in it, and every anomaly
+    # that left time to answer was answered
+    opened = [t for t, lid in trace.values("lid_open") if lid]
+    assert opened and min(opened) >= scenario["openings"][0][0]
+
+
+class SlowPlanner:
+    """Plans boosts like the Hotbox's planner, but too slowly (an expensive search).
+
+    The sleep is the defect under test, not a synchronisation: a boost plan takes 30 ms of wall
+    time, twice the 15.6 ms stage budget the test gives the loop, so it always overruns.
+    """
+
+    def plan(self, ctx):
+        if ctx.anomaly.data.get("want") == "boost":
+            time.sleep(0.03)
+        return {"mode": "normal", "setpoint": 37.5, "power_limit": 60.0}
+
+
+BUDGET = 2**-6  # 15.6 ms: a short budget keeps each overrun cheap in wall-clock time
+
+
+def test_a_slow_planner_is_caught_and_shrunk_to_one_short_opening():
+    runs = []
+
+    def too_late(scenario):
+        trace = run_app(
+            HOTBOX,
+            seed=3,
+            duration=20,
+            scenario=scenario,
+            components={"plan": SlowPlanner()},
+            stage_budget=BUDGET,
+        )
+        runs.append(scenario)
+        report = check_trace(HOTBOX_PROPS, trace, explain=False)
+        return any(p.name == "timely_adaptation" and p.violations for p in report.properties)
+
+    minimal = find(
+        scenarios(HOTBOX, duration=20),
+        too_late,
+        settings=settings(max_examples=15, deadline=None, phases=PHASES, database=None),
+    )
+    openings = minimal["openings"]
+    assert len(openings) == 1, minimal
+    start, length = openings[0]
+    assert start == 0.0 and length <= 5.0, minimal  # one short, early opening suffices
+    # the same schedule with the app's own planner is answered in time: the planner is the bug
+    good = run_app(HOTBOX, seed=3, duration=20, scenario=minimal, stage_budget=BUDGET)
+    assert_properties(HOTBOX_PROPS, good, only=["timely_adaptation"])
+    assert len(runs) < 80  # shrinking stayed cheap
+
+
+def test_scenarios_of_the_hotbox_are_lid_openings_within_the_run():
+    @settings(max_examples=40, deadline=None, database=None)
+    @given(scenarios(HOTBOX, duration=DURATION))
+    def check(scenario):
+        assert set(scenario) == {"openings"}
+        openings = scenario["openings"]
+        assert 1 <= len(openings) <= 3
+        end = -1.0
+        for start, length in openings:
+            assert end <= start <= DURATION - 5 and 0.5 <= length <= 15
+            end = start + length
+
+    check()
