@@ -1,0 +1,124 @@
+"""RecursiveLeastSquares: exact on noise-free data, the batch solution with a vague prior,
+forgetting follows a change, weights, persistence, and clear errors."""
+
+from __future__ import annotations
+
+import json
+import random
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rasm.twin import RecursiveLeastSquares, TwinError
+
+coefficients = st.lists(st.floats(-10, 10, allow_nan=False), min_size=1, max_size=4)
+
+
+def observations(theta, count, seed, noise=0.0):
+    rng = random.Random(seed)
+    for _ in range(count):
+        phi = [rng.uniform(-2, 2) for _ in theta]
+        yield phi, sum(p * t for p, t in zip(phi, theta, strict=True)) + rng.gauss(0, noise)
+
+
+@settings(max_examples=40, deadline=None)
+@given(theta=coefficients, seed=st.integers(0, 10_000))
+def test_noise_free_data_give_the_true_parameters(theta, seed):
+    rls = RecursiveLeastSquares(len(theta), covariance=1e8)
+    for phi, y in observations(theta, 20 * len(theta), seed):
+        rls.update(phi, y)
+    assert rls.theta == pytest.approx(theta, abs=1e-5)
+
+
+@settings(max_examples=30, deadline=None)
+@given(theta=coefficients, seed=st.integers(0, 10_000), noise=st.floats(0.01, 1.0))
+def test_with_a_vague_prior_the_estimate_is_the_batch_least_squares_solution(theta, seed, noise):
+    data = list(observations(theta, 50, seed, noise))
+    rls = RecursiveLeastSquares(len(theta), covariance=1e9)
+    for phi, y in data:
+        rls.update(phi, y)
+    batch, *_ = np.linalg.lstsq(
+        np.array([phi for phi, _ in data]), np.array([y for _, y in data]), rcond=None
+    )
+    assert rls.theta == pytest.approx(list(batch), abs=1e-5)
+
+
+def test_forgetting_follows_a_change_that_plain_least_squares_averages_away():
+    before, after = [1.0, -2.0], [3.0, 0.5]
+    forgetful = RecursiveLeastSquares(2, forgetting=0.95)
+    stubborn = RecursiveLeastSquares(2)
+    for phi, y in [*observations(before, 500, 1), *observations(after, 200, 2)]:
+        forgetful.update(phi, y)
+        stubborn.update(phi, y)
+    assert forgetful.theta == pytest.approx(after, abs=1e-3)
+    assert stubborn.theta[0] < 2.5  # still half in the old regime
+
+
+def test_a_weight_of_two_is_the_same_observation_twice():
+    once, twice = (
+        RecursiveLeastSquares(2, covariance=10.0),
+        RecursiveLeastSquares(2, covariance=10.0),
+    )
+    for phi, y in observations([0.5, 1.5], 10, 3, noise=0.1):
+        once.update(phi, y, weight=2.0)
+        twice.update(phi, y)
+        twice.update(phi, y)
+    assert once.theta == pytest.approx(twice.theta, rel=1e-9)
+    assert np.allclose(once.P, twice.P, rtol=1e-9)
+
+
+def test_the_update_returns_the_a_priori_error_and_the_covariance_stays_symmetric():
+    rls = RecursiveLeastSquares(3, initial=[1.0, 2.0, 3.0])
+    assert rls.update([1.0, 1.0, 1.0], 10.0) == pytest.approx(4.0)
+    for phi, y in observations([1.0, 1.0, 1.0], 100, 4, noise=0.5):
+        rls.update(phi, y)
+    assert all(rls.P[i][j] == rls.P[j][i] for i in range(3) for j in range(3))
+
+
+def test_max_trace_bounds_the_covariance_of_directions_never_excited():
+    rls = RecursiveLeastSquares(2, forgetting=0.9, covariance=1.0, max_trace=5.0)
+    for _ in range(200):
+        rls.update([1.0, 0.0], 1.0)  # the second parameter is never seen
+    assert rls.P[0][0] + rls.P[1][1] <= 5.0 + 1e-9
+
+
+def test_reset_covariance_keeps_the_estimate_and_learns_fast_again():
+    rls = RecursiveLeastSquares(1, covariance=100.0)
+    for phi, y in observations([2.0], 1000, 5, noise=0.1):
+        rls.update(phi, y)
+    slow = rls.P[0][0]
+    rls.reset_covariance()
+    assert rls.theta[0] == pytest.approx(2.0, abs=0.05)
+    assert rls.P[0][0] == 100.0 > slow
+
+
+def test_the_state_survives_json_and_continues_identically():
+    rls = RecursiveLeastSquares(2, forgetting=0.99)
+    data = list(observations([1.0, -1.0], 40, 6, noise=0.2))
+    for phi, y in data[:20]:
+        rls.update(phi, y)
+    copy = RecursiveLeastSquares(2, forgetting=0.99)
+    copy.restore(json.loads(json.dumps(rls.state())))
+    for phi, y in data[20:]:
+        assert copy.update(phi, y) == rls.update(phi, y)
+    assert copy.theta == rls.theta and copy.points == rls.points == 40
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: RecursiveLeastSquares(0), "n >= 1"),
+        (lambda: RecursiveLeastSquares(2, forgetting=1.5), "forgetting factor"),
+        (lambda: RecursiveLeastSquares(2, initial=[1.0]), "initial has 1 values"),
+        (lambda: RecursiveLeastSquares(2, covariance=[[1.0]]), "must be 2x2"),
+        (lambda: RecursiveLeastSquares(2, covariance=-1.0), "positive diagonal"),
+        (lambda: RecursiveLeastSquares(2).update([1.0], 1.0), "phi has 1 values"),
+        (lambda: RecursiveLeastSquares(1).update([1.0], 1.0, weight=0), "weight"),
+        (lambda: RecursiveLeastSquares(1).restore({"theta": [1.0]}), "not a least-squares"),
+    ],
+)
+def test_misuse_is_a_twin_error_that_says_what_is_wrong(make, message):
+    with pytest.raises(TwinError, match=message):
+        make()
