@@ -381,11 +381,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("package", _cmd_package, "build a deployment package")
     p.add_argument("app")
     p.add_argument("-o", "--output", required=True)
+    p.add_argument("--key-file", default=None, metavar="FILE", help="HMAC key to sign with")
+    p.add_argument("--no-deps", action="store_true",
+                   help="leave rasm's dependencies out of 01_Binaries")
 
     p = command("deploy", _cmd_deploy, "verify and install one compute unit of a package")
     p.add_argument("package")
     p.add_argument("--unit", required=True)
     p.add_argument("--to", required=True, dest="target")
+    p.add_argument("--key-file", default=None, metavar="FILE", help="HMAC key to verify with")
+    p.add_argument("--start", action="store_true", help="start the unit's nodes after validating")
     return parser
 
 

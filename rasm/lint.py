@@ -77,6 +77,12 @@ def _lint_manifest(path: Path, text: str) -> list[str]:
     return []
 
 
+def _lint_model(path: Path, text: str) -> list[str]:
+    from rasm.workflow.model import lint_model
+
+    return [_one_line(e) for e in lint_model(path)]
+
+
 def _yaml_kind(path: Path, text: str) -> Callable[[Path, str], list[str]] | None:
     """Which linter a YAML file needs, from its top-level keys (cheap: no full parse)."""
     keys = set()
@@ -85,6 +91,8 @@ def _yaml_kind(path: Path, text: str) -> Callable[[Path, str], list[str]] | None
             keys.add(line.split(":", 1)[0].strip())
     if "statechart" in keys:
         return _lint_statechart
+    if "architecture" in keys:
+        return _lint_model
     if path.name in ("app.yaml", "app.yml") or "components" in keys:
         return _lint_manifest
     if "rules" in keys or "variables" in keys:

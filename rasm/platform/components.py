@@ -14,8 +14,9 @@ else fails the stage with an explanation, and no action comes out of a failed st
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import sys
+import types
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -92,27 +93,24 @@ def load_component(
 ) -> Any:
     """Instantiate ``module:Class`` (``module`` a file or package in ``folder``) with ``kwargs``."""
     module_name, _, class_name = ref.partition(":")
+    if package not in sys.modules:
+        # the app folder as a package, so its modules can import each other relatively
+        parent = types.ModuleType(package)
+        parent.__path__ = [str(folder)]
+        parent.__package__ = package
+        sys.modules[package] = parent
     qualified = f"{package}.{module_name}"
-    module = sys.modules.get(qualified)
-    if module is None:
-        candidates = [
-            folder / (module_name.replace(".", "/") + ".py"),
-            folder / module_name.replace(".", "/") / "__init__.py",
-        ]
-        path = next((c for c in candidates if c.is_file()), None)
-        if path is None:
-            raise PlatformError(f"{ref}: no module {module_name!r} in {folder}")
-        spec = importlib.util.spec_from_file_location(qualified, path)
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[qualified] = module
-        try:
-            spec.loader.exec_module(module)
-        except Exception as exc:
-            del sys.modules[qualified]
-            raise PlatformError(
-                f"{ref}: importing {path} failed: {type(exc).__name__}: {exc}"
-            ) from exc
+    try:
+        module = importlib.import_module(qualified)
+    except ModuleNotFoundError as exc:
+        if exc.name == qualified or (exc.name or "").startswith(package):
+            raise PlatformError(f"{ref}: no module {module_name!r} in {folder}") from exc
+        raise PlatformError(f"{ref}: importing {module_name} failed: {exc}") from exc
+    except Exception as exc:
+        sys.modules.pop(qualified, None)
+        raise PlatformError(
+            f"{ref}: importing {module_name} failed: {type(exc).__name__}: {exc}"
+        ) from exc
     cls = getattr(module, class_name, None)
     if cls is None:
         raise PlatformError(f"{ref}: {module_name} has no {class_name!r}")

@@ -13,6 +13,7 @@ Trustworthiness Checker publishing on an effector topic.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import random
 from collections.abc import Callable
@@ -70,6 +71,12 @@ class RunSummary:
     @property
     def ok(self) -> bool:
         return not any(v == "violated" for v in self.verdicts.values())
+
+
+def _package_name(manifest: AppManifest) -> str:
+    """A module package per app folder: two apps of the same name never share modules."""
+    digest = hashlib.sha1(str(manifest.folder.resolve()).encode()).hexdigest()[:10]
+    return f"rasm_app_{manifest.name.replace('-', '_')}_{digest}"
 
 
 def _remove_sqlite(path: Path) -> None:
@@ -161,7 +168,7 @@ class Platform:
             self.simulator = load_component(
                 m.simulator,
                 m.folder,
-                package=f"rasm_app_{m.name}",
+                package=_package_name(m),
                 kwargs={"scenario": self.scenario, "seed": self.seed},
             )
         self.core = Core(blocks, clock=clock)
@@ -221,10 +228,17 @@ class Platform:
             depends_on=("km", "cm"),
         )
         self.rules = [RuleSet.load(path) for path in m.rules]
-        monitors = [
-            compile_properties(p.read_text(encoding="utf-8"), source=str(p))
-            for p in [*self._platform_properties(), *m.properties]
-        ]
+        files = [*self._platform_properties(), *m.properties]
+        monitors = [compile_properties(p.read_text(encoding="utf-8"), source=str(p)) for p in files]
+        defined: dict[str, Path] = {}
+        for path, monitor in zip(files, monitors, strict=True):
+            for name in monitor.properties:
+                if name in defined:  # verdicts are reported by name: two would merge silently
+                    raise PlatformError(
+                        f"property {name!r} of {path} is already defined in "
+                        f"{defined[name]}: rename one of them"
+                    )
+                defined[name] = path
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
@@ -252,7 +266,7 @@ class Platform:
             clock=clock,
             depends_on=("tm", "tc"),
         )
-        package = f"rasm_app_{m.name}"
+        package = _package_name(m)
         components = {
             stage: self._component_overrides.get(stage)
             or load_component(ref, m.folder, package=package)
