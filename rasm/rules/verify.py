@@ -32,11 +32,11 @@ from rasm.rules.smt import Encoder, encode_rules
 from rasm.rules.split import components, guard_split, names
 
 #: Solver calls spent making one redundant rule's "implied by" set minimal, at most.
-IMPLIED_BY_BUDGET = 12
+IMPLIED_BY_BUDGET = 8
 #: Rounds of the counterexample-guided redundancy search per rule, at most. Only rules that
 #: apply where a conflict does reach it; past the budget the rule is reported as not redundant
 #: (never the reverse: every reported redundancy comes with a checked ``implied_by``).
-REDUNDANCY_ROUNDS = 16
+REDUNDANCY_ROUNDS = 6
 
 
 def verify(rules: Rules, *, redundancy: bool = True) -> Report:
@@ -186,6 +186,9 @@ class _Verifier:
             for active in split.active_sets:
                 for i in active:
                     partners[i].update(active)
+        self.chooser = self.solver(reads)
+        for j in members:
+            self.chooser.add(z3.Implies(keep[j], holds[j]))
         result = []
         for i in members:
             others = [j for j in members if j != i and j in partners[i]]
@@ -228,10 +231,24 @@ class _Verifier:
         else the check's model p (K holds, i breaks) rules out every K' that holds at p: the
         next q must make some rule broken at p hold, so no K comes twice and the search ends.
         """
-        chooser = self.solver(reads)
+        chooser = self.chooser
+        chooser.push()  # the group's chooser: domains and keep_j -> holds_j, built once
+        try:
+            return self.search_support(chooser, solver, i, others, keep, broken, holds)
+        finally:
+            chooser.pop()
+
+    def search_support(
+        self,
+        chooser: z3.Solver,
+        solver: z3.Solver,
+        i: int,
+        others: list[int],
+        keep: dict[int, z3.BoolRef],
+        broken: dict[int, z3.BoolRef],
+        holds: dict[int, z3.BoolRef],
+    ) -> list[int] | None:
         chooser.add(self.formulas[i][0])
-        for j in others:
-            chooser.add(z3.Implies(keep[j], holds[j]))
         for _ in range(REDUNDANCY_ROUNDS):
             kept = list(others)
             while not check(chooser, [keep[j] for j in kept]):
