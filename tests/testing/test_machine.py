@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from hypothesis import settings
+from hypothesis import Phase, settings
 from hypothesis import strategies as st
 
 from rasm.cli import main
@@ -21,9 +21,15 @@ from rasm.testing.machine import chart_events, timer_delays
 
 from . import charts
 
-BUDGET = settings(max_examples=60, stateful_step_count=8, deadline=None, database=None)
+# no explain phase: it re-runs the failure under a tracer, which only slows these tests down
+PHASES = [Phase.explicit, Phase.reuse, Phase.generate, Phase.target, Phase.shrink]
+BUDGET = settings(
+    max_examples=200, stateful_step_count=10, deadline=None, database=None, phases=PHASES
+)
 # the platform monitors cost a property-chart step per meta-event: a smaller budget
-MONITORED = settings(max_examples=25, stateful_step_count=6, deadline=None, database=None)
+MONITORED = settings(
+    max_examples=25, stateful_step_count=6, deadline=None, database=None, phases=PHASES
+)
 
 
 def run(machine, budget=BUDGET):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from hypothesis import find, given, settings
+from hypothesis import Phase, find, given, settings
 from hypothesis import strategies as st
 
 from rasm.spec import compile
@@ -28,7 +28,12 @@ property bounded_load:
     always (load < 250 or mode == "emergency")
 """
 
-FAST = settings(max_examples=60, deadline=None, database=None)
+FAST = settings(
+    max_examples=60,
+    deadline=None,
+    database=None,
+    phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink],
+)
 
 
 def check_declarations(trace, *, ranges, max_gap, min_records=1, max_records=50):
