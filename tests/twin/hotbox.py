@@ -41,6 +41,7 @@ def box(capacity: float, loss_closed: float, loss_open: float) -> type:
             changes = scenario.get("content_change", [])
             self.changes = sorted((float(t), float(c)) for t, c in changes)
             self.loss_closed = loss_closed
+            self.noise = 0.02  # the Hotbox's sensor
 
         def step(self, time: float, dt: float) -> dict:
             while self.changes and time >= self.changes[0][0]:
