@@ -1,10 +1,10 @@
 """``rasm verify-rules --against PROPS.rv``: can a plan the rules admit violate a property?
 
-Only invariants can be judged on a single plan: properties of the form ``always (E)`` where
-``E`` has no temporal operator, no ``prev``/``time`` and reads only rule variables (``let``
-names are expanded first). For each, z3 looks for a point of the declared domains where every
-rule holds and ``E`` does not; such a point is the witness. Other properties are listed as
-skipped, with the reason.
+Only invariants can be judged on a single plan: properties of the form ``always (E)`` (or a
+bare ``E``, which a property file also judges at every record) where ``E`` has no temporal
+operator, no ``prev``/``time`` and reads only rule variables (``let`` names are expanded
+first). For each, z3 looks for a point of the declared domains where every rule holds and ``E``
+does not; such a point is the witness. Other properties are listed as skipped, with the reason.
 """
 
 from __future__ import annotations
@@ -64,12 +64,16 @@ def _judge(
     source: str,
 ) -> Violation:
     formula = prop.formula
-    if not (isinstance(formula, ast.Future) and formula.op == "always"
+    # A property is judged at every record, so `always (E)` and a bare non-temporal `E` are
+    # the same invariant (the property loader may already have stripped the outer always).
+    if (isinstance(formula, ast.Future) and formula.op == "always"
             and formula.bound.low == 0 and formula.bound.high == ast.INF):
-        return Violation(prop.name, "", None, skipped="not of the form always (E)")
-    body = _expand(formula.operand, lets)
+        formula = formula.operand
+    body = _expand(formula, lets)
     if _temporal(body):
-        return Violation(prop.name, "", None, skipped="E is temporal: a plan is one point")
+        return Violation(prop.name, "", None,
+                         skipped="not an invariant always (E) with E non-temporal: "
+                                 "a plan is one point, not a trace")
     unknown = sorted(_names(body) - set(rules.variables))
     if unknown:
         return Violation(prop.name, "", None,

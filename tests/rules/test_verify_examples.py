@@ -122,3 +122,14 @@ def test_a_threshold_redundancy_chain_reports_all_but_the_strongest(k):
     report = report_of(*rules)
     # stops <= 10 is implied by the declared domain (max 10) even when it stands alone
     assert report.redundant == [f"le_{j}" for j in range(k, 11) if j > k or j == 10]
+
+
+def test_against_judges_a_bare_invariant_and_skips_foreign_signals():
+    rules = parse_rules(HEAD + rule("slow", "velocity <= 0.5"), source="r.yaml")
+    props = ("property bare:\n    velocity <= 0.6\n"
+             "property loose:\n    always (velocity <= 0.4)\n"
+             "property foreign:\n    always (battery > 0.2)\n")
+    bare, loose, foreign = check_properties(rules, props)
+    assert bare.witness is None and bare.skipped is None
+    assert loose.witness is not None and 0.4 < loose.witness["velocity"] <= 0.5
+    assert foreign.skipped and "battery" in foreign.skipped
