@@ -92,10 +92,11 @@ class _Checker:
         op = node.op
         if left is None or right is None:
             return "bool" if op in ast.COMPARISONS + ast.BOOLEAN else None
+        sides = ((left, node.left), (right, node.right))
         if op in ast.ARITHMETIC:
-            for side in (left, right):
-                if side not in _NUMERIC:
-                    self.fail(f"arithmetic on {_a(side)}: '{op}' needs numbers", node, len(op))
+            for side, operand in sides:
+                if side not in _NUMERIC:  # point at the operand that is not a number
+                    self.fail(f"arithmetic on {_a(side)}: '{op}' needs numbers", operand)
                     return None
             return "real" if op == "/" or "real" in (left, right) else "int"
         if op in ast.BOOLEAN:
@@ -112,9 +113,10 @@ class _Checker:
             elif left == "enum" and self.strict_enums:
                 self.enum_values(node)
             return "bool"
-        if left not in _NUMERIC or right not in _NUMERIC:
-            odd = left if left not in _NUMERIC else right
-            self.fail(f"'{op}' orders numbers only, not {_a(odd)}", node, len(op))
+        for side, operand in sides:
+            if side not in _NUMERIC:
+                self.fail(f"'{op}' orders numbers only, not {_a(side)}", operand)
+                break
         return "bool"
 
     def enum_values(self, node: ast.Binary) -> None:
