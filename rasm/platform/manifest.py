@@ -97,26 +97,6 @@ class AppManifest:
         return out
 
 
-def _path_location(src: YamlSource, path: list[Any]) -> Location:
-    """The position of the node at ``path`` (keys and indexes), or of its nearest parent."""
-    node = src.data
-    parent, last = None, None
-    for step in path:
-        try:
-            parent, last, node = node, step, node[step]
-        except (KeyError, IndexError, TypeError):
-            break
-    if parent is None:
-        return src.node(node)
-    if isinstance(last, int):
-        return src.item(parent, last)
-    return (
-        src.value(parent, last)
-        if isinstance(node, str | int | float | bool) or node is None
-        else src.key(parent, last)
-    )
-
-
 def _schema_errors(src: YamlSource) -> list[SourceError]:
     validator = jsonschema.Draft202012Validator(SCHEMA)
     errors = []
@@ -130,7 +110,7 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
                 location = src.key(_node_at(src.data, path), extra[0])
                 errors.append(src.error(f"unknown key '{extra[0]}' in {where}", location))
                 continue
-        errors.append(src.error(f"{where}: {message}", _path_location(src, path)))
+        errors.append(src.error(f"{where}: {message}", src.at(path)))
     return errors
 
 
@@ -170,7 +150,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         if not target.exists():
             problems.append(
                 src.error(
-                    f"no such file: {value} (relative to {folder})", _path_location(src, key_path)
+                    f"no such file: {value} (relative to {folder})", src.at(key_path)
                 )
             )
         return target
@@ -180,7 +160,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         if not _REF.match(str(ref)):
             problems.append(
                 src.error(
-                    f"'{ref}' is not module:Class", _path_location(src, ["components", stage])
+                    f"'{ref}' is not module:Class", src.at(["components", stage])
                 )
             )
     twin = data.get("twin") or {}
@@ -188,7 +168,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         problems.append(
             src.error(
                 f"'{twin['component']}' is not module:Class",
-                _path_location(src, ["twin", "component"]),
+                src.at(["twin", "component"]),
             )
         )
     managed = data.get("managed_system", {}) or {}
@@ -207,7 +187,7 @@ def load_manifest(app: str | Path) -> AppManifest:
                 problems.append(
                     src.error(
                         f"signal '{key}': min is above max",
-                        _path_location(src, ["probes", i, "signals", key]),
+                        src.at(["probes", i, "signals", key]),
                     )
                 )
         probes.append(Probe(str(probe["topic"]), signals))

@@ -62,6 +62,25 @@ class YamlSource:
             return self.node(seq)
         return self.location(line, col)
 
+    def at(self, path: list[Any]) -> Location:
+        """Where the node at ``path`` (mapping keys and sequence indexes from the root) is
+        written: a scalar's value, a container's key or item; the nearest parent if the path
+        goes beyond the document (a missing key is reported where its mapping is)."""
+        node = self.data
+        parent, last = None, None
+        for step in path:
+            try:
+                parent, last, node = node, step, node[step]
+            except (KeyError, IndexError, TypeError):
+                break
+        if parent is None:
+            return self.node(node)
+        if isinstance(last, int):
+            return self.item(parent, last)
+        if isinstance(node, str | int | float | bool) or node is None:
+            return self.value(parent, last)
+        return self.key(parent, last)
+
     def code_location(self, mapping: Any, key: str, code_line: int, code_col: int) -> Location:
         """Where line ``code_line``, column ``code_col`` (1-based) of the code in ``key`` is.
 

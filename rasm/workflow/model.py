@@ -188,23 +188,6 @@ class ArchitectureModel:
 # --------------------------------------------------------------------------- loading
 
 
-def _path_location(src: YamlSource, path: list[Any]) -> Location:
-    node = src.data
-    parent, last = None, None
-    for step in path:
-        try:
-            parent, last, node = node, step, node[step]
-        except (KeyError, IndexError, TypeError):
-            break
-    if parent is None:
-        return src.node(node)
-    if isinstance(last, int):
-        return src.item(parent, last)
-    if isinstance(node, str | int | float | bool) or node is None:
-        return src.value(parent, last)
-    return src.key(parent, last)
-
-
 def _schema_errors(src: YamlSource) -> list[SourceError]:
     validator = jsonschema.Draft202012Validator(SCHEMA)
     errors: list[SourceError] = []
@@ -229,11 +212,11 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
                 src.error(
                     f"{where}: '{bad}' is not a valid name here "
                     f"(expected {error.schema.get('pattern', 'a name')})",
-                    src.key(node, bad) if bad in node else _path_location(src, path),
+                    src.key(node, bad) if bad in node else src.at(path),
                 )
             )
             continue
-        errors.append(src.error(f"{where}: {error.message}", _path_location(src, path)))
+        errors.append(src.error(f"{where}: {error.message}", src.at(path)))
     return errors
 
 

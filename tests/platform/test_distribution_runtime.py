@@ -4,17 +4,14 @@ signed end to end, signed rule updates are applied only when consistent, timing 
 from __future__ import annotations
 
 import json
-import os
 import signal
-import subprocess
-import sys
 import threading
 
 from rasm.comm import open_transport, sign
 from rasm.platform.runtime import Platform
 from rasm.testing.servers import start_mosquitto
 
-from .conftest import HOTBOX, read_trace
+from .conftest import HOTBOX, read_trace, start_managed
 
 ACTION_KEY = "a1" * 16
 UPDATE_KEY = "b2" * 16
@@ -25,26 +22,7 @@ def test_killed_managed_process_suspends_the_loop_and_signed_actions_flow(
 ):
     monkeypatch.setenv("RASM_ACTION_KEY", ACTION_KEY)
     broker = start_mosquitto(tmp_path)
-    managed = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rasm.cli",
-            "run",
-            str(HOTBOX),
-            "--role",
-            "managed",
-            "--transport",
-            broker.url,
-            "--duration",
-            "60",
-        ],
-        cwd=tmp_path,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env={**os.environ, "RASM_ACTION_KEY": ACTION_KEY},
-    )
+    managed = start_managed(broker, tmp_path, duration=60, env={"RASM_ACTION_KEY": ACTION_KEY})
     trace_file = tmp_path / "managing.jsonl"
     platform = Platform(
         hotbox, role="managing", transport=broker.url, trace=trace_file, knowledge="memory"

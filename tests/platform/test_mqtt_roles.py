@@ -2,36 +2,15 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 from rasm.platform.runtime import Platform
 from rasm.testing.servers import start_mosquitto
 
-from .conftest import HOTBOX, read_trace
+from .conftest import read_trace, start_managed
 
 
 def test_managed_and_managing_processes_adapt_over_mqtt(hotbox, tmp_path):
     broker = start_mosquitto(tmp_path)
-    managed = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rasm.cli",
-            "run",
-            str(HOTBOX),
-            "--role",
-            "managed",
-            "--transport",
-            broker.url,
-            "--duration",
-            "14",
-        ],
-        cwd=tmp_path,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    managed = start_managed(broker, tmp_path, duration=14)
     try:
         trace_file = tmp_path / "managing.jsonl"
         summary = Platform(
