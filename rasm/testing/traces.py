@@ -226,8 +226,8 @@ def _last(k: int) -> bool:
     return k == _EVENT_ONE_IN - 1
 
 
-def _milliseconds(seconds: float) -> float:
-    return math.floor(seconds * 1000) / 1000
+def _milliseconds(count: int) -> float:
+    return count / 1000
 
 
 def traces(
@@ -264,8 +264,8 @@ def traces(
     first = st.fixed_dictionaries({n: d.strategy() for n, d in domains.items() if d.required})
     sparse = st.integers(0, _EVENT_ONE_IN - 1).map(_last)
     happened = st.fixed_dictionaries({e: sparse for e in events})
-    # whole milliseconds, rounded down so that a gap never exceeds max_gap
-    gap = st.floats(0, max_gap, allow_nan=False).map(_milliseconds)
+    # whole milliseconds (integers shrink more predictably than floats), never above max_gap
+    gap = st.integers(0, math.floor(max_gap * 1000)).map(_milliseconds)
     rows = st.lists(st.tuples(gap, updates, happened), min_size=min_records, max_size=max_records)
 
     @st.composite

@@ -28,7 +28,7 @@ BUDGET = settings(
 )
 # the platform monitors cost a property-chart step per meta-event: a smaller budget
 MONITORED = settings(
-    max_examples=25, stateful_step_count=6, deadline=None, database=None, phases=PHASES
+    max_examples=80, stateful_step_count=8, deadline=None, database=None, phases=PHASES
 )
 
 

@@ -34,6 +34,7 @@ FAST = settings(
     database=None,
     phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink],
 )
+SEARCH = settings(FAST, max_examples=500)  # enough to meet a falsifying trace every time
 
 
 def check_declarations(trace, *, ranges, max_gap, min_records=1, max_records=50):
@@ -130,20 +131,23 @@ def holds(text, trace):
 
 def test_a_false_limit_is_falsified_by_one_record():
     text = "input velocity: float  # range [0, 2]\nproperty limit: always (velocity <= 1.5)\n"
-    minimal = find(traces(text, max_records=10), lambda t: not holds(text, t), settings=FAST)
+    minimal = find(traces(text, max_records=10), lambda t: not holds(text, t), settings=SEARCH)
     assert len(minimal) == 1
     assert set(minimal[0]) == {"time", "velocity"} and minimal[0]["velocity"] > 1.5
 
 
-def test_a_false_deadline_is_shrunk_to_an_event_and_one_late_record():
+def test_a_false_deadline_is_shrunk_to_an_event_and_empty_records_past_the_window():
     text = (
         "event anomaly\nevent executed\n"
         "property timely: always (anomaly -> eventually[0, 2s] executed)\n"
     )
-    minimal = find(traces(text, max_records=10), lambda t: not holds(text, t), settings=FAST)
-    assert len(minimal) == 2
+    minimal = find(traces(text, max_records=10), lambda t: not holds(text, t), settings=SEARCH)
+    # hypothesis may keep bare intermediate records (it cannot delete one and lengthen the next
+    # gap in one move); everything else is gone: one anomaly, then bare times until just past
+    # the window
     assert minimal[0] == {"time": 0.0, "anomaly": True}
-    assert minimal[1]["time"] > 2.0 and "executed" not in minimal[1]
+    assert all(set(r) == {"time"} for r in minimal[1:])
+    assert minimal[-1]["time"] > 2.0 and minimal[-2]["time"] <= 2.0
 
 
 def test_undeclared_signals_get_their_inferred_types():
