@@ -33,6 +33,9 @@ class HotboxSimulator:
         self.open_for = float(scenario.get("lid_open_for", 12.0))
         self.capacity = float(scenario.get("content_heat_capacity", 500.0))
         self.openings = [(float(t), float(d)) for t, d in scenario.get("openings", [])]
+        # [[time, heat_capacity], ...]: the content is swapped for a lighter or heavier one
+        self.content_changes = sorted(
+            (float(t), float(c)) for t, c in scenario.get("content_change", []))
         self.temperature = float(scenario.get("initial_temperature", 37.5))
         self.settings = dict(NORMAL)
         self.power = 0.0
@@ -44,7 +47,18 @@ class HotboxSimulator:
             return False
         return (time - self.first) % self.every < self.open_for
 
+    @staticmethod
+    def SCENARIOS(duration):  # noqa: N802 - the name rasm.testing.scenarios looks up
+        """The disturbance schedules property-based tests draw: lid openings in the run."""
+        from hypothesis import strategies as st
+
+        from rasm.testing import windows
+
+        return st.fixed_dictionaries({"openings": windows(within=max((duration or 40) - 5, 1))})
+
     def step(self, time: float, dt: float) -> dict:
+        while self.content_changes and self.content_changes[0][0] <= time:
+            self.capacity = self.content_changes.pop(0)[1]
         lid = self.lid_open(time)
         loss = self.LOSS_OPEN if lid else self.LOSS_CLOSED
         feed_forward = self.LOSS_CLOSED * (self.settings["setpoint"] - self.AMBIENT)
