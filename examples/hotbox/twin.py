@@ -120,7 +120,7 @@ class HotboxTwin(DigitalTwin):
         confidence: float = 0.5,
         tolerance: float = 0.02,
         min_interval: float = 5.0,
-        drift_delta: float = 0.05,
+        drift_delta: float = 0.03,
         drift_threshold: float = 1.5,
         drift_min_samples: int = 20,
         max_gap: float = 1.0,

@@ -117,7 +117,7 @@ def test_it_learns_the_boxs_parameters(capacity, loss_closed, loss_open, noise, 
 @settings(max_examples=10, deadline=None)
 @given(
     capacity=st.floats(250.0, 1200.0),
-    ratio=st.floats(0.25, 0.5),
+    ratio=st.floats(0.25, 0.45),
     noise=noises,
     seed=st.integers(0, 1000),
 )
