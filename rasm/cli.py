@@ -176,6 +176,31 @@ def _cmd_verify_rules(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- platform
 
 
+def _read_scenario(text: str) -> dict:
+    """``--scenario``: JSON text, or a JSON/YAML file."""
+    import json
+    from pathlib import Path
+
+    from rasm.errors import Location, SourceError
+    from rasm.statechart.source import load_yaml, plain
+
+    path = Path(text)
+    if not text.lstrip().startswith("{") and path.is_file():
+        data = plain(load_yaml(path.read_text(encoding="utf-8"), str(path)).data)
+        where = str(path)
+    else:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SourceError(f"--scenario is not JSON (nor a file): {exc.msg}",
+                              Location("--scenario", 1, exc.colno)) from None
+        where = "--scenario"
+    if not isinstance(data, dict):
+        raise SourceError("a scenario is a mapping, e.g. {\"openings\": [[5, 10]]}",
+                          Location(where, 1, 1))
+    return data
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
@@ -186,8 +211,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     manifest = load_manifest(args.app)
     if args.duration is not None and args.duration <= 0:
         raise UsageError("--duration must be a positive number of seconds")
+    scenario = None
+    if args.scenario is not None:
+        scenario = {**manifest.scenario, **_read_scenario(args.scenario)}
     platform = Platform(
         manifest,
+        scenario=scenario,
         clock=args.clock,
         seed=args.seed,
         transport=args.transport,
@@ -329,6 +358,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--clock", choices=["wall", "simulated"], default=None)
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--role", choices=["all", "managing", "managed"], default="all")
+    p.add_argument("--scenario", default=None, metavar="JSON|FILE",
+                   help="disturbance schedule for the simulator, merged over the manifest's")
     p.add_argument("--dashboard", nargs="?", const=8050, type=int, default=None, metavar="PORT")
 
     p = command("simulate", _cmd_simulate, "execute one statechart on a simulated clock")

@@ -82,6 +82,10 @@ class AdaptationOrchestrator(Block):
     ) -> None:
         self.twin = twin
         self.twin_properties = list(twin_properties)
+        if twin is not None:
+            from rasm.twin import PredictionChecker
+
+            self._twin_checker = PredictionChecker(self.twin_properties)  # parsed once
         self.twin_horizon = twin_horizon
         self.twin_dt = twin_dt
         self.components = components
@@ -247,27 +251,18 @@ class AdaptationOrchestrator(Block):
         self._stage("legitimate", "legitimate", done)
 
     def _twin_check(self, plan: Any, context: dict[str, Any]) -> list[tuple[str, str]]:
-        """Simulate ``plan`` on the digital twin; the properties it predicts will break."""
-        from rasm.spec import compile as compile_properties
+        """Simulate ``plan`` on the digital twin: the properties it would break where keeping
+        the current settings would not (an absolute check would reject the plan that helps
+        most whenever every option leaves the band; docs/twin.md)."""
+        from rasm.twin import worse_than_baseline
 
         try:
-            predicted = self.twin.simulate(plan.values, context, self.twin_horizon, self.twin_dt)
+            worse = worse_than_baseline(
+                self.twin, self._twin_checker, plan.values, context, self.twin_horizon, self.twin_dt
+            )
         except Exception as exc:  # fail closed: a plan the twin cannot judge is not legitimate
             return [("simulation", f"the twin could not simulate the plan: {exc}")]
-        broken: dict[str, str] = {}
-        for source, text in self.twin_properties:
-            monitor = compile_properties(text, source=source)
-            verdicts = []
-            for offset, values in predicted:
-                verdicts.extend(monitor.step(self.clock.time + offset, values))
-            verdicts.extend(monitor.finish())
-            for verdict in verdicts:
-                if verdict.value is False and verdict.property not in broken:
-                    broken[verdict.property] = (
-                        f"the twin predicts {verdict.property} is violated "
-                        f"{verdict.time - self.clock.time:.1f} s after the plan"
-                    )
-        return list(broken.items())
+        return list(worse.items())
 
     def on_enter_executing(self) -> None:
         def done(ctx: StageContext, result: Any) -> str:

@@ -18,7 +18,8 @@ class Update:
 
 
 class PessimistTwin:
-    """Predicts that any plan but boost lets the box cool far below the band."""
+    """Predicts that a normal-mode plan lets the box cool far below the band, where keeping the
+    current settings would not."""
 
     inputs = ("temperature", "heater_power")
 
@@ -34,7 +35,8 @@ class PessimistTwin:
 
     def simulate(self, plan, state, horizon, dt):
         temperature = state.get("temperature", 37.0)
-        slope = 0.05 if plan.get("mode") == "boost" else -0.5
+        # keeping the current settings (no mode in the plan) holds the temperature
+        slope = {"boost": 0.05, None: 0.0}.get(plan.get("mode"), -0.5)
         steps = int(horizon / dt)
         return [
             (i * dt, {"temperature": temperature + slope * i * dt, "heater_power": 50.0})
