@@ -134,9 +134,10 @@ class Block:
         if self.on_deadline is None:
             return
         due = self.interpreter.next_deadline()
-        if due is None or (
-            self._armed is not None and self._armed <= due and self._armed > self.clock.time
-        ):
+        now = self.clock.time
+        # The chart just ran until nothing more happened: a deadline not after now is stale
+        # (a guard that also waits on something else); waking for it again would spin.
+        if due is None or due <= now or (self._armed is not None and now < self._armed <= due):
             return
         self._armed = due
         self.on_deadline(self, due)
