@@ -145,7 +145,8 @@ class Distribution:
         self.platform.sm.nodes[node] = state
         if before != after:
             event = "managed_system_back" if after else "managed_system_lost"
-            _log.warning("managed system %s is %s: %s", node, state, event)
+            log = _log.info if after else _log.warning
+            log("managed system %s is %s: %s", node, state, event)
             self.platform.scheduler.submit(lambda: self.platform.ao.send(event))
 
     @property
