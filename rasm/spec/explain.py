@@ -121,8 +121,14 @@ class _Explainer:
 
         low = max(bisect_left(t, t[i] - b, self.start, i + 1) - 1, self.start)
         high = min(bisect_right(t, t[i] - a, self.start, i + 1), i)
-        while low <= high and not inside(low):  # the bisection is on t_i - b, not on the
-            low += 1  # difference the semantics compares: settle the edges exactly
+        # the bisection is on t_i - b, not on the difference the semantics compares (they round
+        # differently): settle both edges exactly, in either direction
+        while low > self.start and inside(low - 1):
+            low -= 1
+        while low <= high and not inside(low):
+            low += 1
+        while high < i and inside(high + 1):
+            high += 1
         while high >= low and not inside(high):
             high -= 1
         return range(high, low - 1, -1)
@@ -138,8 +144,12 @@ class _Explainer:
 
         low = max(bisect_left(t, t[i] + a, i) - 1, i)
         high = min(bisect_right(t, t[i] + b, i), last)
+        while low > i and inside(low - 1):  # settle both edges exactly (see past_window)
+            low -= 1
         while low <= high and not inside(low):
             low += 1
+        while high < last and inside(high + 1):
+            high += 1
         while high >= low and not inside(high):
             high -= 1
         return range(low, high + 1)
