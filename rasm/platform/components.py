@@ -120,9 +120,6 @@ def load_component(
         raise PlatformError(f"{ref}: creating {class_name}() failed: {exc}") from exc
 
 
-_SCALARS = (int, float, bool, str)
-
-
 def as_signals(value: Any) -> dict[str, Any]:
     """Monitor's result: derived signals to register (a dict), or nothing."""
     if value is None:

@@ -98,7 +98,6 @@ def to_dot(statechart: Statechart) -> str:
         '    node [shape=box, style=rounded, fontname="Helvetica"];',
         '    edge [fontname="Helvetica", fontsize=10];',
     ]
-    anchors: dict[str, str] = {}
 
     def state_block(name: str, indent: str) -> None:
         state = statechart.state_for(name)
@@ -108,7 +107,6 @@ def to_dot(statechart: Statechart) -> str:
             lines.append(f"{indent}subgraph cluster_{sid} {{")
             style = "dashed" if isinstance(state, OrthogonalState) else "rounded"
             lines.append(f'{indent}    label="{_dot_text(name)}"; style={style};')
-            anchors[name] = f"{sid}_anchor"
             lines.append(f'{indent}    {sid}_anchor [shape=point, style=invis, label=""];')
             if isinstance(state, CompoundState) and state.initial:
                 lines.append(f'{indent}    {sid}_init [shape=point, label=""];')
@@ -132,7 +130,6 @@ def to_dot(statechart: Statechart) -> str:
     def _lhead(name: str) -> str:
         return f", lhead=cluster_{ids[name]}" if statechart.children_for(name) else ""
 
-    # Define the anchors' names before use: the helpers above read statechart directly.
     state_block(statechart.root, "    ")
     for transition in statechart.transitions:
         target = transition.target or transition.source
