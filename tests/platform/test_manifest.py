@@ -109,3 +109,13 @@ def test_cli_run_exits_2_with_the_position_and_no_traceback(tmp_path, capsys):
 def test_cli_run_on_a_folder_without_manifest(tmp_path, capsys):
     assert main(["run", str(tmp_path)]) == 2
     assert "no app manifest here" in capsys.readouterr().err
+
+
+def test_cli_run_bad_scenario_exits_2_with_the_place(tmp_path, capsys):
+    assert main(["run", str(HOTBOX), "--clock", "simulated", "--scenario", '{"openings": ']) == 2
+    err = capsys.readouterr().err
+    assert "--scenario:1:" in err and "not JSON" in err and "Traceback" not in err
+    bad = tmp_path / "scenario.yaml"
+    bad.write_text("- not\n- a mapping\n")
+    assert main(["run", str(HOTBOX), "--clock", "simulated", "--scenario", str(bad)]) == 2
+    assert f"{bad}:1:1: a scenario is a mapping" in capsys.readouterr().err
