@@ -157,12 +157,9 @@ class Distribution:
         return any(state == "online" for state in self.managed_nodes.values())
 
     def _apply_rules(self, text: str) -> tuple[bool, str]:
-        results = [
-            rules.swap_text(text, source="rasm/update/rules") for rules in self.platform.rules[:1]
-        ]
-        if not results:
+        if not self.platform.rules:
             return False, "this application has no rules to replace"
-        result = results[0]
+        result = self.platform.rules[0].swap_text(text, source="rasm/update/rules")
         return bool(result.accepted), result.reason
 
     def _apply_properties(self, text: str) -> tuple[bool, str]:
@@ -172,8 +169,7 @@ class Distribution:
             monitor = compile_properties(text, source="rasm/update/properties")
         except Exception as exc:
             return False, f"properties refused: {exc}"
-        done = self.platform.scheduler
-        done.submit(lambda: self.platform.tc.monitors.append(monitor))
+        self.platform.scheduler.submit(lambda: self.platform.tc.monitors.append(monitor))
         return True, f"{len(monitor.properties)} properties added to the checker"
 
     # ------------------------------------------------------------------ actions
