@@ -82,12 +82,12 @@ class _Tables:
         )
         reads = [tuple(signals_of(prop.formula))] * len(probes)
         runs = Monitor(probe_spec, reads=reads).run(records)
-        self.values = {id(node): run for node, run in zip(nodes, runs, strict=True)}
+        self.values = {node: run for node, run in zip(nodes, runs, strict=True)}
 
     def value(self, node: Expr, index: int):
         if isinstance(node, Literal):
             return node.value
-        run = self.values[id(node)]
+        run = self.values[node]
         return run.values[index - run.start]
 
 
@@ -237,7 +237,7 @@ def explain(
         if not indices:
             continue
         tables = _Tables(spec, prop, records)
-        start = tables.values[id(prop.formula)].start
+        start = tables.values[prop.formula].start
         names = signals_of(prop.formula)
         for i in indices:
             explainer = _Explainer(tables, times, start)
