@@ -64,6 +64,7 @@ def test_fixture_assertion_and_saved_failures_through_pytest(tmp_path):
     # of the test that failed
     saved = sorted(failures.glob("hotbox-*.jsonl"))
     assert len(saved) == 2
-    section = out.split("rasm: failing examples saved", 1)[1]
+    # the section runs to the next "=====" header (pytest's short summary may quote paths too)
+    section = out.split("rasm: failing examples saved", 1)[1].split("\n=", 1)[0]
     listed = [line for line in section.splitlines() if line.endswith(".jsonl")]
     assert len(listed) == 1 and '"temperature": 30.0' in open(listed[0]).read()
