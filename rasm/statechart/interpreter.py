@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from sismic.code import PythonEvaluator
+from sismic.exceptions import CodeEvaluationError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event
@@ -35,6 +36,7 @@ except ImportError:  # pragma: no cover
 __all__ = ["AtomicStepMixin", "DeadlineEvaluator", "Interpreter", "StepFailure"]
 
 _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
+_IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
 
 
 def _copy_value(value: Any) -> Any:
@@ -69,31 +71,44 @@ class DeadlineEvaluator(PythonEvaluator):
         self.deadlines: list[float] = []
 
     def evaluate_guard(self, transition, event=None) -> bool:
+        # Stock's evaluate_guard and _evaluate_code in one frame (guards run at every step): the
+        # same names exposed, the same error.
         guard = getattr(transition, "guard", None)
         if guard is None:
             return True
+        code = self._evaluable_code.get(guard)
+        if code is None:
+            code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
         interp = self._interpreter
         source = transition.source
+        now = interp.time
+        deadlines = self.deadlines
 
         def after(seconds: float) -> bool:
-            due = interp._entry_time[source] + seconds
-            if interp.time - seconds >= interp._entry_time[source]:
+            since = interp._entry_time[source]
+            if now - seconds >= since:
                 return True
-            self.deadlines.append(due)
+            deadlines.append(since + seconds)
             return False
 
         def idle(seconds: float) -> bool:
-            due = interp._idle_time[source] + seconds
-            if interp.time - seconds >= interp._idle_time[source]:
+            since = interp._idle_time[source]
+            if now - seconds >= since:
                 return True
-            self.deadlines.append(due)
+            deadlines.append(since + seconds)
             return False
 
-        return self._evaluate_code(
-            guard, additional_context={"after": after, "idle": idle, "event": event}
-        )
-
-
+        exposed = {
+            "active": lambda s: s in interp.configuration,
+            "time": now,
+            "after": after,
+            "idle": idle,
+            "event": event,
+        }
+        try:
+            return bool(eval(code, exposed, self._context))
+        except Exception as e:
+            raise CodeEvaluationError(f"'{e}' occurred while evaluating '{guard}'") from e
 
 
 class AtomicStepMixin:
@@ -116,12 +131,15 @@ class AtomicStepMixin:
             self._internal_queue.copy(), self._external_queue.copy(),
         )
         evaluator = self._evaluator
-        context = {
-            k: v if type(v) in _IMMUTABLE else _copy_value(v)
-            for k, v in evaluator._context.items()
-        }
+        context = evaluator._context.copy()
+        for key, value in context.items():
+            if type(value) not in _IMMUTABLE_TYPES:
+                context[key] = _copy_value(value)
         memory = dict(getattr(evaluator, "_memory", {}))
-        props = tuple((p, AtomicStepMixin._snapshot(p)) for p in self._property_interpreters())
+        props = (
+            tuple((p, AtomicStepMixin._snapshot(p)) for p in self._property_interpreters())
+            if self._listeners else ()
+        )
         return state, context, memory, props
 
     def _restore(self, snapshot: tuple) -> None:
@@ -135,28 +153,61 @@ class AtomicStepMixin:
         for interp, snap in props:
             AtomicStepMixin._restore(interp, snap)
 
+    def _apply_step(self, step):
+        # The full snapshot of a step without bound properties is taken here, before its first
+        # mutation: most steps find nothing to do and never get this far.
+        if self._lazy_snapshot is None:
+            self._lazy_snapshot = self._snapshot()
+        return super()._apply_step(step)
+
+    _lazy_snapshot: tuple | None = ()  # () = not in a lazily snapshotted step
+
     def execute_once(self):
-        snapshot = self._snapshot()
-        pending = self._select_event(consume=False) if self._initialized else None
+        deadlines = getattr(self._evaluator, "deadlines", None)
+        if deadlines is not None:  # a DeadlineEvaluator: only this step's timers count
+            deadlines.clear()
         listeners = self._listeners
+        if listeners:
+            props = self._property_interpreters()
+            ordinary = [li for li in listeners if not isinstance(li, PropertyStatechartListener)]
+        else:
+            props = ordinary = ()
+        if props:
+            # Bound property statecharts change on the meta-events of the step's very start.
+            snapshot = self._snapshot()
+        else:
+            # Before the first micro step only these change (guards are side-effect free).
+            snapshot = None
+            light = (self._initialized, self._time, self._sent_events.copy(),
+                     self._internal_queue.copy(), self._external_queue.copy())
+            self._lazy_snapshot = None
+        pending = self._select_event(consume=False) if self._initialized else None
         deferred: list[Any] = []
-        ordinary = [li for li in listeners if not isinstance(li, PropertyStatechartListener)]
         if ordinary:
             # Hold meta-events for ordinary listeners until the step has succeeded.
             self._listeners = [
                 li for li in listeners if isinstance(li, PropertyStatechartListener)
-            ] + [deferred.append]
+            ]
+            self._listeners.append(deferred.append)
         try:
             step = super().execute_once()
         except Exception as exc:
             self._listeners = listeners
             queued = self._internal_queue + self._external_queue
             consumed = pending is not None and not any(ev is pending for _, ev in queued)
-            self._restore(snapshot)
+            if snapshot is not None:
+                self._restore(snapshot)
+            else:
+                if self._lazy_snapshot:
+                    self._restore(self._lazy_snapshot)
+                (self._initialized, self._time, self._sent_events, self._internal_queue,
+                 self._external_queue) = light
+            self._lazy_snapshot = ()
             # Discard the event that made the step fail, or the next step fails on it again.
             event = self._select_event(consume=True) if consumed else None
             self.last_failure = StepFailure(self.time, event, exc)
             raise
+        self._lazy_snapshot = ()
         if ordinary:
             self._listeners = listeners
             for meta_event in deferred:
@@ -194,12 +245,6 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
             clock=clock,
             ignore_contract=ignore_contract,
         )
-
-    def execute_once(self):
-        deadlines = getattr(self._evaluator, "deadlines", None)
-        if deadlines is not None:
-            deadlines.clear()
-        return super().execute_once()
 
     def next_deadline(self) -> float | None:
         """The earliest time at which a step could do something without a new external event.
