@@ -22,6 +22,7 @@ a knowledge key may be ``0`` once and ``0.5`` later. NaN and infinities are left
 
 from __future__ import annotations
 
+import functools
 import http.client
 import json
 import logging
@@ -63,12 +64,14 @@ _PRECISION = {"s": 1, "ms": 1_000, "u": 1_000_000, "ns": 1_000_000_000}
 # --------------------------------------------------------------------------- line protocol
 
 
+@functools.lru_cache(maxsize=4096)  # names and keys repeat on every record
 def escape_measurement(name: str) -> str:
     """A measurement name in line protocol (commas and spaces escaped; line breaks become
     spaces and backslashes '/')."""
     return _clean(name).replace(",", "\\,").replace(" ", "\\ ")
 
 
+@functools.lru_cache(maxsize=4096)
 def escape_key(text: str) -> str:
     """A tag key, tag value or field key in line protocol (commas, '=' and spaces escaped; line
     breaks become spaces and backslashes '/', which InfluxDB 1.x cannot always escape)."""

@@ -13,7 +13,7 @@
   ``rasm/update/result``.
 - **Timing**: every trace record (stage timing, adaptation events, verdicts) also goes to InfluxDB
   as line protocol when the manifest names a server (``timing: http://host:8086/db``), to a local
-  file otherwise (``.rasm/<app>/timing.lp``).
+  file otherwise (``.rasm/<app>/timing.lp``); nowhere with ``timing: off``.
 - **The trace on the bus**: over MQTT every trace record is published on ``rasm/trace``, so
   ``rasm monitor --topics`` with ``"*": rasm/trace`` checks what the loop saw, from outside.
 """
@@ -116,6 +116,8 @@ class Distribution:
         from rasm.comm import InfluxWriter
 
         target = p.manifest.timing
+        if target == "off":
+            return
         if target and target.startswith(("http://", "https://")):
             base, _, database = target.rstrip("/").rpartition("/")
             self.timing = InfluxWriter(base, database or "rasm")

@@ -314,18 +314,24 @@ class Platform:
             self._twin_inputs = frozenset(twin.inputs)
         return twin
 
-    def _observe_twin(self, keys: set[str], time: float) -> None:
-        """Let the twin learn from the latest inputs; publish its residual, model and drift."""
+    def _observe_twin(self, time: float) -> dict[str, float]:
+        """Let the twin learn from the latest inputs; register its residual (returned, for the
+        trace record of the inputs that produced it), and publish its model and drift."""
         twin = self.twin
         values = {key: self.kb.read_knowledge(key) for key in twin.inputs}
         try:
             update = twin.observe(time, values)
+            residual = None if update is None else float(update.residual)
         except Exception as exc:  # a twin fault is logged; learning goes on with the next record
             _log.error("digital twin failed to learn: %s: %s", type(exc).__name__, exc)
-            return
+            return {}
         if update is None:
-            return
-        self._register({"twin_residual": float(update.residual)}, time)
+            return {}
+        try:
+            self.km.register_knowledge("twin_residual", residual, time)
+        except Exception as exc:  # a NaN residual is refused like any bad value
+            _log.warning("knowledge twin_residual=%r refused: %s", residual, exc)
+            residual = None
         if update.model_changed:
             model = twin.model()
             self._register({"twin_model": model}, time)
@@ -333,6 +339,7 @@ class Platform:
         if update.drift:
             self._emit(time, {"drift": True, "explanation": "the digital twin detected drift"})
             self.scheduler.submit(lambda: self.ao.send("drift_detected"))
+        return {} if residual is None else {"twin_residual": residual}
 
     def _chart(self, name: str) -> Path | None:
         """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
@@ -344,7 +351,8 @@ class Platform:
     # ------------------------------------------------------------------ data paths
 
     def _register(self, values: dict[str, Any], time: float) -> None:
-        """Store values in knowledge (one trace record for the batch)."""
+        """Store values in knowledge (one trace record for the batch, with the twin's residual
+        when they were the twin's inputs)."""
         stored = {}
         for key, value in values.items():
             try:
@@ -354,10 +362,10 @@ class Platform:
                 continue
             if isinstance(value, _SCALARS):
                 stored[key] = value
+        if self.twin is not None and not self._twin_inputs.isdisjoint(values):
+            stored.update(self._observe_twin(time))
         if stored:
             self._emit(time, stored)
-        if self.twin is not None and not self._twin_inputs.isdisjoint(values):
-            self._observe_twin(set(values), time)
 
     def _knowledge_updated(self, key: str, sample: Any) -> None:
         self.stom.register_knowledge_update(key, sample)

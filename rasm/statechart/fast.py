@@ -538,6 +538,9 @@ class PropertyListener(PropertyStatechartListener):
     :class:`FastInterpreter` using sismic's Python evaluator (or a subclass of it). Guards of
     eventless transitions are assumed to depend only on the property's own context, configuration
     and time. Delayed meta-events are always delivered (they wait in the property's queue).
+
+    Under the same conditions, the closing step of an execution (the one that finds nothing to
+    do) is not run when no active state has an eventless transition and no event is queued.
     """
 
     def __init__(self, interpreter: Interpreter) -> None:
@@ -547,6 +550,11 @@ class PropertyListener(PropertyStatechartListener):
             isinstance(interpreter, FastInterpreter)
             and isinstance(interpreter._evaluator, PythonEvaluator)
             and not interpreter._tables.invariant_states
+        )
+        # States with an eventless transition: while none is active and nothing is queued, the
+        # step after an event is a no-op (no listeners, no invariants), so it is not run.
+        self._eventless_sources = frozenset(
+            t.source for t in interpreter.statechart.transitions if t.event is None
         )
 
     @property
@@ -566,12 +574,26 @@ class PropertyListener(PropertyStatechartListener):
                 return False
         return True
 
+    def _quiet(self, interp: FastInterpreter) -> bool:
+        return not (
+            interp._listeners
+            or interp._internal_queue
+            or interp._external_queue
+            or not self._eventless_sources.isdisjoint(interp._configuration)
+        )
+
     def __call__(self, event: MetaEvent) -> None:
         if self._settled and self._can_skip and self._skippable(event):
             return
         self._settled = False
-        self._interpreter.queue(event)
-        self._interpreter.execute()
-        if self._interpreter.final:
+        interp = self._interpreter
+        interp.queue(event)
+        if self._can_skip:
+            step = interp.execute_once()
+            while step is not None and not self._quiet(interp):
+                step = interp.execute_once()
+        else:
+            interp.execute()
+        if interp.final:
             raise PropertyStatechartError(self._interpreter)
         self._settled = True

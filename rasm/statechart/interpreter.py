@@ -216,10 +216,12 @@ class AtomicStepMixin:
         return step
 
     def bind_property_statechart(self, statechart, *, interpreter_klass=None):
-        # Property statecharts run on the same (fast, atomic) interpreter by default.
-        return super().bind_property_statechart(
-            statechart, interpreter_klass=interpreter_klass or type(self)
-        )
+        # Property statecharts run on the fast path without a rollback layer of their own: this
+        # interpreter's snapshot covers them, and restores them when one of its steps fails.
+        if interpreter_klass is None:
+            mro = type(self).__mro__
+            interpreter_klass = mro[mro.index(AtomicStepMixin) + 1]
+        return super().bind_property_statechart(statechart, interpreter_klass=interpreter_klass)
 
 
 class Interpreter(AtomicStepMixin, FastInterpreter):

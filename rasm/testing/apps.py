@@ -124,7 +124,8 @@ def run_app(
     * ``overrides``: fields of the manifest to change for this run, e.g. ``stage_budget=0.05``
       or ``period=0.25``.
 
-    Knowledge is kept in memory, so nothing is left on disk but ``trace``.
+    Knowledge is kept in memory and timing is not written (``timing: off``), so nothing is left
+    on disk but ``trace``.
     """
     manifest = app_manifest(app)
     if overrides:
@@ -136,6 +137,9 @@ def run_app(
                 f"manifest field; the manifest fields are: {', '.join(sorted(fields))}"
             )
         manifest = dataclasses.replace(manifest, **overrides)
+    if "timing" not in (overrides or {}):
+        # a test run leaves nothing on disk but its trace (timing=... in overrides to keep it)
+        manifest = dataclasses.replace(manifest, timing="off")
     if not (isinstance(duration, int | float) and duration > 0 and math.isfinite(duration)):
         raise ValueError(f"duration must be a positive number of seconds, not {duration!r}")
     platform = Platform(

@@ -88,3 +88,19 @@ def test_scenarios_of_the_hotbox_are_lid_openings_within_the_run():
             end = start + length
 
     check()
+
+
+def test_run_app_leaves_nothing_on_disk_but_the_trace_it_was_asked_for(tmp_path, monkeypatch):
+    import shutil
+
+    monkeypatch.chdir(tmp_path)  # where a run's state (.rasm/<app>/) would go
+    app = tmp_path / "hotbox"
+    shutil.copytree(HOTBOX, app, ignore=shutil.ignore_patterns(".rasm", "__pycache__"))
+    before = {p.relative_to(tmp_path) for p in tmp_path.rglob("*")}
+    trace = run_app(app, seed=1, duration=3, trace=tmp_path / "run.jsonl")
+    assert len(trace) > 0
+    after = {p.relative_to(tmp_path) for p in tmp_path.rglob("*") if "__pycache__" not in p.parts}
+    assert after - before == {tmp_path.joinpath("run.jsonl").relative_to(tmp_path)}
+    # the timing file is written again when asked for
+    run_app(app, seed=1, duration=3, timing=f"file:{tmp_path / 'timing.lp'}")
+    assert "maple_stage" in (tmp_path / "timing.lp").read_text()
