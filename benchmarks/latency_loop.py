@@ -1,6 +1,6 @@
 """Whole-path detect-to-act latency over a loopback mosquitto broker, at 10 and 200 records/s.
 
-    .venv/bin/python benchmarks/latency_loop.py [--seconds 30]
+    .venv/bin/python benchmarks/latency_loop.py [--seconds 60]
 
 The Hotbox's managed system (simulator) and managing system run as two platforms in this process,
 talking only through a real broker. Latency is measured from the managing side's ``anomaly``
@@ -43,10 +43,11 @@ def measure(rate: float, seconds: float, broker_url: str) -> list[float]:
     managing_manifest = load_manifest(HOTBOX)
     managing_manifest.period = 0.1
     managing_manifest.twin = None  # measure the loop, not the twin's learning
+    # low_latency as `rasm run` sets it for a live run
     managed = Platform(managed_manifest, role="managed", transport=broker_url, clock="wall",
-                       scenario=scenario)
+                       scenario=scenario, low_latency=True)
     managing = Platform(managing_manifest, role="managing", transport=broker_url, clock="wall",
-                        knowledge="memory")
+                        knowledge="memory", low_latency=True)
     managed.build()
     managing.build()
     anomalies: list[float] = []
@@ -70,7 +71,7 @@ def measure(rate: float, seconds: float, broker_url: str) -> list[float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         broker = start_mosquitto(Path(tmp))

@@ -222,6 +222,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         transport=args.transport,
         trace=args.trace,
         role=args.role,
+        low_latency=(args.clock or manifest.clock or "wall") == "wall",
     )
     duration = args.duration if args.duration is not None else manifest.duration
     console = Console(stderr=args.trace == "-")  # keep stdout for the trace

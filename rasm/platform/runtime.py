@@ -13,6 +13,7 @@ Trustworthiness Checker publishing on an effector topic.
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import logging
 import random
@@ -101,6 +102,7 @@ class Platform:
         scenario: dict[str, Any] | None = None,
         components: dict[str, Any] | None = None,
         isolate_stages: bool | None = None,
+        low_latency: bool = False,
     ) -> None:
         if role not in ("all", "managing", "managed"):
             raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
@@ -124,6 +126,11 @@ class Platform:
         self.isolate_stages = (
             self.clock_kind != "simulated" if isolate_stages is None else isolate_stages
         )
+        # the process is the loop's own (`rasm run`): the objects built before the run are moved
+        # out of the collector's reach, so a full collection cannot pause the loop for tens of
+        # milliseconds (docs/runtime.md)
+        self.low_latency = low_latency
+        self._gc_frozen = False
         self.on_record: list[Callable[[float, dict[str, Any]], Any]] = []
         self.verdict_log: list[Any] = []
         self.simulator: Any = None
@@ -412,6 +419,10 @@ class Platform:
             # building took time; the run's timeline starts now (or after restored knowledge)
             self.clock.start_at(self._timeline_start)
         self.core.initialize()
+        if self.low_latency and not self._gc_frozen:
+            gc.collect()
+            gc.freeze()
+            self._gc_frozen = True
         self._started_at = self.clock.time
         self.dist.start()
         m = self.manifest
@@ -453,6 +464,9 @@ class Platform:
         if self.core is not None and self.core.mode != "terminated":
             self.core.deinitialize()
         self.trace.flush()
+        if self._gc_frozen:
+            gc.unfreeze()
+            self._gc_frozen = False
 
     def summary(self, duration: float) -> RunSummary:
         verdicts: dict[str, str] = {}

@@ -137,3 +137,16 @@ def test_roles_build_only_their_side(hotbox, role):
     names = {b.name for b in platform.core.blocks}
     assert ("ao" in names) == (role == "managing")
     assert (platform.simulator is not None) == (role == "managed")
+
+
+def test_low_latency_keeps_the_objects_built_before_the_run_out_of_the_collector(tmp_path):
+    import gc
+
+    frozen_during_run = []
+    platform = Platform(_manifest(), clock="simulated", knowledge="memory", state_dir=tmp_path,
+                        low_latency=True)
+    platform.on_record.append(lambda t, record: frozen_during_run.append(gc.get_freeze_count()))
+    platform.run(2)
+    assert frozen_during_run and min(frozen_during_run) > 0
+    # stopping gives them back, so a process running several loops does not keep them forever
+    assert gc.get_freeze_count() == 0
