@@ -132,7 +132,10 @@ class Platform:
         self.low_latency = low_latency
         self._gc_frozen = False
         self.on_record: list[Callable[[float, dict[str, Any]], Any]] = []
-        self.verdict_log: list[Any] = []
+        # every verdict of the online monitors goes to these callables (loop thread); nothing
+        # keeps them, so a long run does not grow (the trace file has the records they judge)
+        self.on_verdict: list[Callable[[Any], Any]] = []
+        self._inconclusive: set[str] = set()
         self.simulator: Any = None
         self.core: Core | None = None
         self._built = False
@@ -253,7 +256,7 @@ class Platform:
             send=self._send_action,
             mode_of=lambda: self.kb.read_knowledge(m.mode_signal) if m.mode_signal else None,
             online=lambda: self.dist.managed_online,
-            on_verdict=self.verdict_log.append,
+            on_verdict=self._verdict,
             clock=clock,
             depends_on=("sm", "cm"),
         )
@@ -374,6 +377,12 @@ class Platform:
         if stored:
             self._emit(time, stored)
 
+    def _verdict(self, verdict: Any) -> None:
+        if verdict.value is None:
+            self._inconclusive.add(verdict.property)
+        for observer in self.on_verdict:
+            observer(verdict)
+
     def _knowledge_updated(self, key: str, sample: Any) -> None:
         self.stom.register_knowledge_update(key, sample)
 
@@ -476,14 +485,11 @@ class Platform:
         if self.role in ("all", "managing"):
             for monitor in self.tc.monitors:
                 for verdict in monitor.finish():
-                    self.verdict_log.append(verdict)
+                    self._verdict(verdict)
                     if verdict.value is False:
                         self.tc.violations[verdict.property] += 1
                 for name in monitor.properties:
-                    verdicts[name] = "satisfied"
-            for verdict in self.verdict_log:
-                if verdict.value is None and verdicts.get(verdict.property) == "satisfied":
-                    verdicts[verdict.property] = "inconclusive"
+                    verdicts[name] = "inconclusive" if name in self._inconclusive else "satisfied"
             for name, count in self.tc.violations.items():
                 verdicts[name] = "violated"
                 violations[name] = count

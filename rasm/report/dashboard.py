@@ -60,7 +60,7 @@ class Dashboard:
         self._cond = threading.Condition()
         self._version = 0
         self._cache: tuple[int, str] = (-1, "")
-        self._verdicts_seen = 0
+        self._verdicts: list[Any] = []  # verdicts not yet on a timeline (loop thread only)
         self._modes_read = 0.0
         self._streams = 0
         self._closed = False
@@ -80,6 +80,9 @@ class Dashboard:
         )
         self._thread.start()
         platform.on_record.append(self.on_record)
+        verdict_observers = getattr(platform, "on_verdict", None)
+        if verdict_observers is not None:
+            verdict_observers.append(self.on_verdict)
 
     # ------------------------------------------------------------------ the loop's side
 
@@ -107,14 +110,16 @@ class Dashboard:
             self.modes = dict(sm.get_status())
         self._modes_read = _time.monotonic()
 
+    def on_verdict(self, verdict: Any) -> None:
+        """``platform.on_verdict`` observer (loop thread): held until the record it judged."""
+        self._verdicts.append(verdict)
+
     def _take_verdicts(self) -> None:
-        # the Trustworthiness Checker's verdicts so far (appended on the loop thread)
-        log = getattr(self.platform, "verdict_log", ())
-        for verdict in log[self._verdicts_seen :]:
+        verdicts, self._verdicts = self._verdicts, []
+        for verdict in verdicts:
             timeline = self.timelines.get(verdict.property)
             if timeline is not None:
                 timeline.add(verdict.time, verdict.value)
-        self._verdicts_seen = len(log)
 
     def on_record(self, time: float, record: dict[str, Any]) -> None:
         """``platform.on_record`` observer: runs on the loop thread for every trace record."""
@@ -233,6 +238,8 @@ class Dashboard:
             self._cond.notify_all()
         if self.on_record in self.platform.on_record:
             self.platform.on_record.remove(self.on_record)
+        if self.on_verdict in getattr(self.platform, "on_verdict", ()):
+            self.platform.on_verdict.remove(self.on_verdict)
         self.server.shutdown()
         self.server.server_close()
         self._thread.join(timeout)
