@@ -18,6 +18,7 @@ Two things stock sismic lacks and the platform needs (NOTES.md):
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -33,7 +34,9 @@ try:  # the fast path is being built alongside; stock sismic until it lands
 except ImportError:  # pragma: no cover
     FastInterpreter = SismicInterpreter  # type: ignore[misc,assignment]
 
-__all__ = ["AtomicStepMixin", "DeadlineEvaluator", "Interpreter", "StepFailure"]
+__all__ = [
+    "AtomicStepMixin", "DeadlineEvaluator", "FastGuardEvaluator", "Interpreter", "StepFailure",
+]
 
 _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
 _IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
@@ -59,16 +62,11 @@ class StepFailure:
     exception: BaseException
 
 
-class DeadlineEvaluator(PythonEvaluator):
-    """sismic's Python evaluator that also records when ``after()``/``idle()`` guards turn true.
+class FastGuardEvaluator(PythonEvaluator):
+    """sismic's Python evaluator with guards evaluated in one frame instead of two (guards run at
+    every step): the same names exposed, the same errors."""
 
-    A guard is evaluated at every step while its source state is active, so the deadlines recorded
-    during the last step are exactly those that can fire a transition without a new event.
-    """
-
-    def __init__(self, interpreter=None, *, initial_context=None) -> None:
-        super().__init__(interpreter, initial_context=initial_context)
-        self.deadlines: list[float] = []
+    deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
 
     def evaluate_guard(self, transition, event=None) -> bool:
         # Stock's evaluate_guard and _evaluate_code in one frame (guards run at every step): the
@@ -88,14 +86,16 @@ class DeadlineEvaluator(PythonEvaluator):
             since = interp._entry_time[source]
             if now - seconds >= since:
                 return True
-            deadlines.append(since + seconds)
+            if deadlines is not None:
+                deadlines.append(since + seconds)
             return False
 
         def idle(seconds: float) -> bool:
             since = interp._idle_time[source]
             if now - seconds >= since:
                 return True
-            deadlines.append(since + seconds)
+            if deadlines is not None:
+                deadlines.append(since + seconds)
             return False
 
         exposed = {
@@ -109,6 +109,18 @@ class DeadlineEvaluator(PythonEvaluator):
             return bool(eval(code, exposed, self._context))
         except Exception as e:
             raise CodeEvaluationError(f"'{e}' occurred while evaluating '{guard}'") from e
+
+
+class DeadlineEvaluator(FastGuardEvaluator):
+    """:class:`FastGuardEvaluator` that also records when ``after()``/``idle()`` guards turn true.
+
+    A guard is evaluated at every step while its source state is active, so the deadlines recorded
+    during the last step are exactly those that can fire a transition without a new event.
+    """
+
+    def __init__(self, interpreter=None, *, initial_context=None) -> None:
+        super().__init__(interpreter, initial_context=initial_context)
+        self.deadlines = []
 
 
 class AtomicStepMixin:
@@ -220,7 +232,9 @@ class AtomicStepMixin:
         # interpreter's snapshot covers them, and restores them when one of its steps fails.
         if interpreter_klass is None:
             mro = type(self).__mro__
-            interpreter_klass = mro[mro.index(AtomicStepMixin) + 1]
+            interpreter_klass = functools.partial(
+                mro[mro.index(AtomicStepMixin) + 1], evaluator_klass=FastGuardEvaluator
+            )
         return super().bind_property_statechart(statechart, interpreter_klass=interpreter_klass)
 
 
