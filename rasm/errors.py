@@ -68,6 +68,14 @@ def mark(text: str, line: int, col: int, width: int = 1) -> str | None:
     return f"    {source}\n    {pad}{'^' * max(width, 1)}"
 
 
+def not_utf8(file: str, exc: UnicodeDecodeError) -> SourceError:
+    """A :class:`SourceError` for a file that is not UTF-8, placed at its first bad byte."""
+    data = exc.object[: exc.start]
+    line = data.count(b"\n") + 1
+    col = exc.start - (data.rfind(b"\n") + 1) + 1
+    return SourceError(f"not a UTF-8 text file: {exc.reason}", Location(file, line, col))
+
+
 class StatechartError(RasmError):
     """The statechart layer failed (loading, validating or executing a chart)."""
 

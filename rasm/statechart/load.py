@@ -21,7 +21,7 @@ from sismic.exceptions import StatechartError as SismicStatechartError
 from sismic.io.datadict import import_from_dict
 from sismic.model import Statechart
 
-from rasm.errors import Location, SourceError, SourceErrors
+from rasm.errors import Location, SourceError, SourceErrors, not_utf8
 from rasm.statechart.source import YamlSource, load_yaml, plain
 
 __all__ = ["ChartProblem", "load_statechart", "check_statechart", "source_of"]
@@ -421,7 +421,10 @@ def load_statechart(
     if text is None:
         if path is None:
             raise TypeError("load_statechart needs a path or text")
-        text = Path(path).read_text(encoding="utf-8")
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise not_utf8(source or str(path), exc) from None
     file = source or (str(path) if path is not None else "<text>")
     statechart, problems = check_statechart(text, file)
     errors = [p.error for p in problems if p.severity == "error"]

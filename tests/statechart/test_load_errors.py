@@ -433,3 +433,13 @@ def test_cli_bad_events_file_names_the_line(tmp_path, capsys):
     assert f'{events}:4:1: "event" must be a non-empty string' in err
     assert f"{events}:5:1: not JSON" in err
     assert f"{events}:6:1: data key 'name' is reserved" in err
+
+
+@pytest.mark.parametrize("command", ["simulate", "graph"])
+def test_cli_non_utf8_chart_exits_2_at_the_bad_byte(tmp_path, capsys, command):
+    chart = tmp_path / "latin1.yaml"
+    chart.write_bytes(b"statechart:\n  name: x\n  root state:\n    name: caf\xe9\n")
+    assert main([command, str(chart)]) == 2
+    err = capsys.readouterr().err
+    assert f"{chart}:4:14: not a UTF-8 text file" in err
+    assert "Traceback" not in err
