@@ -73,7 +73,7 @@ def parse_trace(
         if not line.strip():
             continue
         try:
-            record = json.loads(line)
+            record = json.loads(line.rstrip("\r\n"))
         except json.JSONDecodeError as exc:
             fail(f"not valid JSON: {exc.msg}", number, exc.colno)
             continue
@@ -86,6 +86,9 @@ def parse_trace(
             continue
         if time.__class__ not in (int, float) or time != time:
             fail(f"'time' must be a number, not {json.dumps(time)}", number, _column(line, "time"))
+            continue
+        if time.__class__ is float and math.isinf(time):
+            fail(f"'time' must be finite, not {json.dumps(time)}", number, _column(line, "time"))
             continue
         if time < last_time:
             fail(

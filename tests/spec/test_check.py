@@ -135,6 +135,25 @@ def test_bad_trace_reports_every_line(props, tmp_path, capsys):
     ]
 
 
+def test_infinite_time_and_truncated_record_are_rejected_at_their_column(props, tmp_path, capsys):
+    path = tmp_path / "inf.jsonl"
+    path.write_text(
+        '{"time": 0, "velocity": 0.1}\n'
+        '{"time": Infinity, "velocity": 0.2}\n'
+        '{"time": 1e999}\n'
+        '{"time": -Infinity}\n'
+        '{"time": 3, "velocity": 0.3\n'
+    )
+    assert main(["check", props, str(path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"rasm: {path}:2:2: 'time' must be finite, not Infinity",
+        f"rasm: {path}:3:2: 'time' must be finite, not Infinity",
+        f"rasm: {path}:4:2: 'time' must be finite, not -Infinity",
+        f"rasm: {path}:5:28: not valid JSON: Expecting ',' delimiter",
+    ]
+
+
 def test_time_going_back_is_rejected_with_its_line():
     with pytest.raises(SourceErrors) as info:
         parse_trace(['{"time": 2}', "", '{"time": 1}'], {}, source="t.jsonl")
