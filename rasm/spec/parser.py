@@ -8,6 +8,7 @@ another file (a YAML scalar of a rules file) reports places in that file.
 from __future__ import annotations
 
 import ast as python_ast
+import math
 from functools import lru_cache
 from pathlib import Path
 
@@ -143,6 +144,20 @@ class _Build(Transformer):
     def _token_error(self, message: str, token: Token) -> SourceError:
         return self.place.error(message, token.line, token.column, len(token.value))
 
+    def _finite_number(self, token: Token) -> int | float:
+        """The number ``token`` spells, refused if a float cannot hold it (1e999, 10**400)."""
+        value = _number(token.value)
+        try:
+            finite = math.isfinite(value)
+        except OverflowError:
+            finite = False
+        if not finite:
+            text = token.value if len(token.value) <= 24 else token.value[:20] + "…"
+            raise self._token_error(
+                f"number {text} is too large (the largest is about 1.8e308)", token
+            )
+        return value
+
     def _no_temporal(self, meta, what: str) -> None:
         if not self.temporal:
             raise self._error(f"temporal operator not allowed here ({what})", meta)
@@ -192,10 +207,10 @@ class _Build(Transformer):
         return Property(name.value, formula, location=self.place.location(name.line, name.column))
 
     def default_number(self, meta, token):
-        return (_number(token.value), meta)
+        return (self._finite_number(token), meta)
 
     def default_negative(self, meta, token):
-        return (-_number(token.value), meta)
+        return (-self._finite_number(token), meta)
 
     def default_string(self, meta, token):
         return (_string(token.value), meta)
@@ -290,7 +305,7 @@ class _Build(Transformer):
                     f"unknown time unit {unit.value!r}; use ms, s or min", unit
                 )
             scale = UNITS[unit.value]
-        value = _number(number.value)
+        value = self._finite_number(number)
         # ms divides (exact decimal rounding: 3ms == 0.003) rather than multiplying by 1e-3
         return value / 1000 if scale == 1e-3 else value * scale
 
@@ -314,7 +329,7 @@ class _Build(Transformer):
 
     # ----------------------------------------------------------------- atoms
     def number(self, meta, token):
-        return Literal(_number(token.value), location=self._loc(meta))
+        return Literal(self._finite_number(token), location=self._loc(meta))
 
     def string(self, meta, token):
         return Literal(_string(token.value), location=self._loc(meta))

@@ -40,6 +40,12 @@ CASES = [
     ("property p: prev(x, y) > 1", 1, 13, "prev takes one argument"),
     ("property p: x > 1 @", 1, 19, "unexpected character '@'"),
     ("property : x", 1, 10, "unexpected ':'"),
+    ("input x: float\nproperty p: x < 1e999", 2, 17, "number 1e999 is too large"),
+    ("input x: float\nproperty p: x < -1e999", 2, 18, "number 1e999 is too large"),
+    ("input x: float\nproperty p: x + 1" + "0" * 400 + " > 1", 2, 17, "is too large"),
+    ("input x: float = 1e400\nproperty p: x > 1", 1, 18, "number 1e400 is too large"),
+    ("input x: int = -1" + "0" * 400 + "\nproperty p: x > 1", 1, 17, "is too large"),
+    ("property p: once[0, 1" + "0" * 400 + "] x", 1, 21, "is too large"),
 ]
 
 
@@ -67,3 +73,16 @@ def test_nested_unbounded_always_inside_property_is_rejected_but_outermost_is_fi
     load_specification("property p: always (x -> once y)")
     with pytest.raises(SourceError, match="outermost"):
         load_specification("property p: always always x")
+
+
+def test_cli_check_with_a_too_large_number_exits_2(tmp_path, capsys):
+    from rasm.cli import main
+
+    props = tmp_path / "big.rv"
+    props.write_text("input x: float\nproperty p:\n    always (x < 1e999)\n")
+    trace = tmp_path / "t.jsonl"
+    trace.write_text('{"time": 0, "x": 1}\n')
+    assert main(["check", str(props), str(trace)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rasm: {props}:3:17: number 1e999 is too large")
+    assert "Traceback" not in err
