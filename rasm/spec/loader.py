@@ -69,13 +69,15 @@ def _load(text: str, source: str) -> Specification:
             )
         defined[name] = item
 
-    def expand(node: Expr) -> Expr:
+    def expand(node: Expr, defining: str | None = None) -> Expr:
         if isinstance(node, Name):
             if node.name in lets:
                 return lets[node.name].expr
+            if node.name == defining:
+                raise SourceError(f"let {defining!r} refers to itself", node.location)
             used_as_signal.setdefault(node.name, node)
             return node
-        return _rebuild(node, [expand(c) for c in children(node)])
+        return _rebuild(node, [expand(c, defining) for c in children(node)])
 
     scope_declared: dict[str, str] = {}
     for item in declarations:
@@ -93,7 +95,7 @@ def _load(text: str, source: str) -> Specification:
     for item in declarations:
         if isinstance(item, Let):
             define(item.name, item)
-            body = expand(item.expr)
+            body = expand(item.expr, item.name)
             _check_always(body, outermost=False)
             scope.check(body)
             lets[item.name] = replace(item, expr=body)

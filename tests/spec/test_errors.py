@@ -40,6 +40,8 @@ CASES = [
     ("property p: prev(x, y) > 1", 1, 13, "prev takes one argument"),
     ("property p: x > 1 @", 1, 19, "unexpected character '@'"),
     ("property : x", 1, 10, "unexpected ':'"),
+    ("let a = a\nproperty p: a", 1, 9, "let 'a' refers to itself"),
+    ("input x: float\nlet a = x > 1 and prev(a)\nproperty p: a", 2, 24, "refers to itself"),
     ("input x: float\nproperty p: x < 1e999", 2, 17, "number 1e999 is too large"),
     ("input x: float\nproperty p: x < -1e999", 2, 18, "number 1e999 is too large"),
     ("input x: float\nproperty p: x + 1" + "0" * 400 + " > 1", 2, 17, "is too large"),
