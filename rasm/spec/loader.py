@@ -36,11 +36,19 @@ from rasm.spec.types import TypeScope
 
 __all__ = ["load_specification", "signals_of"]
 
+# Deeper formulas would overflow Python's parser (200 nested parentheses) in the generated
+# monitor, or its recursion limit in the passes over the tree: refuse them with their place.
+MAX_DEPTH = 150
+
 
 def load_specification(text: str, *, source: str = "<text>") -> Specification:
     """Parse and check a property file; raises :class:`SourceError` at the first problem."""
     try:
         return _load(text, source)
+    except RecursionError:
+        raise SourceError(
+            f"formulas nested too deeply (at most {MAX_DEPTH} levels)", _origin(source)
+        ) from None
     except SourceError as error:
         if error.excerpt is None and error.location.file == source:
             error.excerpt = mark(text, error.location.line, error.location.col)
@@ -79,6 +87,20 @@ def _load(text: str, source: str) -> Specification:
             return node
         return _rebuild(node, [expand(c, defining) for c in children(node)])
 
+    def shallow(root: Expr, what: str, where) -> Expr:
+        depth, stack = 0, [(root, 1)]
+        while stack:
+            node, level = stack.pop()
+            depth = max(depth, level)
+            stack.extend((c, level + 1) for c in children(node))
+        if depth > MAX_DEPTH:
+            raise SourceError(
+                f"{what} is nested {depth} levels deep (lets expanded), more than the "
+                f"{MAX_DEPTH} a monitor can compile",
+                where,
+            )
+        return root
+
     scope_declared: dict[str, str] = {}
     for item in declarations:
         if isinstance(item, Input):
@@ -95,7 +117,8 @@ def _load(text: str, source: str) -> Specification:
     for item in declarations:
         if isinstance(item, Let):
             define(item.name, item)
-            body = expand(item.expr, item.name)
+            shallow(item.expr, f"let {item.name!r}", item.location)
+            body = shallow(expand(item.expr, item.name), f"let {item.name!r}", item.location)
             _check_always(body, outermost=False)
             scope.check(body)
             lets[item.name] = replace(item, expr=body)
@@ -106,7 +129,9 @@ def _load(text: str, source: str) -> Specification:
                     f"{property_names[item.name].location}",
                     item.location,
                 )
-            formula = expand(item.formula)
+            where = f"property {item.name!r}"
+            shallow(item.formula, where, item.location)
+            formula = shallow(expand(item.formula), where, item.location)
             formula = _strip_always(formula)
             _check_always(formula, outermost=False)
             scope.check(formula, "bool")

@@ -12,7 +12,7 @@ import math
 from functools import lru_cache
 from pathlib import Path
 
-from lark import Lark, Token, Transformer, v_args
+from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
 from rasm.errors import Location, SourceError, mark
@@ -394,10 +394,28 @@ def _parse(text: str, start: str, place: _Place, temporal: bool):
     except SourceError:
         raise
     except Exception as exc:  # lark wraps errors raised in callbacks
-        inner = getattr(exc, "orig_exc", None)
+        inner = getattr(exc, "orig_exc", exc)
         if isinstance(inner, SourceError):
             raise inner from None
+        if isinstance(inner, RecursionError):
+            line, col = _deepest_item(tree)
+            raise place.error("expression nested too deeply", line, col) from None
         raise
+
+
+def _deepest_item(tree: Tree) -> tuple[int, int]:
+    """Line and column of the top-level item of ``tree`` that nests deepest (without recursing)."""
+    best, where = -1, (1, 1)
+    for item in tree.children if tree.data == "start" else [tree]:
+        depth, stack = 0, [(item, 1)]
+        while stack:
+            node, level = stack.pop()
+            depth = max(depth, level)
+            stack.extend((c, level + 1) for c in getattr(node, "children", ()))
+        meta = getattr(item, "meta", None)
+        if depth > best and meta is not None and not getattr(meta, "empty", True):
+            best, where = depth, (meta.line, meta.column)
+    return where
 
 
 def parse_expression(text: str, *, source: str = "<text>", line: int = 1, col: int = 1) -> Expr:

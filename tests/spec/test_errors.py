@@ -40,6 +40,10 @@ CASES = [
     ("property p: prev(x, y) > 1", 1, 13, "prev takes one argument"),
     ("property p: x > 1 @", 1, 19, "unexpected character '@'"),
     ("property : x", 1, 10, "unexpected ':'"),
+    ("property p: " + " and ".join(f"x > {i}" for i in range(200)), 1, 10, "201 levels deep"),
+    ("let a = " + "not " * 200 + "x\nproperty p: a", 1, 5, "let 'a' is nested 201 levels"),
+    ("input x: float\nproperty p: " + "not " * 3000 + "x > 1", 2, 1, "nested too deeply"),
+    ("input x: float\nproperty p: " + " -> ".join(["x > 1"] * 3000), 2, 1, "nested too deeply"),
     ("let a = a\nproperty p: a", 1, 9, "let 'a' refers to itself"),
     ("input x: float\nlet a = x > 1 and prev(a)\nproperty p: a", 2, 24, "refers to itself"),
     ("input x: float\nproperty p: x < 1e999", 2, 17, "number 1e999 is too large"),
@@ -88,3 +92,10 @@ def test_cli_check_with_a_too_large_number_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"rasm: {props}:3:17: number 1e999 is too large")
     assert "Traceback" not in err
+
+
+def test_the_deepest_formula_allowed_compiles_and_runs():
+    text = "input x: float\nproperty p: " + " and ".join(f"x > {i}" for i in range(149))
+    monitor = compile(text, source="deep.rv")
+    assert [v.value for v in monitor.step(0, {"x": 200})] == [True]
+    assert [v.value for v in monitor.step(1, {"x": 100})] == [False]
