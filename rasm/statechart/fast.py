@@ -543,6 +543,10 @@ class PropertyListener(PropertyStatechartListener):
     do) is not run when no active state has an eventless transition and no event is queued.
     """
 
+    #: Called with the property's interpreter just before the listener changes it (a meta-event
+    #: that is not skipped); the platform's atomic layer snapshots the property there.
+    before_change: Callable[[Interpreter], Any] | None = None
+
     def __init__(self, interpreter: Interpreter) -> None:
         super().__init__(interpreter)
         self._settled = False
@@ -587,6 +591,8 @@ class PropertyListener(PropertyStatechartListener):
             return
         self._settled = False
         interp = self._interpreter
+        if self.before_change is not None:
+            self.before_change(interp)
         interp.queue(event)
         if self._can_skip:
             step = interp.execute_once()

@@ -135,7 +135,7 @@ class AtomicStepMixin:
             if isinstance(listener, PropertyStatechartListener)
         ]
 
-    def _snapshot(self) -> tuple:
+    def _snapshot(self, with_properties: bool = True) -> tuple:
         # Spelled out attribute by attribute: this runs before every step (the hot path).
         state = (
             self._initialized, self._time, self._memory.copy(), self._configuration.copy(),
@@ -150,7 +150,7 @@ class AtomicStepMixin:
         memory = dict(getattr(evaluator, "_memory", {}))
         props = (
             tuple((p, AtomicStepMixin._snapshot(p)) for p in self._property_interpreters())
-            if self._listeners else ()
+            if with_properties and self._listeners else ()
         )
         return state, context, memory, props
 
@@ -166,41 +166,53 @@ class AtomicStepMixin:
             AtomicStepMixin._restore(interp, snap)
 
     def _apply_step(self, step):
-        # The full snapshot of a step without bound properties is taken here, before its first
-        # mutation: most steps find nothing to do and never get this far.
+        # This interpreter's full snapshot is taken here, before the step's first change: most
+        # steps find nothing to do and never get this far.
         if self._lazy_snapshot is None:
-            self._lazy_snapshot = self._snapshot()
+            self._lazy_snapshot = self._snapshot(with_properties=False)
         return super()._apply_step(step)
 
     _lazy_snapshot: tuple | None = ()  # () = not in a lazily snapshotted step
+    # id -> (property interpreter, its snapshot) taken before its first change in this step
+    _property_snapshots: dict[int, tuple] | None = None
+
+    def _before_property_change(self, interp: Any) -> None:
+        # Called by a bound PropertyListener before it feeds its interpreter a meta-event; most
+        # meta-events are skipped, so most steps snapshot no property at all.
+        snapshots = self._property_snapshots
+        if snapshots is not None and id(interp) not in snapshots:
+            snapshots[id(interp)] = (interp, AtomicStepMixin._snapshot(interp))
 
     def execute_once(self):
         deadlines = getattr(self._evaluator, "deadlines", None)
         if deadlines is not None:  # a DeadlineEvaluator: only this step's timers count
             deadlines.clear()
         listeners = self._listeners
+        eager = False
         if listeners:
-            props = self._property_interpreters()
+            properties = [li for li in listeners if isinstance(li, PropertyStatechartListener)]
             ordinary = [li for li in listeners if not isinstance(li, PropertyStatechartListener)]
+            # a property listener that does not say when it changes its interpreter (stock's)
+            # is snapshotted up front, with this interpreter
+            eager = any(getattr(li, "before_change", None) is None for li in properties)
         else:
-            props = ordinary = ()
-        if props:
-            # Bound property statecharts change on the meta-events of the step's very start.
+            properties = ordinary = ()
+        if eager:
             snapshot = self._snapshot()
         else:
-            # Before the first micro step only these change (guards are side-effect free).
+            # Before the first micro step only these change (guards are side-effect free); the
+            # rest is saved in _apply_step, bound properties in _before_property_change.
             snapshot = None
             light = (self._initialized, self._time, self._sent_events.copy(),
                      self._internal_queue.copy(), self._external_queue.copy())
             self._lazy_snapshot = None
+            if properties:
+                self._property_snapshots = {}
         pending = self._select_event(consume=False) if self._initialized else None
         deferred: list[Any] = []
         if ordinary:
             # Hold meta-events for ordinary listeners until the step has succeeded.
-            self._listeners = [
-                li for li in listeners if isinstance(li, PropertyStatechartListener)
-            ]
-            self._listeners.append(deferred.append)
+            self._listeners = [*properties, deferred.append]
         try:
             step = super().execute_once()
         except Exception as exc:
@@ -214,12 +226,16 @@ class AtomicStepMixin:
                     self._restore(self._lazy_snapshot)
                 (self._initialized, self._time, self._sent_events, self._internal_queue,
                  self._external_queue) = light
+                for interp, snap in (self._property_snapshots or {}).values():
+                    AtomicStepMixin._restore(interp, snap)
             self._lazy_snapshot = ()
+            self._property_snapshots = None
             # Discard the event that made the step fail, or the next step fails on it again.
             event = self._select_event(consume=True) if consumed else None
             self.last_failure = StepFailure(self.time, event, exc)
             raise
         self._lazy_snapshot = ()
+        self._property_snapshots = None
         if ordinary:
             self._listeners = listeners
             for meta_event in deferred:
@@ -235,7 +251,10 @@ class AtomicStepMixin:
             interpreter_klass = functools.partial(
                 mro[mro.index(AtomicStepMixin) + 1], evaluator_klass=FastGuardEvaluator
             )
-        return super().bind_property_statechart(statechart, interpreter_klass=interpreter_klass)
+        listener = super().bind_property_statechart(statechart, interpreter_klass=interpreter_klass)
+        if hasattr(listener, "before_change"):
+            listener.before_change = self._before_property_change
+        return listener
 
 
 class Interpreter(AtomicStepMixin, FastInterpreter):

@@ -132,3 +132,49 @@ statechart:
         interp.execute_once()
     assert interp.configuration == []
     assert interp.last_failure.event is None
+
+
+COUNTING_PROPERTY = """
+statechart:
+  name: counts_exits_of_a
+  preamble: exits = 0
+  root state:
+    name: root
+    initial: watching
+    states:
+      - name: watching
+        transitions:
+          - target: seen
+            event: state exited
+            guard: event.state == 'a'
+            action: exits += 1
+      - name: seen
+        transitions:
+          - target: watching
+            event: state entered
+            guard: event.state == 'a'
+"""
+
+
+@pytest.mark.parametrize("stock_listener", [False, True])
+def test_a_property_changed_before_the_failure_is_restored(stock_listener):
+    # `a` is exited (the property moves to `seen`, counting it) before the action divides by
+    # zero: the rollback must bring the property back too, whether it was snapshotted lazily
+    # (rasm's listener, on its first change) or up front (stock's listener).
+    interp = Interpreter(chart(), initial_context={"divisor": 0})
+    prop = load_statechart(text=COUNTING_PROPERTY)
+    if stock_listener:
+        from sismic.interpreter.listener import PropertyStatechartListener
+
+        watcher = StockInterpreter(prop, clock=interp.clock)
+        interp.attach(PropertyStatechartListener(watcher))
+    else:
+        watcher = interp.bind_property_statechart(prop).interpreter
+    interp.execute()
+    assert watcher.configuration == ["root", "watching"]
+    interp.queue("go")
+    with pytest.raises(CodeEvaluationError):
+        interp.execute()
+    assert interp.configuration == ["root", "a"]
+    assert watcher.configuration == ["root", "watching"]
+    assert watcher.context["exits"] == 0
