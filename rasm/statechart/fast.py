@@ -560,6 +560,10 @@ class PropertyListener(PropertyStatechartListener):
         self._eventless_sources = frozenset(
             t.source for t in interpreter.statechart.transitions if t.event is None
         )
+        # the event names some transition of the property listens to, in any state
+        self._names = frozenset(
+            t.event for t in interpreter.statechart.transitions if t.event is not None
+        )
 
     @property
     def interpreter(self) -> Interpreter:
@@ -568,7 +572,12 @@ class PropertyListener(PropertyStatechartListener):
 
     def _skippable(self, event: MetaEvent) -> bool:
         interp = self._interpreter
-        if interp._listeners or event.name in interp.reactive_events() or _has_delay(event):
+        name = event.name
+        if (
+            interp._listeners
+            or (name in self._names and name in interp.reactive_events())
+            or _has_delay(event)
+        ):
             return False
         now = interp.clock.time
         if interp._time != now or interp.final:
