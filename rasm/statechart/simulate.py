@@ -19,13 +19,14 @@ from typing import Any, TextIO
 from sismic.clock import SimulatedClock
 from sismic.model import MacroStep, Statechart
 
-from rasm.errors import Location, SourceError, SourceErrors
+from rasm.errors import Location, SourceError, SourceErrors, not_utf8
 from rasm.statechart.interpreter import Interpreter
 from rasm.statechart.load import load_statechart
 
 __all__ = ["TimedEvent", "SimulatedStep", "read_events", "simulate", "format_steps"]
 
-_RESERVED = {"name", "data", "delay"}
+# keyword names of sismic's Event and Interpreter.queue: an event's data cannot use them
+_RESERVED = {"name", "data", "delay", "self", "event_or_name"}
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
             bad(f"unknown key {unknown[0]!r} (expected time, event, data)")
             continue
         time = record.get("time")
-        if isinstance(time, bool) or not isinstance(time, int | float) or not math.isfinite(time):
+        if isinstance(time, bool) or not isinstance(time, int | float) or not _finite(time):
             bad('"time" must be a finite number of seconds')
             continue
         if time < 0:
@@ -115,14 +116,28 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
     return events
 
 
+def _finite(time: float) -> bool:
+    try:
+        return math.isfinite(time)
+    except OverflowError:  # an integer too large for a float
+        return False
+
+
 def read_events(source: str | Path | TextIO) -> list[TimedEvent]:
     """Read a JSONL events file (a path, ``-`` for standard input, or an open text stream)."""
     if isinstance(source, str) and source == "-":
-        return _parse_events(sys.stdin, "<stdin>")
+        source = sys.stdin
     if isinstance(source, str | Path):
-        with open(source, encoding="utf-8") as stream:
-            return _parse_events(stream, str(source))
-    return _parse_events(source, getattr(source, "name", "<events>"))
+        try:
+            text = Path(source).read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise not_utf8(str(source), exc) from None
+        return _parse_events(text.split("\n"), str(source))
+    name = "<stdin>" if source is sys.stdin else getattr(source, "name", "<events>")
+    try:
+        return _parse_events(source, name)
+    except UnicodeDecodeError as exc:
+        raise SourceError(f"not UTF-8 text: {exc.reason}", Location(name)) from None
 
 
 def _step(macro: MacroStep, interp: Interpreter) -> SimulatedStep:

@@ -443,3 +443,25 @@ def test_cli_non_utf8_chart_exits_2_at_the_bad_byte(tmp_path, capsys, command):
     err = capsys.readouterr().err
     assert f"{chart}:4:14: not a UTF-8 text file" in err
     assert "Traceback" not in err
+
+
+def test_cli_events_file_with_reserved_key_huge_time_or_bad_bytes_exits_2(tmp_path, capsys):
+    chart = tmp_path / "c.yaml"
+    chart.write_text("statechart:\n  name: y\n  root state:\n    name: r\n")
+    events = tmp_path / "events.jsonl"
+    events.write_text(
+        '{"time": 1, "event": "a", "data": {"self": 1}}\n'
+        '{"time": 2, "event": "a", "data": {"event_or_name": 1}}\n'
+        '{"time": 1' + "0" * 400 + ', "event": "b"}\n'
+    )
+    assert main(["simulate", str(chart), "--events", str(events)]) == 2
+    err = capsys.readouterr().err
+    assert f"{events}:1:1: data key 'self' is reserved" in err
+    assert f"{events}:2:1: data key 'event_or_name' is reserved" in err
+    assert f'{events}:3:1: "time" must be a finite number' in err
+    assert "Traceback" not in err
+    events.write_bytes(b'{"time": 1, "event": "a"}\n{"time": 2, "event": "caf\xe9"}\n')
+    assert main(["simulate", str(chart), "--events", str(events)]) == 2
+    err = capsys.readouterr().err
+    assert f"{events}:2:26: not a UTF-8 text file" in err
+    assert "Traceback" not in err
