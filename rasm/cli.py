@@ -32,8 +32,12 @@ def _open_output(path: str | None):
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    import math
+
     from rasm.statechart.simulate import format_steps, read_events, simulate
 
+    if args.until is not None and not (math.isfinite(args.until) and args.until >= 0):
+        raise UsageError(f"--until must be a finite time in seconds, >= 0, not {args.until}")
     events = read_events(args.events) if args.events else []
     steps = simulate(args.chart, events, until=args.until)
     sys.stdout.write(format_steps(steps, args.format))

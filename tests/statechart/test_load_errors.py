@@ -465,3 +465,17 @@ def test_cli_events_file_with_reserved_key_huge_time_or_bad_bytes_exits_2(tmp_pa
     err = capsys.readouterr().err
     assert f"{events}:2:26: not a UTF-8 text file" in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("until", ["-1", "nan", "inf", "1e999"])
+def test_cli_simulate_until_must_be_a_finite_time(tmp_path, capsys, until):
+    chart = tmp_path / "tick.yaml"
+    chart.write_text(
+        "statechart:\n  name: t\n  root state:\n    name: r\n    initial: a\n    states:\n"
+        "      - name: a\n        transitions:\n          - target: a\n"
+        "            guard: after(1)\n"
+    )
+    assert main(["simulate", str(chart), f"--until={until}"]) == 2
+    err = capsys.readouterr().err
+    assert "--until must be a finite time in seconds" in err
+    assert "Traceback" not in err
