@@ -26,6 +26,7 @@ from rasm.statechart.load import load_statechart
 __all__ = ["TimedEvent", "SimulatedStep", "read_events", "simulate", "format_steps"]
 
 # keyword names of sismic's Event and Interpreter.queue: an event's data cannot use them
+MAX_STEPS = 10_000  # macro steps one event (or the initial step) may take before it is stable
 _RESERVED = {"name", "data", "delay", "self", "event_or_name"}
 
 
@@ -151,7 +152,7 @@ def _step(macro: MacroStep, interp: Interpreter) -> SimulatedStep:
 
 
 def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> None:
-    while True:
+    for _ in range(MAX_STEPS):
         try:
             macro = interp.execute_once()
         except Exception as exc:  # the step was rolled back; report it and go on
@@ -172,6 +173,17 @@ def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> Non
         if macro is None:
             return
         steps.append(_step(macro, interp))
+    steps.append(  # an eventless cycle (or a timer that fires at once, forever): stop it
+        SimulatedStep(
+            time=interp.time,
+            event=None,
+            configuration=sorted(interp.configuration),
+            entered=[],
+            exited=[],
+            error=f"{where}: the chart did not become stable after {MAX_STEPS} steps at time "
+            f"{interp.time:g} (an eventless transition cycle?); stopped there",
+        )
+    )
 
 
 def simulate(

@@ -479,3 +479,16 @@ def test_cli_simulate_until_must_be_a_finite_time(tmp_path, capsys, until):
     err = capsys.readouterr().err
     assert "--until must be a finite time in seconds" in err
     assert "Traceback" not in err
+
+
+def test_cli_simulate_stops_a_chart_that_never_becomes_stable(tmp_path, capsys):
+    chart = tmp_path / "loop.yaml"
+    chart.write_text(
+        "statechart:\n  name: loop\n  root state:\n    name: r\n    initial: a\n    states:\n"
+        "      - name: a\n        transitions:\n          - target: b\n"
+        "      - name: b\n        transitions:\n          - target: a\n"
+    )
+    assert main(["simulate", str(chart), "--format", "json"]) == 1
+    captured = capsys.readouterr()
+    assert "did not become stable after 10000 steps at time 0" in captured.err
+    assert len(captured.out.splitlines()) == 10_000
