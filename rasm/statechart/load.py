@@ -153,9 +153,10 @@ class _Checker:
     def scalar(self, mapping: Any, key: str) -> bool:
         value = mapping[key]
         if isinstance(value, dict | list) or value is None:
+            found = "a list" if isinstance(value, list) else "a mapping"
+            found = "nothing" if value is None else found
             self.error(
-                f"'{key}' must be a single value, not "
-                f"{'nothing' if value is None else type(value).__name__}",
+                f"'{key}' must be a single value, not {found}",
                 self.src.value(mapping, key),
             )
             return False

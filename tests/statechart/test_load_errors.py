@@ -492,3 +492,13 @@ def test_cli_simulate_stops_a_chart_that_never_becomes_stable(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "did not become stable after 10000 steps at time 0" in captured.err
     assert len(captured.out.splitlines()) == 10_000
+
+
+def test_a_list_where_a_single_value_belongs_is_named_in_words():
+    with pytest.raises(SourceErrors) as info:
+        load_statechart(
+            text="statechart:\n  name: [1]\n  root state:\n    name: r\n", source="c.yaml"
+        )
+    assert str(info.value.errors[0]).splitlines()[0] == (
+        "c.yaml:2:9: 'name' must be a single value, not a list"
+    )
