@@ -71,6 +71,7 @@ class ChartSource:
     file: str
     states: dict[str, Location] = field(default_factory=dict)
     transitions: dict[tuple[str, int], Location] = field(default_factory=dict)
+    preamble: Location | None = None
 
 
 def source_of(statechart: Statechart) -> ChartSource | None:
@@ -128,6 +129,7 @@ class _Checker:
             if key in chart:
                 self.scalar(chart, key)
         if "preamble" in chart and isinstance(chart["preamble"], str):
+            self.positions.preamble = self.src.value(chart, "preamble")
             self.code(chart, "preamble", "exec")
         if "root state" not in chart:
             self.error("the statechart has no 'root state'", self.src.key(data, "statechart"))

@@ -21,7 +21,7 @@ from sismic.model import MacroStep, Statechart
 
 from rasm.errors import Location, SourceError, SourceErrors, not_utf8
 from rasm.statechart.interpreter import Interpreter
-from rasm.statechart.load import load_statechart
+from rasm.statechart.load import load_statechart, source_of
 
 __all__ = ["TimedEvent", "SimulatedStep", "read_events", "simulate", "format_steps"]
 
@@ -196,7 +196,15 @@ def simulate(
     """Run ``chart`` over ``events`` on a simulated clock; one entry per macro step taken."""
     statechart = chart if isinstance(chart, Statechart) else load_statechart(chart)
     clock = SimulatedClock()
-    interp = Interpreter(statechart, clock=clock, initial_context=initial_context)
+    try:
+        interp = Interpreter(statechart, clock=clock, initial_context=initial_context)
+    except Exception as exc:  # the preamble raised: the chart cannot start
+        where = source_of(statechart)
+        cause = exc.__cause__ or exc
+        raise SourceError(
+            f"the chart's preamble failed: {type(cause).__name__}: {cause}",
+            (where.preamble or Location(where.file)) if where else Location(str(chart)),
+        ) from None
     steps: list[SimulatedStep] = []
     _execute(interp, steps, "initial step")
     for event in events:

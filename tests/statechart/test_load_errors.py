@@ -502,3 +502,14 @@ def test_a_list_where_a_single_value_belongs_is_named_in_words():
     assert str(info.value.errors[0]).splitlines()[0] == (
         "c.yaml:2:9: 'name' must be a single value, not a list"
     )
+
+
+def test_cli_simulate_with_a_failing_preamble_exits_2_at_the_preamble(tmp_path, capsys):
+    chart = tmp_path / "c.yaml"
+    chart.write_text(
+        "statechart:\n  name: c\n  preamble: x = 1 / 0\n  root state:\n    name: r\n"
+    )
+    assert main(["simulate", str(chart)]) == 2
+    err = capsys.readouterr().err
+    assert f"{chart}:3:13: the chart's preamble failed: ZeroDivisionError: division by zero" in err
+    assert "Traceback" not in err
