@@ -588,10 +588,13 @@ class PropertyListener(PropertyStatechartListener):
         return True
 
     def _quiet(self, interp: FastInterpreter) -> bool:
+        # the closing step would also clear what the last step sent (a notify() is sent without
+        # being queued): when there is something to clear, it runs
         return not (
             interp._listeners
             or interp._internal_queue
             or interp._external_queue
+            or interp._sent_events
             or not self._eventless_sources.isdisjoint(interp._configuration)
         )
 
