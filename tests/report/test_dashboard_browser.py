@@ -131,3 +131,7 @@ def test_hold_keeps_the_finished_run_until_closed() -> None:
     holder.join(10)
     assert not holder.is_alive()
     assert json.loads(body)["records"] > 0
+    # every property of the run has a timeline fed by the checker's verdicts (platform.on_verdict)
+    judged = {name: timeline.judged for name, timeline in dashboard.timelines.items()}
+    assert judged and all(count > 0 for count in judged.values()), judged
+    assert dashboard.on_verdict not in platform.on_verdict  # detached when closed
