@@ -15,7 +15,7 @@ from typing import Any
 
 import jsonschema
 
-from rasm.errors import Location, SourceError, SourceErrors
+from rasm.errors import Location, SourceError, SourceErrors, not_utf8
 from rasm.statechart.source import YamlSource, load_yaml, plain
 
 __all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEMA"]
@@ -128,7 +128,11 @@ def load_manifest(app: str | Path) -> AppManifest:
         raise SourceErrors(
             [SourceError(f"no app manifest here (expected {file})", Location(str(file)))]
         )
-    src = load_yaml(file.read_text(encoding="utf-8"), str(file))
+    try:
+        text = file.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise not_utf8(str(file), exc) from None
+    src = load_yaml(text, str(file))
     if not isinstance(src.data, dict):
         raise SourceErrors(
             [

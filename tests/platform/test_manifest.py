@@ -119,3 +119,11 @@ def test_cli_run_bad_scenario_exits_2_with_the_place(tmp_path, capsys):
     bad.write_text("- not\n- a mapping\n")
     assert main(["run", str(HOTBOX), "--clock", "simulated", "--scenario", str(bad)]) == 2
     assert f"{bad}:1:1: a scenario is a mapping" in capsys.readouterr().err
+
+
+def test_cli_run_on_a_non_utf8_manifest_exits_2_at_the_bad_byte(tmp_path, capsys):
+    (tmp_path / "app.yaml").write_bytes(b"name: caf\xe9\n")
+    assert main(["run", str(tmp_path), "--clock", "simulated", "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'app.yaml'}:1:10: not a UTF-8 text file" in err
+    assert "Traceback" not in err
