@@ -100,6 +100,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated.
     # With RASM_UPDATE_KEY (hex) set, HMAC-signed {"spec": …} on rasm/update/properties replace
     # the properties at run time (the public checker's unsigned `reconfig`, made safe).
+    import math
     import os
     import signal
     import threading
@@ -110,7 +111,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     from rasm.spec import load_specification
 
     duration = getattr(args, "duration", None)
-    if duration is not None and duration <= 0:
+    if duration is not None and not 0 < duration < math.inf:
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
     try:
         with open(args.props, encoding="utf-8") as handle:
@@ -206,6 +207,8 @@ def _read_scenario(text: str) -> dict:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    import math
+
     from rich.console import Console
 
     from rasm.platform.console import LiveView, print_summary
@@ -213,8 +216,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from rasm.platform.runtime import Platform
 
     manifest = load_manifest(args.app)
-    if args.duration is not None and args.duration <= 0:
-        raise UsageError("--duration must be a positive number of seconds")
+    if args.duration is not None and not 0 < args.duration < math.inf:  # nan, inf: never ends
+        raise UsageError("--duration must be a positive, finite number of seconds")
     scenario = None
     if args.scenario is not None:
         scenario = {**manifest.scenario, **_read_scenario(args.scenario)}

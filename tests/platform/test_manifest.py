@@ -127,3 +127,14 @@ def test_cli_run_on_a_non_utf8_manifest_exits_2_at_the_bad_byte(tmp_path, capsys
     err = capsys.readouterr().err
     assert f"{tmp_path / 'app.yaml'}:1:10: not a UTF-8 text file" in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("duration", ["nan", "inf", "1e999", "0"])
+def test_cli_run_and_monitor_refuse_a_duration_that_never_ends(tmp_path, capsys, duration):
+    # a simulated run of nan/inf seconds used to loop forever
+    assert main(["run", str(HOTBOX), "--clock", "simulated", "--duration", duration]) == 2
+    assert "--duration must be a positive, finite number" in capsys.readouterr().err
+    props = tmp_path / "p.rv"
+    props.write_text("input x: float\nproperty p: x < 1\n")
+    assert main(["monitor", str(props), "--transport", "local", "--duration", duration]) == 2
+    assert "--duration must be a positive number of seconds" in capsys.readouterr().err
