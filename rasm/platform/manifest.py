@@ -8,6 +8,7 @@ express (files that must exist, ``module:Class`` references, effectors named by 
 from __future__ import annotations
 
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -111,6 +112,17 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
                 errors.append(src.error(f"unknown key '{extra[0]}' in {where}", location))
                 continue
         errors.append(src.error(f"{where}: {message}", src.at(path)))
+    # the schema's number checks let .nan and .inf through (a run of .inf seconds never ends)
+    stack: list[tuple[list[Any], Any]] = [([], src.data)]
+    while stack:
+        path, node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend((path + [k], v) for k, v in node.items())
+        elif isinstance(node, list):
+            stack.extend((path + [i], v) for i, v in enumerate(node))
+        elif isinstance(node, float) and not math.isfinite(node):
+            where = ".".join(str(p) for p in path)
+            errors.append(src.error(f"{where}: must be a finite number, not {node}", src.at(path)))
     return errors
 
 

@@ -138,3 +138,9 @@ def test_cli_run_and_monitor_refuse_a_duration_that_never_ends(tmp_path, capsys,
     props.write_text("input x: float\nproperty p: x < 1\n")
     assert main(["monitor", str(props), "--transport", "local", "--duration", duration]) == 2
     assert "--duration must be a positive number of seconds" in capsys.readouterr().err
+
+
+def test_non_finite_numbers_in_the_manifest_are_refused_at_their_place(tmp_path):
+    found = errors(tmp_path, GOOD.replace("period: 0.5", "period: .inf") + "duration: .nan\n")
+    assert (14, 11, "loop.period: must be a finite number, not inf") in found
+    assert (15, 11, "duration: must be a finite number, not nan") in found
