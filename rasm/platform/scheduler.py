@@ -51,6 +51,10 @@ class Scheduler:
         if period <= 0:
             raise ValueError("period must be positive")
         first = self.clock.time if start is None else start
+        if first + period <= first:  # the job would run forever at one instant
+            raise ValueError(
+                f"a period of {period:g} s is too short to move the clock at {first:g} s"
+            )
 
         def tick(n: int = 0) -> None:
             job()

@@ -70,7 +70,7 @@ def test_a_good_manifest_loads(tmp_path):
             17,
             "'double' is not one of",
         ),
-        ("  period: 0.5", "  period: -1", 14, 11, "less than or equal to the minimum"),
+        ("  period: 0.5", "  period: -1", 14, 11, "less than the minimum of 1e-06"),
         ("  monitor: components:M", "  monitor: components.M", 3, 12, "is not module:Class"),
         (
             "x: {type: float, min: 0, max: 10}",
@@ -144,3 +144,10 @@ def test_non_finite_numbers_in_the_manifest_are_refused_at_their_place(tmp_path)
     found = errors(tmp_path, GOOD.replace("period: 0.5", "period: .inf") + "duration: .nan\n")
     assert (14, 11, "loop.period: must be a finite number, not inf") in found
     assert (15, 11, "duration: must be a finite number, not nan") in found
+
+
+def test_a_period_too_short_to_move_the_clock_is_refused_at_its_place(tmp_path):
+    # 1e-300 s is positive, but added to the clock it changes nothing: the run spun forever
+    found = errors(tmp_path, GOOD.replace("period: 0.5", "period: 1.0e-300"))
+    assert [(line, col) for line, col, _ in found] == [(14, 11)]
+    assert "1e-300 is less than the minimum of 1e-06" in found[0][2]

@@ -1,0 +1,73 @@
+"""The loop's scheduler: jobs in time order, drift-free periods, cross-thread submission."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from sismic.clock import SimulatedClock
+
+from rasm.platform.scheduler import Scheduler
+from rasm.statechart import MonotonicClock
+
+
+@given(st.lists(st.floats(0, 100, allow_nan=False), max_size=30))
+def test_simulated_jobs_run_in_time_order_at_their_time(times):
+    scheduler = Scheduler(SimulatedClock())
+    ran: list[tuple[float, float]] = []
+    for t in times:
+        scheduler.at(t, lambda t=t: ran.append((t, scheduler.time)))
+    scheduler.run_until(100.0)
+    assert [t for t, _ in ran] == sorted(times)
+    assert all(at == t for t, at in ran)
+    assert scheduler.time == 100.0
+
+
+def test_a_periodic_job_does_not_drift():
+    scheduler = Scheduler(SimulatedClock())
+    ran: list[float] = []
+    scheduler.every(0.1, lambda: ran.append(scheduler.time), start=0.0)
+    scheduler.run_until(100.0)
+    assert len(ran) == 1001
+    # each time is start + n * period, not an accumulated sum of periods
+    assert all(t == n * 0.1 for n, t in enumerate(ran))
+
+
+@pytest.mark.parametrize("period", [0.0, -1.0, 1e-300])
+def test_a_period_that_cannot_move_the_clock_is_refused(period):
+    clock = SimulatedClock()
+    clock.time = 0.1
+    with pytest.raises(ValueError):
+        Scheduler(clock).every(period, lambda: None)
+
+
+def test_a_failing_job_is_reported_and_the_loop_goes_on():
+    scheduler = Scheduler(SimulatedClock())
+    errors: list[BaseException] = []
+    scheduler.on_error = errors.append
+    ran: list[str] = []
+    scheduler.at(1.0, lambda: 1 / 0)
+    scheduler.at(2.0, lambda: ran.append("after"))
+    scheduler.run_until(3.0)
+    assert [type(e) for e in errors] == [ZeroDivisionError] and ran == ["after"]
+
+
+def test_a_job_submitted_from_another_thread_wakes_a_sleeping_wall_clock_loop():
+    clock = MonotonicClock()
+    scheduler = Scheduler(clock)
+    done = threading.Event()
+
+    def from_outside() -> None:
+        done.set()
+        scheduler.stop()
+
+    # nothing is due for 5 s: only the submitted job, run at once, can end this run early (a
+    # loop that slept through the submission would run it at 5 s)
+    scheduler.at(5.0, lambda: None)
+    sender = threading.Thread(target=lambda: scheduler.submit(from_outside))
+    sender.start()
+    scheduler.run_until(5.0)
+    sender.join()
+    assert done.is_set() and clock.time < 4
