@@ -43,7 +43,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     sys.stdout.write(format_steps(steps, args.format))
     failed = [step for step in steps if step.error]
     for step in failed:
-        print(f"rasm: step rolled back at time {step.time:g}: {step.error}", file=sys.stderr)
+        print(f"rasm: at time {step.time:g}: {step.error}", file=sys.stderr)
     return EXIT_FAILED if failed else EXIT_OK
 
 

@@ -164,7 +164,7 @@ def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> Non
                     configuration=sorted(interp.configuration),
                     entered=[],
                     exited=[],
-                    error=f"{where}: {type(exc).__name__}: {exc}",
+                    error=f"{where}: step rolled back: {type(exc).__name__}: {exc}",
                 )
             )
             if failure is None or failure.event is None:
