@@ -138,7 +138,11 @@ def as_anomaly(value: Any) -> Anomaly | None:
     if value is True:
         return Anomaly()
     if isinstance(value, Anomaly):
-        return value
+        if not isinstance(value.data, dict):
+            raise StageError(
+                f"analyse: Anomaly data must be a dict, not {type(value.data).__name__}"
+            )
+        return value if isinstance(value.reason, str) else Anomaly(str(value.reason), value.data)
     if isinstance(value, str):
         return Anomaly(value)
     if isinstance(value, dict):
@@ -153,7 +157,14 @@ def as_plan(value: Any, plan_id: str) -> Plan | None:
     if value is None:
         return None
     if isinstance(value, Plan):
-        return Plan(dict(value.values), plan_id, value.explanation)
+        if not isinstance(value.values, dict) or not all(isinstance(k, str) for k in value.values):
+            raise StageError(
+                f"plan: Plan values must be a dict with str keys, not {type(value.values).__name__}"
+            )
+        explanation = value.explanation if isinstance(value.explanation, str) else str(
+            value.explanation
+        )
+        return Plan(dict(value.values), plan_id, explanation)
     if isinstance(value, dict) and all(isinstance(k, str) for k in value):
         return Plan(dict(value), plan_id)
     raise StageError(
@@ -182,6 +193,11 @@ def as_actions(value: Any, plan_id: str) -> list[Action]:
     out: list[Action] = []
     for item in items:
         if isinstance(item, Action):
+            if not isinstance(item.payload, dict):
+                raise StageError(
+                    f"execute: the payload for {item.effector!r} must be a dict, "
+                    f"not {type(item.payload).__name__}"
+                )
             out.append(Action(item.effector, dict(item.payload), plan_id, item.kind))
         elif isinstance(item, dict):
             for effector, payload in item.items():

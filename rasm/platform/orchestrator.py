@@ -11,6 +11,7 @@ from an iteration that did not pass Legitimate.
 from __future__ import annotations
 
 import logging
+import traceback
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -152,6 +153,9 @@ class AdaptationOrchestrator(Block):
             event = body(ctx, outcome.result)
         except StageError as exc:
             self._fail(stage, str(exc), "")
+            return
+        except Exception as exc:  # an odd result the checks above missed: fail the stage
+            self._fail(stage, f"{type(exc).__name__}: {exc}", traceback.format_exc())
             return
         self.post(event)
 

@@ -75,7 +75,7 @@ class StageRunner:
             start = _time.perf_counter()
             try:
                 result = job()
-            except Exception as exc:
+            except (Exception, SystemExit) as exc:  # sys.exit() in a stage fails the stage
                 return StageOutcome(
                     False,
                     error=exc,

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import threading
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.components import Action
+from rasm.platform.components import Action, Anomaly, Plan
 from rasm.platform.runtime import Platform
 from rasm.rules import RuleSet
 
@@ -125,3 +126,81 @@ def test_faulty_components_never_get_an_unchecked_action_executed(
     for r in trace:
         if r.get("rejected"):
             assert r["plan"] not in executed and r["broken_rules"]
+
+
+class _Odd:
+    """An anomaly every iteration; ``stage`` returns ``value`` (or raises it) instead."""
+
+    def __init__(self, stage, value):
+        self.stage, self.value = stage, value
+
+    def _give(self, stage, normal):
+        if stage != self.stage:
+            return normal
+        if isinstance(self.value, BaseException):
+            raise self.value
+        return self.value
+
+    def analyse(self, ctx):
+        return self._give("analyse", {"reason": "scripted", "want": "boost"})
+
+    def plan(self, ctx):
+        return self._give("plan", dict(GOOD))
+
+    def execute(self, ctx):
+        return self._give("execute", Action("heater", dict(ctx.plan.values)))
+
+
+def _run_odd(tmp_path, stage, value, seconds=3.0):
+    from rasm.platform.manifest import load_manifest
+
+    odd = _Odd(stage, value)
+    platform = Platform(
+        load_manifest(HOTBOX),
+        clock="simulated",
+        seed=3,
+        trace=tmp_path / "trace.jsonl",
+        knowledge="memory",
+        components={"analyse": odd, "plan": odd, "execute": odd},
+    )
+    applied = []
+    platform.build()
+    platform.simulator.apply = lambda eff, payload, t: applied.append((eff, payload))
+    summary = platform.run(seconds)
+    return summary, read_trace(tmp_path / "trace.jsonl"), applied
+
+
+@pytest.mark.parametrize(
+    ("stage", "value", "why"),
+    [
+        ("plan", Plan("abc"), "plan: Plan values must be a dict with str keys, not str"),
+        ("plan", Plan(None), "plan: Plan values must be a dict with str keys, not NoneType"),
+        ("analyse", Anomaly("x", "no dict"), "analyse: Anomaly data must be a dict, not str"),
+        (
+            "execute",
+            Action("heater", "boost"),
+            "execute: the payload for 'heater' must be a dict, not str",
+        ),
+        ("plan", SystemExit(3), "SystemExit: 3"),
+        ("execute", SystemExit(), "SystemExit: "),
+    ],
+)
+def test_odd_results_and_sys_exit_fail_the_stage_and_the_loop_goes_on(tmp_path, stage, value, why):
+    summary, trace, applied = _run_odd(tmp_path, stage, value)
+    assert summary.stats.iterations == int(3.0 / 0.5)  # every iteration ran
+    assert summary.stats.failed_stages[stage] == summary.stats.iterations
+    assert applied == []
+    failures = [r["explanation"] for r in trace if "stage failed" in r.get("explanation", "")]
+    assert failures and failures[0] == f"{stage} stage failed: {why}"
+
+
+def test_non_text_reason_or_explanation_is_written_as_text(tmp_path):
+    reasonless = Anomaly(reason=404)
+    summary, trace, applied = _run_odd(tmp_path, "analyse", reasonless)
+    assert summary.stats.executed == summary.stats.iterations
+    assert {r["explanation"] for r in trace if r.get("anomaly")} == {"404"}
+    odd_plan = Plan(dict(GOOD), explanation=["boost"])
+    summary, trace, applied = _run_odd(tmp_path, "plan", odd_plan)
+    assert summary.stats.executed == summary.stats.iterations
+    assert {r["explanation"] for r in trace if r.get("planned")} == {"['boost']"}
+
