@@ -204,3 +204,12 @@ def test_non_text_reason_or_explanation_is_written_as_text(tmp_path):
     assert summary.stats.executed == summary.stats.iterations
     assert {r["explanation"] for r in trace if r.get("planned")} == {"['boost']"}
 
+
+def test_an_action_that_breaks_the_rules_is_dropped_even_when_its_plan_was_legitimate(tmp_path):
+    # the plan (GOOD) passes Legitimate, but Execute sends other values than the plan's
+    rogue = {"heater": {"mode": "boost", "setpoint": 38.5, "power_limit": 150.0}}
+    summary, trace, applied = _run_odd(tmp_path, "execute", rogue)
+    assert applied == []
+    assert summary.stats.executed == 0 and summary.stats.dropped == summary.stats.iterations
+    dropped = [r["explanation"] for r in trace if r.get("dropped")]
+    assert dropped[0].startswith("rules do not accept the action: heater_rating:")
