@@ -132,6 +132,16 @@ def _node_at(data: Any, path: list[Any]) -> Any:
     return data
 
 
+def manifest_location(manifest: AppManifest, path: list[Any]) -> Location:
+    """Where the node at ``path`` is written in ``manifest``'s app.yaml (for problems found
+    after loading, e.g. a component that cannot be imported); the file alone if unreadable."""
+    try:
+        src = load_yaml(manifest.file.read_text(encoding="utf-8"), str(manifest.file))
+        return src.at(path)
+    except (OSError, UnicodeDecodeError, SourceError):
+        return Location(str(manifest.file))
+
+
 def load_manifest(app: str | Path) -> AppManifest:
     """Read ``app.yaml`` from an app folder (or the file itself), raising :class:`SourceErrors`."""
     path = Path(app)

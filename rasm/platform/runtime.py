@@ -24,7 +24,7 @@ from typing import Any
 
 from sismic.clock import SimulatedClock
 
-from rasm.errors import PlatformError
+from rasm.errors import PlatformError, SourceError
 from rasm.platform.blocks import (
     AdaptationManager,
     CommunicationManager,
@@ -39,7 +39,7 @@ from rasm.platform.blocks import (
 from rasm.platform.components import Action, load_component
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution
-from rasm.platform.manifest import AppManifest, Effector
+from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
 from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.trace import TraceWriter
@@ -106,6 +106,31 @@ class Platform:
     ) -> None:
         if role not in ("all", "managing", "managed"):
             raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
+        if isinstance(manifest, str | Path):
+            manifest = load_manifest(manifest)
+        elif not isinstance(manifest, AppManifest):
+            raise TypeError(
+                f"Platform() takes an app folder, its app.yaml or an AppManifest "
+                f"(rasm.platform.manifest.load_manifest), not {type(manifest).__name__}"
+            )
+        if clock not in (None, "simulated", "wall"):
+            raise PlatformError(f"unknown clock {clock!r} (simulated or wall)")
+        if components is not None:
+            if not isinstance(components, dict):
+                raise TypeError(
+                    f"components must be a dict {{stage: object}}, not {type(components).__name__}"
+                )
+            unknown = sorted(set(components) - {*STAGES, "twin"})
+            if unknown:
+                raise PlatformError(
+                    f"components: unknown stage {unknown[0]!r} "
+                    f"(the stages are {', '.join(STAGES)}; or twin)"
+                )
+            for stage, obj in components.items():
+                if stage in STAGES and not callable(getattr(obj, stage, None)):
+                    raise PlatformError(
+                        f"components[{stage!r}]: {type(obj).__name__} has no {stage}(ctx) method"
+                    )
         self.manifest = manifest
         self.clock_kind = clock or manifest.clock or "wall"
         self.clock = (
@@ -279,7 +304,7 @@ class Platform:
         package = _package_name(m)
         components = {
             stage: self._component_overrides.get(stage)
-            or load_component(ref, m.folder, package=package)
+            or self._stage_component(stage, ref, package)
             for stage, ref in m.components.items()
         }
         components.update(self._component_overrides)
@@ -306,6 +331,21 @@ class Platform:
         )
         self.trace.observers.append(self.tc.observe)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+
+    def _stage_component(self, stage: str, ref: str, package: str) -> Any:
+        """The manifest's component for ``stage``; a problem names its place in app.yaml."""
+        m = self.manifest
+        try:
+            component = load_component(ref, m.folder, package=package)
+        except PlatformError as exc:
+            raise SourceError(str(exc), manifest_location(m, ["components", stage])) from exc
+        if stage in STAGES and not callable(getattr(component, stage, None)):
+            raise SourceError(
+                f"components.{stage}: {ref}: {type(component).__name__} has no {stage}(ctx) "
+                f"method, so the {stage} stage would never run it",
+                manifest_location(m, ["components", stage]),
+            )
+        return component
 
     def _load_twin(self, package: str) -> Any:
         """The app's digital twin (manifest ``twin:``), restored from knowledge if it learned

@@ -161,6 +161,7 @@ def _run_odd(tmp_path, stage, value, seconds=3.0):
         seed=3,
         trace=tmp_path / "trace.jsonl",
         knowledge="memory",
+        state_dir=tmp_path,  # its timing.lp too
         components={"analyse": odd, "plan": odd, "execute": odd},
     )
     applied = []

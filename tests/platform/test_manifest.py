@@ -151,3 +151,53 @@ def test_a_period_too_short_to_move_the_clock_is_refused_at_its_place(tmp_path):
     found = errors(tmp_path, GOOD.replace("period: 0.5", "period: 1.0e-300"))
     assert [(line, col) for line, col, _ in found] == [(14, 11)]
     assert "1e-300 is less than the minimum of 1e-06" in found[0][2]
+
+
+@pytest.mark.parametrize(
+    ("ref", "message"),
+    [
+        (
+            "components:HotboxAnalyse",
+            "components.plan: components:HotboxAnalyse: HotboxAnalyse has no plan(ctx) method, "
+            "so the plan stage would never run it",
+        ),
+        ("components:Nope", "components:Nope: components has no 'Nope'"),
+    ],
+)
+def test_cli_run_names_the_place_of_a_component_that_cannot_be_a_stage(
+    tmp_path, capsys, monkeypatch, ref, message
+):
+    # a class without the stage's method used to be accepted, and the stage silently did nothing
+    app = tmp_path / "app"
+    shutil.copytree(HOTBOX, app)
+    text = (app / "app.yaml").read_text().replace("components:HotboxPlan", ref)
+    (app / "app.yaml").write_text(text)
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(app), "--clock", "simulated", "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    line = next(i for i, t in enumerate(text.splitlines(), 1) if f"plan: {ref}" in t)
+    assert err == f"rasm: {app / 'app.yaml'}:{line}:9: {message}\n"
+
+
+def test_platform_refuses_bad_arguments_with_what_to_do(tmp_path):
+    from rasm.errors import PlatformError
+    from rasm.platform.runtime import Platform
+
+    class Analyser:
+        def analyse(self, ctx):
+            return None
+
+    with pytest.raises(PlatformError, match=r"^unknown clock 'simulatd' \(simulated or wall\)$"):
+        Platform(HOTBOX, clock="simulatd")
+    with pytest.raises(PlatformError, match=r"^components: unknown stage 'planner' \(the stages"):
+        Platform(HOTBOX, components={"planner": Analyser()})
+    with pytest.raises(PlatformError, match=r"^components\['plan'\]: Analyser has no plan\(ctx\)"):
+        Platform(HOTBOX, components={"plan": Analyser()})
+    with pytest.raises(TypeError, match=r"^components must be a dict \{stage: object\}, not list"):
+        Platform(HOTBOX, components=[Analyser()])
+    with pytest.raises(TypeError, match=r"^Platform\(\) takes an app folder, its app.yaml or"):
+        Platform(42)
+    # an app folder is as good as its manifest
+    platform = Platform(HOTBOX, clock="simulated", knowledge="memory", state_dir=tmp_path)
+    assert platform.manifest.name == "hotbox"
+    assert platform.run(1.0).stats.iterations == 2
