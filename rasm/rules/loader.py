@@ -61,6 +61,7 @@ class _Loader:
         self.source = source
         self.lines = text.splitlines()
         self.errors: list[SourceError] = []
+        self.broken: set[str] = set()  # variables declared with a refused declaration
 
     # ------------------------------------------------------------------ helpers
 
@@ -145,6 +146,8 @@ class _Loader:
             variable = self.variable(name, spec, section, location)
             if variable is not None:
                 result[name] = variable
+            else:
+                self.broken.add(name)
         return result
 
     def variable(
@@ -387,7 +390,9 @@ class _Loader:
             self.errors.append(exc)
             return None
         try:
-            reads = check_rule_expression(expr, variables, self.source, self.text, what=key)
+            reads = check_rule_expression(
+                expr, variables, self.source, self.text, what=key, broken=frozenset(self.broken)
+            )
         except SourceErrors as exc:
             self.errors.extend(exc.errors)
             return None

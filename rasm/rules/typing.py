@@ -20,9 +20,15 @@ _NUMERIC = ("int", "real")
 
 class _Checker:
     def __init__(
-        self, variables: dict[str, Variable], source: str, text: str, strict_enums: bool = True
+        self,
+        variables: dict[str, Variable],
+        source: str,
+        text: str,
+        strict_enums: bool = True,
+        broken: frozenset[str] = frozenset(),
     ) -> None:
         self.variables = variables
+        self.broken = broken
         self.strict_enums = strict_enums
         self.source = source
         self.text = text
@@ -72,6 +78,8 @@ class _Checker:
     def name(self, node: ast.Name) -> str | None:
         variable = self.variables.get(node.name)
         if variable is None:
+            if node.name in self.broken:  # declared, its declaration already reported
+                return None
             self.fail(self.unknown(node.name), node, len(node.name))
             return None
         self.reads.add(node.name)
@@ -168,14 +176,17 @@ def check_rule_expression(
     *,
     what: str,
     strict_enums: bool = True,
+    broken: frozenset[str] = frozenset(),
 ) -> set[str]:
     """Check ``expr`` (the rule's ``what``: when/require); return the variables it reads.
 
     Raises :class:`SourceErrors` with every problem found, each at its line and column.
     ``strict_enums=False`` lets an enum be compared with a string outside its values (a
     property may name a mode the rules do not know: the comparison is then simply false).
+    ``broken`` names variables whose declaration was refused (and reported): their uses are
+    not reported again as unknown.
     """
-    checker = _Checker(variables, source, text, strict_enums)
+    checker = _Checker(variables, source, text, strict_enums, broken)
     result = checker.type_of(expr)
     if result is not None and result != "bool" and not checker.errors:
         checker.fail(f"'{what}' must be a condition (true or false), not {_a(result)}", expr)

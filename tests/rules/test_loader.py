@@ -109,6 +109,18 @@ def test_independent_problems_are_all_reported():
     assert [(e.location.line, e.location.col) for e in errors] == [(5, 14), (7, 14)]
 
 
+def test_a_refused_declaration_is_reported_once_not_again_at_every_use():
+    # x is declared, with an empty domain: its uses are not "unknown variable" errors too
+    text = (
+        "variables:\n  x: {type: real, min: 2, max: 1}\n  y: {type: real}\nrules:\n"
+        "  - name: r\n    require: x <= 0.1 and y > 0\n  - name: s\n    require: z > 1\n"
+    )
+    errors = errors_of(text)
+    assert [(e.location.line, e.location.col) for e in errors] == [(2, 24), (8, 14)]
+    assert "empty domain" in errors[0].message
+    assert "unknown variable 'z'" in errors[1].message
+
+
 def test_errors_carry_a_marked_excerpt():
     (error,) = errors_of(HEAD_X + "    require: y > 1\n")
     assert error.excerpt.splitlines() == ["        require: y > 1", "                 ^"]
