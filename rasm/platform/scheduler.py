@@ -117,6 +117,12 @@ class Scheduler:
                     and (not self._heap or self._heap[0][0] > end)
                 ):
                     return
-            while self._heap and self._heap[0][0] <= self.clock.time:
+            # the jobs due now, then back to the checks above: on the wall clock a loop that
+            # has fallen behind (a stage overrunning every period) would otherwise catch up for
+            # ever, never reaching ``end`` nor the messages in the inbox
+            now = self.clock.time
+            while self._heap and self._heap[0][0] <= now:
                 _, _, job = heapq.heappop(self._heap)
                 self._run(job)
+            if not self.simulated and end is not None and self.clock.time >= end:
+                return

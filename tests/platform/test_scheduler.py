@@ -71,3 +71,22 @@ def test_a_job_submitted_from_another_thread_wakes_a_sleeping_wall_clock_loop():
     scheduler.run_until(5.0)
     sender.join()
     assert done.is_set() and clock.time < 4
+
+
+def test_a_wall_clock_loop_behind_its_period_still_ends_and_serves_its_inbox():
+    # a job that always takes longer than its period (a stage overrunning every iteration) used
+    # to keep the loop catching up for ever: run_until never returned, messages were never served
+    clock = MonotonicClock()
+    scheduler = Scheduler(clock)
+    served: list[float] = []
+
+    def slow() -> None:
+        threading.Event().wait(0.03)  # stands for a stage that overruns: 3 periods of work
+        scheduler.submit(lambda: served.append(clock.time))
+
+    scheduler.every(0.01, slow, start=clock.time)
+    runner = threading.Thread(target=scheduler.run_until, args=(clock.time + 0.3,), daemon=True)
+    runner.start()
+    runner.join(timeout=10)
+    assert not runner.is_alive(), "run_until never returned"
+    assert served, "the inbox was never served while the loop was behind"
