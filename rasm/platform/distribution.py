@@ -27,6 +27,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from rasm.errors import PlatformError
+
 __all__ = ["Distribution", "key_from_env"]
 
 _log = logging.getLogger("rasm.platform")
@@ -40,7 +42,9 @@ def key_from_env(name: str) -> bytes | None:
     try:
         return bytes.fromhex(value.strip())
     except ValueError:
-        raise ValueError(f"{name} must be a key in hexadecimal") from None
+        raise PlatformError(
+            f"{name} must be the signing key in hexadecimal (e.g. `openssl rand -hex 32`)"
+        ) from None
 
 
 class Distribution:

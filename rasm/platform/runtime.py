@@ -174,10 +174,22 @@ class Platform:
 
     def build(self) -> None:
         """Create every block (not started yet: :meth:`start` asks Core to do that)."""
+        storage = self._open_knowledge() if self.role in ("all", "managing") else None
+        try:
+            self._build(storage)
+        except BaseException:
+            # a platform that cannot be built holds nothing: its knowledge file stays usable
+            if storage is not None:
+                storage.close()
+            close = getattr(getattr(self, "kb", None), "close", None)
+            if close is not None:
+                close()
+            raise
+
+    def _build(self, storage: Any) -> None:
         from rasm.comm import open_transport
 
         m = self.manifest
-        storage = self._open_knowledge() if self.role in ("all", "managing") else None
         clock = self.clock
         self.dist = Distribution(self)
         self.transport = open_transport(self.transport_url, **self.dist.transport_options())

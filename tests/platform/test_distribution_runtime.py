@@ -100,3 +100,19 @@ def test_signed_rule_updates_and_timing(hotbox, tmp_path, monkeypatch):
     lines = (tmp_path / "state" / "timing.lp").read_text().splitlines()
     assert any(line.startswith("maple_stage,stage=monitor") for line in lines)
     json.dumps(results)
+
+
+def test_a_signing_key_that_is_not_hex_exits_2_with_a_message(tmp_path, monkeypatch, capsys):
+    from rasm.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("RASM_ACTION_KEY", "RASM_UPDATE_KEY"):
+        monkeypatch.setenv(name, "not hex")
+        assert main(["run", str(HOTBOX), "--clock", "simulated", "--duration", "1"]) == 2
+        assert capsys.readouterr().err == (
+            f"rasm: {name} must be the signing key in hexadecimal (e.g. `openssl rand -hex 32`)\n"
+        )
+        monkeypatch.delenv(name)
+    # the failed builds released the knowledge file they had opened (the second one above, and
+    # any later platform of the process, found it "in use by another storage")
+    assert main(["run", str(HOTBOX), "--clock", "simulated", "--duration", "1"]) == 0
