@@ -170,6 +170,7 @@ class UpdateReceiver:
         self.on_outcome = on_outcome
         self.reply = reply
         self.outcomes: deque[UpdateOutcome] = deque(maxlen=keep)
+        self.refused = 0  # every refusal, not only those still in ``outcomes``
         self._versions: dict[str, int] = {}
         self._lock = threading.Lock()  # one update at a time: appliers are not re-entered
         self._subscriptions: list[Subscription] = []
@@ -197,6 +198,7 @@ class UpdateReceiver:
             accepted, reason = self._judge(kind, message.payload)
             outcome = UpdateOutcome(kind, accepted, reason, message.uid, time.time())
             self.outcomes.append(outcome)
+            self.refused += not accepted
         if accepted:
             _log.info("%s update accepted: %s", kind, reason)
         else:

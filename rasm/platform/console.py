@@ -127,3 +127,5 @@ def print_summary(summary: RunSummary, console: Console) -> None:
     console.print(timing)
     if summary.rejected_data:
         console.print(f"rejected managed-system data: {summary.rejected_data}")
+    if summary.bus:
+        console.print(f"refused from the bus: {summary.bus}")

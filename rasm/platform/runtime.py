@@ -66,6 +66,9 @@ class RunSummary:
     timing: dict[str, dict[str, float]]
     records: int
     rejected_data: dict[str, int] = field(default_factory=dict)
+    # what the bus brought that was refused: malformed messages, actions the effector gate
+    # refused (unsigned, bad signature, replayed), updates refused (only the non-zero counts)
+    bus: dict[str, int] = field(default_factory=dict)
     modes: dict[str, str] = field(default_factory=dict)
     trace: str | None = None
 
@@ -529,6 +532,17 @@ class Platform:
             gc.unfreeze()
             self._gc_frozen = False
 
+    def _bus_refusals(self) -> dict[str, int]:
+        stats = getattr(getattr(self, "transport", None), "stats", None)
+        gate = getattr(getattr(self, "dist", None), "gate", None)
+        updates = getattr(getattr(self, "dist", None), "updates", None)
+        counts = {
+            "malformed messages": getattr(stats, "malformed", 0),
+            "actions refused by the effector gate": getattr(gate, "refused", 0),
+            "updates refused": getattr(updates, "refused", 0),
+        }
+        return {what: n for what, n in counts.items() if n}
+
     def summary(self, duration: float) -> RunSummary:
         verdicts: dict[str, str] = {}
         violations: dict[str, int] = {}
@@ -562,6 +576,7 @@ class Platform:
             timing=timing,
             records=self.trace.records,
             rejected_data=dict(self.tg.rejected) if hasattr(self, "tg") else {},
+            bus=self._bus_refusals(),
             modes=self.sm.get_status(),
             trace=str(self.trace.path) if self.trace.path else None,
         )

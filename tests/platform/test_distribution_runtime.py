@@ -116,3 +116,45 @@ def test_a_signing_key_that_is_not_hex_exits_2_with_a_message(tmp_path, monkeypa
     # the failed builds released the knowledge file they had opened (the second one above, and
     # any later platform of the process, found it "in use by another storage")
     assert main(["run", str(HOTBOX), "--clock", "simulated", "--duration", "1"]) == 0
+
+
+def test_the_summary_counts_what_was_refused_from_the_bus(hotbox, tmp_path, monkeypatch):
+    import paho.mqtt.client as mqtt
+
+    monkeypatch.setenv("RASM_ACTION_KEY", ACTION_KEY)
+    monkeypatch.setenv("RASM_UPDATE_KEY", UPDATE_KEY)
+    broker = start_mosquitto(tmp_path)
+    garbage = [b"", b"\xff\xfe", b"[1]", b'{"a": NaN}', b'{"mode": "boost", "power_limit": 999}']
+    heater, rules = "hotbox/heater", "rasm/update/rules"
+
+    def run(role: str, topic: str):
+        platform = Platform(
+            hotbox, role=role, transport=broker.url, knowledge="memory", state_dir=tmp_path / role
+        )
+        platform.build()
+        # after the garbage, a last valid (and refused) message on the same topic ends the run
+        platform.transport.subscribe(
+            topic,
+            lambda m: m.payload.get("last") and platform.scheduler.submit(platform.scheduler.stop),
+        )
+
+        def send() -> None:
+            client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2)
+            client.connect(broker.host, broker.port)
+            client.loop_start()
+            for payload in [*garbage, b'{"last": true, "rules": "x", "signature": "00"}']:
+                client.publish(topic, payload, qos=1).wait_for_publish(10)
+            client.loop_stop()
+            client.disconnect()
+
+        platform.scheduler.after(0.2, lambda: threading.Thread(target=send).start())
+        return platform.run(60.0)
+
+    try:
+        managed = run("managed", heater)
+        managing = run("managing", rules)
+    finally:
+        broker.stop()
+    # four are not JSON objects; of the other two, one is unsigned and one wrongly signed
+    assert managed.bus == {"malformed messages": 4, "actions refused by the effector gate": 2}
+    assert managing.bus == {"malformed messages": 4, "updates refused": 2}
