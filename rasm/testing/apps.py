@@ -21,6 +21,17 @@ from rasm.platform.runtime import Platform, RunSummary
 __all__ = ["Trace", "run_app", "app_manifest"]
 
 _MANIFESTS: dict[tuple[str, float], AppManifest] = {}
+# manifest fields run_app() may override that are durations (a string there failed every tick)
+_SECONDS = {"period", "stage_budget", "simulator_period", "duration", "twin_horizon", "twin_dt"}
+
+
+def _positive(value: Any) -> bool:
+    return (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and value > 0
+        and math.isfinite(value)
+    )
 
 
 def app_manifest(app: str | Path | AppManifest) -> AppManifest:
@@ -128,6 +139,13 @@ def run_app(
     on disk but ``trace``.
     """
     manifest = app_manifest(app)
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        raise TypeError(f"seed must be an int (e.g. seed=1), not {seed!r}")
+    if scenario is not None and not isinstance(scenario, Mapping):
+        raise TypeError(
+            f"scenario must be a dict (e.g. {{'openings': [[3.0, 10.0]]}}; draw them with "
+            f"rasm.testing.scenarios) or None, not {type(scenario).__name__}"
+        )
     if overrides:
         fields = {f.name for f in dataclasses.fields(AppManifest)}
         unknown = sorted(set(overrides) - fields)
@@ -136,11 +154,18 @@ def run_app(
                 f"run_app() got {unknown[0]!r}, which is neither one of its arguments nor a "
                 f"manifest field; the manifest fields are: {', '.join(sorted(fields))}"
             )
+        for name in sorted(_SECONDS & set(overrides)):
+            value = overrides[name]
+            if not _positive(value):
+                raise ValueError(f"{name} must be a positive number of seconds, not {value!r}")
+        replans = overrides.get("max_replans", 0)
+        if not isinstance(replans, int) or isinstance(replans, bool) or replans < 0:
+            raise ValueError(f"max_replans must be an int >= 0, not {replans!r}")
         manifest = dataclasses.replace(manifest, **overrides)
     if "timing" not in (overrides or {}):
         # a test run leaves nothing on disk but its trace (timing=... in overrides to keep it)
         manifest = dataclasses.replace(manifest, timing="off")
-    if not (isinstance(duration, int | float) and duration > 0 and math.isfinite(duration)):
+    if not _positive(duration):
         raise ValueError(f"duration must be a positive number of seconds, not {duration!r}")
     platform = Platform(
         manifest,

@@ -26,13 +26,25 @@ class PropertyViolation(AssertionError):
         self.saved = saved
 
 
-def _records(trace: Iterable[Mapping[str, Any]] | str | Path) -> tuple[list[dict], str]:
+def _records(trace: Iterable[Mapping[str, Any]] | str | Path) -> tuple[list[Any], str]:
+    """The trace's records and its name; a record that is not a JSON object is left for
+    :func:`parse_trace` to report at its place."""
     if isinstance(trace, str | Path):
         path = Path(trace)
-        return [json.loads(line) for line in path.read_text().splitlines() if line.strip()], str(
-            path
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"no trace file {path} (pass a JSONL path, a rasm.testing.Trace or a list of "
+                "records like {'time': 0.0, 'velocity': 0.3})"
+            )
+        text = path.read_text(encoding="utf-8")
+        parse_trace(text.splitlines(), source=str(path))  # bad JSON: file:line:col, not a crash
+        return [json.loads(line) for line in text.splitlines() if line.strip()], str(path)
+    if isinstance(trace, Mapping) or not isinstance(trace, Iterable):
+        raise TypeError(
+            f"a trace is a list of records like {{'time': 0.0, 'velocity': 0.3}}, a "
+            f"rasm.testing.Trace or a JSONL path, not {type(trace).__name__}"
         )
-    return [dict(r) for r in trace], "<trace>"
+    return [dict(r) if isinstance(r, Mapping) else r for r in trace], "<trace>"
 
 
 def check_trace(
@@ -67,6 +79,8 @@ def assert_properties(
     records, _ = _records(trace)
     report = check_trace(file, records)
     names = {p.name for p in report.properties}
+    if isinstance(only, str):  # one name, not its letters
+        only = [only]
     wanted = set(only) if only is not None else names
     unknown = sorted(wanted - names)
     if unknown:

@@ -7,6 +7,7 @@ import json
 import pytest
 
 from rasm.cli import main
+from rasm.errors import SourceErrors
 from rasm.testing import PropertyViolation, Trace, assert_properties, check_trace, run_app
 
 from .conftest import HOTBOX, HOTBOX_PROPS
@@ -88,3 +89,52 @@ def test_run_app_overrides_and_their_errors():
         run_app(HOTBOX, seed=1, duration=3, stage_budgt=0.1)
     with pytest.raises(ValueError, match="positive number of seconds"):
         run_app(HOTBOX, seed=1, duration=0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"seed": "1"}, TypeError, "seed must be an int (e.g. seed=1), not '1'"),
+        ({"scenario": 5}, TypeError, "scenario must be a dict (e.g. {'openings': [[3.0, 10.0]]}"),
+        (
+            {"stage_budget": "x"},
+            ValueError,
+            "stage_budget must be a positive number of seconds, not 'x'",
+        ),
+        ({"period": -1}, ValueError, "period must be a positive number of seconds, not -1"),
+        (
+            {"period": float("nan")},
+            ValueError,
+            "period must be a positive number of seconds, not nan",
+        ),
+        ({"max_replans": 1.5}, ValueError, "max_replans must be an int >= 0, not 1.5"),
+    ],
+)
+def test_run_app_refuses_bad_arguments_before_running(kwargs, error, message):
+    # a string stage_budget used to run, every tick failing deep in the scheduler and the chart
+    arguments = {"seed": 1, "duration": 1, **kwargs}
+    with pytest.raises(error) as caught:
+        run_app(HOTBOX, **arguments)
+    assert str(caught.value).startswith(message)
+
+
+def test_assert_properties_says_what_a_trace_is(tmp_path):
+    for junk in (None, {"time": 0.0}, 3):
+        with pytest.raises(TypeError, match=r"^a trace is a list of records like"):
+            assert_properties(PROPS, junk)
+    with pytest.raises(FileNotFoundError, match=r"^no trace file nope\.jsonl \(pass a JSONL"):
+        assert_properties(PROPS, "nope.jsonl")
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{"time": 0, "velocity": 0.1}\n{"time": 1, velocity\n')
+    with pytest.raises(SourceErrors) as caught:  # was a bare JSONDecodeError
+        assert_properties(PROPS, bad)
+    assert (
+        str(caught.value)
+        == f"{bad}:2:13: not valid JSON: Expecting property name enclosed in double quotes"
+    )
+    with pytest.raises(
+        SourceErrors, match=r"^<trace>:2:1: a record must be a JSON object, not int"
+    ):
+        assert_properties(PROPS, [{"time": 0.0, "velocity": 0.1}, 7])
+    # one name is a name, not its letters
+    assert_properties(PROPS, BAD, only="timely")
