@@ -8,6 +8,7 @@ all properties together so that a signal has one type in the whole file.
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import PurePath
 
 from rasm.errors import SourceError, mark
 from rasm.spec.ast import (
@@ -43,6 +44,17 @@ MAX_DEPTH = 150
 
 def load_specification(text: str, *, source: str = "<text>") -> Specification:
     """Parse and check a property file; raises :class:`SourceError` at the first problem."""
+    if not isinstance(text, str):
+        hint = (
+            f" (for a file: compile(Path({str(text)!r}).read_text(), source={str(text)!r}))"
+            if isinstance(text, PurePath)
+            else " (decode it first: text.decode('utf-8'))"
+            if isinstance(text, bytes | bytearray)
+            else ""
+        )
+        raise TypeError(
+            f"a property specification is the text of a .rv file, not {type(text).__name__}" + hint
+        )
     try:
         return _load(text, source)
     except RecursionError:

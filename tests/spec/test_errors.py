@@ -99,3 +99,21 @@ def test_the_deepest_formula_allowed_compiles_and_runs():
     monitor = compile(text, source="deep.rv")
     assert [v.value for v in monitor.step(0, {"x": 200})] == [True]
     assert [v.value for v in monitor.step(1, {"x": 100})] == [False]
+
+
+def test_compile_of_something_other_than_text_says_what_to_pass(tmp_path):
+    # these reached the lexer and failed there ("Cannot lex", "'NoneType' object has no
+    # attribute 'char_pos'")
+    path = tmp_path / "p.rv"
+    with pytest.raises(TypeError) as caught:
+        compile(path)
+    assert str(caught.value) == (
+        "a property specification is the text of a .rv file, not PosixPath "
+        f"(for a file: compile(Path({str(path)!r}).read_text(), source={str(path)!r}))"
+    )
+    with pytest.raises(TypeError, match=r"not bytes \(decode it first: text\.decode\('utf-8'\)\)$"):
+        compile(b"property p: always true")
+    with pytest.raises(
+        TypeError, match=r"^a property specification is the text of a \.rv file, not NoneType$"
+    ):
+        load_specification(None)
