@@ -156,8 +156,12 @@ def _event_strategies(
                 f"to send it"
             )
         return {name: None for name in names}
-    if isinstance(events, str):
-        raise TypeError("events must be a list of event names (or a dict), not one string")
+    if isinstance(events, str) or not isinstance(events, Iterable):
+        raise TypeError(
+            f"events must be a list of event names (or a dict), not {type(events).__name__}"
+            if not isinstance(events, str)
+            else "events must be a list of event names (or a dict), not one string"
+        )
     if isinstance(events, Mapping):
         out = {}
         for name, data in events.items():
@@ -374,6 +378,18 @@ def statechart_machine(
     with ``TestChart.settings = settings(max_examples=..., stateful_step_count=...)``.
     """
     statechart, path = _load(chart)
+    if invariant is not None and not callable(invariant):
+        raise TypeError(
+            f"invariant must be a function of the chart's state returning a bool (e.g. "
+            f"lambda state: not state.active('fault')), not {type(invariant).__name__}"
+        )
+    if initial_context is not None and not isinstance(initial_context, Mapping):
+        raise TypeError(
+            f"initial_context must be a dict of the chart's variables, "
+            f"not {type(initial_context).__name__}"
+        )
+    if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
+        raise ValueError(f"steps must be an int >= 1 (the longest sequence), not {steps!r}")
     data_strategies = _event_strategies(statechart, events)
     bound = (
         applicable_monitors(statechart, monitors)

@@ -248,3 +248,20 @@ def test_a_chart_without_events_asks_for_them():
 def test_a_missing_chart_file_says_what_to_pass(tmp_path):
     with pytest.raises(FileNotFoundError, match="YAML path, the YAML text, or a Statechart"):
         statechart_machine(str(tmp_path / "nope.yaml"))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"events": 5}, TypeError, "events must be a list of event names (or a dict), not int"),
+        ({"invariant": 5}, TypeError, "invariant must be a function of the chart's state"),
+        ({"initial_context": 5}, TypeError, "initial_context must be a dict of the chart's vari"),
+        ({"steps": 0}, ValueError, "steps must be an int >= 1 (the longest sequence), not 0"),
+    ],
+)
+def test_bad_arguments_say_what_to_pass(kwargs, error, message):
+    # these failed later and deeper: "'int' object is not iterable" in sismic, hypothesis'
+    # InvalidArgument, or (invariant=5) only once the test ran
+    with pytest.raises(error) as caught:
+        statechart_machine(charts.DOOR_FIXED, **kwargs)
+    assert str(caught.value).startswith(message)
