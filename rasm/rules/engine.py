@@ -18,7 +18,7 @@ from typing import Any
 
 from rasm.errors import RasmError, RulesError
 from rasm.rules.loader import load_rules, parse_rules
-from rasm.rules.model import Rules, Variable
+from rasm.rules.model import Rules, Variable, require_rules
 from rasm.rules.report import Report
 from rasm.rules.verify import is_consistent
 from rasm.spec import compile_expression
@@ -59,7 +59,7 @@ class CompiledRules:
     """A rule set compiled for fast evaluation (``compile_expression`` of each expression)."""
 
     def __init__(self, rules: Rules) -> None:
-        self.rules = rules
+        self.rules = require_rules(rules, "CompiledRules()")
         compiled = []
         for rule in rules.rules:
             when_reads = _names(rule.when)
@@ -83,6 +83,12 @@ class CompiledRules:
         self, plan: Mapping[str, Any], context: Mapping[str, Any] | None = None
     ) -> Decision:
         """Judge ``plan`` in ``context`` (plan values win over context values of the same name)."""
+        if not isinstance(plan, Mapping) or not isinstance(context, Mapping | None):
+            raise TypeError(
+                "evaluate(plan, context) takes dicts of values by variable name, e.g. "
+                f"evaluate({{'velocity': 0.3}}, {{'mode': 'dock'}}), not "
+                f"{type(plan if not isinstance(plan, Mapping) else context).__name__}"
+            )
         env = {**context, **plan} if context else plan
         broken: list[str] = []
         reasons: dict[str, str] = {}
@@ -153,6 +159,7 @@ class RuleSet:
     """
 
     def __init__(self, rules: Rules, *, require_consistent: bool = True) -> None:
+        rules = require_rules(rules, "RuleSet() (or RuleSet.load(path) for a file)")
         self.report: Report | None = None
         if require_consistent:
             report = is_consistent(rules)
@@ -180,6 +187,7 @@ class RuleSet:
 
     def swap(self, rules: Rules) -> SwapResult:
         """Replace the rules in force by ``rules`` if they are consistent; else keep the old."""
+        require_rules(rules, "swap() (or swap_text(text), swap_file(path))")
         with self._lock:
             try:
                 report = is_consistent(rules)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import keyword
 import math
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 from ruamel.yaml import YAML
@@ -42,6 +42,10 @@ _RESERVED = {
 
 def load_rules(path: str | Path) -> Rules:
     """Read and validate the rules file at ``path`` (SourceError/SourceErrors on bad input)."""
+    if isinstance(path, str) and "\n" in path:
+        raise TypeError("load_rules() takes a path; for the text of a rules file use parse_rules")
+    if not isinstance(path, str | PurePath):
+        raise TypeError(f"load_rules() takes the path of a rules file, not {type(path).__name__}")
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -52,6 +56,11 @@ def load_rules(path: str | Path) -> Rules:
 
 def parse_rules(text: str, *, source: str = "<rules>") -> Rules:
     """Validate the rules file ``text``; ``source`` names it in error messages."""
+    if not isinstance(text, str):
+        raise TypeError(
+            f"parse_rules() takes the text of a rules file, not {type(text).__name__}"
+            + (" (for a file: load_rules(path))" if isinstance(text, PurePath) else "")
+        )
     return _Loader(text, source).load()
 
 

@@ -97,3 +97,13 @@ class Rules:
             if rule.name == name:
                 return rule
         raise KeyError(name)
+
+
+def require_rules(value: Any, caller: str) -> Rules:
+    """``value`` if it is a :class:`Rules`; else a TypeError saying how to get one."""
+    if isinstance(value, Rules):
+        return value
+    raise TypeError(
+        f"{caller} takes Rules: load them with rasm.rules.load_rules(path) or "
+        f"parse_rules(text), not a {type(value).__name__}"
+    )

@@ -25,7 +25,7 @@ from collections.abc import Sequence
 
 import z3
 
-from rasm.rules.model import Rules
+from rasm.rules.model import Rules, require_rules
 from rasm.rules.mus import ConflictFinder, check, core_ids, new_solver
 from rasm.rules.report import Conflict, Report
 from rasm.rules.smt import Encoder, encode_rules
@@ -41,7 +41,7 @@ REDUNDANCY_ROUNDS = 6
 
 def verify(rules: Rules, *, redundancy: bool = True) -> Report:
     """Check ``rules`` for dead, unsatisfiable, conflicting and (optionally) redundant rules."""
-    return _Verifier(rules).run(redundancy=redundancy)
+    return _Verifier(require_rules(rules, "verify()")).run(redundancy=redundancy)
 
 
 def is_consistent(rules: Rules) -> Report:

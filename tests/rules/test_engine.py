@@ -204,3 +204,32 @@ def test_a_swap_takes_effect_exactly_when_enumeration_finds_the_set_consistent(t
     consistent = not oracle.unsatisfiable and not oracle.conflicts
     assert rule_set.swap(new).accepted == consistent
     assert rule_set.rules.source == ("gen.yaml" if consistent else "empty.yaml")
+
+
+def test_api_misuse_says_what_to_pass(tmp_path):
+    # each of these failed deep inside: "'str' object has no attribute 'variables'" (smt.py),
+    # "'NoneType' object is not subscriptable", "'PosixPath' object has no attribute 'splitlines'"
+    from rasm.rules import load_rules, verify
+
+    path = tmp_path / "rules.yaml"
+    path.write_text(
+        "variables:\n  v: {type: real, min: 0, max: 1}\n"
+        "rules:\n  - name: r\n    require: v <= 0.5\n"
+    )
+    rules = load_rules(path)
+    cases = [
+        (lambda: verify(str(path)), "verify() takes Rules: load them with rasm.rules.load_rules("),
+        (lambda: RuleSet(str(path)), "RuleSet() (or RuleSet.load(path) for a file) takes Rules"),
+        (lambda: RuleSet(rules).swap("rules: []"), "swap() (or swap_text(text), swap_file(path))"),
+        (lambda: CompiledRules(None), "CompiledRules() takes Rules"),
+        (lambda: parse_rules(path), "parse_rules() takes the text of a rules file, not PosixPath"),
+        (lambda: load_rules(path.read_text()), "load_rules() takes a path; for the text of a"),
+        (lambda: load_rules(None), "load_rules() takes the path of a rules file, not NoneType"),
+        (lambda: RuleSet(rules).evaluate(None), "evaluate(plan, context) takes dicts of values"),
+        (lambda: RuleSet(rules).evaluate({"v": 0.1}, [1]), "evaluate(plan, context) takes dicts"),
+    ]
+    for call, message in cases:
+        with pytest.raises(TypeError) as caught:
+            call()
+        assert str(caught.value).startswith(message), str(caught.value)
+    assert RuleSet(rules).evaluate({"v": 0.1}).accepted
