@@ -401,6 +401,8 @@ def package_app(
     from rasm.platform.manifest import load_manifest
 
     app = Path(app)
+    if Path(output).is_dir():  # checked first: building the wheels takes a while
+        raise PackageError(f"{output} is a folder: give the path of the zip to write (app.zip)")
     manifest = load_manifest(app)
     derived = not (manifest.folder / "model.yaml").is_file()
     if derived:
@@ -496,16 +498,19 @@ def package_app(
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
     partial = output.with_name(output.name + ".partial")
-    with zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr(MANIFEST, raw)
-        if key is not None:
-            archive.writestr(SIGNATURE, sign(raw, key) + "\n")
-        for name, data in sorted(files.items()):
-            info = zipfile.ZipInfo(name, date_time=(2020, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = (0o755 if name.endswith(".sh") else 0o644) << 16
-            archive.writestr(info, data)
-    os.replace(partial, output)
+    try:
+        with zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+            archive.writestr(MANIFEST, raw)
+            if key is not None:
+                archive.writestr(SIGNATURE, sign(raw, key) + "\n")
+            for name, data in sorted(files.items()):
+                info = zipfile.ZipInfo(name, date_time=(2020, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = (0o755 if name.endswith(".sh") else 0o644) << 16
+                archive.writestr(info, data)
+        os.replace(partial, output)
+    finally:
+        partial.unlink(missing_ok=True)  # nothing half-written is left behind
     return PackageReport(
         output=output,
         app=manifest.name,

@@ -260,3 +260,17 @@ def test_package_of_a_missing_app_is_bad_input(
     assert main(["package", str(tmp_path / "nothing"), "-o", str(tmp_path / "x.zip")]) == 2
     assert "no app manifest here" in capsys.readouterr().err
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def test_package_into_a_folder_is_bad_input_and_leaves_nothing_behind(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # it used to build everything, fail on "[Errno 21] Is a directory: 'out.partial' -> 'out'"
+    # and leave out.partial beside the folder
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["package", str(ROOT / "examples" / "hotbox"), "-o", str(out), "--no-deps"]) == 2
+    assert capsys.readouterr().err == (
+        f"rasm: {out} is a folder: give the path of the zip to write (app.zip)\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
