@@ -242,6 +242,7 @@ class Attachment:
         self._lock = threading.Lock()
         self._subscriptions: dict[str, Subscription] = {}
         self._started = 0.0
+        self._transport_malformed: int | None = None  # the transport's count at start()
         self._stopped = False
 
     @property
@@ -251,8 +252,14 @@ class Attachment:
     def start(self) -> Attachment:
         """Subscribe to every mapped topic (returns once the broker confirmed); returns self."""
         self._started = _time.monotonic()
+        # messages the transport itself drops (not JSON, not an object, too big) never reach
+        # _receive: the summary counts them with the malformed ones from here on
+        self._transport_malformed = self._transport_malformed_count()
         self._subscribe(self.subscribed_topics)
         return self
+
+    def _transport_malformed_count(self) -> int:
+        return int(getattr(getattr(self.transport, "stats", None), "malformed", 0) or 0)
 
     def _subscribe(self, topics: list[str]) -> None:
         for topic in topics:
@@ -381,6 +388,10 @@ class Attachment:
             if self._stopped:
                 return self.summary
             self._stopped = True
+            if self._transport_malformed is not None:
+                self.summary.malformed += (
+                    self._transport_malformed_count() - self._transport_malformed
+                )
             verdicts = self.monitor.finish()
             self._count(verdicts)
             self.summary.seconds = _time.monotonic() - self._started if self._started else 0.0
