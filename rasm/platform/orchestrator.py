@@ -39,6 +39,15 @@ __all__ = ["AdaptationOrchestrator", "LoopStats"]
 _log = logging.getLogger("rasm.loop")
 
 
+def _describe(exc: BaseException | None) -> str:
+    """``Type: message`` of an exception from user code, whose ``__str__`` may itself fail."""
+    try:
+        text = str(exc)
+    except Exception:
+        text = "<str() of the exception failed>"
+    return f"{type(exc).__name__}: {text}"
+
+
 @dataclass
 class LoopStats:
     """Counts the summary of ``rasm run`` reports."""
@@ -147,7 +156,7 @@ class AdaptationOrchestrator(Block):
                 self.clock.time = start + self.stage_budget
             return  # the chart's after(stage_budget) transition ends the iteration
         if not outcome.ok:
-            self._fail(stage, f"{type(outcome.error).__name__}: {outcome.error}", outcome.traceback)
+            self._fail(stage, _describe(outcome.error), outcome.traceback)
             return
         try:
             event = body(ctx, outcome.result)
@@ -155,7 +164,7 @@ class AdaptationOrchestrator(Block):
             self._fail(stage, str(exc), "")
             return
         except Exception as exc:  # an odd result the checks above missed: fail the stage
-            self._fail(stage, f"{type(exc).__name__}: {exc}", traceback.format_exc())
+            self._fail(stage, _describe(exc), traceback.format_exc())
             return
         self.post(event)
 

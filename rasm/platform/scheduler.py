@@ -57,8 +57,10 @@ class Scheduler:
             )
 
         def tick(n: int = 0) -> None:
-            job()
-            self.at(first + (n + 1) * period, lambda: tick(n + 1))
+            try:
+                job()
+            finally:  # a job that raises (reported by on_error) keeps its next turn
+                self.at(first + (n + 1) * period, lambda: tick(n + 1))
 
         self.at(first, tick)
 

@@ -128,6 +128,13 @@ def test_faulty_components_never_get_an_unchecked_action_executed(
             assert r["plan"] not in executed and r["broken_rules"]
 
 
+class _BadStr(Exception):
+    """An exception whose message cannot be made (its __str__ reads an attribute never set)."""
+
+    def __str__(self):
+        return self.message
+
+
 class _Odd:
     """An anomaly every iteration; ``stage`` returns ``value`` (or raises it) instead."""
 
@@ -183,6 +190,7 @@ def _run_odd(tmp_path, stage, value, seconds=3.0):
             "execute: the payload for 'heater' must be a dict, not str",
         ),
         ("plan", SystemExit(3), "SystemExit: 3"),
+        ("plan", _BadStr(), "_BadStr: <str() of the exception failed>"),
         ("execute", SystemExit(), "SystemExit: "),
     ],
 )

@@ -90,3 +90,19 @@ def test_a_wall_clock_loop_behind_its_period_still_ends_and_serves_its_inbox():
     runner.join(timeout=10)
     assert not runner.is_alive(), "run_until never returned"
     assert served, "the inbox was never served while the loop was behind"
+
+
+def test_a_periodic_job_that_raises_keeps_its_next_turns():
+    # the next turn was scheduled after the job returned: one exception stopped the loop for good
+    scheduler = Scheduler(SimulatedClock())
+    errors: list[BaseException] = []
+    scheduler.on_error = errors.append
+    ran: list[float] = []
+
+    def job() -> None:
+        ran.append(scheduler.time)
+        raise RuntimeError("a platform bug")
+
+    scheduler.every(1.0, job, start=0.0)
+    scheduler.run_until(3.0)
+    assert ran == [0.0, 1.0, 2.0, 3.0] and len(errors) == 4
