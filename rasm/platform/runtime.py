@@ -24,7 +24,7 @@ from typing import Any
 
 from sismic.clock import SimulatedClock
 
-from rasm.errors import PlatformError, SourceError
+from rasm.errors import PlatformError, RasmError, SourceError
 from rasm.platform.blocks import (
     AdaptationManager,
     CommunicationManager,
@@ -40,7 +40,7 @@ from rasm.platform.components import Action, load_component
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
-from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats, _describe
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.trace import TraceWriter
 from rasm.resources import data_dir
@@ -460,9 +460,7 @@ class Platform:
         gate = self._effector_gates.get(name)
         if gate is None:  # the gate checks signatures when RASM_ACTION_KEY is set
             gate = self._effector_gates[name] = self.dist.effector_gate(
-                lambda action, name=name: self.simulator.apply(
-                    name, action, self.clock.time - self._started_at
-                )
+                lambda action, name=name: self._apply_action(name, action)
             )
         self.scheduler.submit(lambda: gate(payload))
 
@@ -503,13 +501,34 @@ class Platform:
                 )
             self.scheduler.every(m.simulator_period, self._step_simulator)
 
+    def _apply_action(self, effector: str, action: dict[str, Any]) -> None:
+        try:
+            self.simulator.apply(effector, action, self.clock.time - self._started_at)
+        except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
+            _log.error(
+                "the simulator's apply(%r) failed: %s", effector, _describe(exc), exc_info=exc
+            )
+
     def _step_simulator(self) -> None:
         # the simulated world starts at 0 whatever the managing system's restored timeline
-        readings = self.simulator.step(
-            self.clock.time - self._started_at, self.manifest.simulator_period
-        )
+        try:
+            readings = self.simulator.step(
+                self.clock.time - self._started_at, self.manifest.simulator_period
+            )
+        except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
+            _log.error("the simulator's step failed: %s", _describe(exc), exc_info=exc)
+            return
+        if readings is not None and not isinstance(readings, dict):
+            _log.error(
+                "the simulator's step must return {topic: payload} or None, not %s",
+                type(readings).__name__,
+            )
+            return
         for topic, payload in (readings or {}).items():
-            self.cm.publish_message(topic, payload)
+            try:
+                self.cm.publish_message(topic, payload)
+            except RasmError as exc:  # a topic or payload the transport refuses
+                _log.error("the simulator's reading on %r was not published: %s", topic, exc)
 
     def run(self, duration: float | None = None) -> RunSummary:
         """Start, run for ``duration`` seconds of the platform's clock, stop, summarise."""

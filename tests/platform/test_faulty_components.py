@@ -222,3 +222,37 @@ def test_an_action_that_breaks_the_rules_is_dropped_even_when_its_plan_was_legit
     assert summary.stats.executed == 0 and summary.stats.dropped == summary.stats.iterations
     dropped = [r["explanation"] for r in trace if r.get("dropped")]
     assert dropped[0].startswith("rules do not accept the action: heater_rating:")
+
+
+def test_a_faulty_simulator_is_logged_and_the_run_goes_on(tmp_path, caplog):
+    from rasm.platform.manifest import load_manifest
+
+    platform = Platform(
+        load_manifest(HOTBOX), clock="simulated", seed=3, knowledge="memory", state_dir=tmp_path
+    )
+    platform.build()
+    step = platform.simulator.step
+    answers = iter([SystemExit(4), "garbage", {5: {}}, {"hotbox/sensors": {"t": float("nan")}}])
+
+    def faulty_step(time, dt):
+        answer = next(answers, None)
+        if isinstance(answer, BaseException):
+            raise answer
+        return step(time, dt) if answer is None else answer
+
+    def faulty_apply(effector, payload, time):
+        raise SystemExit("apply crashed")
+
+    platform.simulator.step = faulty_step
+    platform.simulator.apply = faulty_apply
+    summary = platform.run(20.0)  # sys.exit() in the simulator used to end the run at once
+    assert summary.stats.iterations == int(20.0 / 0.5) and summary.stats.executed >= 1
+    errors = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]
+    assert errors[:4] == [
+        "the simulator's step failed: SystemExit: 4",
+        "the simulator's step must return {topic: payload} or None, not str",
+        "the simulator's reading on 5 was not published: topic must be a string, got int",
+        "the simulator's reading on 'hotbox/sensors' was not published: "
+        "payload['t']: nan is not a finite number (JSON has no NaN/inf)",
+    ]
+    assert "the simulator's apply('heater') failed: SystemExit: apply crashed" in errors
