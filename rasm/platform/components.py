@@ -106,7 +106,7 @@ def load_component(
         if exc.name == qualified or (exc.name or "").startswith(package):
             raise PlatformError(f"{ref}: no module {module_name!r} in {folder}") from exc
         raise PlatformError(f"{ref}: importing {module_name} failed: {exc}") from exc
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:  # sys.exit() at import: an error, not an exit
         sys.modules.pop(qualified, None)
         raise PlatformError(
             f"{ref}: importing {module_name} failed: {type(exc).__name__}: {exc}"
@@ -116,7 +116,7 @@ def load_component(
         raise PlatformError(f"{ref}: {module_name} has no {class_name!r}")
     try:
         return cls(**(kwargs or {}))
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         raise PlatformError(f"{ref}: creating {class_name}() failed: {exc}") from exc
 
 

@@ -24,7 +24,7 @@ from typing import Any
 
 from sismic.clock import SimulatedClock
 
-from rasm.errors import PlatformError, RasmError, SourceError
+from rasm.errors import Location, PlatformError, RasmError, SourceError
 from rasm.platform.blocks import (
     AdaptationManager,
     CommunicationManager,
@@ -353,6 +353,11 @@ class Platform:
         try:
             component = load_component(ref, m.folder, package=package)
         except PlatformError as exc:
+            cause = exc.__cause__
+            if isinstance(cause, SyntaxError) and cause.filename and cause.lineno:
+                # the place of the mistake is in the Python file, not in app.yaml
+                where = Location(cause.filename, cause.lineno, cause.offset or 1)
+                raise SourceError(f"{ref}: SyntaxError: {cause.msg}", where) from exc
             raise SourceError(str(exc), manifest_location(m, ["components", stage])) from exc
         if stage in STAGES and not callable(getattr(component, stage, None)):
             raise SourceError(

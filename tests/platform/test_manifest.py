@@ -201,3 +201,23 @@ def test_platform_refuses_bad_arguments_with_what_to_do(tmp_path):
     platform = Platform(HOTBOX, clock="simulated", knowledge="memory", state_dir=tmp_path)
     assert platform.manifest.name == "hotbox"
     assert platform.run(1.0).stats.iterations == 2
+
+
+def test_components_that_exit_or_do_not_parse_are_reported_not_fatal(tmp_path, capsys, monkeypatch):
+    app = tmp_path / "app"
+    shutil.copytree(HOTBOX, app)
+    source = (app / "components.py").read_text()
+    monkeypatch.chdir(tmp_path)
+    # sys.exit() at import used to end rasm run with its code and no message
+    (app / "components.py").write_text(source + "\nimport sys\nsys.exit(7)\n")
+    assert main(["run", str(app), "--clock", "simulated", "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.endswith(": components:HotboxMonitor: importing components failed: SystemExit: 7\n")
+    # a syntax error is reported where it is, in the Python file
+    lines = source.count("\n")
+    (app / "components.py").write_text(source + "def broken(:\n")
+    assert main(["run", str(app), "--clock", "simulated", "--duration", "1"]) == 2
+    assert capsys.readouterr().err == (
+        f"rasm: {app / 'components.py'}:{lines + 1}:12: components:HotboxMonitor: "
+        "SyntaxError: invalid syntax\n"
+    )
