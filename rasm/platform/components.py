@@ -128,6 +128,14 @@ def as_signals(value: Any) -> dict[str, Any]:
         raise StageError(
             f"monitor must return a dict of signals or None, not {type(value).__name__}"
         )
+    from rasm.platform.trace import LOOP_KEYS
+
+    forged = sorted(LOOP_KEYS.intersection(value))
+    if forged:
+        raise StageError(
+            f"monitor returned {forged[0]!r}, a key the loop writes itself in the trace "
+            f"({', '.join(sorted(LOOP_KEYS))}): give the signal another name"
+        )
     return value
 
 

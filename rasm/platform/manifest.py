@@ -17,6 +17,7 @@ from typing import Any
 import jsonschema
 
 from rasm.errors import Location, SourceError, SourceErrors, not_utf8
+from rasm.platform.trace import LOOP_KEYS
 from rasm.statechart.source import YamlSource, load_yaml, plain
 
 __all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEMA"]
@@ -205,6 +206,14 @@ def load_manifest(app: str | Path) -> AppManifest:
             signals[str(key)] = Signal(
                 str(key), spec["type"], spec.get("min"), spec.get("max"), spec.get("history", 100)
             )
+            if str(key) in LOOP_KEYS:
+                problems.append(
+                    src.error(
+                        f"signal '{key}': a key the loop writes itself in the trace "
+                        f"({', '.join(sorted(LOOP_KEYS))}); give the signal another name",
+                        src.key(src.data["probes"][i]["signals"], key),
+                    )
+                )
             if (
                 spec.get("min") is not None
                 and spec.get("max") is not None

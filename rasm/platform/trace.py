@@ -13,7 +13,30 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
-__all__ = ["TraceWriter"]
+__all__ = ["LOOP_KEYS", "TraceWriter"]
+
+#: The keys the loop itself writes in trace records (SPEC §4, docs/runtime.md). A knowledge
+#: signal of one of these names would forge the loop's own events in the trace and in what the
+#: Trustworthiness Checker's monitors see, so Monitor results and probe signals may not use them.
+LOOP_KEYS = frozenset(
+    {
+        "time",
+        "stage",
+        "duration",
+        "anomaly",
+        "planned",
+        "legitimate",
+        "rejected",
+        "trusted",
+        "executed",
+        "dropped",
+        "plan",
+        "broken_rules",
+        "explanation",
+        "drift",
+        "twin_model_version",
+    }
+)
 
 
 def _jsonable(value: Any) -> Any:

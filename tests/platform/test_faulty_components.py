@@ -141,6 +141,9 @@ class _Odd:
     def __init__(self, stage, value):
         self.stage, self.value = stage, value
 
+    def monitor(self, ctx):
+        return self._give("monitor", None)
+
     def _give(self, stage, normal):
         if stage != self.stage:
             return normal
@@ -169,7 +172,7 @@ def _run_odd(tmp_path, stage, value, seconds=3.0):
         trace=tmp_path / "trace.jsonl",
         knowledge="memory",
         state_dir=tmp_path,  # its timing.lp too
-        components={"analyse": odd, "plan": odd, "execute": odd},
+        components={"monitor": odd, "analyse": odd, "plan": odd, "execute": odd},
     )
     applied = []
     platform.build()
@@ -191,6 +194,11 @@ def _run_odd(tmp_path, stage, value, seconds=3.0):
         ),
         ("plan", SystemExit(3), "SystemExit: 3"),
         ("plan", _BadStr(), "_BadStr: <str() of the exception failed>"),
+        (  # derived signals named like the loop's own keys forged its events (and "time")
+            "monitor",
+            {"executed": True, "time": -5.0},
+            "monitor returned 'executed', a key the loop writes itself in the trace (anomaly, ",
+        ),
         ("execute", SystemExit(), "SystemExit: "),
     ],
 )
@@ -200,7 +208,7 @@ def test_odd_results_and_sys_exit_fail_the_stage_and_the_loop_goes_on(tmp_path, 
     assert summary.stats.failed_stages[stage] == summary.stats.iterations
     assert applied == []
     failures = [r["explanation"] for r in trace if "stage failed" in r.get("explanation", "")]
-    assert failures and failures[0] == f"{stage} stage failed: {why}"
+    assert failures and failures[0].startswith(f"{stage} stage failed: {why}")
 
 
 def test_non_text_reason_or_explanation_is_written_as_text(tmp_path):

@@ -79,6 +79,13 @@ def test_a_good_manifest_loads(tmp_path):
             7,
             "min is above max",
         ),
+        (  # a probe signal would forge the loop's own events in the trace
+            "x: {type: float, min: 0, max: 10}",
+            "executed: {type: bool}",
+            10,
+            7,
+            "signal 'executed': a key the loop writes itself in the trace (anomaly, broken_rules",
+        ),
     ],
 )
 def test_each_mistake_is_reported_at_its_place(tmp_path, old, new, line, col, message):
