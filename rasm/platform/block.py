@@ -23,7 +23,7 @@ from typing import Any, ClassVar
 from sismic.clock import Clock, SimulatedClock
 from sismic.model import MacroStep, Statechart
 
-from rasm.errors import PlatformError
+from rasm.errors import PlatformError, RasmError
 from rasm.resources import platform_chart
 from rasm.statechart import Interpreter, load_statechart
 
@@ -196,6 +196,9 @@ class Block:
     def _do(self, work: Callable[[], None], done: str) -> None:
         try:
             work()
+        except RasmError as exc:  # an expected failure (a broker down): its message says it all
+            _log.error("%s: %s failed: %s: %s", self.name, work.__name__, type(exc).__name__, exc)
+            self.post("failed", reason=f"{type(exc).__name__}: {exc}")
         except Exception as exc:
             _log.exception("%s: %s failed", self.name, work.__name__)
             self.post("failed", reason=f"{type(exc).__name__}: {exc}")

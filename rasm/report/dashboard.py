@@ -66,6 +66,8 @@ class Dashboard:
         self._closed = False
         self._properties()
         self._read_modes()
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise PlatformError(f"dashboard: port {port!r} is not a TCP port (0 to 65535)")
         try:
             self.server = _Server((HOST, port), _Handler, self)
         except OSError as exc:

@@ -158,3 +158,20 @@ def test_the_summary_counts_what_was_refused_from_the_bus(hotbox, tmp_path, monk
     # four are not JSON objects; of the other two, one is unsigned and one wrongly signed
     assert managed.bus == {"malformed messages": 4, "actions refused by the effector gate": 2}
     assert managing.bus == {"malformed messages": 4, "updates refused": 2}
+
+
+def test_an_unreachable_broker_is_one_clear_message_without_traceback(
+    tmp_path, monkeypatch, capsys
+):
+    from rasm.cli import main
+    from rasm.testing.servers import free_port
+
+    monkeypatch.chdir(tmp_path)
+    url = f"mqtt://127.0.0.1:{free_port()}"  # nothing listens there
+    assert main(["run", str(HOTBOX), "--duration", "1", "--transport", url]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err  # the block's failure used to be logged with one
+    assert err.splitlines()[-1].startswith(
+        f"rasm: building block 'cm' failed to initialise: CommError: could not connect to the "
+        f"MQTT broker at {url}"
+    )

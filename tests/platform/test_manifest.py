@@ -228,3 +228,12 @@ def test_components_that_exit_or_do_not_parse_are_reported_not_fatal(tmp_path, c
         f"rasm: {app / 'components.py'}:{lines + 1}:12: components:HotboxMonitor: "
         "SyntaxError: invalid syntax\n"
     )
+
+
+@pytest.mark.parametrize("port", ["99999", "-1"])
+def test_a_dashboard_port_out_of_range_exits_2(tmp_path, capsys, monkeypatch, port):
+    monkeypatch.chdir(tmp_path)  # it was an OverflowError traceback from bind()
+    args = ["run", str(HOTBOX), "--clock", "simulated", "--duration", "1", "--dashboard", port]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err == f"rasm: dashboard: port {port} is not a TCP port (0 to 65535)\n"
