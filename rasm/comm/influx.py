@@ -254,10 +254,11 @@ class _HttpSink:
 
 
 class _FileSink:
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, append: bool = True) -> None:
         self.path = path
         path.parent.mkdir(parents=True, exist_ok=True)
-        self._out = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        mode = "a" if append else "w"
+        self._out = open(path, mode, encoding="utf-8")  # noqa: SIM115 - closed in close()
 
     def send(self, lines: list[str]) -> None:
         self._out.write("\n".join(lines) + "\n")
@@ -334,10 +335,19 @@ class InfluxWriter:
         self._thread.start()
 
     @classmethod
-    def to_file(cls, path: str | os.PathLike[str], *, precision: str = "u", **options: Any):
-        """A writer that appends the same lines to ``path`` (no server needed)."""
+    def to_file(
+        cls,
+        path: str | os.PathLike[str],
+        *,
+        precision: str = "u",
+        append: bool = True,
+        **options: Any,
+    ):
+        """A writer that appends the same lines to ``path`` (no server needed); ``append=False``
+        starts the file afresh."""
         target = Path(path)
-        return cls(f"file:{target}", "", precision=precision, _sink=_FileSink(target), **options)
+        sink = _FileSink(target, append)
+        return cls(f"file:{target}", "", precision=precision, _sink=sink, **options)
 
     # -- feeding --------------------------------------------------------------------------------
     def write(self, lines: Iterable[str]) -> int:

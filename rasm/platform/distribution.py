@@ -13,7 +13,8 @@
   ``rasm/update/result``.
 - **Timing**: every trace record (stage timing, adaptation events, verdicts) also goes to InfluxDB
   as line protocol when the manifest names a server (``timing: http://host:8086/db``), to a local
-  file otherwise (``.rasm/<app>/timing.lp``); nowhere with ``timing: off``.
+  file otherwise (``.rasm/<app>/timing.lp``, started afresh by a simulated run, appended to by a
+  live one); nowhere with ``timing: off``.
 - **The trace on the bus**: over MQTT every trace record is published on ``rasm/trace``, so
   ``rasm monitor --topics`` with ``"*": rasm/trace`` checks what the loop saw, from outside.
 """
@@ -127,7 +128,9 @@ class Distribution:
             self.timing = InfluxWriter(base, database or "rasm")
         else:
             path = Path(target[len("file:") :]) if target else p.state_dir / "timing.lp"
-            self.timing = InfluxWriter.to_file(path)
+            # a simulated run starts afresh, as its knowledge does; a live one continues its
+            # timeline (a restarted managing system) and so its file
+            self.timing = InfluxWriter.to_file(path, append=p.clock_kind != "simulated")
         p.trace.observers.append(
             lambda t, record: self.timing.write_record(self._epoch + t, record)
         )
