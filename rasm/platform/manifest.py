@@ -148,9 +148,11 @@ def load_manifest(app: str | Path) -> AppManifest:
     path = Path(app)
     file = path / "app.yaml" if path.is_dir() else path
     if not file.is_file():
-        raise SourceErrors(
-            [SourceError(f"no app manifest here (expected {file})", Location(str(file)))]
-        )
+        if path.is_dir():
+            problem = f"no app manifest in this folder (expected {file})"
+        else:
+            problem = f"no such app folder or manifest: {path}"
+        raise SourceErrors([SourceError(problem, Location(str(file)))])
     try:
         text = file.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:

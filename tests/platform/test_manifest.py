@@ -115,7 +115,12 @@ def test_cli_run_exits_2_with_the_position_and_no_traceback(tmp_path, capsys):
 
 def test_cli_run_on_a_folder_without_manifest(tmp_path, capsys):
     assert main(["run", str(tmp_path)]) == 2
-    assert "no app manifest here" in capsys.readouterr().err
+    assert f"no app manifest in this folder (expected {tmp_path / 'app.yaml'})" in (
+        capsys.readouterr().err
+    )
+    # a folder that does not exist is named as such, not as a missing app.yaml inside it
+    assert main(["run", str(tmp_path / "nothing")]) == 2
+    assert f"no such app folder or manifest: {tmp_path / 'nothing'}" in capsys.readouterr().err
 
 
 def test_cli_run_bad_scenario_exits_2_with_the_place(tmp_path, capsys):

@@ -258,7 +258,7 @@ def test_package_of_a_missing_app_is_bad_input(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["package", str(tmp_path / "nothing"), "-o", str(tmp_path / "x.zip")]) == 2
-    assert "no app manifest here" in capsys.readouterr().err
+    assert "no such app folder or manifest" in capsys.readouterr().err
     shutil.rmtree(tmp_path, ignore_errors=True)
 
 
