@@ -129,3 +129,8 @@ def print_summary(summary: RunSummary, console: Console) -> None:
         console.print(f"rejected managed-system data: {summary.rejected_data}")
     if summary.bus:
         console.print(f"refused from the bus: {summary.bus}")
+    if summary.missed_iterations:
+        console.print(
+            f"loop iterations skipped (the loop was still busy when they fell due): "
+            f"{summary.missed_iterations}"
+        )

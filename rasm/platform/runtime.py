@@ -71,6 +71,8 @@ class RunSummary:
     bus: dict[str, int] = field(default_factory=dict)
     modes: dict[str, str] = field(default_factory=dict)
     trace: str | None = None
+    # loop iterations skipped on the wall clock because the loop was still busy when they fell due
+    missed_iterations: int = 0
 
     @property
     def ok(self) -> bool:
@@ -496,8 +498,12 @@ class Platform:
         if self.role in ("all", "managing"):
             for probe in m.probes:
                 self.cm.subscribe(probe.topic, self._on_probe)
+            # a loop that overran skips the iterations it missed (Scheduler.missed)
             self.scheduler.every(
-                m.period, self.ao.orchestration_loop, start=self.clock.time + m.period
+                m.period,
+                self.ao.orchestration_loop,
+                start=self.clock.time + m.period,
+                skip_missed=True,
             )
         if self.simulator is not None:
             for name, effector in m.effectors.items():
@@ -601,6 +607,7 @@ class Platform:
             records=self.trace.records,
             rejected_data=dict(self.tg.rejected) if hasattr(self, "tg") else {},
             bus=self._bus_refusals(),
+            missed_iterations=self.scheduler.missed,
             modes=self.sm.get_status(),
             trace=str(self.trace.path) if self.trace.path else None,
         )

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -34,6 +35,7 @@ class Scheduler:
         self._inbox: list[Job] = []
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
+        self.missed = 0  # turns of periodic jobs skipped because they were already past
 
     @property
     def time(self) -> float:
@@ -46,8 +48,16 @@ class Scheduler:
     def after(self, delay: float, job: Job) -> None:
         self.at(self.clock.time + max(delay, 0.0), job)
 
-    def every(self, period: float, job: Job, *, start: float | None = None) -> None:
-        """Run ``job`` every ``period`` seconds from ``start`` (default: now), drift-free."""
+    def every(
+        self, period: float, job: Job, *, start: float | None = None, skip_missed: bool = False
+    ) -> None:
+        """Run ``job`` every ``period`` seconds from ``start`` (default: now), drift-free.
+
+        With ``skip_missed``, on the wall clock, turns already past when the job returns (it, or
+        another job, overran) are skipped, not run back to back, and counted in :attr:`missed`:
+        a control loop catches up with the present instead of bursting through the iterations it
+        missed. Without it every turn runs (a simulator integrating time needs them all).
+        """
         if period <= 0:
             raise ValueError("period must be positive")
         first = self.clock.time if start is None else start
@@ -60,7 +70,13 @@ class Scheduler:
             try:
                 job()
             finally:  # a job that raises (reported by on_error) keeps its next turn
-                self.at(first + (n + 1) * period, lambda: tick(n + 1))
+                turn = n + 1
+                if skip_missed and not self.simulated:
+                    current = math.ceil((self.clock.time - first) / period)
+                    if current > turn:
+                        self.missed += current - turn
+                        turn = current
+                self.at(first + turn * period, lambda: tick(turn))
 
         self.at(first, tick)
 

@@ -150,3 +150,29 @@ def test_low_latency_keeps_the_objects_built_before_the_run_out_of_the_collector
     assert frozen_during_run and min(frozen_during_run) > 0
     # stopping gives them back, so a process running several loops does not keep them forever
     assert gc.get_freeze_count() == 0
+
+
+def test_a_live_loop_that_stalls_skips_the_iterations_it_missed(hotbox):
+    import threading
+
+    release = threading.Event()
+
+    class StallsOnce:
+        calls = 0
+
+        def analyse(self, ctx):
+            StallsOnce.calls += 1
+            if StallsOnce.calls == 2:
+                release.wait(2.0)  # a hung analysis: the budget (0.3 s) walks away from it
+            return None
+
+    hotbox.period = 0.1
+    hotbox.stage_budget = 0.3
+    summary = Platform(
+        hotbox, clock="wall", seed=1, knowledge="memory", components={"analyse": StallsOnce()}
+    ).run(1.0)
+    release.set()
+    # the overrun cost about three periods: they were skipped, not run back to back
+    assert summary.missed_iterations >= 2
+    assert summary.stats.iterations <= 10 - summary.missed_iterations + 1
+    assert summary.stats.timeouts["analyse"] == 1
