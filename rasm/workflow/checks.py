@@ -12,26 +12,13 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.platform.trace import LOOP_KEYS
 from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel, Check
 
 __all__ = ["PLATFORM_SIGNALS", "check_model", "produced_signals", "property_reads"]
 
-# keys the platform itself writes into the adaptation trace (SPEC §4) and knowledge
-PLATFORM_SIGNALS = frozenset(
-    {
-        "stage",
-        "duration",
-        "anomaly",
-        "planned",
-        "legitimate",
-        "rejected",
-        "trusted",
-        "executed",
-        "plan",
-        "broken_rules",
-        "explanation",
-    }
-)
+# keys the platform itself writes into the adaptation trace (SPEC §4): properties may read them
+PLATFORM_SIGNALS = LOOP_KEYS
 
 
 def check_model(model: ArchitectureModel) -> list[SourceError]:
