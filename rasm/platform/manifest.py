@@ -82,6 +82,7 @@ class AppManifest:
     duration: float = 60.0
     stage_budget: float = 1.0
     max_replans: int = 2
+    max_actions: int = 16
     veto_properties: tuple[str, ...] = ()
     mode_signal: str | None = None
     logging: dict[str, Any] = field(default_factory=dict)
@@ -270,6 +271,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         duration=float(data.get("duration", 60.0)),
         stage_budget=float(loop.get("stage_budget", 1.0)),
         max_replans=int(loop.get("max_replans", 2)),
+        max_actions=int(loop.get("max_actions", 16)),
         veto_properties=tuple(trust.get("veto_properties", ())),
         mode_signal=trust.get("mode_signal"),
         logging=plain(data.get("logging", {}) or {}),

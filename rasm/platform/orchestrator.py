@@ -83,6 +83,7 @@ class AdaptationOrchestrator(Block):
         sm: StateManager,
         stage_budget: float = 1.0,
         max_replans: int = 2,
+        max_actions: int = 16,
         isolate_stages: bool = True,
         twin: Any = None,
         twin_properties: list[tuple[str, str]] = (),  # type: ignore[assignment]
@@ -107,6 +108,7 @@ class AdaptationOrchestrator(Block):
         self.tm = tm
         self.sm = sm
         self.stage_budget = stage_budget
+        self.max_actions = max_actions
         self.runner = StageRunner(isolate=isolate_stages)
         self.stats = LoopStats()
         self.ctx: StageContext | None = None
@@ -282,6 +284,13 @@ class AdaptationOrchestrator(Block):
             plan = ctx.plan
             assert plan is not None
             actions = as_actions(result, plan.id)
+            if len(actions) > self.max_actions:
+                # a flood would hold the loop (each action is checked and sent in turn) and the
+                # effector: the whole lot is refused, so no partial adaptation goes out either
+                raise StageError(
+                    f"execute returned {len(actions)} actions, more than loop.max_actions "
+                    f"({self.max_actions}): none was sent"
+                )
             executed = 0
             for action in actions:
                 ok, why = self.am.perform_adaptation(action)

@@ -342,6 +342,7 @@ class Platform:
             sm=self.sm,
             stage_budget=m.stage_budget,
             max_replans=m.max_replans,
+            max_actions=m.max_actions,
             isolate_stages=self.isolate_stages,
             clock=clock,
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),

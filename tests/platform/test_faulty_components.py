@@ -200,6 +200,11 @@ def _run_odd(tmp_path, stage, value, seconds=3.0):
             "monitor returned 'executed', a key the loop writes itself in the trace (anomaly, ",
         ),
         ("execute", SystemExit(), "SystemExit: "),
+        (  # a flood: refused whole (a partial adaptation would be as bad), loop.max_actions = 16
+            "execute",
+            [Action("heater", dict(GOOD))] * 17,
+            "execute returned 17 actions, more than loop.max_actions (16): none was sent",
+        ),
     ],
 )
 def test_odd_results_and_sys_exit_fail_the_stage_and_the_loop_goes_on(tmp_path, stage, value, why):
@@ -209,6 +214,20 @@ def test_odd_results_and_sys_exit_fail_the_stage_and_the_loop_goes_on(tmp_path, 
     assert applied == []
     failures = [r["explanation"] for r in trace if "stage failed" in r.get("explanation", "")]
     assert failures and failures[0].startswith(f"{stage} stage failed: {why}")
+
+
+def test_max_actions_is_a_manifest_setting(tmp_path):
+    from rasm.platform.manifest import load_manifest
+
+    manifest = load_manifest(HOTBOX)
+    manifest.max_actions = 20
+    odd = _Odd("execute", [Action("heater", dict(GOOD))] * 17)
+    platform = Platform(manifest, clock="simulated", seed=3, knowledge="memory",
+                        state_dir=tmp_path,
+                        components={"monitor": odd, "analyse": odd, "plan": odd, "execute": odd})
+    summary = platform.run(1.0)
+    assert summary.stats.executed == summary.stats.iterations > 0
+    assert not summary.stats.failed_stages
 
 
 def test_non_text_reason_or_explanation_is_written_as_text(tmp_path):
