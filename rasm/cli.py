@@ -11,7 +11,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from rasm.errors import RasmError, SourceError, SourceErrors
+from rasm.errors import RasmError, SourceError, SourceErrors, read_utf8
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -73,16 +73,11 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     # exit 1 iff some property is violated; inconclusive alone is not a failure (SPEC §6)
-    from rasm.errors import Location
     from rasm.spec.check import check_records, format_json, format_text, format_verdicts
     from rasm.spec.loader import load_specification
     from rasm.spec.trace import read_trace
 
-    try:
-        with open(args.props, encoding="utf-8") as handle:
-            text = handle.read()
-    except UnicodeDecodeError as exc:
-        raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(args.props)) from None
+    text = read_utf8(args.props)
     spec = load_specification(text, source=args.props)
     records = read_trace(args.trace, spec.signals)
     explain = args.format == "text" and not args.verdicts
@@ -107,17 +102,12 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
     from rasm.attach import Attachment, load_topic_map
     from rasm.comm import open_transport
-    from rasm.errors import Location
     from rasm.spec import load_specification
 
     duration = getattr(args, "duration", None)
     if duration is not None and not 0 < duration < math.inf:
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
-    try:
-        with open(args.props, encoding="utf-8") as handle:
-            text = handle.read()
-    except UnicodeDecodeError as exc:
-        raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(args.props)) from None
+    text = read_utf8(args.props)
     signals = list(load_specification(text, source=args.props).signals)
     topics = load_topic_map(args.topics, signals) if args.topics else None
     transport = open_transport(args.transport)

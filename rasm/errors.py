@@ -7,7 +7,9 @@ the form editors and CI logs understand.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 
 class RasmError(Exception):
@@ -74,6 +76,16 @@ def not_utf8(file: str, exc: UnicodeDecodeError) -> SourceError:
     line = data.count(b"\n") + 1
     col = exc.start - (data.rfind(b"\n") + 1) + 1
     return SourceError(f"not a UTF-8 text file: {exc.reason}", Location(file, line, col))
+
+
+def read_utf8(path: str | os.PathLike[str]) -> str:
+    """The text of ``path``; a file that is not UTF-8 raises :class:`SourceError` at its first
+    bad byte (line and column)."""
+    data = Path(path).read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise not_utf8(str(path), exc) from None
 
 
 class StatechartError(RasmError):

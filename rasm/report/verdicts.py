@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, SourceError
+from rasm.errors import read_utf8
 from rasm.resources import data_dir
 from rasm.spec.ast import Specification
 from rasm.spec.check import check_records
@@ -38,10 +38,7 @@ def load_properties(paths: Sequence[str | Path]) -> list[Specification]:
     """Load property files (errors name the file, line and column)."""
     specs = []
     for path in paths:
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except UnicodeDecodeError as exc:
-            raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(str(path))) from None
+        text = read_utf8(path)
         specs.append(load_specification(text, source=str(path)))
     return specs
 

@@ -12,7 +12,7 @@ import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from rasm.errors import Location, SourceError, SourceErrors
+from rasm.errors import Location, SourceError, SourceErrors, read_utf8
 
 __all__ = ["read_trace", "parse_trace", "MAX_REPORTED"]
 
@@ -127,5 +127,6 @@ def read_trace(path: str | Path, signals: Mapping[str, str] | None = None) -> li
     try:
         with path.open(encoding="utf-8") as handle:
             return parse_trace(handle, signals, source=str(path))
-    except UnicodeDecodeError as exc:
-        raise SourceError(f"not a UTF-8 text file: {exc.reason}", Location(str(path))) from None
+    except UnicodeDecodeError:
+        read_utf8(path)  # read whole, to name the line and column of the first bad byte
+        raise

@@ -86,3 +86,10 @@ def test_the_missing_parts_are_named(tmp_path: Path, capsys) -> None:
     assert code == 0
     assert "note: no MAPLE-K stage timing" in err and "note: no adaptations" in err
     assert "stage_order never judged" in err
+
+
+def test_a_trace_that_is_not_utf8_is_placed_at_its_first_bad_byte(tmp_path: Path, capsys) -> None:
+    trace = tmp_path / "t.jsonl"
+    trace.write_bytes(b'{"time": 0, "stage": "monitor", "duration": 0.1}\n{"time": 1, \xff}\n')
+    assert main(["report", str(trace), "-o", str(tmp_path / "r.html")]) == 2
+    assert f"{trace}:2:13: not a UTF-8 text file" in capsys.readouterr().err

@@ -291,3 +291,16 @@ def test_explanation_windows_are_the_semantic_ones(steps, low, width, data):
     future = [j for j in range(i, len(t)) if low <= t[j] - t[i] <= low + width]
     assert list(explainer.past_window(node, i)) == past
     assert list(explainer.future_window(node, i)) == future
+
+
+def test_files_that_are_not_utf8_are_placed_at_their_first_bad_byte(tmp_path, capsys):
+    props = tmp_path / "p.rv"
+    props.write_text("input x: float\nproperty p:\n  always (x < 1)\n")
+    trace = tmp_path / "t.jsonl"
+    # the bad byte is in the second record, far enough in for a streamed read to be past it
+    trace.write_bytes(b'{"time": 0, "x": 0.5}\n{"time": 1, "x": 0.\xff5}\n')
+    assert main(["check", str(props), str(trace)]) == 2
+    assert f"{trace}:2:20: not a UTF-8 text file" in capsys.readouterr().err
+    props.write_bytes(b"input x: float\n# caf\xe9\nproperty p:\n  always (x < 1)\n")
+    assert main(["check", str(props), str(trace)]) == 2
+    assert f"{props}:2:6: not a UTF-8 text file" in capsys.readouterr().err
