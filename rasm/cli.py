@@ -101,7 +101,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     import threading
 
     from rasm.attach import Attachment, load_topic_map
-    from rasm.comm import open_transport
+    from rasm.comm import credentials_from_env, open_transport
     from rasm.spec import load_specification
 
     duration = getattr(args, "duration", None)
@@ -110,7 +110,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     text = read_utf8(args.props)
     signals = list(load_specification(text, source=args.props).signals)
     topics = load_topic_map(args.topics, signals) if args.topics else None
-    transport = open_transport(args.transport)
+    transport = open_transport(args.transport, **credentials_from_env(args.transport))
     stop = threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -20,7 +20,7 @@ from rasm.comm.presence import NodeState, Presence, PresenceTracker, presence_to
 from rasm.comm.signing import SignedEffector, UpdateOutcome, UpdateReceiver, sign, verify
 from rasm.comm.topics import topic_matches, validate_pattern, validate_topic
 from rasm.comm.transport import Subscription, Transport
-from rasm.comm.url import open_transport
+from rasm.comm.url import credentials_from_env, open_transport
 from rasm.errors import CommError
 
 __all__ = [
@@ -44,6 +44,7 @@ __all__ = [
     "UpdateOutcome",
     "UpdateReceiver",
     "Will",
+    "credentials_from_env",
     "open_transport",
     "presence_topic",
     "presence_will",

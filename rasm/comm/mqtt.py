@@ -56,6 +56,10 @@ class Will:
         check_payload(self.payload)
 
 
+# CONNACK refusals that a retry cannot cure (MQTT 3.1.1 return codes 4 and 5, as paho names them)
+_AUTH_REFUSALS = frozenset({"Not authorized", "Bad user name or password"})
+
+
 class MqttTransport(Transport):
     """Publish/subscribe over an MQTT broker with JSON envelopes, per-topic QoS and reconnects.
 
@@ -119,6 +123,10 @@ class MqttTransport(Transport):
             target=self._dispatch_loop, name=f"rasm-comm-{self.client_id}", daemon=True
         )
         self._ready = threading.Event()
+        # set with _ready, or when the broker refuses this client's credentials: connect() then
+        # fails at once (retrying cannot help) instead of waiting out connect_timeout
+        self._settled = threading.Event()
+        self._auth_refused: str | None = None
         self._acks_lock = threading.Lock()
         self._acks: dict[int, threading.Event] = {}
         self._resub_mid: int | None = None
@@ -168,7 +176,16 @@ class MqttTransport(Transport):
         except (OSError, ValueError) as exc:
             self._shutdown()
             raise CommError(f"cannot connect to {self.url}: {exc}") from exc
-        if not self._ready.wait(self.connect_timeout):
+        self._settled.wait(self.connect_timeout)
+        if self._auth_refused is not None:
+            self._shutdown()
+            who = f"user {self._username!r}" if self._username is not None else "no user name"
+            raise CommError(
+                f"the MQTT broker at {self.url} refused the connection: {self._auth_refused} "
+                f"({who}; `rasm run` and `rasm monitor` take the credentials from "
+                "RASM_MQTT_USERNAME and RASM_MQTT_PASSWORD)"
+            )
+        if not self._ready.is_set():
             self._shutdown()
             raise CommError(
                 f"could not connect to the MQTT broker at {self.url} within "
@@ -291,6 +308,7 @@ class MqttTransport(Transport):
 
     def _became_ready(self) -> None:
         self._ready.set()
+        self._settled.set()
         self._notify(True)
 
     def _notify(self, connected: bool) -> None:
@@ -313,6 +331,10 @@ class MqttTransport(Transport):
         try:
             if reason.is_failure:
                 self._last_failure = f"broker refused: {reason}"
+                if self._state == "connecting" and str(reason) in _AUTH_REFUSALS:
+                    self._auth_refused = str(reason)
+                    self._settled.set()
+                    return
                 _log.warning("%s refused the connection: %s", self.url, reason)
                 return
             self._connections += 1

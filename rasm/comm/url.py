@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from typing import Any
 from urllib.parse import urlsplit
 
 from rasm.comm.transport import Transport
 from rasm.errors import CommError
 
-__all__ = ["open_transport", "parse_mqtt_url", "ACCEPTED_FORMS"]
+__all__ = ["open_transport", "parse_mqtt_url", "credentials_from_env", "ACCEPTED_FORMS"]
 
 ACCEPTED_FORMS = "'local', 'mqtt://HOST:PORT' or 'mqtts://HOST:PORT' (TLS)"
 _DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
@@ -58,3 +60,20 @@ def open_transport(url: str, **options: Any) -> Transport:
     from rasm.comm.mqtt import MqttTransport  # imported lazily: paho is not needed for 'local'
 
     return MqttTransport(url, **options)
+
+
+def credentials_from_env(url: str, environ: Mapping[str, str] | None = None) -> dict[str, str]:
+    """``username=``/``password=`` for an MQTT ``url`` from ``RASM_MQTT_USERNAME`` and
+    ``RASM_MQTT_PASSWORD`` (what ``rasm run`` and ``rasm monitor`` use: credentials never go in
+    the URL, which ends up in logs); empty for ``local`` or when neither is set."""
+    env = os.environ if environ is None else environ
+    if not isinstance(url, str) or url.strip() == "local":
+        return {}
+    found = {}
+    if env.get("RASM_MQTT_USERNAME"):
+        found["username"] = env["RASM_MQTT_USERNAME"]
+    if env.get("RASM_MQTT_PASSWORD"):
+        if "username" not in found:
+            raise CommError("RASM_MQTT_PASSWORD is set but RASM_MQTT_USERNAME is not: set both")
+        found["password"] = env["RASM_MQTT_PASSWORD"]
+    return found

@@ -67,12 +67,16 @@ class Distribution:
         self._epoch = 0.0
 
     def transport_options(self) -> dict[str, Any]:
-        """Options for ``open_transport``: the last will that marks this node offline."""
+        """Options for ``open_transport``: the last will that marks this node offline, and the
+        broker credentials from ``RASM_MQTT_USERNAME``/``RASM_MQTT_PASSWORD``."""
         if not self.networked:
             return {}
-        from rasm.comm import presence_will
+        from rasm.comm import credentials_from_env, presence_will
 
-        return {"will": presence_will(self.node, self.platform.role)}
+        return {
+            "will": presence_will(self.node, self.platform.role),
+            **credentials_from_env(self.platform.transport_url),
+        }
 
     # ------------------------------------------------------------------ start and stop
 

@@ -66,7 +66,8 @@ def _mqtt_answers(host: str, port: int) -> bool:
                     return False
                 answer += chunk
             sock.sendall(_DISCONNECT)
-            return answer == _CONNACK_OK
+            # any CONNACK means the broker is up, also one refusing an anonymous client (5)
+            return answer[:3] == _CONNACK_OK[:3]
     except OSError:
         return False
 
