@@ -405,9 +405,11 @@ class TrustworthinessManager(Block):
                 return False, f"rules no longer accept the plan: {decision.explanation()}"
             # Execute may put other values in the action than the plan had: the rules judge
             # what is actually sent (payload values win over the plan's of the same name)
-            decision = rules.evaluate({**plan.values, **action.payload}, context)
-            if not decision.accepted:
-                return False, f"rules do not accept the action: {decision.explanation()}"
+            sent = {**plan.values, **action.payload}
+            if sent != plan.values:
+                decision = rules.evaluate(sent, context)
+                if not decision.accepted:
+                    return False, f"rules do not accept the action: {decision.explanation()}"
         verdicts = self.verdicts()
         violated = [p for p in self.veto_properties if verdicts.get(p) is False]
         if violated:

@@ -35,7 +35,25 @@ __all__ = [
     "as_plan",
     "as_signals",
     "as_verdict",
+    "describe_failure",
+    "missing_stage_method",
 ]
+
+
+def describe_failure(exc: BaseException | None) -> str:
+    """``Type: message`` of an exception from user code, whose ``__str__`` may itself fail."""
+    try:
+        text = str(exc)
+    except Exception:
+        text = "<str() of the exception failed>"
+    return f"{type(exc).__name__}: {text}"
+
+
+def missing_stage_method(stage: str, component: Any) -> str | None:
+    """Why ``component`` cannot serve ``stage`` (it has no ``stage(ctx)`` method), or None."""
+    if callable(getattr(component, stage, None)):
+        return None
+    return f"{type(component).__name__} has no {stage}(ctx) method"
 
 
 class StageError(PlatformError):

@@ -29,6 +29,7 @@ from rasm.platform.components import (
     as_plan,
     as_signals,
     as_verdict,
+    describe_failure,
 )
 from rasm.platform.stages import StageOutcome, StageRunner
 from rasm.resources import platform_monitors
@@ -37,15 +38,6 @@ from rasm.statechart import load_statechart
 __all__ = ["AdaptationOrchestrator", "LoopStats"]
 
 _log = logging.getLogger("rasm.loop")
-
-
-def _describe(exc: BaseException | None) -> str:
-    """``Type: message`` of an exception from user code, whose ``__str__`` may itself fail."""
-    try:
-        text = str(exc)
-    except Exception:
-        text = "<str() of the exception failed>"
-    return f"{type(exc).__name__}: {text}"
 
 
 @dataclass
@@ -158,7 +150,7 @@ class AdaptationOrchestrator(Block):
                 self.clock.time = start + self.stage_budget
             return  # the chart's after(stage_budget) transition ends the iteration
         if not outcome.ok:
-            self._fail(stage, _describe(outcome.error), outcome.traceback)
+            self._fail(stage, describe_failure(outcome.error), outcome.traceback)
             return
         try:
             event = body(ctx, outcome.result)
@@ -166,7 +158,7 @@ class AdaptationOrchestrator(Block):
             self._fail(stage, str(exc), "")
             return
         except Exception as exc:  # an odd result the checks above missed: fail the stage
-            self._fail(stage, _describe(exc), traceback.format_exc())
+            self._fail(stage, describe_failure(exc), traceback.format_exc())
             return
         self.post(event)
 

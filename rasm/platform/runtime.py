@@ -36,11 +36,16 @@ from rasm.platform.blocks import (
     TrustworthinessChecker,
     TrustworthinessManager,
 )
-from rasm.platform.components import Action, load_component
+from rasm.platform.components import (
+    Action,
+    describe_failure,
+    load_component,
+    missing_stage_method,
+)
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
-from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats, _describe
+from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.trace import TraceWriter
 from rasm.resources import data_dir
@@ -132,10 +137,9 @@ class Platform:
                     f"(the stages are {', '.join(STAGES)}; or twin)"
                 )
             for stage, obj in components.items():
-                if stage in STAGES and not callable(getattr(obj, stage, None)):
-                    raise PlatformError(
-                        f"components[{stage!r}]: {type(obj).__name__} has no {stage}(ctx) method"
-                    )
+                problem = missing_stage_method(stage, obj) if stage in STAGES else None
+                if problem:
+                    raise PlatformError(f"components[{stage!r}]: {problem}")
         self.manifest = manifest
         self.clock_kind = clock or manifest.clock or "wall"
         self.clock = (
@@ -362,10 +366,10 @@ class Platform:
                 where = Location(cause.filename, cause.lineno, cause.offset or 1)
                 raise SourceError(f"{ref}: SyntaxError: {cause.msg}", where) from exc
             raise SourceError(str(exc), manifest_location(m, ["components", stage])) from exc
-        if stage in STAGES and not callable(getattr(component, stage, None)):
+        problem = missing_stage_method(stage, component) if stage in STAGES else None
+        if problem:
             raise SourceError(
-                f"components.{stage}: {ref}: {type(component).__name__} has no {stage}(ctx) "
-                f"method, so the {stage} stage would never run it",
+                f"components.{stage}: {ref}: {problem}, so the {stage} stage would never run it",
                 manifest_location(m, ["components", stage]),
             )
         return component
@@ -517,9 +521,8 @@ class Platform:
         try:
             self.simulator.apply(effector, action, self.clock.time - self._started_at)
         except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
-            _log.error(
-                "the simulator's apply(%r) failed: %s", effector, _describe(exc), exc_info=exc
-            )
+            why = describe_failure(exc)
+            _log.error("the simulator's apply(%r) failed: %s", effector, why, exc_info=exc)
 
     def _step_simulator(self) -> None:
         # the simulated world starts at 0 whatever the managing system's restored timeline
@@ -528,7 +531,7 @@ class Platform:
                 self.clock.time - self._started_at, self.manifest.simulator_period
             )
         except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
-            _log.error("the simulator's step failed: %s", _describe(exc), exc_info=exc)
+            _log.error("the simulator's step failed: %s", describe_failure(exc), exc_info=exc)
             return
         if readings is not None and not isinstance(readings, dict):
             _log.error(

@@ -4,9 +4,10 @@ Two things stock sismic lacks and the platform needs (NOTES.md):
 
 * **Atomic steps.** An exception inside a step (an action, a guard, a contract, a property
   statechart) leaves sismic half-applied: old state exited, new one not entered, event consumed.
-  :class:`AtomicStepMixin` snapshots the interpreter's mutable state before each step and restores
-  it when the step raises, then re-raises the original exception (sismic's own types, so existing
-  code that catches them keeps working) after recording it in :attr:`last_failure`. The event that
+  :class:`AtomicStepMixin` saves the interpreter's mutable state before a step changes it (lazily:
+  most steps change nothing) and restores it when the step raises, then re-raises the original
+  exception (sismic's own types, so existing code that catches them keeps working) after
+  recording it in :attr:`last_failure`. The event that
   caused the failure is discarded, so the next step does not fail on it again. Meta-events for
   ordinary listeners (``bind``, ``attach``) are delivered only when the step succeeds, so a bound
   interpreter never receives an event sent by a step that was rolled back.
@@ -29,10 +30,7 @@ from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event
 
-try:  # the fast path is being built alongside; stock sismic until it lands
-    from rasm.statechart.fast import FastInterpreter
-except ImportError:  # pragma: no cover
-    FastInterpreter = SismicInterpreter  # type: ignore[misc,assignment]
+from rasm.statechart.fast import FastInterpreter
 
 __all__ = [
     "AtomicStepMixin", "DeadlineEvaluator", "FastGuardEvaluator", "Interpreter", "StepFailure",
@@ -62,6 +60,16 @@ class StepFailure:
     exception: BaseException
 
 
+def _waited(since: float, now: float, seconds: float, deadlines: list[float] | None) -> bool:
+    """``after``/``idle``: true once ``seconds`` have passed since ``since``; otherwise the time
+    it will be is recorded in ``deadlines`` (if any)."""
+    if now - seconds >= since:
+        return True
+    if deadlines is not None:
+        deadlines.append(since + seconds)
+    return False
+
+
 class FastGuardEvaluator(PythonEvaluator):
     """sismic's Python evaluator with guards evaluated in one frame instead of two (guards run at
     every step): the same names exposed, the same errors."""
@@ -69,8 +77,6 @@ class FastGuardEvaluator(PythonEvaluator):
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
 
     def evaluate_guard(self, transition, event=None) -> bool:
-        # Stock's evaluate_guard and _evaluate_code in one frame (guards run at every step): the
-        # same names exposed, the same error.
         guard = getattr(transition, "guard", None)
         if guard is None:
             return True
@@ -81,28 +87,11 @@ class FastGuardEvaluator(PythonEvaluator):
         source = transition.source
         now = interp.time
         deadlines = self.deadlines
-
-        def after(seconds: float) -> bool:
-            since = interp._entry_time[source]
-            if now - seconds >= since:
-                return True
-            if deadlines is not None:
-                deadlines.append(since + seconds)
-            return False
-
-        def idle(seconds: float) -> bool:
-            since = interp._idle_time[source]
-            if now - seconds >= since:
-                return True
-            if deadlines is not None:
-                deadlines.append(since + seconds)
-            return False
-
         exposed = {
             "active": lambda s: s in interp.configuration,
             "time": now,
-            "after": after,
-            "idle": idle,
+            "after": lambda s: _waited(interp._entry_time[source], now, s, deadlines),
+            "idle": lambda s: _waited(interp._idle_time[source], now, s, deadlines),
             "event": event,
         }
         try:

@@ -82,3 +82,16 @@ def test_rasm_run_uses_the_environment_credentials(locked_broker, tmp_path):
         command, capture_output=True, text=True, cwd=tmp_path, timeout=60, env=env
     )
     assert admitted.returncode == 0, admitted.stderr
+
+
+def test_a_password_without_a_user_name_is_bad_input(monkeypatch, capsys, tmp_path):
+    from rasm.cli import main
+
+    monkeypatch.setenv("RASM_MQTT_PASSWORD", "s3cret")
+    monkeypatch.delenv("RASM_MQTT_USERNAME", raising=False)
+    monkeypatch.chdir(tmp_path)
+    app = str(ROOT / "examples" / "hotbox")
+    assert main(["run", app, "--transport", "mqtt://127.0.0.1:1", "--role", "managed"]) == 2
+    err = capsys.readouterr().err
+    assert "RASM_MQTT_PASSWORD is set but RASM_MQTT_USERNAME is not" in err
+    assert "Traceback" not in err

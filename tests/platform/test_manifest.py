@@ -71,6 +71,8 @@ def test_a_good_manifest_loads(tmp_path):
             "'double' is not one of",
         ),
         ("  period: 0.5", "  period: -1", 14, 11, "less than the minimum of 1e-06"),
+        ("  period: 0.5", "  period: 0.5\n  max_actions: 0", 15, 16, "less than the minimum of 1"),
+        ("loop:\n", "timing: offf\nloop:\n", 13, 9, "does not match"),
         ("  monitor: components:M", "  monitor: components.M", 3, 12, "is not module:Class"),
         (
             "x: {type: float, min: 0, max: 10}",
