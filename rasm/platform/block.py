@@ -27,22 +27,32 @@ from rasm.errors import PlatformError, RasmError
 from rasm.resources import platform_chart
 from rasm.statechart import Interpreter, load_statechart
 
-__all__ = ["MODES", "Block", "ModeListener"]
+__all__ = ["MODES", "Block", "ModeListener", "shared_chart"]
 
 MODES = ("instantiated", "configuration", "initialization", "initialized", "fault", "terminated")
 
 ModeListener = Callable[["Block", str], Any]
 
 _log = logging.getLogger("rasm.platform")
-_CHARTS: dict[str, Statechart] = {}
+_CHARTS: dict[tuple[str, int, int], Statechart] = {}
 _CHARTS_LOCK = threading.Lock()
 
 
-def _chart(name: str | Path) -> Statechart:
-    key = str(name)
+def shared_chart(name: str | Path) -> Statechart:
+    """The chart ``name`` (a platform chart's name, or a YAML file), loaded once per process.
+
+    A loaded chart is never changed by an interpreter, so every block (and every platform built
+    in this process) shares it, with the tables the fast interpreter computes for it. A file that
+    changed on disk since (modification time or size) is loaded again.
+    """
+    path = Path(name) if str(name).endswith((".yaml", ".yml")) else platform_chart(str(name))
+    try:
+        stat = path.stat()
+        key = (str(path), stat.st_mtime_ns, stat.st_size)
+    except OSError:  # let the loader report the missing file
+        return load_statechart(path)
     with _CHARTS_LOCK:
-        if key not in _CHARTS:  # a loaded chart is immutable: share it between instances
-            path = Path(name) if str(name).endswith((".yaml", ".yml")) else platform_chart(key)
+        if key not in _CHARTS:
             _CHARTS[key] = load_statechart(path)
         return _CHARTS[key]
 
@@ -64,7 +74,9 @@ class Block:
     ) -> None:
         self.name = name or self.short_name or type(self).__name__
         self.depends_on = tuple(depends_on)
-        statechart = chart if isinstance(chart, Statechart) else _chart(chart or self.chart_name)
+        statechart = (
+            chart if isinstance(chart, Statechart) else shared_chart(chart or self.chart_name)
+        )
         self.clock = clock or SimulatedClock()
         self.interpreter = Interpreter(statechart, clock=self.clock, initial_context=context)
         self.failure_reason: str | None = None

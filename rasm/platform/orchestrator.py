@@ -19,7 +19,7 @@ from typing import Any
 
 from sismic.clock import SimulatedClock
 
-from rasm.platform.block import Block
+from rasm.platform.block import Block, shared_chart
 from rasm.platform.blocks import AdaptationManager, StateManager, TrustworthinessManager
 from rasm.platform.components import (
     StageContext,
@@ -33,7 +33,6 @@ from rasm.platform.components import (
 )
 from rasm.platform.stages import StageOutcome, StageRunner
 from rasm.resources import platform_monitors
-from rasm.statechart import load_statechart
 
 __all__ = ["AdaptationOrchestrator", "LoopStats"]
 
@@ -108,7 +107,7 @@ class AdaptationOrchestrator(Block):
         super().__init__(context={"stage_budget": stage_budget, "max_replans": max_replans}, **kw)
         # the property statecharts of monitors/ watch every step of the loop (docs/statecharts.md)
         for path in platform_monitors():
-            self.interpreter.bind_property_statechart(load_statechart(path))
+            self.interpreter.bind_property_statechart(shared_chart(path))
 
     # ------------------------------------------------------------------ driving
 

@@ -150,6 +150,11 @@ class SwapResult:
         return self.accepted
 
 
+# (path, mtime_ns, size) -> the file's rules and their consistency report (RuleSet.load)
+_CHECKED: dict[tuple[str, int, int], tuple[Rules, Report | None]] = {}
+_CHECKED_LOCK = threading.Lock()
+
+
 class RuleSet:
     """The rules in force at the Legitimate stage, replaceable only by consistent rules.
 
@@ -171,8 +176,28 @@ class RuleSet:
 
     @classmethod
     def load(cls, path: str | Path) -> RuleSet:
-        """The consistent rule set of the file at ``path``."""
-        return cls(load_rules(path))
+        """The consistent rule set of the file at ``path``.
+
+        A file already loaded and proved consistent in this process (same path, modification
+        time and size) is not parsed and proved again: every platform built from one app shares
+        the work.
+        """
+        try:
+            stat = Path(path).stat()
+            key: tuple[str, int, int] | None = (str(path), stat.st_mtime_ns, stat.st_size)
+        except (OSError, TypeError, ValueError):  # load_rules says what is wrong with it
+            key = None
+        with _CHECKED_LOCK:
+            found = _CHECKED.get(key) if key is not None else None
+        if found is not None:
+            rule_set = cls(found[0], require_consistent=False)
+            rule_set.report = found[1]
+            return rule_set
+        rule_set = cls(load_rules(path))
+        if key is not None:
+            with _CHECKED_LOCK:
+                _CHECKED[key] = (rule_set.rules, rule_set.report)
+        return rule_set
 
     @property
     def rules(self) -> Rules:

@@ -113,6 +113,7 @@ class FastInterpreter(Interpreter):
         self._reactive: frozenset[str] = frozenset()
         self._fast_events = False
         self._contracts_possible = True
+        self._preselected: tuple[Event, list[Transition]] | None = None
         super().__init__(
             statechart,
             evaluator_klass=evaluator_klass,
@@ -307,6 +308,11 @@ class FastInterpreter(Interpreter):
         inner_first: bool = True,
     ) -> list[Transition]:
         """Stock selection (eventless first, inner-first, priorities) from the event index."""
+        preselected = self._preselected
+        if preselected is not None and preselected[0] is event:
+            # chosen by a PropertyListener just before, on this configuration, context and time
+            self._preselected = None
+            return list(preselected[1])
         tables = self._tables
         if not (eventless_first and inner_first and tables.selection_ok):
             return super()._select_transitions(
@@ -523,28 +529,36 @@ class FastInterpreter(Interpreter):
 
 
 class PropertyListener(PropertyStatechartListener):
-    """Feeds meta-events to a property statechart, skipping those it cannot react to.
+    """Feeds meta-events to a property statechart, skipping the executions that would do nothing.
 
     Stock sismic queues every meta-event to the property interpreter and executes it. When the
-    property interpreter is *settled* (its last execution completed, at the current time, with no
-    event pending) and no transition of an active state listens to the event's name, that
-    execution could only consume the event in an empty step: eventless transitions were already
-    found disabled at this time and nothing they read has changed. Such events are skipped. The
-    first meta-event at a new time is always delivered, so time-triggered (``after``, ``idle``)
-    transitions fire exactly when stock sismic fires them.
+    property interpreter is *settled* (its last execution completed, nothing is due in its
+    queues), an execution for a meta-event can only do something if
+
+    - a transition of an active state listens to the event's name and its guard holds (the
+      guards are evaluated here, once: the step then reuses the selection), or
+    - the time moved since the last execution and an active state has an eventless transition
+      (``after``, ``idle``, time guards), which the execution would evaluate anew.
+
+    Otherwise the execution would consume the event in an empty step and record the time; the
+    listener records the time (:attr:`before_change` is called first, as for a real execution)
+    and skips the rest. A guard that raises is left to the real execution, which raises it again
+    with the event queued, as stock does.
 
     Skipping is disabled when it could be observed: a property chart with invariants (they see
     the consumed event), a property interpreter with listeners of its own, or one that is not a
-    :class:`FastInterpreter` using sismic's Python evaluator (or a subclass of it). Guards of
-    eventless transitions are assumed to depend only on the property's own context, configuration
-    and time. Delayed meta-events are always delivered (they wait in the property's queue).
+    :class:`FastInterpreter` using sismic's Python evaluator (or a subclass of it). Guards are
+    assumed free of side effects, and guards of eventless transitions to depend only on the
+    property's own context, configuration and time. Delayed meta-events are always delivered
+    (they wait in the property's queue).
 
     Under the same conditions, the closing step of an execution (the one that finds nothing to
     do) is not run when no active state has an eventless transition and no event is queued.
     """
 
     #: Called with the property's interpreter just before the listener changes it (a meta-event
-    #: that is not skipped); the platform's atomic layer snapshots the property there.
+    #: that is not skipped, or the time a skipped one records); the platform's atomic layer
+    #: snapshots the property there.
     before_change: Callable[[Interpreter], Any] | None = None
 
     def __init__(self, interpreter: Interpreter) -> None:
@@ -564,28 +578,41 @@ class PropertyListener(PropertyStatechartListener):
         self._names = frozenset(
             t.event for t in interpreter.statechart.transitions if t.event is not None
         )
+        clock = interpreter.clock
+        self._time_source: Interpreter | None = None
+        if type(clock) is SynchronizedClock and type(clock._interpreter).time is Interpreter.time:
+            self._time_source = clock._interpreter
 
     @property
     def interpreter(self) -> Interpreter:
         """The property statechart's interpreter."""
         return self._interpreter
 
-    def _skippable(self, event: MetaEvent) -> bool:
+    def _selection(self, event: MetaEvent) -> list[Transition] | None:
+        """What executing ``event`` would select, or None when only executing it can tell
+        (something due, time-triggered transitions to evaluate, a guard that raises)."""
         interp = self._interpreter
-        name = event.name
-        if (
-            interp._listeners
-            or (name in self._names and name in interp.reactive_events())
-            or _has_delay(event)
-        ):
-            return False
-        now = interp.clock.time
-        if interp._time != now or interp.final:
-            return False
+        if interp._listeners or interp.final or _has_delay(event):
+            return None
+        now = self._now()
         for queue in (interp._internal_queue, interp._external_queue):
             if queue and queue[0][0] <= now:
-                return False
-        return True
+                return None
+        if interp._time != now and not self._eventless_sources.isdisjoint(
+            interp._configuration
+        ):
+            return None
+        name = event.name
+        if name not in self._names or name not in interp.reactive_events():
+            return []
+        before = interp._time
+        interp._time = now  # guards see the time the execution would record
+        try:
+            return interp._select_transitions(event, interp._configuration)
+        except Exception:
+            return None
+        finally:
+            interp._time = before
 
     def _quiet(self, interp: FastInterpreter) -> bool:
         # the closing step would also clear what the last step sent (a notify() is sent without
@@ -598,20 +625,52 @@ class PropertyListener(PropertyStatechartListener):
             or not self._eventless_sources.isdisjoint(interp._configuration)
         )
 
+    def _now(self) -> float:
+        # the bound interpreter's time, without the two property calls of SynchronizedClock
+        source = self._time_source
+        return self._interpreter.clock.time if source is None else source._time
+
+    def _record_time(self, interp: Interpreter) -> None:
+        """Do what a skipped execution would have done: record the current time."""
+        now = self._now()
+        if interp._time != now:
+            if self.before_change is not None:
+                self.before_change(interp)
+            interp._time = now
+
     def __call__(self, event: MetaEvent) -> None:
-        if self._settled and self._can_skip and self._skippable(event):
-            return
-        self._settled = False
         interp = self._interpreter
+        selected = None
+        if self._settled:  # only ever true when skipping is possible
+            if (
+                event.name not in self._names  # the cheap case: nothing can be selected
+                and not (interp._internal_queue or interp._external_queue or interp._listeners)
+                and not _has_delay(event)
+            ):
+                if interp._time == self._now():
+                    return
+                if self._eventless_sources.isdisjoint(interp._configuration):
+                    self._record_time(interp)
+                    return
+            selected = self._selection(event)
+            if selected is not None and not selected:
+                self._record_time(interp)
+                return
+        self._settled = False
         if self.before_change is not None:
             self.before_change(interp)
         interp.queue(event)
         if self._can_skip:
-            step = interp.execute_once()
+            if selected:
+                interp._preselected = (event, selected)
+            try:
+                step = interp.execute_once()
+            finally:
+                interp._preselected = None
             while step is not None and not self._quiet(interp):
                 step = interp.execute_once()
         else:
             interp.execute()
         if interp.final:
             raise PropertyStatechartError(self._interpreter)
-        self._settled = True
+        self._settled = self._can_skip

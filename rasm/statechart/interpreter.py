@@ -22,6 +22,7 @@ import copy
 import functools
 import math
 from dataclasses import dataclass
+from types import CodeType
 from typing import Any
 
 from sismic.code import PythonEvaluator
@@ -70,30 +71,64 @@ def _waited(since: float, now: float, seconds: float, deadlines: list[float] | N
     return False
 
 
+# Names through which a guard could see the whole dict of names exposed to it: a guard using one
+# gets all of them, as with stock sismic.
+_INTROSPECTION = frozenset({
+    "globals", "locals", "vars", "dir", "eval", "exec", "__builtins__", "__globals__",
+    "f_globals", "f_locals", "f_back", "_getframe", "gi_frame", "cr_frame", "ag_frame", "tb_frame",
+})
+_EXPOSED = frozenset({"active", "time", "after", "idle", "event"})
+_EVENT_ONLY = frozenset({"event"})
+
+
+def _names_used(code: CodeType) -> frozenset[str]:
+    """Every name a code object (and the lambdas, comprehensions inside it) may look up."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, CodeType):
+            names |= _names_used(const)
+    return frozenset(names)
+
+
 class FastGuardEvaluator(PythonEvaluator):
     """sismic's Python evaluator with guards evaluated in one frame instead of two (guards run at
-    every step): the same names exposed, the same errors."""
+    every step), exposing only the names a guard uses: the same values, the same errors."""
 
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
+
+    def _guard_code(self, guard: str) -> tuple[CodeType, frozenset[str]]:
+        cache = self.__dict__.setdefault("_guard_codes", {})
+        found = cache.get(guard)
+        if found is None:
+            code = self._evaluable_code.get(guard)
+            if code is None:
+                code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
+            names = _names_used(code)
+            wanted = _EXPOSED if names & _INTROSPECTION else names & _EXPOSED
+            found = cache[guard] = (code, wanted)
+        return found
 
     def evaluate_guard(self, transition, event=None) -> bool:
         guard = getattr(transition, "guard", None)
         if guard is None:
             return True
-        code = self._evaluable_code.get(guard)
-        if code is None:
-            code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
-        interp = self._interpreter
-        source = transition.source
-        now = interp.time
-        deadlines = self.deadlines
-        exposed = {
-            "active": lambda s: s in interp.configuration,
-            "time": now,
-            "after": lambda s: _waited(interp._entry_time[source], now, s, deadlines),
-            "idle": lambda s: _waited(interp._idle_time[source], now, s, deadlines),
-            "event": event,
-        }
+        code, wanted = self._guard_code(guard)
+        if wanted == _EVENT_ONLY:  # the usual guard of a property statechart
+            exposed: dict[str, Any] = {"event": event}
+        elif not wanted:
+            exposed = {}
+        else:
+            interp = self._interpreter
+            source = transition.source
+            now = interp.time
+            deadlines = self.deadlines
+            exposed = {
+                "active": lambda s: s in interp.configuration,
+                "time": now,
+                "after": lambda s: _waited(interp._entry_time[source], now, s, deadlines),
+                "idle": lambda s: _waited(interp._idle_time[source], now, s, deadlines),
+                "event": event,
+            }
         try:
             return bool(eval(code, exposed, self._context))
         except Exception as e:

@@ -61,10 +61,11 @@ META = [
     "ping",
 ]
 META_GUARDS = {
-    "state entered": ["event.state == 's1'", "event.state in ('s2', 's3')"],
-    "state exited": ["event.state == 's1'", "event.state != 's2'"],
-    "event consumed": ["event.event.name == 'a'", "event.event.name != 'b'"],
-    "transition processed": ["event.source == 's1'", "event.target is None"],
+    # 1 // (k - 1) raises ZeroDivisionError once an action has set k to 1
+    "state entered": ["event.state == 's1'", "event.state in ('s2', 's3')", "1 // (k - 1) >= 0"],
+    "state exited": ["event.state == 's1'", "event.state != 's2'", "after(1)"],
+    "event consumed": ["event.event.name == 'a'", "event.event.name != 'b'", "active('p1')"],
+    "transition processed": ["event.source == 's1'", "event.target is None", "idle(2)"],
     "event sent": ["event.event.name == 'c'"],
     "step started": ["time > 1"],
     "step ended": ["k > 1", "time > 4"],

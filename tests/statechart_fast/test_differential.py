@@ -12,15 +12,27 @@ from hypothesis import strategies as st
 from sismic.interpreter import Interpreter
 
 from rasm.statechart.fast import FastInterpreter
+from rasm.statechart.interpreter import FastGuardEvaluator
 from tests.statechart_fast import harness
 from tests.statechart_fast.strategies import charts, property_charts, scripts
 
 SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
-def assert_same(chart, script, **options) -> list:
+class OneFrameGuards(FastInterpreter):
+    """FastInterpreter with the platform's guard evaluator (one frame, only the names used)."""
+
+    def __init__(self, statechart, **options):
+        options.setdefault("evaluator_klass", FastGuardEvaluator)
+        super().__init__(statechart, **options)
+
+    def __repr__(self) -> str:  # as stock's, for PropertyStatechartError messages
+        return f"Interpreter({self._statechart!r})"
+
+
+def assert_same(chart, script, klass=FastInterpreter, **options) -> list:
     expected = harness.run(Interpreter, chart, script, **options)
-    actual = harness.run(FastInterpreter, chart, script, **options)
+    actual = harness.run(klass, chart, script, **options)
     assert actual == expected
     return expected
 
@@ -47,6 +59,12 @@ def test_same_runs_when_contracts_are_ignored(chart, script):
 @given(chart=charts(), prop=property_charts(), script=scripts)
 def test_same_runs_with_a_property_statechart(chart, prop, script):
     assert_same(chart, script, prop=prop)
+
+
+@SETTINGS
+@given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
+def test_same_runs_with_the_platform_guard_evaluator(chart, prop, script):
+    assert_same(chart, script, OneFrameGuards, prop=prop)
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
