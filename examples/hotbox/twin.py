@@ -23,11 +23,12 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any, NamedTuple
+from itertools import islice
+from typing import Any
 
 from rasm.twin import DigitalTwin, PageHinkley, RecursiveLeastSquares, TwinError, TwinUpdate
 
-__all__ = ["HotboxTwin"]
+__all__ = ["HotboxTwin", "SlidingWindow"]
 
 # the managed system's known parts: the room and the local controller (components.py)
 AMBIENT = 20.0  # deg C
@@ -41,11 +42,99 @@ MODE_LIMITS = {"normal": 60.0, "boost": 100.0}  # power limits of the app's plan
 PARAMS = ("heat_capacity", "loss_closed", "loss_open")
 
 
-class _Record(NamedTuple):
-    time: float
-    temperature: float
-    power: float
-    lid: bool
+# the window's running sums are summed afresh after this many records, so the rounding of
+# adding and subtracting terms never accumulates beyond a few hundred roundings (at most about
+# 1e-13 of the sums' size); summing afresh costs one pass over the window, rarely
+RESUM_EVERY = 256
+
+
+class SlidingWindow:
+    """The records of the last ``span`` seconds and the integrals the twin regresses on.
+
+    For each interval between consecutive records (``step`` long, ending at a record with
+    heater power ``P`` and lid state ``lid``, starting at temperature ``T``) the window adds
+    ``step P``, ``step (T - T_ambient)`` and, when ``lid``, ``step (T - T_ambient)`` again:
+    :attr:`power`, :attr:`loss` and :attr:`lid` are their sums over the window's intervals.
+    They are running sums (the new interval's terms added, those of the records that leave the
+    window subtracted), so a record costs the same whatever the window's length; every
+    ``resum_every`` records they are summed afresh, in the window's order, so rounding never
+    piles up, and the lid sum is exactly 0 whenever no interval in the window had the lid open.
+
+    :meth:`push` keeps the window at least ``span`` long: the oldest record is dropped while
+    the next one is still at least ``span`` old. Records more than ``max_gap`` after the last
+    one restart the window (a hole is not learned from).
+    """
+
+    def __init__(self, span: float, max_gap: float, resum_every: int = RESUM_EVERY) -> None:
+        self.span = span
+        self.max_gap = max_gap
+        self.resum_every = resum_every
+        # (time, temperature, step P, step x, lid) with x = T_before - ambient: a record and
+        # the terms of the interval ending at it (the first record's are unused)
+        self._entries: deque[tuple[float, float, float, float, bool]] = deque()
+        self.power = self.loss = self.lid = 0.0
+        self._lid_intervals = 0  # intervals in the window with the lid open
+        self._since_resum = 0
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    @property
+    def change(self) -> float:
+        """The temperature change from the window's first record to its last."""
+        return self._entries[-1][1] - self._entries[0][1]
+
+    def clear(self) -> None:
+        self._entries.clear()
+        self.power = self.loss = self.lid = 0.0
+        self._lid_intervals = 0
+
+    def push(self, time: float, temperature: float, power: float, lid: bool) -> bool:
+        """Add a record (later than the last one); True when the window spans ``span``."""
+        entries = self._entries
+        if entries and time - entries[-1][0] > self.max_gap:
+            self.clear()
+        if entries:
+            before_time, before_temperature = entries[-1][0], entries[-1][1]
+            step = time - before_time
+            excess = before_temperature - AMBIENT
+            term_power = step * power
+            term_loss = step * excess
+            self.power += term_power
+            self.loss += term_loss
+            if lid:
+                self.lid += term_loss
+                self._lid_intervals += 1
+            entries.append((time, temperature, term_power, term_loss, lid))
+        else:
+            entries.append((time, temperature, 0.0, 0.0, False))
+        edge = time - self.span + 1e-9
+        while len(entries) >= 2 and entries[1][0] <= edge:
+            entries.popleft()
+            # the interval into the new first record has left the window
+            _, _, term_power, term_loss, lid_open = entries[0]
+            self.power -= term_power
+            self.loss -= term_loss
+            if lid_open:
+                self.lid -= term_loss
+                self._lid_intervals -= 1
+        if not self._lid_intervals:
+            self.lid = 0.0
+        self._since_resum += 1
+        if self._since_resum >= self.resum_every:
+            self.resum()
+        return entries[0][0] <= edge
+
+    def resum(self) -> None:
+        """Sum the window's terms afresh, first interval to last."""
+        self._since_resum = 0
+        power = loss = lid = 0.0
+        for _, _, term_power, term_loss, lid_open in islice(self._entries, 1, None):
+            power += term_power
+            loss += term_loss
+            if lid_open:
+                lid += term_loss
+        self.power, self.loss, self.lid = power, loss, lid
 
 
 def _to_theta(params: dict[str, float]) -> list[float]:
@@ -147,9 +236,11 @@ class HotboxTwin(DigitalTwin):
         self.detector = PageHinkley(
             delta=drift_delta, threshold=drift_threshold, min_samples=drift_min_samples
         )
-        self._history: deque[_Record] = deque()
-        self._reference: dict[bool, list[float]] = {}  # the latest window of each lid state
-        self._pending: _Record | None = None
+        self._recent = SlidingWindow(self.window, self.max_gap)
+        # phi of the latest window of each lid state
+        self._reference: dict[bool, tuple[float, float, float]] = {}
+        # the record waiting for a later time: (time, temperature, power, lid)
+        self._pending: tuple[float, float, float, bool] | None = None
         self._armed = False  # the drift detector runs only while the live model is confident
         self._relearning = False
         self._square_error = 0.0
@@ -164,6 +255,9 @@ class HotboxTwin(DigitalTwin):
             "drifts": 0,
             "source": "prior",
         }
+        # the published params as the estimator's theta: _worth_publishing compares the live
+        # estimate with them at every record, so they are converted once, when published
+        self._published_theta = self._relative(self.prior)
 
     # ------------------------------------------------------------------ learning
 
@@ -178,47 +272,24 @@ class HotboxTwin(DigitalTwin):
         power = values.get("heater_power")
         if temperature is None or power is None:
             return None
-        record = _Record(
-            float(time), float(temperature), float(power), bool(values.get("lid_open"))
-        )
+        record = (float(time), float(temperature), float(power), bool(values.get("lid_open")))
         pending, update = self._pending, None
-        if pending is not None and record.time < pending.time:
+        if pending is not None and record[0] < pending[0]:
             return None  # out of order: the contract says this does not happen; ignore it
-        if pending is not None and record.time > pending.time:
-            update = self._learn(pending)
+        if pending is not None and record[0] > pending[0]:
+            update = self._learn(*pending)
         self._pending = record
         return update
 
-    def _window(self, record: _Record) -> list[_Record] | None:
-        history = self._history
-        if history and record.time - history[-1].time > self.max_gap:
-            history.clear()
-        history.append(record)
-        edge = record.time - self.window + 1e-9
-        while len(history) >= 2 and history[1].time <= edge:
-            history.popleft()
-        if history[0].time > edge:
+    def _learn(self, time: float, temperature: float, power: float, lid: bool) -> TwinUpdate | None:
+        recent = self._recent
+        if not recent.push(time, temperature, power, lid):
             return None  # less than one window of records yet
-        return list(history)
-
-    def _learn(self, record: _Record) -> TwinUpdate | None:
-        window = self._window(record)
-        if window is None:
-            return None
         a0, b0, c0 = self._scale
-        s_power = s_loss = s_lid = 0.0
-        for before, now in zip(window, window[1:], strict=False):
-            step = now.time - before.time
-            excess = before.temperature - AMBIENT
-            s_power += step * now.power
-            s_loss += step * excess
-            if now.lid:
-                s_lid += step * excess
-        phi = [a0 * s_power, -b0 * s_loss, -c0 * s_lid]
-        self._reference[record.lid] = phi
-        change = window[-1].temperature - window[0].temperature
+        phi = (a0 * recent.power, -b0 * recent.loss, -c0 * recent.lid)
+        self._reference[lid] = phi
         # overlapping windows share their records: each counts as 1/len of an observation
-        error = self.rls.update(phi, change, weight=1.0 / (len(window) - 1))
+        error = self.rls.update(phi, recent.change, weight=1.0 / (len(recent) - 1))
         residual = abs(error)
         self._errors += 1
         self._square_error += (error * error - self._square_error) / min(self._errors, 100)
@@ -236,22 +307,31 @@ class HotboxTwin(DigitalTwin):
             self._armed = False
             self._relearning = True
             confident = False
-        changed = confident and self._worth_publishing(record.time)
+        changed = confident and self._worth_publishing(time)
         if changed:
-            self._publish(record.time)
+            self._publish(time)
         return TwinUpdate(residual=residual, drift=drift, model_changed=changed)
 
     def _confident(self) -> bool:
         """Physical estimates, both lid states seen, and for a window of each the parameters'
         uncertainty moves the prediction by less than ``confidence`` x the sensor noise."""
+        reference = self._reference
+        if len(reference) < 2:
+            return False
         theta = self.rls.theta
-        if theta[0] <= 0 or theta[1] <= 0 or theta[2] < 0 or len(self._reference) < 2:
+        if theta[0] <= 0 or theta[1] <= 0 or theta[2] < 0:
             return False
         bound = self.confidence**2
-        return all(self.rls.variance_factor(phi) <= bound for phi in self._reference.values())
+        variance = self.rls.variance_factor
+        return variance(reference[False]) <= bound and variance(reference[True]) <= bound
 
     def _live_params(self) -> dict[str, float]:
         return _to_params([s * t for s, t in zip(self._scale, self.rls.theta, strict=True)])
+
+    def _relative(self, params: dict[str, float]) -> tuple[float, float, float]:
+        """``params`` as the estimator's theta (relative to the prior)."""
+        a, b, c = (t / s for t, s in zip(_to_theta(params), self._scale, strict=True))
+        return a, b, c
 
     def _worth_publishing(self, time: float) -> bool:
         published = self._published
@@ -261,12 +341,11 @@ class HotboxTwin(DigitalTwin):
             return False
         # a new version when, on the latest window of either lid state, the live estimate and
         # the published model differ by more than `tolerance` of the window's heat flows
-        old = [t / s for t, s in zip(_to_theta(published["params"]), self._scale, strict=True)]
-        for phi in self._reference.values():
-            flows = sum(abs(p * t) for p, t in zip(phi, old, strict=True))
-            moved = sum(
-                p * (new - was) for p, new, was in zip(phi, self.rls.theta, old, strict=True)
-            )
+        old0, old1, old2 = self._published_theta
+        new0, new1, new2 = self.rls.theta
+        for p0, p1, p2 in self._reference.values():
+            flows = abs(p0 * old0) + abs(p1 * old1) + abs(p2 * old2)
+            moved = p0 * (new0 - old0) + p1 * (new1 - old1) + p2 * (new2 - old2)
             if abs(moved) > self.tolerance * flows:
                 return True
         return False
@@ -290,6 +369,7 @@ class HotboxTwin(DigitalTwin):
             # the estimator's state in absolute units (a, b, c): learning resumes after load()
             "estimator": {"theta": theta, "covariance": covariance},
         }
+        self._published_theta = self._relative(self._published["params"])
 
     # ------------------------------------------------------------------ the model
 
@@ -338,10 +418,11 @@ class HotboxTwin(DigitalTwin):
             self.rls.reset_covariance()
         self._published = dict(model)
         self._published["params"] = params
+        self._published_theta = self._relative(params)
         self.drifts = int(model.get("drifts", 0) or 0)
         self._relearning = False
         self._armed = False
-        self._history.clear()
+        self._recent.clear()
         self._pending = None
 
     # ------------------------------------------------------------------ prediction

@@ -136,3 +136,71 @@ def test_the_state_survives_json_and_continues_identically():
 def test_misuse_is_a_twin_error_that_says_what_is_wrong(make, message):
     with pytest.raises(TwinError, match=message):
         make()
+
+
+class Loops:
+    """The textbook update in loops, every sum added left to right (as ``sum()`` of floats
+    did up to Python 3.11; later versions compensate its rounding)."""
+
+    def __init__(self, rls):
+        self.theta, self.P, self.forgetting = list(rls.theta), [r[:] for r in rls.P], rls.forgetting
+        self.max_trace = rls.max_trace
+
+    @staticmethod
+    def total(values):
+        out = 0.0
+        for value in values:
+            out += value
+        return out
+
+    def variance_factor(self, phi):
+        return self.total(
+            phi[i] * self.total(self.P[i][j] * phi[j] for j in range(3)) for i in range(3)
+        )
+
+    def update(self, phi, y, weight):
+        P, total = self.P, self.total
+        error = y - total(p * t for p, t in zip(phi, self.theta, strict=True))
+        Pphi = [total(P[i][j] * phi[j] for j in range(3)) for i in range(3)]
+        denominator = self.forgetting / weight + total(phi[i] * Pphi[i] for i in range(3))
+        gain = [v / denominator for v in Pphi]
+        self.theta = [t + g * error for t, g in zip(self.theta, gain, strict=True)]
+        new = [[0.0] * 3 for _ in range(3)]
+        for i in range(3):
+            for j in range(i, 3):
+                new[i][j] = new[j][i] = (P[i][j] - gain[i] * Pphi[j]) * (1.0 / self.forgetting)
+        trace = total(new[i][i] for i in range(3))
+        if self.max_trace is not None and trace > self.max_trace:
+            new = [[x * (self.max_trace / trace) for x in row] for row in new]
+        self.P = new
+        return error
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    data=st.lists(
+        st.tuples(
+            st.lists(st.floats(-10, 10), min_size=3, max_size=3),
+            st.floats(-100, 100),
+            st.floats(0.01, 10),
+        ),
+        min_size=1,
+        max_size=40,
+    ),
+    forgetting=st.floats(0.8, 1.0),
+    covariance=st.lists(st.floats(1e-3, 1e6), min_size=3, max_size=3),
+    max_trace=st.one_of(st.none(), st.floats(1e-2, 1e7)),
+)
+def test_three_parameters_take_an_unrolled_update_with_the_loops_floats(
+    data, forgetting, covariance, max_trace
+):
+    rls = RecursiveLeastSquares(
+        3, forgetting=forgetting, covariance=covariance, max_trace=max_trace
+    )
+    loops = Loops(rls)
+    for phi, y, weight in data:
+        # the same operations in the same order: the same floats, to the last bit
+        assert rls.variance_factor(phi) == loops.variance_factor(phi)
+        assert rls.update(phi, y, weight) == loops.update(phi, y, weight)
+        assert rls.theta == loops.theta and rls.P == loops.P
+    assert rls.points == len(data)
