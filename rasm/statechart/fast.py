@@ -53,9 +53,38 @@ from rasm.statechart import fast_tables as ft
 
 __all__ = ["FastInterpreter", "PropertyListener"]
 
+def _data_attribute(key: str) -> property:
+    def read(event: Event) -> Any:
+        try:
+            return event.data[key]
+        except KeyError:  # Event.__getattr__'s error, word for word
+            raise AttributeError(f"{event} has no attribute {key}") from None
+
+    return property(read)
+
+
+class _Meta(MetaEvent):
+    """The meta-events this interpreter raises: a MetaEvent whose data keys are read without
+    going through ``Event.__getattr__`` (a failed attribute lookup first, then the call: most of
+    the cost of a property guard like ``event.state == 'idle'``). Same values (read live from
+    ``data``), same errors, same repr, equality and hash; copied and pickled as a MetaEvent."""
+
+    __slots__ = ()
+    state = _data_attribute("state")
+    event = _data_attribute("event")
+    source = _data_attribute("source")
+    target = _data_attribute("target")
+    time = _data_attribute("time")
+
+    def __reduce_ex__(self, protocol: Any) -> tuple:
+        return (MetaEvent, (self.name,), (self.name, self.data))
+
+
+_Meta.__name__ = _Meta.__qualname__ = "MetaEvent"  # for repr, which prints the class name
+
 # Event classes whose ``delay`` can only come from their data (no attribute, no __getattr__
 # override): reading ``data`` directly avoids the exception stock ``getattr`` goes through.
-_PLAIN_EVENTS = (Event, InternalEvent, MetaEvent)
+_PLAIN_EVENTS = (Event, InternalEvent, MetaEvent, _Meta)
 
 
 def _delay(event: Event) -> Any:
@@ -196,7 +225,7 @@ class FastInterpreter(Interpreter):
         self._sent_events.clear()
         fast_events = self._fast_events
         if self._listeners or not fast_events:
-            self._raise_event(MetaEvent("step started", time=self.time))
+            self._raise_event(_Meta("step started", time=self.time))
 
         computed_steps = self._compute_steps()
 
@@ -204,7 +233,7 @@ class FastInterpreter(Interpreter):
             if computed_steps[0].event is not None:
                 event = self._select_event(consume=True)
                 if self._listeners or not fast_events:
-                    self._raise_event(MetaEvent("event consumed", event=event))
+                    self._raise_event(_Meta("event consumed", event=event))
             else:
                 event = None
 
@@ -232,7 +261,7 @@ class FastInterpreter(Interpreter):
                     self._evaluate_contract_conditions(state, "invariants", macro_step)
 
         if self._listeners or not fast_events:
-            self._raise_event(MetaEvent("step ended"))
+            self._raise_event(_Meta("step ended"))
         return macro_step
 
     def _evaluate_contract_conditions(
@@ -276,9 +305,9 @@ class FastInterpreter(Interpreter):
         if isinstance(event, InternalEvent):
             self._queue_event(event)
             if self._listeners or not self._fast_events:
-                self._raise_event(MetaEvent("event sent", event=event))
+                self._raise_event(_Meta("event sent", event=event))
                 if _has_delay(event):
-                    self._raise_event(MetaEvent("delayed event sent", event=event))
+                    self._raise_event(_Meta("delayed event sent", event=event))
         elif isinstance(event, MetaEvent):
             for listener in self._listeners:
                 listener(event)
@@ -480,7 +509,7 @@ class FastInterpreter(Interpreter):
             if check:
                 self._evaluate_contract_conditions(state, "postconditions", step)
             if self._listeners or not fast_events:
-                self._raise_event(MetaEvent("state exited", state=name))
+                self._raise_event(_Meta("state exited", state=name))
 
         transition = step.transition
         if transition:
@@ -494,7 +523,7 @@ class FastInterpreter(Interpreter):
             self._idle_time[transition.source] = now
             if self._listeners or not fast_events:
                 self._raise_event(
-                    MetaEvent(
+                    _Meta(
                         "transition processed",
                         source=transition.source,
                         target=transition.target,
@@ -513,7 +542,7 @@ class FastInterpreter(Interpreter):
             self._entry_time[name] = now
             self._idle_time[name] = now
             if self._listeners or not fast_events:
-                self._raise_event(MetaEvent("state entered", state=name))
+                self._raise_event(_Meta("state entered", state=name))
 
         for event in sent_events:
             self._raise_event(event)  # type: ignore[arg-type]
@@ -588,19 +617,17 @@ class PropertyListener(PropertyStatechartListener):
         """The property statechart's interpreter."""
         return self._interpreter
 
-    def _selection(self, event: MetaEvent) -> list[Transition] | None:
-        """What executing ``event`` would select, or None when only executing it can tell
-        (something due, time-triggered transitions to evaluate, a guard that raises)."""
+    def _selection(self, event: MetaEvent, now: float) -> list[Transition] | None:
+        """For a settled property: what executing ``event`` at ``now`` would select, or None
+        when only executing it can tell (something due, time-triggered transitions to evaluate,
+        a guard that raises)."""
         interp = self._interpreter
-        if interp._listeners or interp.final or _has_delay(event):
+        if interp._listeners or not interp._configuration or _has_delay(event):
+            return None  # (settled implies initialised: no configuration means final)
+        internal, external = interp._internal_queue, interp._external_queue
+        if (internal and internal[0][0] <= now) or (external and external[0][0] <= now):
             return None
-        now = self._now()
-        for queue in (interp._internal_queue, interp._external_queue):
-            if queue and queue[0][0] <= now:
-                return None
-        if interp._time != now and not self._eventless_sources.isdisjoint(
-            interp._configuration
-        ):
+        if interp._time != now and not self._eventless_sources.isdisjoint(interp._configuration):
             return None
         name = event.name
         if name not in self._names or name not in interp.reactive_events():
@@ -625,36 +652,19 @@ class PropertyListener(PropertyStatechartListener):
             or not self._eventless_sources.isdisjoint(interp._configuration)
         )
 
-    def _now(self) -> float:
-        # the bound interpreter's time, without the two property calls of SynchronizedClock
-        source = self._time_source
-        return self._interpreter.clock.time if source is None else source._time
-
-    def _record_time(self, interp: Interpreter) -> None:
-        """Do what a skipped execution would have done: record the current time."""
-        now = self._now()
-        if interp._time != now:
-            if self.before_change is not None:
-                self.before_change(interp)
-            interp._time = now
-
     def __call__(self, event: MetaEvent) -> None:
         interp = self._interpreter
         selected = None
         if self._settled:  # only ever true when skipping is possible
-            if (
-                event.name not in self._names  # the cheap case: nothing can be selected
-                and not (interp._internal_queue or interp._external_queue or interp._listeners)
-                and not _has_delay(event)
-            ):
-                if interp._time == self._now():
-                    return
-                if self._eventless_sources.isdisjoint(interp._configuration):
-                    self._record_time(interp)
-                    return
-            selected = self._selection(event)
+            # the bound interpreter's time, without SynchronizedClock's two property calls
+            source = self._time_source
+            now = interp.clock.time if source is None else source._time
+            selected = self._selection(event, now)
             if selected is not None and not selected:
-                self._record_time(interp)
+                if interp._time != now:  # what the skipped execution would have recorded
+                    if self.before_change is not None:
+                        self.before_change(interp)
+                    interp._time = now
                 return
         self._settled = False
         if self.before_change is not None:
