@@ -202,7 +202,8 @@ class KnowledgeManager(Block):
         super().__init__(**kw)
 
     def register_knowledge(self, key: str, value: Any, time: float | None = None) -> Any:
-        self.require_mode("initialized")
+        if self._mode != "initialized":  # tested inline: this runs for every value stored
+            self.require_mode("initialized")
         return self.store.register_knowledge(key, value, self.clock.time if time is None else time)
 
     def read_knowledge(self, key: str, default: Any = None) -> Any:
@@ -299,6 +300,8 @@ class Telegraf(Block):
         self, probes: list[Probe], register: Callable[[dict[str, Any], float], Any], **kw: Any
     ) -> None:
         self.routes: dict[str, dict[str, Signal]] = {p.topic: p.signals for p in probes}
+        # per topic, what digest() tests each field with (built once: probes are frozen)
+        self._plans = {topic: _plan(signals) for topic, signals in self.routes.items()}
         self.register = register
         self.digested = 0
         self.rejected: Counter[str] = Counter()
@@ -306,18 +309,25 @@ class Telegraf(Block):
 
     def digest(self, topic: str, payload: Any, time: float) -> dict[str, Any]:
         """Route one message; returns the values stored (an empty dict if nothing was)."""
-        if self.mode != "initialized":
+        if self._mode != "initialized":
             self.rejected["not running"] += 1
             return {}
-        signals = self.routes.get(topic)
-        if signals is None or not isinstance(payload, dict):
+        plan = self._plans.get(topic)
+        if plan is None or not isinstance(payload, dict):
             self.rejected["unroutable"] += 1
             return {}
         values: dict[str, Any] = {}
-        for key, signal in signals.items():
+        for key, signal, exact, low, high in plan:
             if key not in payload:
                 continue
             value = payload[key]
+            # the common good value in one test: its exact declared class, in range and finite
+            # (the int sentinel range keeps huge ints on the full check, which fails on them)
+            if value.__class__ is exact and (
+                low is None or (low <= value <= high and value - value == 0)
+            ):
+                values[key] = value
+                continue
             problem = _check_value(signal, value)
             if problem:
                 self.rejected[problem] += 1
@@ -330,6 +340,31 @@ class Telegraf(Block):
             self.register(values, time)
             self.digested += 1
         return values
+
+
+# the class a value of each signal type must have to skip the full check (an int for a float
+# signal is converted by the full path; json values are not checked: they always take it)
+_EXACT: dict[str, type | None] = {"float": float, "int": int, "bool": bool, "str": str}
+# the range of an int without declared bounds in the fast test; larger ones take the full check
+_INT_RANGE = 1 << 1000
+
+
+def _plan(signals: dict[str, Signal]) -> tuple[tuple[str, Signal, Any, Any, Any], ...]:
+    """``(field, signal, exact class, low, high)`` per field: the fast test of Telegraf.digest.
+
+    ``low`` is None when the class alone decides (bool, str); numbers need ``low <= value <=
+    high`` and finite, with the declared bounds or unbounded ones.
+    """
+    plan = []
+    for key, signal in signals.items():
+        exact = _EXACT.get(signal.type)
+        low = high = None
+        if signal.type in ("float", "int"):
+            unbounded = math.inf if signal.type == "float" else _INT_RANGE
+            low = -unbounded if signal.minimum is None else signal.minimum
+            high = unbounded if signal.maximum is None else signal.maximum
+        plan.append((key, signal, exact, low, high))
+    return tuple(plan)
 
 
 def _check_value(signal: Signal, value: Any) -> str | None:
@@ -488,6 +523,7 @@ class TrustworthinessChecker(Block):
         send: Callable[[Effector, Action], Any],
         mode_of: Callable[[], str | None],
         on_verdict: Callable[[Any], Any] | None = None,
+        observers: list[Callable[[Any], Any]] | None = None,
         online: Callable[[], bool] = lambda: True,
         **kw: Any,
     ) -> None:
@@ -497,8 +533,12 @@ class TrustworthinessChecker(Block):
         self.send_to_effector = send
         self.mode_of = mode_of
         self.on_verdict = on_verdict
+        # called with every verdict, like on_verdict; the list is the caller's and is read at
+        # each record, so observers may come and go during a run, and none costs no call
+        self.observers: list[Callable[[Any], Any]] = [] if observers is None else observers
         self.latest: dict[str, bool | None] = {}
         self.violations: Counter[str] = Counter()
+        self.inconclusive: set[str] = set()  # properties with an inconclusive (None) verdict
         self.records_refused = 0
         self._action: Action | None = None
         self._outcome: tuple[bool, str] = (False, "")
@@ -506,7 +546,12 @@ class TrustworthinessChecker(Block):
 
     def observe(self, time: float, record: dict[str, Any]) -> list[Any]:
         """Feed one loop record to every monitor; returns the verdicts it decided."""
-        out = []
+        out: list[Any] = []
+        # every record steps every monitor and each decides about one verdict per property:
+        # what is looked up once per record stays out of the per-verdict loop
+        latest = self.latest
+        on_verdict = self.on_verdict
+        observers = self.observers
         for monitor in self.monitors:
             try:
                 verdicts = monitor.step(time, record)
@@ -515,12 +560,19 @@ class TrustworthinessChecker(Block):
                 self.records_refused += 1
                 continue
             for verdict in verdicts:
-                self.latest[verdict.property] = verdict.value
-                if verdict.value is False:
-                    self.violations[verdict.property] += 1
-                if self.on_verdict is not None:
-                    self.on_verdict(verdict)
-                out.append(verdict)
+                value = verdict.value
+                latest[verdict.property] = value
+                if value is not True:  # the rare ones: a violation, or inconclusive
+                    if value is False:
+                        self.violations[verdict.property] += 1
+                    elif value is None:
+                        self.inconclusive.add(verdict.property)
+                if on_verdict is not None:
+                    on_verdict(verdict)
+                if observers:
+                    for observer in observers:
+                        observer(verdict)
+            out += verdicts
         return out
 
     def register_action(self, action: Action | None) -> tuple[bool, str]:

@@ -167,7 +167,8 @@ class Platform:
         self._gc_frozen = False
         self.on_record: list[Callable[[float, dict[str, Any]], Any]] = []
         # every verdict of the online monitors goes to these callables (loop thread); nothing
-        # keeps them, so a long run does not grow (the trace file has the records they judge)
+        # keeps them, so a long run does not grow (the trace file has the records they judge).
+        # Append to and remove from this list: the Trustworthiness Checker holds it.
         self.on_verdict: list[Callable[[Any], Any]] = []
         self._inconclusive: set[str] = set()
         self.simulator: Any = None
@@ -275,7 +276,10 @@ class Platform:
         self.stom = StorageManager(
             storage, chart=self._chart("storage_manager"), clock=clock, depends_on=("km",)
         )
-        self.kb.subscribe(self._knowledge_updated)
+        if storage is not None:
+            # the Storage Manager buffers every update for its storage; without one it has
+            # nothing to do with them, so no subscriber call per value stored
+            self.kb.subscribe(self.stom.register_knowledge_update)
         self.tg = Telegraf(
             m.probes,
             self._register,
@@ -302,7 +306,7 @@ class Platform:
             send=self._send_action,
             mode_of=lambda: self.kb.read_knowledge(m.mode_signal) if m.mode_signal else None,
             online=lambda: self.dist.managed_online,
-            on_verdict=self._verdict,
+            observers=self.on_verdict,  # the list itself: observers added later are called
             clock=clock,
             depends_on=("sm", "cm"),
         )
@@ -431,9 +435,10 @@ class Platform:
         """Store values in knowledge (one trace record for the batch, with the twin's residual
         when they were the twin's inputs)."""
         stored = {}
+        register = self.km.register_knowledge
         for key, value in values.items():
             try:
-                self.km.register_knowledge(key, value, time)
+                register(key, value, time)
             except Exception as exc:  # a bad value is logged and dropped, never fatal
                 _log.warning("knowledge %s=%r refused: %s", key, value, exc)
                 continue
@@ -445,13 +450,11 @@ class Platform:
             self._emit(time, stored)
 
     def _verdict(self, verdict: Any) -> None:
+        """A verdict of the end of the run (the checker hands the live ones to on_verdict)."""
         if verdict.value is None:
             self._inconclusive.add(verdict.property)
         for observer in self.on_verdict:
             observer(verdict)
-
-    def _knowledge_updated(self, key: str, sample: Any) -> None:
-        self.stom.register_knowledge_update(key, sample)
 
     def _emit(self, time: float, record: dict[str, Any]) -> None:
         self.trace.emit(time, record)
@@ -589,7 +592,8 @@ class Platform:
                     if verdict.value is False:
                         self.tc.violations[verdict.property] += 1
                 for name in monitor.properties:
-                    verdicts[name] = "inconclusive" if name in self._inconclusive else "satisfied"
+                    inconclusive = name in self._inconclusive or name in self.tc.inconclusive
+                    verdicts[name] = "inconclusive" if inconclusive else "satisfied"
             for name, count in self.tc.violations.items():
                 verdicts[name] = "violated"
                 violations[name] = count

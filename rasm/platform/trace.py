@@ -64,7 +64,9 @@ class TraceWriter:
         self.last_time = -math.inf
 
     def emit(self, time: float, record: dict[str, Any]) -> None:
-        time = max(time, self.last_time)  # never back in time (SPEC §4)
+        last = self.last_time
+        if last > time:  # never back in time (SPEC §4); max(time, last) without the call
+            time = last
         self.last_time = time
         self.records += 1
         if self._out is not None:

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.blocks import Telegraf, TrustworthinessChecker
+from rasm.platform.blocks import Telegraf, TrustworthinessChecker, _check_value
 from rasm.platform.components import Action
 from rasm.platform.manifest import Effector, Probe, Signal
 from rasm.platform.runtime import Platform
@@ -70,6 +72,75 @@ def test_telegraf_stores_exactly_the_valid_values(payload):
     assert sum(tg.rejected.values()) == bad
 
 
+UNBOUNDED = Probe(
+    "box/free",
+    {
+        "x": Signal("x", "float"),
+        "n": Signal("n", "int"),
+        "low": Signal("low", "float", minimum=0.0),
+        "j": Signal("j", "json"),
+        "s": Signal("s", "str"),
+        "b": Signal("b", "bool"),
+    },
+)
+
+
+class Level(int):
+    pass
+
+
+class Name(str):
+    pass
+
+
+class Reading(float):
+    pass
+
+
+# the edges of the fast test: bounds, non-finite numbers, ints without a float (10**400)
+EDGES = [math.inf, -math.inf, math.nan, -0.0, 0, 1e308, -40.0, -40.000001, 150.0, 150.5, 10]
+EDGES += [11, -1, 2**1000, -(2**1000), 10**400, -(10**400), True, False, "", None]
+ODD = st.one_of(
+    st.sampled_from(EDGES),
+    VALUES,
+    st.integers(),
+    st.integers(-3, 3).map(Level),
+    st.text(max_size=3).map(Name),
+    st.sampled_from(EDGES[:6]).map(Reading),
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(data=st.data(), probe=st.sampled_from([PROBE, UNBOUNDED]))
+def test_telegraf_fast_checks_agree_with_the_full_check(data, probe):
+    # digest() passes the common good value with one test; what it stores (and its type), what
+    # it refuses and why, and what it raises must be what the full check says
+    payload = data.draw(st.dictionaries(st.sampled_from([*probe.signals, "y"]), ODD))
+    tg = Telegraf([probe], lambda values, time: None)
+    tg.send("configure")
+    expected, problems, raised = {}, Counter(), None
+    for key, signal in probe.signals.items():
+        if key in payload:
+            value = payload[key]
+            try:
+                problem = _check_value(signal, value)
+            except Exception as exc:  # a huge int has no float for math.isfinite
+                raised = type(exc)
+                break
+            if problem:
+                problems[problem] += 1
+            else:
+                expected[key] = float(value) if signal.type == "float" else value
+    if raised is not None:
+        with pytest.raises(raised):
+            tg.digest(probe.topic, payload, 1.0)
+        return
+    result = tg.digest(probe.topic, payload, 1.0)
+    assert result == expected
+    assert [type(v) for v in result.values()] == [type(v) for v in expected.values()]
+    assert tg.rejected == problems
+
+
 def test_telegraf_refuses_unroutable_data_and_works_only_when_initialized():
     tg, stored = started_telegraf()
     assert tg.digest("elsewhere", {"temperature": 1.0}, 0) == {}
@@ -123,3 +194,48 @@ def test_log_sinks_file_and_bus(hotbox, tmp_path):
     # the sinks are detached at termination
     assert not platform.lt.handlers
     json.dumps(published)  # bus payloads are plain JSON
+
+
+class _Faulty:
+    properties = ["faulty"]
+
+    def step(self, time, record):
+        raise RuntimeError("broken monitor")
+
+
+def test_checker_hands_verdicts_to_the_observers_listed_now_and_survives_a_faulty_monitor():
+    from rasm.spec import compile as compile_properties
+
+    monitor = compile_properties("input x: float\nproperty low: always (x < 1)\n")
+    observers: list = []
+    called = []
+    tc = TrustworthinessChecker(
+        monitors=[_Faulty(), monitor],
+        effectors={},
+        send=lambda effector, action: None,
+        mode_of=lambda: None,
+        on_verdict=called.append,
+        observers=observers,
+    )
+    first = tc.observe(0.0, {"x": 0.5})
+    assert [(v.property, v.value) for v in first] == [("low", True)]
+    assert tc.records_refused == 1  # the faulty monitor's record is skipped, the others run
+    seen: list = []
+    observers.append(seen.append)  # added during the run: called from the next record on
+    second = tc.observe(1.0, {"x": 2.0})
+    assert seen == second and called == first + second
+    assert tc.latest == {"low": False} and tc.violations == {"low": 1}
+    assert tc.records_refused == 2 and not tc.inconclusive
+
+
+def test_platform_verdict_observers_added_while_running_see_the_live_verdicts(hotbox):
+    platform = Platform(hotbox, clock="simulated", knowledge="memory")
+    seen: list = []
+    platform.start()
+    platform.on_verdict.append(seen.append)
+    try:
+        platform.scheduler.run_until(platform.clock.time + 2.0)
+    finally:
+        platform.stop()
+    assert {v.property for v in seen} >= {"temperature_band", "stage_order"}
+    assert all(v.value is True for v in seen)
