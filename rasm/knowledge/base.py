@@ -12,7 +12,7 @@ import math
 import sys
 import threading
 from bisect import bisect_left, bisect_right
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, NamedTuple
 
 from rasm.errors import KnowledgeError
@@ -220,6 +220,50 @@ class KnowledgeBase:
                         "knowledge subscriber %r failed on %r", subscription.callback, key
                     )
             return sample
+
+    def register_values(self, values: Mapping[str, Any], time: float) -> dict[str, Exception]:
+        """Record every value of ``values`` at ``time``, as :meth:`register_knowledge` would one
+        after the other, under one acquisition of the lock; return the refused ones.
+
+        Each value is checked on its own: a refused one (``{key: the error register_knowledge
+        would raise}``) is not stored and does not stop the others. Subscribers are called for
+        each stored value, in order, before this returns.
+        """
+        refused: dict[str, Exception] = {}
+        if type(self).register_knowledge is not KnowledgeBase.register_knowledge:
+            # a store that registers its own way (Redis) is asked one value at a time
+            for key, value in values.items():
+                try:
+                    self.register_knowledge(key, value, time)
+                except Exception as exc:
+                    refused[key] = exc
+            return refused
+        with self._lock:
+            series_of = self._series
+            for key, value in values.items():
+                # register_knowledge's body, written out: this runs for every value the
+                # platform stores (tests/knowledge check the two agree)
+                try:
+                    series = series_of.get(key)
+                    if series is None:
+                        series = self._infer(key, value)
+                    value = series.check(value)
+                    moment = time if type(time) is float else self._time(key, time)
+                    if not series.last <= moment < _INF:  # also false for NaN
+                        raise self._bad_time(key, moment, series.last)
+                except Exception as exc:
+                    refused[key] = exc
+                    continue
+                sample = _new_tuple(Sample, (moment, value))
+                series.append(sample)
+                for subscription in self._subscriptions:  # a callback may (un)subscribe
+                    try:
+                        subscription.callback(key, sample)
+                    except Exception:
+                        _log.exception(
+                            "knowledge subscriber %r failed on %r", subscription.callback, key
+                        )
+        return refused
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
         """Append samples in bulk **without** notifying subscribers; return how many.

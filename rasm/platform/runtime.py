@@ -434,16 +434,16 @@ class Platform:
     def _register(self, values: dict[str, Any], time: float) -> None:
         """Store values in knowledge (one trace record for the batch, with the twin's residual
         when they were the twin's inputs)."""
-        stored = {}
-        register = self.km.register_knowledge
-        for key, value in values.items():
-            try:
-                register(key, value, time)
-            except Exception as exc:  # a bad value is logged and dropped, never fatal
-                _log.warning("knowledge %s=%r refused: %s", key, value, exc)
-                continue
-            if isinstance(value, _SCALARS):
-                stored[key] = value
+        # one call for the batch: a bad value is refused on its own, logged and dropped
+        refused = self.km.register_values(values, time)
+        if refused:
+            for key, exc in refused.items():
+                _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
+            stored = {
+                k: v for k, v in values.items() if k not in refused and isinstance(v, _SCALARS)
+            }
+        else:
+            stored = {k: v for k, v in values.items() if isinstance(v, _SCALARS)}
         if self.twin is not None and not self._twin_inputs.isdisjoint(values):
             stored.update(self._observe_twin(time))
         if stored:

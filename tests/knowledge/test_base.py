@@ -287,3 +287,80 @@ def test_load_samples_checks_everything_first_and_does_not_notify():
     assert kb.load_samples("v", [Sample(0.0, 1), Sample(1.0, 2.0), Sample(2.0, 3.0)]) == 3
     assert kb.history("v") == [Sample(1.0, 2.0), Sample(2.0, 3.0)]
     assert seen == []
+
+
+# -- batches --------------------------------------------------------------------------------------
+
+BATCH_KEYS = {
+    "speed": ("float", 0.0, 10.0),
+    "count": ("int", None, None),
+    "on": ("bool", None, None),
+}
+BATCH_VALUES = st.one_of(
+    VALUES["float"], VALUES["int"], VALUES["bool"], st.sampled_from([-1.0, 5.0, 11.0, "x", None])
+)
+BATCH_TIMES = st.sampled_from([0.0, 1.0, 1.0, 2.5, -1.0, math.nan, math.inf, 3, True, "now"])
+
+
+def _declared_base() -> tuple[KnowledgeBase, list]:
+    kb = KnowledgeBase()
+    for key, (kind, lo, hi) in BATCH_KEYS.items():
+        kb.declare(key, kind, minimum=lo, maximum=hi)
+    seen: list = []
+    kb.subscribe(lambda key, sample: seen.append((key, sample)))
+    return kb, seen
+
+
+@SETTINGS
+@given(
+    st.lists(
+        st.tuples(
+            st.dictionaries(st.sampled_from([*BATCH_KEYS, "new"]), BATCH_VALUES, max_size=4),
+            BATCH_TIMES,
+        ),
+        max_size=6,
+    )
+)
+def test_a_batch_is_each_value_registered_one_after_the_other(batches):
+    batched, batched_seen = _declared_base()
+    single, single_seen = _declared_base()
+    for values, time in batches:
+        refused = batched.register_values(values, time)
+        expected = {}
+        for key, value in values.items():
+            try:
+                single.register_knowledge(key, value, time)
+            except Exception as exc:
+                expected[key] = exc
+        assert list(refused) == list(expected)
+        assert [(type(e), str(e)) for e in refused.values()] == [
+            (type(e), str(e)) for e in expected.values()
+        ]
+    assert same([list(s) for _, s in batched_seen], [list(s) for _, s in single_seen])
+    assert [k for k, _ in batched_seen] == [k for k, _ in single_seen]
+    for key in single.keys():
+        assert same([list(s) for s in batched.history(key)], [list(s) for s in single.history(key)])
+
+
+def test_a_batch_goes_through_a_store_that_registers_its_own_way():
+    class Counting(KnowledgeBase):
+        calls = 0
+
+        def register_knowledge(self, key, value, time):
+            Counting.calls += 1
+            return super().register_knowledge(key, value, time)
+
+    kb = Counting()
+    kb.declare("speed", "float", minimum=0.0)
+    refused = kb.register_values({"speed": -1.0, "other": 2.0}, 1.0)
+    assert list(refused) == ["speed"] and Counting.calls == 2
+    assert kb.read_knowledge("other") == 2.0
+
+
+def test_a_subscriber_failing_in_a_batch_fails_neither_the_batch_nor_the_others():
+    kb = KnowledgeBase()
+    seen = []
+    kb.subscribe(lambda key, sample: 1 / 0)
+    kb.subscribe(lambda key, sample: seen.append(key))
+    assert kb.register_values({"a": 1.0, "b": "x"}, 0.0) == {}
+    assert seen == ["a", "b"]

@@ -239,3 +239,30 @@ def test_platform_verdict_observers_added_while_running_see_the_live_verdicts(ho
         platform.stop()
     assert {v.property for v in seen} >= {"temperature_band", "stage_order"}
     assert all(v.value is True for v in seen)
+
+
+def test_knowledge_manager_batches_refuse_each_bad_value_and_everything_when_not_running():
+    from rasm.errors import PlatformError
+    from rasm.knowledge import KnowledgeBase
+    from rasm.platform.blocks import KnowledgeManager
+
+    class OneAtATime:  # a store without register_values
+        def __init__(self):
+            self.kb = KnowledgeBase()
+            self.kb.declare("speed", "float", minimum=0.0)
+
+        def register_knowledge(self, key, value, time):
+            return self.kb.register_knowledge(key, value, time)
+
+        def read_knowledge(self, key, default=None):
+            return self.kb.read_knowledge(key, default)
+
+    for store in (OneAtATime(), OneAtATime().kb):
+        km = KnowledgeManager(store)
+        refused = km.register_values({"speed": 1.0, "mode": "x"}, 0.0)
+        assert list(refused) == ["speed", "mode"]
+        assert all(isinstance(e, PlatformError) for e in refused.values())
+        km.send("configure")
+        refused = km.register_values({"speed": -1.0, "mode": "x"}, 1.0)
+        assert list(refused) == ["speed"] and "below its minimum" in str(refused["speed"])
+        assert km.read_knowledge("mode") == "x"
