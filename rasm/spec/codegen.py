@@ -64,19 +64,27 @@ class Program:
 def normalise(node: Expr) -> Expr:
     """Rewrite historically/always via once/eventually: ``historically φ = not once not φ``."""
     if isinstance(node, Past) and node.op == "historically":
-        inner = Past("once", node.bound, Not(normalise(node.operand), location=node.location),
-                     location=node.location)
+        inner = Past(
+            "once",
+            node.bound,
+            Not(normalise(node.operand), location=node.location),
+            location=node.location,
+        )
         return Not(inner, location=node.location)
     if isinstance(node, Future) and node.op == "always":
-        inner = Future("eventually", node.bound,
-                       Not(normalise(node.operand), location=node.location),
-                       location=node.location)
+        inner = Future(
+            "eventually",
+            node.bound,
+            Not(normalise(node.operand), location=node.location),
+            location=node.location,
+        )
         return Not(inner, location=node.location)
     if isinstance(node, (Unary, Not, Prev, Past, Future, Aggregate)):
         return type(node)(**{**_fields(node), "operand": normalise(node.operand)})
     if isinstance(node, (Binary, Since, Until)):
-        return type(node)(**{**_fields(node), "left": normalise(node.left),
-                             "right": normalise(node.right)})
+        return type(node)(
+            **{**_fields(node), "left": normalise(node.left), "right": normalise(node.right)}
+        )
     if isinstance(node, Call):
         return Call(node.func, tuple(normalise(a) for a in node.args), location=node.location)
     return node
@@ -102,6 +110,10 @@ class _Generator:
         self.finish_lines: list = []
         self.root: Expr | None = None  # the property's formula being compiled
         self.root_number = 0
+        # inline future windows by their Source (kept alive here, so never confused with a
+        # later one): (index of their first line, pending deque, upper bound), for the parent
+        # that may keep the records it decides out of them (online_skip)
+        self.windows: dict[Source, tuple[int, str, float]] = {}
 
     def fresh(self, prefix: str) -> str:
         self.count += 1
@@ -163,6 +175,8 @@ class _Generator:
         if isinstance(node, Since):
             return "imm", self.since(node.bound.low, node.bound.high, values[0], values[1])
         if isinstance(node, Aggregate):
+            if node.op == "count" and node.bound.low == 0:
+                return "imm", self.count_window(node.bound.high, values[0])
             core = self.constant("w", WindowCore(node.op, node.bound.low, node.bound.high))
             out = self.fresh("v")
             self.lines.append(f"{out} = {core}.push(t, {values[0]})")
@@ -190,6 +204,25 @@ class _Generator:
                 f"{last} = {pending}.popleft()",
             ]
         self.lines.append(f"{out} = {self.within(last, b)}")
+        return out
+
+    def count_window(self, b: float, value: str) -> str:
+        """``count[0,b](value)`` of a two-valued operand, written into the step function.
+
+        The same count as :class:`WindowCore`'s (the records whose value is true, from ``t - b``
+        to ``t``) without a call per record: only the times of the true records are kept.
+        """
+        if b == INF:  # nothing ever leaves the window: a counter
+            total = self.variable("n", 0)
+            self.lines.append(f"if {value}: {total} += 1")
+            return total
+        times = self.constant("q", deque())
+        out = self.fresh("v")
+        self.lines += [
+            f"if {value}: {times}.append(t)",
+            f"while {times} and t - {times}[0] > {_number(b)}: {times}.popleft()",
+            f"{out} = len({times})",
+        ]
         return out
 
     def since(self, a: float, b: float, left: str, right: str) -> str:
@@ -280,6 +313,7 @@ class _Generator:
                 f"        _j, _tj = {pending}.popleft()",
                 f"        {out}.append((_j, _tj, False))",
             ]
+        self.windows[source] = (len(self.lines), pending, b)
         self.lines += lines
         # at the end of the trace the still-open windows are inconclusive
         self.finish_lines += [
@@ -297,10 +331,17 @@ class _Generator:
         names = []
         held = None
         immediate = [value for kind, value in parts if kind == "imm"]
+        decides = _decider(node, position) if len(immediate) == 1 else None
+        early = None
+        if decides is not None and node is self.root:
+            early = decides[0].format(w=immediate[0])
         if immediate:
             held = self.constant("b", deque())
             if len(immediate) == 1:
-                self.lines.append(f"{held}.append({immediate[0]})")
+                append = f"{held}.append({immediate[0]})"
+                if early is not None and self.online_skip(parts[position][1], position, early):
+                    append = ("ONLINE", f"if not ({early}): {append}", append)
+                self.lines.append(append)
             else:
                 self.lines.append(f"{held}.append(({', '.join(immediate)},))")
         k = 0
@@ -315,7 +356,6 @@ class _Generator:
         drain = [f"while {child}:", f"    _j, _tj, _v = {child}.popleft()"]
         if held is not None:
             drain.append(f"    _w = {held}.popleft()")
-        decides = _decider(node, position) if len(immediate) == 1 else None
         if decides is not None and node is self.root:
             # online, the immediate side alone may decide the verdict (a false trigger of
             # "trigger -> eventually …"): say it now, and skip it when the stream catches up
@@ -327,6 +367,26 @@ class _Generator:
         self.lines += drain
         self.finish_lines += drain
         return "stream", source
+
+    def online_skip(self, child: Source, position: int, early: str) -> bool:
+        """Online, keep the records ``early`` decides out of the inline window ``child``.
+
+        Their verdict is given at once, so the window need not wait for their witness: the
+        step function then does no window work for them (most records: a trigger is rare).
+        Only for an inline window (a stream class is stepped every record) whose record is
+        decided by the operand before it (its lines, computing ``early``, come first). The
+        window and the held operand values skip the same records, so they stay aligned;
+        ``run()`` keeps every record (it gives no early verdicts).
+        """
+        window = self.windows.pop(child, None)
+        if window is None or position != 1:
+            return False
+        start, pending, b = window
+        append = self.lines[start]
+        self.lines[start] = ("ONLINE", f"if not ({early}): {append}", append)
+        # the window may now be empty: the current record is not always in it
+        self.lines[start + 1] = f"while {pending} and t - {pending}[0][1] > {_number(b)}:"
+        return True
 
 
 def _decider(node: Expr, position: int) -> tuple[str, str] | None:
@@ -464,6 +524,8 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
 def _indent(line):
     if isinstance(line, tuple) and line[0] == "EARLY":
         return ("EARLY", "    " + line[1])
+    if isinstance(line, tuple) and line[0] == "ONLINE":
+        return ("ONLINE", "    " + line[1], "    " + line[2])
     if isinstance(line, tuple):
         return (*line[:5], (line[5] if len(line) > 5 else "") + "    ", *line[6:])
     return "    " + line
@@ -475,6 +537,8 @@ def _render(line, mode: str) -> str | None:
         return line
     if line[0] == "EARLY":  # early verdicts exist online only: run() keeps record order
         return line[1] if mode == "step" else None
+    if line[0] == "ONLINE":  # the step function's version of a line, and run()'s
+        return line[1] if mode == "step" else line[2]
     _, number, index, time, value, *rest = line
     if "EARLY" in rest and mode != "step":
         return None
@@ -539,8 +603,11 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
     factory += ["    " + line for line in function("def run(records):", "run")]
     for mode in ("step", "run"):
-        factory += [f"    def finish_{mode}():", "        nonlocal " + ", ".join(cells),
-                    "        out = []"]
+        factory += [
+            f"    def finish_{mode}():",
+            "        nonlocal " + ", ".join(cells),
+            "        out = []",
+        ]
         for block in finishes:
             rendered = (_render(line, mode) for line in block)
             factory += ["        " + text for text in rendered if text is not None]
@@ -602,7 +669,10 @@ def _update_lines(spec: Specification, events: set[str]) -> list[str]:
         ]
         assigns.append(f"if {tmp} is not UNSET: {var} = {tmp}")
     # a record that is not a mapping (no .get), or a time that cannot be compared
-    guarded = ["try:", *("    " + line for line in checks),
-               "except (AttributeError, TypeError):",
-               "    return REJECT(i + 1, t, rec, None, 'record')"]
+    guarded = [
+        "try:",
+        *("    " + line for line in checks),
+        "except (AttributeError, TypeError):",
+        "    return REJECT(i + 1, t, rec, None, 'record')",
+    ]
     return guarded + assigns + ["last_t = t"]
