@@ -117,6 +117,33 @@ def _standard_actions(evaluator: Evaluator) -> bool:
     )
 
 
+def _scan(
+    entries: tuple,
+    event: Event | None,
+    states: set[str],
+    selected: list[Transition],
+    evaluate_guard: Callable[..., bool],
+) -> None:
+    """Stock selection over one group of the index (deepest source first, priority classes
+    highest first): the transitions whose guard holds, in order, appended to ``selected``."""
+    ignored: set[str] | tuple = ()  # sources (and their ancestors) that already fired
+    for source, ancestors, classes in entries:
+        if source not in states or source in ignored:
+            continue
+        for transitions in classes:
+            found = False
+            for transition in transitions:
+                if transition.guard is None or evaluate_guard(transition, event):
+                    selected.append(transition)
+                    found = True
+            if found:
+                if not ignored:
+                    ignored = set()
+                ignored.update(ancestors)
+                ignored.add(source)
+                break
+
+
 class FastInterpreter(Interpreter):
     """Drop-in replacement for :class:`sismic.interpreter.Interpreter`, several times faster.
 
@@ -350,27 +377,16 @@ class FastInterpreter(Interpreter):
         name = getattr(event, "name", None)
         selection = tables.selection
         selected: list[Transition] = []
-        ignored: set[str] = set()
         evaluate_guard = self._evaluator.evaluate_guard
-        groups = [(selection.get(None, ()), None)]
-        if name is not None:
-            groups.append((selection.get(name, ()), event))
-        for entries, exposed_event in groups:
+        entries = selection.get(None)
+        if entries:
+            _scan(entries, None, states, selected, evaluate_guard)
             if selected:
-                break
-            for source, ancestors, classes in entries:
-                if source not in states or source in ignored:
-                    continue
-                for transitions in classes:
-                    found = False
-                    for transition in transitions:
-                        if transition.guard is None or evaluate_guard(transition, exposed_event):
-                            selected.append(transition)
-                            found = True
-                    if found:
-                        ignored.update(ancestors)
-                        ignored.add(source)
-                        break
+                return selected
+        if name is not None:
+            entries = selection.get(name)
+            if entries:
+                _scan(entries, event, states, selected, evaluate_guard)
         return selected
 
     def _sort_transitions(self, transitions: list[Transition]) -> list[Transition]:

@@ -79,6 +79,7 @@ _INTROSPECTION = frozenset({
 })
 _EXPOSED = frozenset({"active", "time", "after", "idle", "event"})
 _EVENT_ONLY = frozenset({"event"})
+_NOTHING, _EVENT, _ALL = 0, 1, 2  # which of _EXPOSED a guard gets
 
 
 def _names_used(code: CodeType) -> frozenset[str]:
@@ -96,26 +97,30 @@ class FastGuardEvaluator(PythonEvaluator):
 
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
 
-    def _guard_code(self, guard: str) -> tuple[CodeType, frozenset[str]]:
-        cache = self.__dict__.setdefault("_guard_codes", {})
-        found = cache.get(guard)
-        if found is None:
-            code = self._evaluable_code.get(guard)
-            if code is None:
-                code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
-            names = _names_used(code)
-            wanted = _EXPOSED if names & _INTROSPECTION else names & _EXPOSED
-            found = cache[guard] = (code, wanted)
+    _guard_codes: dict[str, tuple[CodeType, int]] | None = None
+
+    def _compile_guard(self, guard: str) -> tuple[CodeType, int]:
+        code = self._evaluable_code.get(guard)
+        if code is None:
+            code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
+        names = _names_used(code)
+        wanted = _EXPOSED if names & _INTROSPECTION else names & _EXPOSED
+        kind = _ALL if wanted - _EVENT_ONLY else _EVENT if wanted else _NOTHING
+        if self._guard_codes is None:
+            self._guard_codes = {}
+        found = self._guard_codes[guard] = (code, kind)
         return found
 
     def evaluate_guard(self, transition, event=None) -> bool:
         guard = getattr(transition, "guard", None)
         if guard is None:
             return True
-        code, wanted = self._guard_code(guard)
-        if wanted == _EVENT_ONLY:  # the usual guard of a property statechart
+        codes = self._guard_codes
+        found = codes.get(guard) if codes is not None else None
+        code, kind = self._compile_guard(guard) if found is None else found
+        if kind == _EVENT:  # the usual guard of a property statechart
             exposed: dict[str, Any] = {"event": event}
-        elif not wanted:
+        elif kind == _NOTHING:
             exposed = {}
         else:
             interp = self._interpreter
