@@ -178,3 +178,32 @@ def test_a_property_changed_before_the_failure_is_restored(stock_listener):
     assert interp.configuration == ["root", "a"]
     assert watcher.configuration == ["root", "watching"]
     assert watcher.context["exits"] == 0
+
+
+@pytest.mark.parametrize("stock_listener", [False, True])
+def test_the_time_a_skipped_meta_event_records_is_rolled_back_too(stock_listener):
+    # The property cannot react to anything in the failing step (it only watches entries of
+    # `b`, which the failure prevents), so rasm's listener skips every meta-event and only
+    # records the new time, as the skipped executions would have; the rollback must undo that
+    # too, as it undoes stock's executions.
+    interp = Interpreter(chart(), initial_context={"divisor": 0}, clock=SimulatedClock())
+    prop = load_statechart(text=COUNTING_PROPERTY.replace("'a'", "'b'"))
+    if stock_listener:
+        from sismic.interpreter.listener import PropertyStatechartListener
+
+        watcher = StockInterpreter(prop, clock=interp.clock)
+        interp.attach(PropertyStatechartListener(watcher))
+    else:
+        watcher = interp.bind_property_statechart(prop).interpreter
+    interp.execute()
+    assert watcher.time == 0
+    interp.clock.time = 5
+    interp.queue("go")
+    with pytest.raises(CodeEvaluationError):
+        interp.execute()
+    assert watcher.time == 0
+    assert watcher.configuration == ["root", "watching"]
+    # a step that succeeds at the new time is recorded
+    interp.queue("unknown")
+    interp.execute()
+    assert watcher.time == 5
