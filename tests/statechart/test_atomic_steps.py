@@ -156,6 +156,17 @@ statechart:
 """
 
 
+def watch(interp, prop, stock_listener: bool):
+    """Bind ``prop`` with rasm's listener (snapshotted lazily) or stock's (up front)."""
+    if stock_listener:
+        from sismic.interpreter.listener import PropertyStatechartListener
+
+        watcher = StockInterpreter(prop, clock=interp.clock)
+        interp.attach(PropertyStatechartListener(watcher))
+        return watcher
+    return interp.bind_property_statechart(prop).interpreter
+
+
 @pytest.mark.parametrize("stock_listener", [False, True])
 def test_a_property_changed_before_the_failure_is_restored(stock_listener):
     # `a` is exited (the property moves to `seen`, counting it) before the action divides by
@@ -163,13 +174,7 @@ def test_a_property_changed_before_the_failure_is_restored(stock_listener):
     # (rasm's listener, on its first change) or up front (stock's listener).
     interp = Interpreter(chart(), initial_context={"divisor": 0})
     prop = load_statechart(text=COUNTING_PROPERTY)
-    if stock_listener:
-        from sismic.interpreter.listener import PropertyStatechartListener
-
-        watcher = StockInterpreter(prop, clock=interp.clock)
-        interp.attach(PropertyStatechartListener(watcher))
-    else:
-        watcher = interp.bind_property_statechart(prop).interpreter
+    watcher = watch(interp, prop, stock_listener)
     interp.execute()
     assert watcher.configuration == ["root", "watching"]
     interp.queue("go")
@@ -188,13 +193,7 @@ def test_the_time_a_skipped_meta_event_records_is_rolled_back_too(stock_listener
     # too, as it undoes stock's executions.
     interp = Interpreter(chart(), initial_context={"divisor": 0}, clock=SimulatedClock())
     prop = load_statechart(text=COUNTING_PROPERTY.replace("'a'", "'b'"))
-    if stock_listener:
-        from sismic.interpreter.listener import PropertyStatechartListener
-
-        watcher = StockInterpreter(prop, clock=interp.clock)
-        interp.attach(PropertyStatechartListener(watcher))
-    else:
-        watcher = interp.bind_property_statechart(prop).interpreter
+    watcher = watch(interp, prop, stock_listener)
     interp.execute()
     assert watcher.time == 0
     interp.clock.time = 5
