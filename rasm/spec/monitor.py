@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import builtins
+import functools
 import numbers
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from types import CodeType
 from typing import NamedTuple
 
 from rasm.errors import SpecError
@@ -184,13 +187,22 @@ class Monitor:
         ]
 
 
-def compile_source(source: str, origin: str):
-    import builtins
-
+@functools.lru_cache(maxsize=128)
+def compile_source(source: str, origin: str) -> CodeType:
+    """The code object of a generated monitor (cached: a code object is immutable, and every
+    run of an application compiles the same property files again)."""
     return builtins.compile(source, f"<rasm monitor for {origin}>", "exec")
+
+
+@functools.lru_cache(maxsize=128)
+def _specification(text: str, source: str) -> Specification:
+    # a Specification is immutable and a pure function of the text and its name; a file that
+    # does not load raises each time (exceptions are not cached)
+    return load_specification(text, source=source)
 
 
 def compile(text: str, *, source: str = "<text>") -> Monitor:  # noqa: A001 - SPEC §6 name
     """Parse, check and compile a property file into a fresh :class:`Monitor`."""
-    return Monitor(load_specification(text, source=source))
-
+    if type(text) is str and type(source) is str:
+        return Monitor(_specification(text, source))
+    return Monitor(load_specification(text, source=source))  # says what is wrong with them

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 from collections import deque
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rasm.errors import SourceError
 from rasm.spec import compile
 from rasm.spec.loader import load_specification
 
@@ -81,3 +83,21 @@ def test_a_false_trigger_opens_no_window_online():
         assert [v.value for v in monitor.step(float(k), {"p": False})] == [True]
     pending = [v for k, v in monitor.program.constants.items() if k.startswith("w")]
     assert pending == [deque()]  # the window holds nothing: no trigger was true
+
+
+def test_monitors_compiled_from_the_same_text_share_no_state():
+    # the parsed file and the code object are reused; every monitor has its own state
+    text = HEADER + "property p0: p -> eventually[0, 2] q\nproperty p1: count[0, 5](p) <= 1\n"
+    first, second = compile(text), compile(text)
+    assert first.program.source == second.program.source
+    assert [v.value for v in first.step(0.0, {"p": True})] == [True]  # p1; p0 waits for q
+    assert [v.value for v in first.step(1.0, {"p": True})] == [False]
+    assert [v.value for v in second.step(0.0, {"p": False})] == [True, True]
+    assert [(v.property, v.value) for v in first.finish()] == [("p0", None), ("p0", None)]
+    assert [(v.property, v.index) for v in second.finish()] == []
+
+
+def test_a_file_that_does_not_load_fails_every_time():
+    for _ in range(2):
+        with pytest.raises(SourceError):
+            compile(HEADER + "property p0: p ->\n")
