@@ -579,6 +579,7 @@ class TrustworthinessChecker(Block):
         latest = self.latest
         on_verdict = self.on_verdict
         observers = self.observers
+        notify = on_verdict is not None or bool(observers)
         for monitor in self.monitors:
             try:
                 verdicts = monitor.step(time, record)
@@ -594,9 +595,9 @@ class TrustworthinessChecker(Block):
                         self.violations[verdict.property] += 1
                     elif value is None:
                         self.inconclusive.add(verdict.property)
-                if on_verdict is not None:
-                    on_verdict(verdict)
-                if observers:
+                if notify:
+                    if on_verdict is not None:
+                        on_verdict(verdict)
                     for observer in observers:
                         observer(verdict)
             out += verdicts

@@ -56,6 +56,7 @@ __all__ = ["Platform", "RunSummary", "STAGES"]
 STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
 _log = logging.getLogger("rasm.platform")
 _SCALARS = (int, float, bool, str)
+_SCALAR_CLASSES = frozenset(_SCALARS)  # the exact classes: one set lookup, no isinstance call
 
 
 @dataclass
@@ -436,14 +437,20 @@ class Platform:
         when they were the twin's inputs)."""
         # one call for the batch: a bad value is refused on its own, logged and dropped
         refused = self.km.register_values(values, time)
-        if refused:
-            for key, exc in refused.items():
-                _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
+        for key, exc in refused.items():
+            _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
+        # the trace record has the scalars stored: usually every value, then one copy
+        stored: dict[str, Any] | None = None
+        if not refused:
+            for value in values.values():
+                if value.__class__ not in _SCALAR_CLASSES and not isinstance(value, _SCALARS):
+                    break
+            else:
+                stored = dict(values)
+        if stored is None:
             stored = {
                 k: v for k, v in values.items() if k not in refused and isinstance(v, _SCALARS)
             }
-        else:
-            stored = {k: v for k, v in values.items() if isinstance(v, _SCALARS)}
         if self.twin is not None and not self._twin_inputs.isdisjoint(values):
             stored.update(self._observe_twin(time))
         if stored:
@@ -466,9 +473,11 @@ class Platform:
         self.cm.publish_message(effector.topic, self.dist.sign(payload))
 
     def _on_probe(self, message: Any) -> None:
-        # Delivered on the transport's thread: hand it to the loop thread.
+        # Delivered on the transport's thread: hand it to the loop thread (digested at the
+        # loop's time then).
         topic, payload = message.topic, message.payload
-        self.scheduler.submit(lambda: self.tg.digest(topic, payload, self.clock.time))
+        digest, clock = self.tg.digest, self.clock
+        self.scheduler.submit(lambda: digest(topic, payload, clock.time))
 
     def _on_effector(self, name: str, message: Any) -> None:
         payload = dict(message.payload)
