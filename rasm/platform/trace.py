@@ -39,10 +39,21 @@ LOOP_KEYS = frozenset(
 )
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+# json.dumps(..., separators=...) makes a new encoder per call: one for every line instead
+_encode = json.JSONEncoder(separators=(", ", ": ")).encode
+
+
+def _line(time: float, record: dict[str, Any]) -> str:
+    """The record's JSON line: ``time`` first (to the nanosecond), a non-finite float null."""
+    line = {"time": round(time, 9)}
+    for key, value in record.items():
+        if value.__class__ is float:
+            if value - value != 0.0:  # inf or nan
+                value = None
+        elif isinstance(value, float) and not math.isfinite(value):  # a float subclass
+            value = None
+        line[key] = value
+    return _encode(line) + "\n"
 
 
 class TraceWriter:
@@ -70,8 +81,7 @@ class TraceWriter:
         self.last_time = time
         self.records += 1
         if self._out is not None:
-            line = {"time": round(time, 9), **{k: _jsonable(v) for k, v in record.items()}}
-            self._out.write(json.dumps(line, separators=(", ", ": ")) + "\n")
+            self._out.write(_line(time, record))
             if not self._owned:
                 self._out.flush()
         for observer in self.observers:
