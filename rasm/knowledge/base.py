@@ -127,6 +127,20 @@ class Subscription:
         self.cancel()
 
 
+def register_each(
+    register: Callable[[str, Any, float], Any], values: Mapping[str, Any], time: float
+) -> dict[str, Exception]:
+    """Call ``register(key, value, time)`` for each value; return the refused ones with the error
+    each raised (a refused value does not stop the others)."""
+    refused: dict[str, Exception] = {}
+    for key, value in values.items():
+        try:
+            register(key, value, time)
+        except Exception as exc:
+            refused[key] = exc
+    return refused
+
+
 class KnowledgeBase:
     """Typed knowledge with a bounded history per key (the seed's Knowledge Manager).
 
@@ -211,15 +225,16 @@ class KnowledgeBase:
             # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
             sample = _new_tuple(Sample, (time, value))
             series.append(sample)
-            for subscription in self._subscriptions:
-                try:
-                    subscription.callback(key, sample)
-                except Exception:
-                    # a failing reader must not fail the writer (the Telegraf, the loop)
-                    _log.exception(
-                        "knowledge subscriber %r failed on %r", subscription.callback, key
-                    )
+            self._notify(key, sample)
             return sample
+
+    def _notify(self, key: str, sample: Sample) -> None:
+        """Call every subscriber; a failing reader must not fail the writer (Telegraf, the loop)."""
+        for subscription in self._subscriptions:  # a tuple: a callback may (un)subscribe
+            try:
+                subscription.callback(key, sample)
+            except Exception:
+                _log.exception("knowledge subscriber %r failed on %r", subscription.callback, key)
 
     def register_values(self, values: Mapping[str, Any], time: float) -> dict[str, Exception]:
         """Record every value of ``values`` at ``time``, as :meth:`register_knowledge` would one
@@ -229,15 +244,10 @@ class KnowledgeBase:
         would raise}``) is not stored and does not stop the others. Subscribers are called for
         each stored value, in order, before this returns.
         """
-        refused: dict[str, Exception] = {}
         if type(self).register_knowledge is not KnowledgeBase.register_knowledge:
             # a store that registers its own way (Redis) is asked one value at a time
-            for key, value in values.items():
-                try:
-                    self.register_knowledge(key, value, time)
-                except Exception as exc:
-                    refused[key] = exc
-            return refused
+            return register_each(self.register_knowledge, values, time)
+        refused: dict[str, Exception] = {}
         with self._lock:
             series_of = self._series
             for key, value in values.items():
@@ -256,13 +266,8 @@ class KnowledgeBase:
                     continue
                 sample = _new_tuple(Sample, (moment, value))
                 series.append(sample)
-                for subscription in self._subscriptions:  # a callback may (un)subscribe
-                    try:
-                        subscription.callback(key, sample)
-                    except Exception:
-                        _log.exception(
-                            "knowledge subscriber %r failed on %r", subscription.callback, key
-                        )
+                if self._subscriptions:
+                    self._notify(key, sample)
         return refused
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:

@@ -296,13 +296,7 @@ class RedisKnowledgeBase(KnowledgeBase):
         with self._lock:
             value = self._append_samples(key, [(time, value)], notify=self.notify, first=value)[0]
             sample = Sample(time, value)
-            for subscription in self._subscriptions:
-                try:
-                    subscription.callback(key, sample)
-                except Exception:
-                    _log.exception(
-                        "knowledge subscriber %r failed on %r", subscription.callback, key
-                    )
+            self._notify(key, sample)
             return sample
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
@@ -482,13 +476,7 @@ class RedisKnowledgeBase(KnowledgeBase):
             except (ValueError, KeyError, TypeError):
                 _log.warning("malformed registration notice ignored: %r", message.get("data"))
                 continue
-            for subscription in self._subscriptions:
-                try:
-                    subscription.callback(key, sample)
-                except Exception:
-                    _log.exception(
-                        "knowledge subscriber %r failed on %r", subscription.callback, key
-                    )
+            self._notify(key, sample)
 
     def close(self) -> None:
         """Stop the listener and release the connections (idempotent)."""

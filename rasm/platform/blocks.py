@@ -16,6 +16,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from rasm.errors import PlatformError
+from rasm.knowledge.base import register_each
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import Effector, Probe, Signal
@@ -224,13 +225,7 @@ class KnowledgeManager(Block):
         batch = getattr(store, "register_values", None)
         if batch is not None:  # one lock for the batch (KnowledgeBase)
             return batch(values, time)
-        refused: dict[str, Exception] = {}
-        for key, value in values.items():
-            try:
-                store.register_knowledge(key, value, time)
-            except Exception as exc:
-                refused[key] = exc
-        return refused
+        return register_each(store.register_knowledge, values, time)
 
     def read_knowledge(self, key: str, default: Any = None) -> Any:
         return self.store.read_knowledge(key, default)

@@ -21,7 +21,7 @@ from rasm.spec.loader import load_specification
 
 from .reference import reference_verdicts
 from .strategies import HEADER, bounds, formulas, traces
-from .test_semantics import horizon, offline, online
+from .test_semantics import assert_agrees_with_reference, horizon, offline, online
 
 BOUNDS = st.sampled_from(["[0, 0]", "[0, 0.5]", "[0, 1]", "[0, 2.5]", "[0, 3]", "[0, inf]"])
 OPERANDS = st.sampled_from(["p", "q", "r", "p or q", "prev(p)", "once[0, 1] q", "x > 0.5"])
@@ -64,12 +64,7 @@ def decided_by_trigger(draw) -> str:
 @settings(max_examples=400, deadline=None)
 @given(decided_by_trigger(), traces(max_size=30))
 def test_records_the_trigger_decides_open_no_window_and_verdicts_stay_the_same(formula, records):
-    text = HEADER + f"property p0: {formula}\n"
-    spec = load_specification(text)
-    expected = reference_verdicts(spec, records)
-    got, emitted_at = online(text, records)
-    assert got == expected, formula
-    assert offline(text, records) == expected
+    spec, emitted_at = assert_agrees_with_reference(formula, records)
     b = horizon(spec.properties[0].formula)
     times = [t for t, _ in records]
     for (_, index), at in emitted_at.items():

@@ -38,15 +38,22 @@ def offline(text: str, records):
     }
 
 
-@settings(max_examples=200, deadline=None)
-@given(formulas(3), traces())
-def test_monitor_agrees_with_reference(formula, records):
+def assert_agrees_with_reference(formula: str, records):
+    """Online and offline verdicts of ``formula`` equal the reference semantics; returns the
+    specification and when each online verdict was emitted."""
     text = HEADER + f"property p0: {formula}\n"
     spec = load_specification(text)
     expected = reference_verdicts(spec, records)
-    got, _ = online(text, records)
+    got, emitted_at = online(text, records)
     assert got == expected, formula
     assert offline(text, records) == expected
+    return spec, emitted_at
+
+
+@settings(max_examples=200, deadline=None)
+@given(formulas(3), traces())
+def test_monitor_agrees_with_reference(formula, records):
+    assert_agrees_with_reference(formula, records)
 
 
 @settings(max_examples=100, deadline=None)
