@@ -34,21 +34,21 @@ MODES = ("instantiated", "configuration", "initialization", "initialized", "faul
 ModeListener = Callable[["Block", str], Any]
 
 _log = logging.getLogger("rasm.platform")
-_CHARTS: dict[tuple[str, int, int], Statechart] = {}
+_CHARTS: dict[tuple[str, bytes], Statechart] = {}
 _CHARTS_LOCK = threading.Lock()
 
 
 def shared_chart(name: str | Path) -> Statechart:
-    """The chart ``name`` (a platform chart's name, or a YAML file), loaded once per process.
+    """The chart ``name`` (a platform chart's name, or a YAML file), loaded once per content.
 
     A loaded chart is never changed by an interpreter, so every block (and every platform built
-    in this process) shares it, with the tables the fast interpreter computes for it. A file that
-    changed on disk since (modification time or size) is loaded again.
+    in this process) shares it, with the tables the fast interpreter computes for it. The file is
+    read each time and parsed again only if its bytes changed (a modification time can stay the
+    same across two quick writes).
     """
     path = Path(name) if str(name).endswith((".yaml", ".yml")) else platform_chart(str(name))
     try:
-        stat = path.stat()
-        key = (str(path), stat.st_mtime_ns, stat.st_size)
+        key = (str(path), path.read_bytes())
     except OSError:  # let the loader report the missing file
         return load_statechart(path)
     with _CHARTS_LOCK:

@@ -150,8 +150,8 @@ class SwapResult:
         return self.accepted
 
 
-# (path, mtime_ns, size) -> the file's rules and their consistency report (RuleSet.load)
-_CHECKED: dict[tuple[str, int, int], tuple[Rules, Report | None]] = {}
+# (path, bytes) -> the file's rules and their consistency report (RuleSet.load)
+_CHECKED: dict[tuple[str, bytes], tuple[Rules, Report | None]] = {}
 _CHECKED_LOCK = threading.Lock()
 
 
@@ -178,13 +178,11 @@ class RuleSet:
     def load(cls, path: str | Path) -> RuleSet:
         """The consistent rule set of the file at ``path``.
 
-        A file already loaded and proved consistent in this process (same path, modification
-        time and size) is not parsed and proved again: every platform built from one app shares
-        the work.
+        A file already loaded and proved consistent in this process (same path, same bytes) is
+        not parsed and proved again: every platform built from one app shares the work.
         """
         try:
-            stat = Path(path).stat()
-            key: tuple[str, int, int] | None = (str(path), stat.st_mtime_ns, stat.st_size)
+            key: tuple[str, bytes] | None = (str(path), Path(path).read_bytes())
         except (OSError, TypeError, ValueError):  # load_rules says what is wrong with it
             key = None
         with _CHECKED_LOCK:

@@ -266,3 +266,30 @@ def test_knowledge_manager_batches_refuse_each_bad_value_and_everything_when_not
         refused = km.register_values({"speed": -1.0, "mode": "x"}, 1.0)
         assert list(refused) == ["speed"] and "below its minimum" in str(refused["speed"])
         assert km.read_knowledge("mode") == "x"
+
+
+def test_a_chart_file_is_loaded_once_and_again_when_its_bytes_change(tmp_path):
+    from rasm.platform.block import shared_chart
+
+    text = """\
+statechart:
+  name: toggle
+  root state:
+    name: root
+    initial: off
+    states:
+      - name: off
+        transitions: [{target: on, event: flip}]
+      - name: on
+        transitions: [{target: off, event: flip}]
+"""
+    path = tmp_path / "toggle.yaml"
+    path.write_text(text, encoding="utf-8")
+    first = shared_chart(path)
+    assert shared_chart(path) is first  # shared: blocks never change a chart
+    # same length, rewritten at once (the modification time may not move): loaded again
+    path.write_text(text.replace("initial: off", "initial: on "), encoding="utf-8")
+    changed = shared_chart(path)
+    assert changed is not first
+    assert changed.state_for("root").initial == "on"
+    assert first.state_for("root").initial == "off"

@@ -233,3 +233,21 @@ def test_api_misuse_says_what_to_pass(tmp_path):
             call()
         assert str(caught.value).startswith(message), str(caught.value)
     assert RuleSet(rules).evaluate({"v": 0.1}).accepted
+
+
+def test_a_rules_file_is_proved_once_and_reloaded_when_its_bytes_change(tmp_path):
+    path = tmp_path / "r.yaml"
+    path.write_text(RULES, encoding="utf-8")
+    first = RuleSet.load(path)
+    again = RuleSet.load(path)
+    assert again.rules is first.rules  # same bytes: parsed and proved once
+    assert again is not first  # but each caller gets its own (swappable) rule set
+    assert again.report is first.report and again.report.consistent
+    # same length, written at once (a modification time can stay the same): still reloaded
+    path.write_text(RULES.replace("<= 5", "<= 4"), encoding="utf-8")
+    changed = RuleSet.load(path)
+    assert not changed.evaluate({**GOOD, "stops": 5}).accepted
+    assert first.evaluate({**GOOD, "stops": 5}).accepted
+    path.write_text(INCONSISTENT, encoding="utf-8")
+    with pytest.raises(RulesError):
+        RuleSet.load(path)
