@@ -80,7 +80,9 @@ class _Meta(MetaEvent):
         return (MetaEvent, (self.name,), (self.name, self.data))
 
 
-_Meta.__name__ = _Meta.__qualname__ = "MetaEvent"  # for repr, which prints the class name
+# Named as stock's class, for repr (which prints the class name) and for whoever prints the type.
+_Meta.__name__ = _Meta.__qualname__ = MetaEvent.__name__
+_Meta.__module__ = MetaEvent.__module__
 
 # Event classes whose ``delay`` can only come from their data (no attribute, no __getattr__
 # override): reading ``data`` directly avoids the exception stock ``getattr`` goes through.

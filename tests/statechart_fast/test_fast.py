@@ -212,3 +212,31 @@ def test_copies_share_tables_and_keep_running_identically():
         other.execute()
         assert other.configuration == ["root", "a"]
         assert other.context["x"] == 1
+
+
+def test_meta_events_read_like_stock_ones():
+    from sismic.model import MetaEvent
+
+    from rasm.statechart.fast import _Meta
+
+    interp = FastInterpreter(CYCLE)
+    seen: list = []
+    interp.attach(seen.append)
+    interp.execute()
+    ours = next(e for e in seen if e.name == "state entered")
+    stock = MetaEvent("state entered", state=ours.data["state"])
+    assert isinstance(ours, _Meta) and isinstance(ours, MetaEvent)
+    assert repr(type(ours)) == repr(type(stock)) and repr(ours) == repr(stock)
+    assert ours == stock and stock == ours and hash(ours) == hash(stock)
+    assert ours.state == stock.state and dir(ours) == dir(stock)
+    for name in ("source", "delay", "nothing"):
+        assert hasattr(ours, name) is hasattr(stock, name) is False
+        with pytest.raises(AttributeError) as mine:
+            getattr(ours, name)
+        with pytest.raises(AttributeError) as theirs:
+            getattr(stock, name)
+        assert str(mine.value) == str(theirs.value)
+    ours.data["state"] = "elsewhere"  # read live from data, as stock's __getattr__ does
+    assert ours.state == "elsewhere"
+    copied = pickle.loads(pickle.dumps(ours))
+    assert type(copied) is MetaEvent and copied == ours
