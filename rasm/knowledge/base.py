@@ -214,19 +214,24 @@ class KnowledgeBase:
         a time older than the key's last sample. Subscribers are called before this returns.
         """
         with self._lock:
-            series = self._series.get(key)
-            if series is None:
-                series = self._infer(key, value)
-            value = series.check(value)
-            if type(time) is not float:
-                time = self._time(key, time)
-            if not series.last <= time < _INF:  # also false for NaN
-                raise self._bad_time(key, time, series.last)
-            # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
-            sample = _new_tuple(Sample, (time, value))
-            series.append(sample)
+            sample = self._append_sample(key, value, time)
             self._notify(key, sample)
             return sample
+
+    def _append_sample(self, key: str, value: Any, time: float) -> Sample:
+        """Check and store one value (the caller holds the lock); raise as register_knowledge."""
+        series = self._series.get(key)
+        if series is None:
+            series = self._infer(key, value)
+        value = series.check(value)
+        if type(time) is not float:
+            time = self._time(key, time)
+        if not series.last <= time < _INF:  # also false for NaN
+            raise self._bad_time(key, time, series.last)
+        # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
+        sample = _new_tuple(Sample, (time, value))
+        series.append(sample)
+        return sample
 
     def _notify(self, key: str, sample: Sample) -> None:
         """Call every subscriber; a failing reader must not fail the writer (Telegraf, the loop)."""
@@ -249,23 +254,12 @@ class KnowledgeBase:
             return register_each(self.register_knowledge, values, time)
         refused: dict[str, Exception] = {}
         with self._lock:
-            series_of = self._series
             for key, value in values.items():
-                # register_knowledge's body, written out: this runs for every value the
-                # platform stores (tests/knowledge check the two agree)
                 try:
-                    series = series_of.get(key)
-                    if series is None:
-                        series = self._infer(key, value)
-                    value = series.check(value)
-                    moment = time if type(time) is float else self._time(key, time)
-                    if not series.last <= moment < _INF:  # also false for NaN
-                        raise self._bad_time(key, moment, series.last)
+                    sample = self._append_sample(key, value, time)
                 except Exception as exc:
                     refused[key] = exc
                     continue
-                sample = _new_tuple(Sample, (moment, value))
-                series.append(sample)
                 if self._subscriptions:
                     self._notify(key, sample)
         return refused

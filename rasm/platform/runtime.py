@@ -56,7 +56,6 @@ __all__ = ["Platform", "RunSummary", "STAGES"]
 STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
 _log = logging.getLogger("rasm.platform")
 _SCALARS = (int, float, bool, str)
-_SCALAR_CLASSES = frozenset(_SCALARS)  # the exact classes: one set lookup, no isinstance call
 
 
 @dataclass
@@ -171,7 +170,6 @@ class Platform:
         # keeps them, so a long run does not grow (the trace file has the records they judge).
         # Append to and remove from this list: the Trustworthiness Checker holds it.
         self.on_verdict: list[Callable[[Any], Any]] = []
-        self._inconclusive: set[str] = set()
         self.simulator: Any = None
         self.core: Core | None = None
         self._built = False
@@ -439,18 +437,8 @@ class Platform:
         refused = self.km.register_values(values, time)
         for key, exc in refused.items():
             _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
-        # the trace record has the scalars stored: usually every value, then one copy
-        stored: dict[str, Any] | None = None
-        if not refused:
-            for value in values.values():
-                if value.__class__ not in _SCALAR_CLASSES and not isinstance(value, _SCALARS):
-                    break
-            else:
-                stored = dict(values)
-        if stored is None:
-            stored = {
-                k: v for k, v in values.items() if k not in refused and isinstance(v, _SCALARS)
-            }
+        # the trace record has the scalars stored
+        stored = {k: v for k, v in values.items() if k not in refused and isinstance(v, _SCALARS)}
         if self.twin is not None and not self._twin_inputs.isdisjoint(values):
             stored.update(self._observe_twin(time))
         if stored:
@@ -459,7 +447,7 @@ class Platform:
     def _verdict(self, verdict: Any) -> None:
         """A verdict of the end of the run (the checker hands the live ones to on_verdict)."""
         if verdict.value is None:
-            self._inconclusive.add(verdict.property)
+            self.tc.inconclusive.add(verdict.property)
         for observer in self.on_verdict:
             observer(verdict)
 
@@ -601,7 +589,7 @@ class Platform:
                     if verdict.value is False:
                         self.tc.violations[verdict.property] += 1
                 for name in monitor.properties:
-                    inconclusive = name in self._inconclusive or name in self.tc.inconclusive
+                    inconclusive = name in self.tc.inconclusive
                     verdicts[name] = "inconclusive" if inconclusive else "satisfied"
             for name, count in self.tc.violations.items():
                 verdicts[name] = "violated"

@@ -43,16 +43,18 @@ LOOP_KEYS = frozenset(
 _encode = json.JSONEncoder(separators=(", ", ": ")).encode
 
 
+def jsonable(value: Any) -> Any:
+    """``value`` as a trace line holds it: a non-finite float (not JSON) becomes None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _line(time: float, record: dict[str, Any]) -> str:
     """The record's JSON line: ``time`` first (to the nanosecond), a non-finite float null."""
     line = {"time": round(time, 9)}
     for key, value in record.items():
-        if value.__class__ is float:
-            if value - value != 0.0:  # inf or nan
-                value = None
-        elif isinstance(value, float) and not math.isfinite(value):  # a float subclass
-            value = None
-        line[key] = value
+        line[key] = jsonable(value)
     return _encode(line) + "\n"
 
 

@@ -97,7 +97,9 @@ class FastGuardEvaluator(PythonEvaluator):
 
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
 
-    _guard_codes: dict[str, tuple[CodeType, int]] | None = None
+    def __init__(self, interpreter=None, *, initial_context=None) -> None:
+        super().__init__(interpreter, initial_context=initial_context)
+        self._guard_codes: dict[str, tuple[CodeType, int]] = {}  # guard -> (code, names kind)
 
     def _compile_guard(self, guard: str) -> tuple[CodeType, int]:
         code = self._evaluable_code.get(guard)
@@ -106,8 +108,6 @@ class FastGuardEvaluator(PythonEvaluator):
         names = _names_used(code)
         wanted = _EXPOSED if names & _INTROSPECTION else names & _EXPOSED
         kind = _ALL if wanted - _EVENT_ONLY else _EVENT if wanted else _NOTHING
-        if self._guard_codes is None:
-            self._guard_codes = {}
         found = self._guard_codes[guard] = (code, kind)
         return found
 
@@ -115,8 +115,7 @@ class FastGuardEvaluator(PythonEvaluator):
         guard = getattr(transition, "guard", None)
         if guard is None:
             return True
-        codes = self._guard_codes
-        found = codes.get(guard) if codes is not None else None
+        found = self._guard_codes.get(guard)
         code, kind = self._compile_guard(guard) if found is None else found
         if kind == _EVENT:  # the usual guard of a property statechart
             exposed: dict[str, Any] = {"event": event}

@@ -17,6 +17,7 @@ from typing import Any
 
 from rasm.platform.manifest import AppManifest, load_manifest
 from rasm.platform.runtime import Platform, RunSummary
+from rasm.platform.trace import jsonable as _jsonable
 
 __all__ = ["Trace", "run_app", "app_manifest"]
 
@@ -44,12 +45,6 @@ def app_manifest(app: str | Path | AppManifest) -> AppManifest:
     if key not in _MANIFESTS:
         _MANIFESTS[key] = load_manifest(path)
     return dataclasses.replace(_MANIFESTS[key])
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 class _NotPlain(Exception):
@@ -117,33 +112,11 @@ def json_copy(value: Any) -> Any:
 
 def trace_line(time: float, record: Mapping[str, Any]) -> dict[str, Any]:
     """The record as it reads back from the trace file: ``time`` first (rounded to the
-    nanosecond), a non-finite float at the top level as None, and every value a JSON value.
-
-    Equal to ``json_copy({"time": round(time, 9), **{k: _jsonable(v) ...}})``; the common flat
-    record of strings, bools and finite floats is copied in one loop without a call per value.
-    """
-    stamp = round(time, 9)
-    line: dict[str, Any] = {"time": stamp if stamp.__class__ is float else json_copy(stamp)}
-    try:
-        for key, value in record.items():
-            if key.__class__ is not str:
-                raise _NotPlain
-            cls = value.__class__
-            if cls is float:
-                if value - value != 0.0:  # inf or nan: the trace file says null
-                    value = None
-            elif cls is str:
-                if not value.isascii():
-                    value.encode("utf-8")
-            elif not (cls is bool or value is None):
-                value = _plain(value, 1)
-            if not key.isascii():
-                key.encode("utf-8")
-            line[key] = value
-    except (_NotPlain, UnicodeEncodeError):
-        whole = {"time": round(time, 9), **{k: _jsonable(v) for k, v in record.items()}}
-        return json.loads(json.dumps(whole))
-    return line
+    nanosecond), a non-finite float at the top level as None, and every value a JSON value."""
+    line: dict[str, Any] = {"time": round(time, 9)}
+    for key, value in record.items():
+        line[key] = _jsonable(value)
+    return json_copy(line)
 
 
 class Trace(Sequence[dict[str, Any]]):
