@@ -14,6 +14,7 @@ import itertools
 import math
 import threading
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
@@ -31,7 +32,11 @@ class Scheduler:
         self.simulated = isinstance(clock, SimulatedClock)
         self._heap: list[tuple[float, int, Job]] = []
         self._order = itertools.count()
-        self._wake = threading.Condition()
+        # the Condition's own lock, used directly (a C-level context manager, not the
+        # Condition's Python one) where no waiting is involved
+        self._lock = threading.RLock()
+        self._wake = threading.Condition(self._lock)
+        self._waiting = False  # the loop thread sleeps in _wake.wait(): a submit must notify
         self._inbox: list[Job] = []
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
@@ -76,15 +81,16 @@ class Scheduler:
                     if current > turn:
                         self.missed += current - turn
                         turn = current
-                self.at(first + turn * period, lambda: tick(turn))
+                self.at(first + turn * period, partial(tick, turn))
 
         self.at(first, tick)
 
     def submit(self, job: Job) -> None:
         """Run ``job`` on the loop thread as soon as possible (thread-safe)."""
-        with self._wake:
+        with self._lock:
             self._inbox.append(job)
-            self._wake.notify()
+            if self._waiting:  # notify() would find no waiter otherwise
+                self._wake.notify()
 
     def stop(self) -> None:
         """Make :meth:`run_until` return after the current job (thread-safe)."""
@@ -102,45 +108,47 @@ class Scheduler:
 
     def run_until(self, end: float | None) -> None:
         """Run jobs until the clock reaches ``end`` (None: until :meth:`stop`)."""
+        clock, heap, simulated, run = self.clock, self._heap, self.simulated, self._run
         while True:
-            with self._wake:
-                if self._stopping:
-                    self._stopping = False
-                    return
-                inbox, self._inbox = self._inbox, []
-            for job in inbox:
-                self._run(job)
-            if inbox:
+            # Peeked without the lock (taken only to take the inbox): a submit() racing with the
+            # peek is served next turn, as if it had come just after a locked look.
+            if self._inbox or self._stopping:
+                with self._lock:
+                    if self._stopping:
+                        self._stopping = False
+                        return
+                    inbox, self._inbox = self._inbox, []
+                for job in inbox:
+                    run(job)
                 continue
-            due = self._heap[0][0] if self._heap else None
+            due = heap[0][0] if heap else None
             if end is not None and (due is None or due > end):
-                if self.simulated:
-                    self.clock.time = max(self.clock.time, end)
+                if simulated:
+                    clock.time = max(clock.time, end)
                     return
                 due = end
-            if self.simulated:
+            if simulated:
                 if due is None:
                     return  # nothing will ever happen again
-                self.clock.time = max(self.clock.time, due)
+                clock.time = max(clock.time, due)
             else:
-                with self._wake:
-                    wait = None if due is None else due - self.clock.time
+                with self._lock:
+                    wait = None if due is None else due - clock.time
                     if (wait is None or wait > 0) and not self._inbox and not self._stopping:
-                        self._wake.wait(wait)
+                        self._waiting = True
+                        try:
+                            self._wake.wait(wait)
+                        finally:
+                            self._waiting = False
                     if self._inbox or self._stopping:
                         continue
-                if (
-                    end is not None
-                    and self.clock.time >= end
-                    and (not self._heap or self._heap[0][0] > end)
-                ):
+                if end is not None and clock.time >= end and (not heap or heap[0][0] > end):
                     return
             # the jobs due now, then back to the checks above: on the wall clock a loop that
             # has fallen behind (a stage overrunning every period) would otherwise catch up for
             # ever, never reaching ``end`` nor the messages in the inbox
-            now = self.clock.time
-            while self._heap and self._heap[0][0] <= now:
-                _, _, job = heapq.heappop(self._heap)
-                self._run(job)
-            if not self.simulated and end is not None and self.clock.time >= end:
+            now = clock.time
+            while heap and heap[0][0] <= now:
+                run(heapq.heappop(heap)[2])
+            if not simulated and end is not None and clock.time >= end:
                 return

@@ -1,0 +1,68 @@
+"""The scheduler's turn order, which a faster loop must keep: the jobs due now first, then the
+inbox, then the clock moves on; a periodic job's turns stay at start + n * period."""
+
+from __future__ import annotations
+
+from sismic.clock import SimulatedClock
+
+from rasm.platform.scheduler import Scheduler
+
+
+def test_submitted_jobs_run_after_the_jobs_due_now_and_before_the_clock_moves():
+    scheduler = Scheduler(SimulatedClock())
+    ran: list[tuple[str, float]] = []
+
+    def note(name: str) -> None:
+        ran.append((name, scheduler.time))
+
+    def first() -> None:
+        note("first")
+        scheduler.submit(lambda: note("submitted"))
+        scheduler.submit(lambda: scheduler.submit(lambda: note("submitted by submitted")))
+
+    scheduler.at(1.0, first)
+    scheduler.at(1.0, lambda: note("also due"))
+    scheduler.at(2.0, lambda: note("later"))
+    scheduler.run_until(3.0)
+    assert ran == [
+        ("first", 1.0),
+        ("also due", 1.0),
+        ("submitted", 1.0),
+        ("submitted by submitted", 1.0),
+        ("later", 2.0),
+    ]
+    assert scheduler.time == 3.0
+
+
+def test_stop_from_a_job_ends_the_run_before_the_inbox_and_a_second_run_serves_it():
+    scheduler = Scheduler(SimulatedClock())
+    ran: list[str] = []
+
+    def stopper() -> None:
+        scheduler.submit(lambda: ran.append("inbox"))
+        scheduler.stop()
+
+    scheduler.at(1.0, stopper)
+    scheduler.at(2.0, lambda: ran.append("later"))
+    scheduler.run_until(5.0)
+    assert ran == [] and scheduler.time == 1.0
+    scheduler.run_until(5.0)
+    assert ran == ["inbox", "later"] and scheduler.time == 5.0
+
+
+def test_periodic_turns_interleave_in_time_then_scheduling_order():
+    # at 0.5 and 1.0 "slow" goes first: its turn was scheduled before "fast" scheduled its own
+    scheduler = Scheduler(SimulatedClock())
+    ran: list[tuple[str, float]] = []
+    scheduler.every(0.25, lambda: ran.append(("fast", scheduler.time)))
+    scheduler.every(0.5, lambda: ran.append(("slow", scheduler.time)), start=0.5, skip_missed=True)
+    scheduler.run_until(1.0)
+    assert ran == [
+        ("fast", 0.0),
+        ("fast", 0.25),
+        ("slow", 0.5),
+        ("fast", 0.5),
+        ("fast", 0.75),
+        ("slow", 1.0),
+        ("fast", 1.0),
+    ]
