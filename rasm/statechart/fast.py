@@ -50,8 +50,14 @@ from sismic.model import (
 )
 
 from rasm.statechart import fast_tables as ft
+from rasm.statechart.meta_guards import DISCRIMINANT, MISSING, guard_predicate
 
-__all__ = ["FastInterpreter", "PropertyListener"]
+__all__ = ["PURE_GUARD_EVALUATIONS", "FastInterpreter", "PropertyListener"]
+
+#: ``evaluate_guard`` implementations that evaluate a guard's code and nothing else (sismic's,
+#: and the platform's evaluators register theirs): with them, a guard decided from the
+#: meta-event's discriminant (:mod:`rasm.statechart.meta_guards`) need not be evaluated.
+PURE_GUARD_EVALUATIONS: set[Callable[..., bool]] = {PythonEvaluator.evaluate_guard}
 
 def _data_attribute(key: str) -> property:
     def read(event: Event) -> Any:
@@ -99,6 +105,12 @@ def _has_delay(event: Event) -> bool:
     if type(event) in _PLAIN_EVENTS:
         return "delay" in event.data
     return hasattr(event, "delay")
+
+
+def _name_of(event: Event) -> Any:
+    """An event's name as a guard reading ``event.event.name`` sees it; None (undecided) when
+    reading it could raise or run code."""
+    return event.name if type(event) in _PLAIN_EVENTS and type(event.name) is str else None
 
 
 def _standard_contracts(evaluator: Evaluator) -> bool:
@@ -253,16 +265,20 @@ class FastInterpreter(Interpreter):
         self._time = self.clock.time
         self._sent_events.clear()
         fast_events = self._fast_events
-        if self._listeners or not fast_events:
+        if not fast_events:
             self._raise_event(_Meta("step started", time=self.time))
+        elif self._listeners:
+            self._announce("step started", None, {"time": self.time})
 
         computed_steps = self._compute_steps()
 
         if len(computed_steps) > 0:
             if computed_steps[0].event is not None:
                 event = self._select_event(consume=True)
-                if self._listeners or not fast_events:
+                if not fast_events:
                     self._raise_event(_Meta("event consumed", event=event))
+                elif self._listeners:
+                    self._announce("event consumed", _name_of(event), {"event": event})
             else:
                 event = None
 
@@ -281,6 +297,15 @@ class FastInterpreter(Interpreter):
         else:
             macro_step = None
 
+        self._check_invariants(macro_step)
+
+        if not fast_events:
+            self._raise_event(_Meta("step ended"))
+        elif self._listeners:
+            self._announce("step ended", None, {})
+        return macro_step
+
+    def _check_invariants(self, macro_step: MacroStep | None) -> None:
         if self._contracts_possible and not self._ignore_contract:
             states = self._tables.state
             wanted = self._tables.invariant_states if self._fast_contracts else None
@@ -289,8 +314,33 @@ class FastInterpreter(Interpreter):
                     state = states[name] if name in states else self._statechart.state_for(name)
                     self._evaluate_contract_conditions(state, "invariants", macro_step)
 
-        if self._listeners or not fast_events:
-            self._raise_event(_Meta("step ended"))
+    def _consume(self, event: Event, transitions: list[Transition], now: float) -> MacroStep:
+        """``queue(event)`` then ``execute_once()`` at ``now``, for an interpreter without
+        listeners whose queues hold nothing due at ``now`` and whose selection for ``event`` is
+        ``transitions`` (non-empty, all listening to it): the event would be queued first in line
+        and consumed at once, so it is not queued at all. Same steps, state and errors."""
+        before = self._time
+        self._time = now
+        self._sent_events.clear()
+        try:
+            steps = self._create_steps(event, self._sort_transitions(transitions))
+        except BaseException:
+            # stock queued the event (at the time before the step) before computing the steps
+            self._time = before
+            self._queue_event(event)
+            self._time = now
+            raise
+        if hasattr(self._evaluator, "on_step_starts"):
+            warnings.warn(  # noqa: B028 (stock's warning, same stack level)
+                "Evaluator.on_step_starts is deprecated since 1.4.0.", DeprecationWarning
+            )
+            self._evaluator.on_step_starts(event)
+        executed_steps = []
+        for step in steps:
+            executed_steps.append(self._apply_step(step))
+            executed_steps.extend(self._stabilize())
+        macro_step = MacroStep(time=self.time, steps=executed_steps)
+        self._check_invariants(macro_step)
         return macro_step
 
     def _evaluate_contract_conditions(
@@ -333,15 +383,33 @@ class FastInterpreter(Interpreter):
         """Stock ``_raise_event``; meta-events about a sent event are built only if heard."""
         if isinstance(event, InternalEvent):
             self._queue_event(event)
-            if self._listeners or not self._fast_events:
+            if not self._fast_events:
                 self._raise_event(_Meta("event sent", event=event))
                 if _has_delay(event):
                     self._raise_event(_Meta("delayed event sent", event=event))
+            elif self._listeners:
+                name = _name_of(event)
+                self._announce("event sent", name, {"event": event})
+                if _has_delay(event):
+                    self._announce("delayed event sent", name, {"event": event})
         elif isinstance(event, MetaEvent):
             for listener in self._listeners:
                 listener(event)
         else:
             super()._raise_event(event)
+
+    def _announce(self, name: str, value: Any, data: dict[str, Any]) -> None:
+        """Raise the meta-event ``name`` (``data``; ``value`` its discriminant, see
+        :mod:`rasm.statechart.meta_guards`) to every listener, as stock does, built only if one
+        of them may react: a :class:`PropertyListener` that says it would do nothing with it is
+        passed over (delivering would be a no-op)."""
+        meta = None
+        for listener in self._listeners:
+            if type(listener) is PropertyListener and not listener.needs(name, value):
+                continue
+            if meta is None:
+                meta = _Meta(name, **data)
+            listener(meta)
 
     def _select_event(self, *, consume: bool = False) -> Event | None:
         """Next event to process: internal queue first, then external (as stock)."""
@@ -526,8 +594,10 @@ class FastInterpreter(Interpreter):
             self._conf_version += 1
             if check:
                 self._evaluate_contract_conditions(state, "postconditions", step)
-            if self._listeners or not fast_events:
+            if not fast_events:
                 self._raise_event(_Meta("state exited", state=name))
+            elif self._listeners:
+                self._announce("state exited", name, {"state": name})
 
         transition = step.transition
         if transition:
@@ -539,15 +609,11 @@ class FastInterpreter(Interpreter):
                 self._evaluate_contract_conditions(transition, "postconditions", step)
                 self._evaluate_contract_conditions(transition, "invariants", step)
             self._idle_time[transition.source] = now
-            if self._listeners or not fast_events:
-                self._raise_event(
-                    _Meta(
-                        "transition processed",
-                        source=transition.source,
-                        target=transition.target,
-                        event=step.event,
-                    ),
-                )
+            data = {"source": transition.source, "target": transition.target, "event": step.event}
+            if not fast_events:
+                self._raise_event(_Meta("transition processed", **data))
+            elif self._listeners:
+                self._announce("transition processed", None, data)
 
         for state in entered_states:
             name = state.name
@@ -559,8 +625,10 @@ class FastInterpreter(Interpreter):
             self._conf_version += 1
             self._entry_time[name] = now
             self._idle_time[name] = now
-            if self._listeners or not fast_events:
+            if not fast_events:
                 self._raise_event(_Meta("state entered", state=name))
+            elif self._listeners:
+                self._announce("state entered", name, {"state": name})
 
         for event in sent_events:
             self._raise_event(event)  # type: ignore[arg-type]
@@ -607,6 +675,9 @@ class PropertyListener(PropertyStatechartListener):
     #: that is not skipped, or the time a skipped one records); the platform's atomic layer
     #: snapshots the property there.
     before_change: Callable[[Interpreter], Any] | None = None
+    #: Called instead of :attr:`before_change` when the listener only moves the property's time
+    #: (a skipped meta-event at a new time); the atomic layer then saves just the time.
+    before_time_change: Callable[[Interpreter], Any] | None = None
 
     def __init__(self, interpreter: Interpreter) -> None:
         super().__init__(interpreter)
@@ -629,11 +700,112 @@ class PropertyListener(PropertyStatechartListener):
         self._time_source: Interpreter | None = None
         if type(clock) is SynchronizedClock and type(clock._interpreter).time is Interpreter.time:
             self._time_source = clock._interpreter
+        # needs(): per set of active states, (meta-event name, discriminant) -> whether it could
+        # react, and the context names those answers read (name -> object)
+        self._interests: dict[frozenset[str], tuple[dict, dict]] = {}
+        self._interest: dict[str, Any] = {}
+        self._watch: dict[str, Any] = {}
+        self._interest_conf: set[str] | None = None
+        self._interest_version = -1
+        # a selected meta-event is consumed without the queue round trip (see
+        # FastInterpreter._consume) when the interpreter's class changes none of what it skips
+        klass = type(interpreter)
+        self._consume_directly = self._can_skip and all(
+            getattr(klass, name) is getattr(FastInterpreter, name)
+            for name in ("execute_once", "_compute_steps", "queue", "_queue_event",
+                         "_select_event", "_select_transitions")
+        )
+        # static guards are only as exact as the evaluator is stock
+        self._static_guards = (
+            self._can_skip
+            and self._time_source is not None
+            and type(interpreter._evaluator).evaluate_guard in PURE_GUARD_EVALUATIONS
+        )
 
     @property
     def interpreter(self) -> Interpreter:
         """The property statechart's interpreter."""
         return self._interpreter
+
+    def needs(self, name: str, value: Any) -> bool:
+        """False when delivering the meta-event ``name`` now would change nothing: the property
+        is settled, already at the current time, with nothing queued, and no transition of an
+        active state listens to ``name`` with a guard that could hold. ``value`` is the event's
+        discriminant (:mod:`rasm.statechart.meta_guards`), None when unknown. True means
+        "deliver it" (the delivery then decides exactly, as always)."""
+        if not self._settled or not self._static_guards:
+            return True
+        interp = self._interpreter
+        if (
+            interp._time != self._time_source._time  # type: ignore[union-attr]
+            or interp._listeners
+            or interp._internal_queue
+            or interp._external_queue
+        ):
+            return True
+        conf = interp._configuration
+        if (
+            conf is not self._interest_conf
+            or interp._conf_version != self._interest_version
+            or not self._watch_holds()
+        ):
+            if not conf:
+                return True
+            self._interest_conf, self._interest_version = conf, interp._conf_version
+            self._interest, self._watch = self._interests.setdefault(frozenset(conf), ({}, {}))
+        found = self._interest.get(name)
+        if found is None:
+            found = self._interest[name] = self._listening(name)
+        if type(found) is bool:
+            return found
+        decided = found.get(value)
+        if decided is None:
+            decided = found[value] = self._decide(name, value)
+        return decided
+
+    def _watch_holds(self) -> bool:
+        # the context names a predicate read must still be bound to the same objects
+        watch = self._watch
+        if watch:
+            context = self._interpreter._evaluator._context
+            for name, bound in watch.items():
+                if context.get(name, MISSING) is not bound:
+                    self._interests.clear()
+                    self._interest_conf = None
+                    return False
+        return True
+
+    def _transitions_for(self, name: str) -> list[Transition]:
+        interp = self._interpreter
+        chart = interp.statechart
+        return [
+            t for state in interp._configuration for t in chart.transitions_from(state)
+            if t.event == name
+        ]
+
+    def _listening(self, name: str) -> bool | dict[Any, bool]:
+        """False: no active transition listens to ``name``; True: one does, whatever the
+        discriminant; otherwise a memo (discriminant -> whether a guard could hold)."""
+        transitions = self._transitions_for(name)
+        if not transitions:
+            return False
+        if any(t.guard is None for t in transitions) or name not in DISCRIMINANT:
+            return True
+        return {}
+
+    def _decide(self, name: str, value: Any) -> bool:
+        if type(value) is not str:
+            return True
+        context = self._interpreter._evaluator._context
+        for transition in self._transitions_for(name):
+            found = guard_predicate(transition.guard, name, context)  # type: ignore[arg-type]
+            if found is None:
+                return True
+            predicate, read = found
+            self._watch.update(read)
+            if predicate(value):
+                return True
+        return False
 
     def _selection(self, event: MetaEvent, now: float) -> list[Transition] | None:
         """For a settled property: what executing ``event`` at ``now`` would select, or None
@@ -680,15 +852,20 @@ class PropertyListener(PropertyStatechartListener):
             selected = self._selection(event, now)
             if selected is not None and not selected:
                 if interp._time != now:  # what the skipped execution would have recorded
-                    if self.before_change is not None:
-                        self.before_change(interp)
+                    hook = self.before_time_change or self.before_change
+                    if hook is not None:
+                        hook(interp)
                     interp._time = now
                 return
         self._settled = False
         if self.before_change is not None:
             self.before_change(interp)
-        interp.queue(event)
-        if self._can_skip:
+        if selected and self._consume_directly and selected[0].event is not None:
+            interp._consume(event, selected, now)  # type: ignore[attr-defined]
+            while not self._quiet(interp) and interp.execute_once() is not None:
+                pass
+        elif self._can_skip:
+            interp.queue(event)
             if selected:
                 interp._preselected = (event, selected)
             try:
@@ -698,6 +875,7 @@ class PropertyListener(PropertyStatechartListener):
             while step is not None and not self._quiet(interp):
                 step = interp.execute_once()
         else:
+            interp.queue(event)
             interp.execute()
         if interp.final:
             raise PropertyStatechartError(self._interpreter)

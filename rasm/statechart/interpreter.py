@@ -31,6 +31,7 @@ from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event
 
+from rasm.statechart import fast
 from rasm.statechart.fast import FastInterpreter
 
 __all__ = [
@@ -139,6 +140,9 @@ class FastGuardEvaluator(PythonEvaluator):
             raise CodeEvaluationError(f"'{e}' occurred while evaluating '{guard}'") from e
 
 
+fast.PURE_GUARD_EVALUATIONS.add(FastGuardEvaluator.evaluate_guard)
+
+
 class DeadlineEvaluator(FastGuardEvaluator):
     """:class:`FastGuardEvaluator` that also records when ``after()``/``idle()`` guards turn true.
 
@@ -204,12 +208,24 @@ class AtomicStepMixin:
     # id -> (property interpreter, its snapshot) taken before its first change in this step
     _property_snapshots: dict[int, tuple] | None = None
 
+    # id -> (property interpreter, its time) before a skipped meta-event moved its time
+    _property_times: dict[int, tuple] | None = None
+
     def _before_property_change(self, interp: Any) -> None:
         # Called by a bound PropertyListener before it feeds its interpreter a meta-event; most
         # meta-events are skipped, so most steps snapshot no property at all.
         snapshots = self._property_snapshots
         if snapshots is not None and id(interp) not in snapshots:
             snapshots[id(interp)] = (interp, AtomicStepMixin._snapshot(interp))
+
+    def _before_property_time_change(self, interp: Any) -> None:
+        # A skipped meta-event only moves the property's time: that is all there is to save
+        # (restored after any full snapshot taken later in the step, which saw the new time).
+        times = self._property_times
+        if times is not None and id(interp) not in times and id(interp) not in (
+            self._property_snapshots or ()
+        ):
+            times[id(interp)] = (interp, interp._time)
 
     def execute_once(self):
         deadlines = getattr(self._evaluator, "deadlines", None)
@@ -236,6 +252,7 @@ class AtomicStepMixin:
             self._lazy_snapshot = None
             if properties:
                 self._property_snapshots = {}
+                self._property_times = {}
         pending = self._select_event(consume=False) if self._initialized else None
         deferred: list[Any] = []
         if ordinary:
@@ -256,14 +273,16 @@ class AtomicStepMixin:
                  self._external_queue) = light
                 for interp, snap in (self._property_snapshots or {}).values():
                     AtomicStepMixin._restore(interp, snap)
+                for interp, before in (self._property_times or {}).values():
+                    interp._time = before
             self._lazy_snapshot = ()
-            self._property_snapshots = None
+            self._property_snapshots = self._property_times = None
             # Discard the event that made the step fail, or the next step fails on it again.
             event = self._select_event(consume=True) if consumed else None
             self.last_failure = StepFailure(self.time, event, exc)
             raise
         self._lazy_snapshot = ()
-        self._property_snapshots = None
+        self._property_snapshots = self._property_times = None
         if ordinary:
             self._listeners = listeners
             for meta_event in deferred:
@@ -282,6 +301,8 @@ class AtomicStepMixin:
         listener = super().bind_property_statechart(statechart, interpreter_klass=interpreter_klass)
         if hasattr(listener, "before_change"):
             listener.before_change = self._before_property_change
+        if hasattr(listener, "before_time_change"):
+            listener.before_time_change = self._before_property_time_change
         return listener
 
 

@@ -206,3 +206,19 @@ def test_the_time_a_skipped_meta_event_records_is_rolled_back_too(stock_listener
     interp.queue("unknown")
     interp.execute()
     assert watcher.time == 5
+
+
+def test_a_property_that_records_the_time_then_changes_is_restored_to_before_both():
+    # In one failing step the property first only records the new time (a skipped meta-event:
+    # its time alone is saved) and then reacts to the exit of `a` (its full snapshot, taken
+    # then, already holds the new time): the rollback must bring back the time from before both.
+    interp = Interpreter(chart(), initial_context={"divisor": 0}, clock=SimulatedClock())
+    watcher = watch(interp, load_statechart(text=COUNTING_PROPERTY), stock_listener=False)
+    interp.execute()
+    interp.clock.time = 5
+    interp.queue("go")
+    with pytest.raises(CodeEvaluationError):
+        interp.execute()
+    assert (watcher.time, watcher.configuration, watcher.context["exits"]) == (
+        0, ["root", "watching"], 0
+    )

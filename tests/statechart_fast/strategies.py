@@ -62,9 +62,18 @@ META = [
 ]
 META_GUARDS = {
     # 1 // (k - 1) raises ZeroDivisionError once an action has set k to 1
-    "state entered": ["event.state == 's1'", "event.state in ('s2', 's3')", "1 // (k - 1) >= 0"],
-    "state exited": ["event.state == 's1'", "event.state != 's2'", "after(1)"],
-    "event consumed": ["event.event.name == 'a'", "event.event.name != 'b'", "active('p1')"],
+    # NAMES is a context name an action may rebind (static guard predicates watch it)
+    "state entered": [
+        "event.state == 's1'", "event.state in ('s2', 's3')", "1 // (k - 1) >= 0",
+        "event.state in NAMES", "not (event.state == 's1' or event.state not in NAMES)",
+    ],
+    "state exited": [
+        "event.state == 's1'", "event.state != 's2'", "after(1)", "'s2' == event.state",
+    ],
+    "event consumed": [
+        "event.event.name == 'a'", "event.event.name != 'b'", "active('p1')",
+        "event.event.name in NAMES and k < 3",
+    ],
     "transition processed": ["event.source == 's1'", "event.target is None", "idle(2)"],
     "event sent": ["event.event.name == 'c'"],
     "step started": ["time > 1"],
@@ -209,7 +218,7 @@ def property_charts(draw: Any) -> Statechart:
                 t["guard"] = draw(st.sampled_from(["after(2)", "idle(3)"]))
             # notify() is sent without being queued: what a step sent must still be cleared by
             # the step after it, as stock does
-            actions = ["k += 1", "k = 0", "notify('seen', k=k)"]
+            actions = ["k += 1", "k = 0", "notify('seen', k=k)", "NAMES = ('s1', 'a')"]
             if kind == "meta":  # a tick transition sending a tick would never stop either
                 actions += ["send('tick')", "send('tick', delay=1)"]
             if draw(st.booleans()):
@@ -224,7 +233,8 @@ def property_charts(draw: Any) -> Statechart:
     states.append({"name": "fail", "type": "final"})
     root = {"name": "proot", "initial": "p0", "states": states}
     return import_from_dict(
-        {"statechart": {"name": "property", "preamble": "k = 0", "root state": root}}
+        {"statechart": {"name": "property", "preamble": "k = 0\nNAMES = ('s2', 'b')",
+                        "root state": root}}
     )
 
 
