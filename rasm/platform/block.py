@@ -15,6 +15,7 @@ of the core task entered by the chart calls ``on_enter_s()`` when the block defi
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -30,6 +31,12 @@ from rasm.statechart import Interpreter, load_statechart
 __all__ = ["MODES", "Block", "ModeListener", "shared_chart"]
 
 MODES = ("instantiated", "configuration", "initialization", "initialized", "fault", "terminated")
+_MODE_SET = frozenset(MODES)
+# the modes whose work the block does itself, not through an on_enter_<state> hook
+_LIFECYCLE_WORK = frozenset({"configuration", "initialization", "fault", "terminated"})
+# state -> its interned hook name: a name built afresh for each getattr misses the type's
+# attribute cache (it caches interned names only) and is hashed again every time
+_HOOK_NAMES: dict[str, str] = {}
 
 ModeListener = Callable[["Block", str], Any]
 
@@ -161,9 +168,10 @@ class Block:
 
     def _run(self) -> list[MacroStep]:
         steps: list[MacroStep] = []
+        execute_once = self.interpreter.execute_once
         while True:
             try:
-                step = self.interpreter.execute_once()
+                step = execute_once()
             except Exception as exc:
                 # the interpreter rolled the step back and discarded its event (a monitor that
                 # refuses a step, an action that raises): the block stays where it was
@@ -178,32 +186,40 @@ class Block:
             if step is None:
                 return steps
             steps.append(step)
-            for state in step.entered_states:
-                self._entered(state)
-            for sent in step.sent_events:
-                self.on_event_sent(sent.name, dict(sent.data))
+            # the macro step's entered_states, then its sent_events, read from its micro steps
+            # (those properties build a new list at each call)
+            micro_steps = step.steps
+            for micro in micro_steps:
+                for state in micro.entered_states:
+                    self._entered(state)
+            for micro in micro_steps:
+                for sent in micro.sent_events:
+                    self.on_event_sent(sent.name, dict(sent.data))
 
     def _entered(self, state: str) -> None:
-        if state in MODES:
+        if state in _MODE_SET:
             self._mode = state
             for listener in list(self._listeners):
                 listener(self, state)
-        if state == "configuration":
+        if state not in _LIFECYCLE_WORK:
+            name = _HOOK_NAMES.get(state)
+            if name is None:
+                name = _HOOK_NAMES.setdefault(state, sys.intern(f"on_enter_{state}"))
+            hook = getattr(self, name, None)
+            if hook is not None:
+                hook()
+        elif state == "configuration":
             self._do(self.on_configuration, "configuration_done")
         elif state == "initialization":
             self._do(self.on_initialization, "initialization_done")
         elif state == "fault":
             self.failure_reason = self.interpreter.context.get("failure_reason")
             self.on_fault(self.failure_reason)
-        elif state == "terminated":
+        else:  # terminated
             try:
                 self.on_termination()
             except Exception:  # shutting down must go on; the failure is logged
                 _log.exception("%s: error while terminating", self.name)
-        else:
-            hook = getattr(self, f"on_enter_{state}", None)
-            if hook is not None:
-                hook()
 
     def _do(self, work: Callable[[], None], done: str) -> None:
         try:

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import PlatformError
+from rasm.platform.trace import LOOP_KEYS
 
 __all__ = [
     "Action",
@@ -146,12 +147,10 @@ def as_signals(value: Any) -> dict[str, Any]:
         raise StageError(
             f"monitor must return a dict of signals or None, not {type(value).__name__}"
         )
-    from rasm.platform.trace import LOOP_KEYS
-
-    forged = sorted(LOOP_KEYS.intersection(value))
-    if forged:
+    if not LOOP_KEYS.isdisjoint(value):
+        forged = min(LOOP_KEYS.intersection(value))
         raise StageError(
-            f"monitor returned {forged[0]!r}, a key the loop writes itself in the trace "
+            f"monitor returned {forged!r}, a key the loop writes itself in the trace "
             f"({', '.join(sorted(LOOP_KEYS))}): give the signal another name"
         )
     return value
