@@ -61,20 +61,28 @@ class HotboxSimulator:
             self.capacity = self.content_changes.pop(0)[1]
         lid = self.lid_open(time)
         loss = self.LOSS_OPEN if lid else self.LOSS_CLOSED
-        feed_forward = self.LOSS_CLOSED * (self.settings["setpoint"] - self.AMBIENT)
-        wanted = feed_forward + self.GAIN * (self.settings["setpoint"] - self.temperature)
-        self.power = min(max(wanted, 0.0), self.settings["power_limit"])
-        self.temperature += (
-            dt * (self.power - loss * (self.temperature - self.AMBIENT)) / self.capacity
-        )
-        measured = self.temperature + self.rng.gauss(0.0, 0.02)
+        settings = self.settings
+        setpoint = settings["setpoint"]
+        ambient = self.AMBIENT
+        temperature = self.temperature
+        feed_forward = self.LOSS_CLOSED * (setpoint - ambient)
+        wanted = feed_forward + self.GAIN * (setpoint - temperature)
+        # min(max(wanted, 0.0), limit) written out: this runs for every reading
+        power = 0.0 if 0.0 > wanted else wanted
+        limit = settings["power_limit"]
+        if limit < power:
+            power = limit
+        self.power = power
+        temperature += dt * (power - loss * (temperature - ambient)) / self.capacity
+        self.temperature = temperature
+        measured = temperature + self.rng.gauss(0.0, 0.02)
         return {
             "hotbox/sensors": {
                 "temperature": round(measured, 4),
                 "lid_open": lid,
-                "heater_power": round(self.power, 3),
-                "heater_mode": self.settings["mode"],
-                "setpoint": self.settings["setpoint"],
+                "heater_power": round(power, 3),
+                "heater_mode": settings["mode"],
+                "setpoint": setpoint,
             }
         }
 

@@ -289,10 +289,16 @@ class HotboxTwin(DigitalTwin):
         phi = (a0 * recent.power, -b0 * recent.loss, -c0 * recent.lid)
         self._reference[lid] = phi
         # overlapping windows share their records: each counts as 1/len of an observation
-        error = self.rls.update(phi, recent.change, weight=1.0 / (len(recent) - 1))
+        # the window's change and length read off its records (no property or __len__ call)
+        entries = recent._entries
+        change = entries[-1][1] - entries[0][1]
+        error = self.rls.update(phi, change, weight=1.0 / (len(entries) - 1))
         residual = abs(error)
-        self._errors += 1
-        self._square_error += (error * error - self._square_error) / min(self._errors, 100)
+        errors = self._errors = self._errors + 1
+        # min(errors, 100) without the call (this runs once per record)
+        self._square_error += (error * error - self._square_error) / (
+            errors if errors < 100 else 100
+        )
 
         drift = False
         confident = self._confident()
@@ -310,7 +316,7 @@ class HotboxTwin(DigitalTwin):
         changed = confident and self._worth_publishing(time)
         if changed:
             self._publish(time)
-        return TwinUpdate(residual=residual, drift=drift, model_changed=changed)
+        return TwinUpdate(residual, drift, changed)  # positional: cheaper than keywords
 
     def _confident(self) -> bool:
         """Physical estimates, both lid states seen, and for a window of each the parameters'

@@ -70,4 +70,4 @@ class LocalTransport(Transport):
         # tuple.__new__ skips the named tuple's Python-level __new__ (one message per reading)
         ok, failed = self._deliver(_new_message(Message, (topic, payload, uid, timestamp)))
         # counted after delivery: published, delivered and errors move together
-        self.stats.add_delivery(ok, failed, published=1)
+        self.stats.add_delivery(ok, failed, 1)  # positional: one message per reading

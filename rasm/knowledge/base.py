@@ -66,6 +66,17 @@ class _Series:
     def __len__(self) -> int:
         return len(self.samples)
 
+    def add(self, value: Any, time: float) -> Sample:
+        """Check and store ``value`` at float ``time``; raise :class:`KnowledgeError` for a
+        refused value or a time before the last sample's (or not finite)."""
+        value = self.check(value)
+        if not self.last <= time < _INF:  # also false for NaN
+            raise KnowledgeBase._bad_time(self.decl.key, time, self.last)
+        # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
+        sample = _new_tuple(Sample, (time, value))
+        self.append(sample)
+        return sample
+
     def append(self, sample: Sample) -> None:
         samples = self.samples
         if len(samples) < self.capacity:
@@ -223,15 +234,11 @@ class KnowledgeBase:
         series = self._series.get(key)
         if series is None:
             series = self._infer(key, value)
-        value = series.check(value)
         if type(time) is not float:
+            # the value is checked first: its error is the one raised when both are bad
+            series.check(value)
             time = self._time(key, time)
-        if not series.last <= time < _INF:  # also false for NaN
-            raise self._bad_time(key, time, series.last)
-        # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
-        sample = _new_tuple(Sample, (time, value))
-        series.append(sample)
-        return sample
+        return series.add(value, time)
 
     def _notify(self, key: str, sample: Sample) -> None:
         """Call every subscriber; a failing reader must not fail the writer (Telegraf, the loop)."""
@@ -254,9 +261,15 @@ class KnowledgeBase:
             return register_each(self.register_knowledge, values, time)
         refused: dict[str, Exception] = {}
         with self._lock:
+            # a known key at a float time (every value of a running loop) is added directly
+            series_of = self._series if type(time) is float else {}
             for key, value in values.items():
                 try:
-                    sample = self._append_sample(key, value, time)
+                    series = series_of.get(key)
+                    if series is not None:
+                        sample = series.add(value, time)
+                    else:
+                        sample = self._append_sample(key, value, time)
                 except Exception as exc:
                     refused[key] = exc
                     continue
@@ -328,6 +341,21 @@ class KnowledgeBase:
             series = self._series.get(key)
             sample = series.latest() if series is not None else None
             return default if sample is None else sample.value
+
+    def read_values(self, keys: Iterable[str], default: Any = None) -> dict[str, Any]:
+        """``{key: read_knowledge(key, default)}`` for each of ``keys``, read under one lock (a
+        consistent view: no write lands between two of them)."""
+        if type(self).read_knowledge is not KnowledgeBase.read_knowledge:
+            # a store that reads its own way (Redis) is asked one key at a time
+            return {key: self.read_knowledge(key, default) for key in keys}
+        out: dict[str, Any] = {}
+        with self._lock:
+            series_of = self._series
+            for key in keys:
+                series = series_of.get(key)
+                sample = series.latest() if series is not None else None
+                out[key] = default if sample is None else sample.value
+        return out
 
     def read_sample(self, key: str) -> Sample | None:
         """The latest sample of ``key``, or None."""

@@ -398,7 +398,7 @@ class Platform:
         """Let the twin learn from the latest inputs; register its residual (returned, for the
         trace record of the inputs that produced it), and publish its model and drift."""
         twin = self.twin
-        values = {key: self.kb.read_knowledge(key) for key in twin.inputs}
+        values = self.kb.read_values(twin.inputs)  # one lock for the inputs
         try:
             update = twin.observe(time, values)
             residual = None if update is None else float(update.residual)

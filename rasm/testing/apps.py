@@ -113,7 +113,27 @@ def json_copy(value: Any) -> Any:
 def trace_line(time: float, record: Mapping[str, Any]) -> dict[str, Any]:
     """The record as it reads back from the trace file: ``time`` first (rounded to the
     nanosecond), a non-finite float at the top level as None, and every value a JSON value."""
-    line: dict[str, Any] = {"time": round(time, 9)}
+    rounded = round(time, 9)
+    line: dict[str, Any] = {"time": rounded}
+    # one pass that is _jsonable then json_copy's fast path: a record is mostly finite floats,
+    # bools and ascii strings under str keys, copied here without two calls per value
+    try:
+        if rounded.__class__ is not float:  # an int time: json_copy decides on its size
+            raise _NotPlain
+        for key, value in record.items():
+            if key.__class__ is not str or not key.isascii():
+                raise _NotPlain
+            cls = value.__class__
+            if cls is float:
+                line[key] = value if value - value == 0 else None  # nan and inf: null
+            elif cls is bool or value is None or (cls is str and value.isascii()):
+                line[key] = value
+            else:
+                line[key] = _plain(_jsonable(value), 1)
+        return line
+    except (_NotPlain, UnicodeEncodeError):
+        pass
+    line = {"time": rounded}
     for key, value in record.items():
         line[key] = _jsonable(value)
     return json_copy(line)
@@ -248,7 +268,8 @@ def run_app(
 
     def collect(time: float, record: dict[str, Any]) -> None:
         nonlocal last
-        last = max(time, last)  # the trace never goes back in time (SPEC §4), as the file
+        # the trace never goes back in time (SPEC §4), as the file: max(time, last), no call
+        last = last if last > time else time
         records.append(trace_line(last, record))
 
     platform.on_record.append(collect)
