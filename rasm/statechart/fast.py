@@ -643,6 +643,29 @@ class FastInterpreter(Interpreter):
         )
 
 
+class _Interest:
+    """What a property listener knows about one set of active states of its property: which
+    meta-events it could react to, the guard predicates, the selections they make, and the
+    context names (and the objects they were bound to) all of that read."""
+
+    __slots__ = ("listening", "predicates", "selections", "watch")
+
+    def __init__(self) -> None:
+        self.listening: dict[str, bool | dict[Any, bool]] = {}
+        self.predicates: dict[str, list[tuple[Transition, Any]]] = {}
+        self.selections: dict[tuple[str, str], tuple[Transition, ...]] = {}
+        self.watch: dict[str, Any] = {}
+
+
+def _discriminant(event: MetaEvent) -> Any:
+    """The value guards of ``event``'s name read (see meta_guards), None when there is none."""
+    data = event.data
+    if "state" in data:
+        return data["state"] if event.name in ("state entered", "state exited") else None
+    inner = data.get("event")
+    return None if inner is None else _name_of(inner)
+
+
 class PropertyListener(PropertyStatechartListener):
     """Feeds meta-events to a property statechart, skipping the executions that would do nothing.
 
@@ -702,9 +725,8 @@ class PropertyListener(PropertyStatechartListener):
             self._time_source = clock._interpreter
         # needs(): per set of active states, (meta-event name, discriminant) -> whether it could
         # react, and the context names those answers read (name -> object)
-        self._interests: dict[frozenset[str], tuple[dict, dict]] = {}
-        self._interest: dict[str, Any] = {}
-        self._watch: dict[str, Any] = {}
+        self._interests: dict[frozenset[str], _Interest] = {}
+        self._interest = _Interest()
         self._interest_conf: set[str] | None = None
         self._interest_version = -1
         # a selected meta-event is consumed without the queue round trip (see
@@ -741,31 +763,47 @@ class PropertyListener(PropertyStatechartListener):
             or interp._listeners
             or interp._internal_queue
             or interp._external_queue
+            or not interp._configuration
         ):
             return True
-        conf = interp._configuration
+        interest = self._interest
         if (
-            conf is not self._interest_conf
+            interp._configuration is not self._interest_conf
             or interp._conf_version != self._interest_version
-            or not self._watch_holds()
+            or (interest.watch and not self._watch_holds(interest))
         ):
-            if not conf:
-                return True
-            self._interest_conf, self._interest_version = conf, interp._conf_version
-            self._interest, self._watch = self._interests.setdefault(frozenset(conf), ({}, {}))
-        found = self._interest.get(name)
+            interest = self._current_interest()
+        found = interest.listening.get(name)
         if found is None:
-            found = self._interest[name] = self._listening(name)
+            found = interest.listening[name] = self._listening(name)
         if type(found) is bool:
             return found
         decided = found.get(value)
         if decided is None:
-            decided = found[value] = self._decide(name, value)
+            decided = found[value] = self._decide(name, value, interest)
         return decided
 
-    def _watch_holds(self) -> bool:
+    def _current_interest(self) -> _Interest:
+        """What is known about the active configuration (the interpreter's, non-empty)."""
+        interp = self._interpreter
+        conf = interp._configuration
+        interest = self._interest
+        if (
+            conf is not self._interest_conf
+            or interp._conf_version != self._interest_version
+            or not self._watch_holds(interest)
+        ):
+            self._interest_conf, self._interest_version = conf, interp._conf_version
+            key = frozenset(conf)
+            interest = self._interests.get(key)
+            if interest is None:
+                interest = self._interests[key] = _Interest()
+            self._interest = interest
+        return interest
+
+    def _watch_holds(self, interest: _Interest) -> bool:
         # the context names a predicate read must still be bound to the same objects
-        watch = self._watch
+        watch = interest.watch
         if watch:
             context = self._interpreter._evaluator._context
             for name, bound in watch.items():
@@ -793,17 +831,29 @@ class PropertyListener(PropertyStatechartListener):
             return True
         return {}
 
-    def _decide(self, name: str, value: Any) -> bool:
+    def _predicates(self, name: str, interest: _Interest) -> list[tuple[Transition, Any]]:
+        """The active transitions listening to ``name``, each with its guard's predicate (None
+        when undecided, True when there is no guard); the names they read are watched."""
+        found = interest.predicates.get(name)
+        if found is None:
+            context = self._interpreter._evaluator._context
+            found = []
+            for transition in self._transitions_for(name):
+                if transition.guard is None:
+                    found.append((transition, True))
+                    continue
+                decided = guard_predicate(transition.guard, name, context)
+                if decided is not None:
+                    interest.watch.update(decided[1])
+                found.append((transition, None if decided is None else decided[0]))
+            interest.predicates[name] = found
+        return found
+
+    def _decide(self, name: str, value: Any, interest: _Interest) -> bool:
         if type(value) is not str:
             return True
-        context = self._interpreter._evaluator._context
-        for transition in self._transitions_for(name):
-            found = guard_predicate(transition.guard, name, context)  # type: ignore[arg-type]
-            if found is None:
-                return True
-            predicate, read = found
-            self._watch.update(read)
-            if predicate(value):
+        for _, predicate in self._predicates(name, interest):
+            if predicate is None or predicate is True or predicate(value):
                 return True
         return False
 
@@ -812,24 +862,43 @@ class PropertyListener(PropertyStatechartListener):
         when only executing it can tell (something due, time-triggered transitions to evaluate,
         a guard that raises)."""
         interp = self._interpreter
-        if interp._listeners or not interp._configuration or _has_delay(event):
+        conf = interp._configuration
+        if interp._listeners or not conf or _has_delay(event):
             return None  # (settled implies initialised: no configuration means final)
         internal, external = interp._internal_queue, interp._external_queue
         if (internal and internal[0][0] <= now) or (external and external[0][0] <= now):
             return None
-        if interp._time != now and not self._eventless_sources.isdisjoint(interp._configuration):
+        eventless = not self._eventless_sources.isdisjoint(conf)
+        if interp._time != now and eventless:
             return None
         name = event.name
         if name not in self._names or name not in interp.reactive_events():
             return []
+        # Without eventless transitions to look at, a selection made only of guards decided by
+        # the discriminant depends on nothing else: it is remembered.
+        key = None
+        if self._static_guards and not eventless and name in DISCRIMINANT:
+            value = _discriminant(event)
+            interest = self._current_interest()
+            key = (name, value)
+            known = interest.selections.get(key)
+            if known is not None:
+                return list(known)
+            if type(value) is not str or any(
+                p is None for _, p in self._predicates(name, interest)
+            ):
+                key = None
         before = interp._time
         interp._time = now  # guards see the time the execution would record
         try:
-            return interp._select_transitions(event, interp._configuration)
+            selected = interp._select_transitions(event, conf)
         except Exception:
             return None
         finally:
             interp._time = before
+        if key is not None:
+            interest.selections[key] = tuple(selected)
+        return selected
 
     def _quiet(self, interp: FastInterpreter) -> bool:
         # the closing step would also clear what the last step sent (a notify() is sent without

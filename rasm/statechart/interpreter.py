@@ -42,10 +42,21 @@ _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
 _IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
 
 
+# tuples found to hold only immutable values, by id (holding them, so an id is not reused while
+# it is here); contexts keep such constants for their whole life, e.g. a property's stage names
+_IMMUTABLE_TUPLES: dict[int, tuple] = {}
+
+
 def _copy_value(value: Any) -> Any:
     if isinstance(value, _IMMUTABLE):
         return value
+    if type(value) is tuple and _IMMUTABLE_TUPLES.get(id(value)) is value:
+        return value
     if isinstance(value, tuple) and all(isinstance(v, _IMMUTABLE) for v in value):
+        if type(value) is tuple:
+            if len(_IMMUTABLE_TUPLES) >= 1024:  # tuples made afresh at each step: start over
+                _IMMUTABLE_TUPLES.clear()
+            _IMMUTABLE_TUPLES[id(value)] = value
         return value
     try:
         return copy.deepcopy(value)
@@ -227,6 +238,23 @@ class AtomicStepMixin:
         ):
             times[id(interp)] = (interp, interp._time)
 
+    _listener_split: tuple = ((), [], [])
+
+    def _split_listeners(self, listeners: list) -> tuple[list, list, bool]:
+        """Property listeners, ordinary ones, and whether a property must be snapshotted up
+        front (its listener does not say when it changes its interpreter, as stock's)."""
+        key = tuple(listeners)
+        cached = self._listener_split
+        if cached[0] != key:
+            properties = [li for li in key if isinstance(li, PropertyStatechartListener)]
+            ordinary = [li for li in key if not isinstance(li, PropertyStatechartListener)]
+            cached = self._listener_split = (key, properties, ordinary)
+        eager = False
+        for listener in cached[1]:
+            if getattr(listener, "before_change", None) is None:
+                eager = True
+        return cached[1], cached[2], eager
+
     def execute_once(self):
         deadlines = getattr(self._evaluator, "deadlines", None)
         if deadlines is not None:  # a DeadlineEvaluator: only this step's timers count
@@ -234,11 +262,7 @@ class AtomicStepMixin:
         listeners = self._listeners
         eager = False
         if listeners:
-            properties = [li for li in listeners if isinstance(li, PropertyStatechartListener)]
-            ordinary = [li for li in listeners if not isinstance(li, PropertyStatechartListener)]
-            # a property listener that does not say when it changes its interpreter (stock's)
-            # is snapshotted up front, with this interpreter
-            eager = any(getattr(li, "before_change", None) is None for li in properties)
+            properties, ordinary, eager = self._split_listeners(listeners)
         else:
             properties = ordinary = ()
         if eager:
