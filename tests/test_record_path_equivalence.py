@@ -11,10 +11,13 @@ import importlib.util
 import math
 from pathlib import Path
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rasm.errors import KnowledgeError
 from rasm.knowledge.base import KnowledgeBase
+from rasm.knowledge.values import Declaration, make_check
 from rasm.twin import PageHinkley
 
 SETTINGS = settings(max_examples=300, deadline=None, database=None)
@@ -49,6 +52,40 @@ def test_read_values_is_read_knowledge_of_each_key(writes, keys, default):
         except Exception:  # a value of another type than the key's first: refused, as ever
             pass
     assert kb.read_values(keys, default) == {k: kb.read_knowledge(k, default) for k in keys}
+
+
+BOUNDS = st.none() | st.integers(-5, 5) | st.floats(-5, 5) | st.sampled_from([-math.inf, math.inf])
+ANY_VALUE = (
+    st.none()
+    | st.booleans()
+    | st.integers()
+    | st.integers(-(2**1100), 2**1100)
+    | FLOATS
+    | st.text(max_size=3)
+    | st.lists(st.integers(), max_size=2)
+)
+
+
+@SETTINGS
+@given(st.sampled_from(["float", "int", "bool", "str", "json"]), BOUNDS, BOUNDS, ANY_VALUE)
+def test_a_stored_value_is_what_its_declarations_check_makes_of_it(kind, lo, hi, value):
+    numeric = kind in ("float", "int")
+    if numeric and lo is not None and hi is not None and lo > hi:
+        lo, hi = hi, lo
+    decl = Declaration("k", kind, minimum=lo if numeric else None, maximum=hi if numeric else None)
+    kb = KnowledgeBase()
+    kb.declare("k", kind, minimum=decl.minimum, maximum=decl.maximum)
+    try:
+        expected = make_check(decl)(value)
+    except KnowledgeError as exc:
+        with pytest.raises(KnowledgeError) as raised:
+            kb.register_knowledge("k", value, 1.0)
+        assert str(raised.value) == str(exc)
+        assert kb.register_values({"k": value}, 1.0)["k"].args == exc.args
+        return
+    assert _same(kb.register_knowledge("k", value, 1.0).value, expected)
+    assert kb.register_values({"k": value}, 2.0) == {}
+    assert _same(kb.read_knowledge("k"), expected)
 
 
 class _OwnReads(KnowledgeBase):

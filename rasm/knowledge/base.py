@@ -39,6 +39,8 @@ class Sample(NamedTuple):
 
 
 _new_tuple = tuple.__new__
+# per declared type, the class a value needs to skip its check in _Series.add (json: never)
+_EXACT: dict[str, type] = {"float": float, "int": int, "bool": bool, "str": str}
 
 Callback = Callable[[str, Sample], object]
 """Called as ``callback(key, sample)`` after each registration."""
@@ -52,11 +54,29 @@ class _Series:
     sorted by time.
     """
 
-    __slots__ = ("decl", "check", "capacity", "samples", "times", "head", "last")
+    __slots__ = (
+        "decl",
+        "check",
+        "exact",
+        "low",
+        "high",
+        "capacity",
+        "samples",
+        "times",
+        "head",
+        "last",
+    )
 
     def __init__(self, decl: Declaration) -> None:
         self.decl = decl
         self.check: Check = make_check(decl)
+        # what add() accepts without calling check, which returns such a value unchanged: the
+        # declared class exactly and, for numbers, within the bounds (None: no range test)
+        self.exact = _EXACT.get(decl.type)
+        self.low = self.high = None
+        if decl.type in ("float", "int"):
+            self.low = -_INF if decl.minimum is None else decl.minimum
+            self.high = _INF if decl.maximum is None else decl.maximum
         self.capacity = decl.history
         self.samples: list[Sample] = []
         self.times: list[float] = []
@@ -69,26 +89,25 @@ class _Series:
     def add(self, value: Any, time: float) -> Sample:
         """Check and store ``value`` at float ``time``; raise :class:`KnowledgeError` for a
         refused value or a time before the last sample's (or not finite)."""
-        value = self.check(value)
+        low = self.low
+        if value.__class__ is not self.exact or not (low is None or low <= value <= self.high):
+            value = self.check(value)  # NaN fails the range test: check decides on it
         if not self.last <= time < _INF:  # also false for NaN
             raise KnowledgeBase._bad_time(self.decl.key, time, self.last)
         # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
         sample = _new_tuple(Sample, (time, value))
-        self.append(sample)
-        return sample
-
-    def append(self, sample: Sample) -> None:
         samples = self.samples
         if len(samples) < self.capacity:
             samples.append(sample)
-            self.times.append(sample.time)
+            self.times.append(time)
         else:
             head = self.head
             samples[head] = sample
-            self.times[head] = sample.time
+            self.times[head] = time
             head += 1
             self.head = 0 if head == self.capacity else head
-        self.last = sample.time
+        self.last = time
+        return sample
 
     def latest(self) -> Sample | None:
         # when not full head is 0 and [-1] is the newest; when full the newest is just before head
@@ -200,8 +219,8 @@ class KnowledgeBase:
                     f"cannot declare {key!r} as {type}: a sample it already holds does not fit "
                     f"({exc})"
                 ) from exc
-            for sample in converted:
-                fresh.append(sample)
+            for sample in converted:  # in time order and checked: add() accepts each as is
+                fresh.add(sample.value, sample.time)
             self._series[key] = fresh
             return decl
 
@@ -302,8 +321,8 @@ class KnowledgeBase:
                     raise self._bad_time(key, time, last)
                 last = time
                 checked.append(Sample(time, value))
-            for sample in checked[-series.capacity :]:
-                series.append(sample)
+            for sample in checked[-series.capacity :]:  # checked and in order: add() takes them
+                series.add(sample.value, sample.time)
             if new:
                 self._series[key] = series
             return len(checked)

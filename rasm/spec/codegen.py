@@ -447,6 +447,9 @@ def _binary(op: str, left: str, right: str) -> str:
     if op == "/":
         return f"_div({left}, {right})"
     if op == "!=":
+        if left.isidentifier() and right.isidentifier():
+            # _ne's body inline: two variables are cheap to read twice, a call is not
+            return f"({left} == {left} and {right} == {right} and {left} != {right})"
         return f"_ne({left}, {right})"
     return f"({left} {op} {right})"
 
