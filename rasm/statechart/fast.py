@@ -648,9 +648,10 @@ class _Interest:
     meta-events it could react to, the guard predicates, the selections they make, and the
     context names (and the objects they were bound to) all of that read."""
 
-    __slots__ = ("listening", "predicates", "selections", "watch")
+    __slots__ = ("effects", "listening", "predicates", "selections", "watch")
 
     def __init__(self) -> None:
+        self.effects: dict[tuple[str, str], tuple] = {}
         self.listening: dict[str, bool | dict[Any, bool]] = {}
         self.predicates: dict[str, list[tuple[Transition, Any]]] = {}
         self.selections: dict[tuple[str, str], tuple[Transition, ...]] = {}
@@ -737,6 +738,18 @@ class PropertyListener(PropertyStatechartListener):
             for name in ("execute_once", "_compute_steps", "queue", "_queue_event",
                          "_select_event", "_select_transitions")
         )
+        # an execution's effect can be remembered and replayed (see _effect_of) only when
+        # nothing else could happen in it: sismic's own action and entry/exit calls (which do
+        # nothing without code), no contracts, no history memory to update
+        evaluator = interpreter._evaluator
+        self._effects_possible = (
+            self._consume_directly
+            and type(evaluator).execute_action is Evaluator.execute_action
+            and _standard_actions(evaluator)
+            and not interpreter._contracts_possible
+            and not interpreter._tables.history_children
+        )
+        self._selection_key: tuple[str, str] | None = None  # of the last remembered selection
         # static guards are only as exact as the evaluator is stock
         self._static_guards = (
             self._can_skip
@@ -876,13 +889,14 @@ class PropertyListener(PropertyStatechartListener):
             return []
         # Without eventless transitions to look at, a selection made only of guards decided by
         # the discriminant depends on nothing else: it is remembered.
-        key = None
+        key = self._selection_key = None
         if self._static_guards and not eventless and name in DISCRIMINANT:
             value = _discriminant(event)
             interest = self._current_interest()
             key = (name, value)
             known = interest.selections.get(key)
             if known is not None:
+                self._selection_key = key
                 return list(known)
             if type(value) is not str or any(
                 p is None for _, p in self._predicates(name, interest)
@@ -898,7 +912,54 @@ class PropertyListener(PropertyStatechartListener):
             interp._time = before
         if key is not None:
             interest.selections[key] = tuple(selected)
+            self._selection_key = key
         return selected
+
+    def _effect_of(self, step: MacroStep) -> tuple | None:
+        """What ``step`` (an execution that selected by static guards alone) did, if that is
+        all an execution with the same selection will ever do: only states exited and entered
+        (no action, no entry or exit code, no history, no contract), nothing sent, left quiet.
+        (exited states, sources made idle, entered states) in order; None otherwise."""
+        if not self._effects_possible:
+            return None
+        exited: list[str] = []
+        sources: list[str] = []
+        entered: list[str] = []
+        states = self._interpreter._tables.state
+        for micro in step.steps:
+            transition = micro.transition
+            if micro.sent_events or (transition is not None and transition.action):
+                return None
+            for name in (*micro.exited_states, *micro.entered_states):
+                state = states.get(name)
+                if state is None or getattr(state, "on_entry", None) or getattr(
+                    state, "on_exit", None
+                ):
+                    return None
+            exited.extend(micro.exited_states)
+            if transition is not None:
+                sources.append(transition.source)
+            entered.extend(micro.entered_states)
+        return tuple(exited), tuple(sources), tuple(entered)
+
+    def _replay(self, interp: FastInterpreter, effect: tuple, now: float) -> None:
+        """Apply a remembered effect (see _effect_of) at ``now``: the same changes as the
+        execution it was remembered from, without the step machinery."""
+        exited, sources, entered = effect
+        interp._time = now
+        interp._sent_events.clear()
+        conf = interp._configuration
+        for name in exited:
+            conf.remove(name)
+        idle = interp._idle_time
+        for name in sources:
+            idle[name] = now
+        entry = interp._entry_time
+        for name in entered:
+            conf.add(name)
+            entry[name] = now
+            idle[name] = now
+        interp._conf_version += len(exited) + len(entered)
 
     def _quiet(self, interp: FastInterpreter) -> bool:
         # the closing step would also clear what the last step sent (a notify() is sent without
@@ -930,9 +991,19 @@ class PropertyListener(PropertyStatechartListener):
         if self.before_change is not None:
             self.before_change(interp)
         if selected and self._consume_directly and selected[0].event is not None:
-            interp._consume(event, selected, now)  # type: ignore[attr-defined]
-            while not self._quiet(interp) and interp.execute_once() is not None:
-                pass
+            key, interest = self._selection_key, self._interest
+            effect = None if key is None else interest.effects.get(key)
+            if effect is not None:
+                self._replay(interp, effect, now)
+            else:
+                step = interp._consume(event, selected, now)  # type: ignore[attr-defined]
+                quiet = self._quiet(interp)
+                if key is not None and quiet and interp._configuration:
+                    effect = self._effect_of(step)
+                    if effect is not None:
+                        interest.effects[key] = effect
+                while not quiet and interp.execute_once() is not None:
+                    quiet = self._quiet(interp)
         elif self._can_skip:
             interp.queue(event)
             if selected:
