@@ -240,3 +240,43 @@ def test_meta_events_read_like_stock_ones():
     assert ours.state == "elsewhere"
     copied = pickle.loads(pickle.dumps(ours))
     assert type(copied) is MetaEvent and copied == ours
+
+
+MONITORS = Path(__file__).resolve().parents[2] / "monitors"
+SETUP = ["configure", "configuration_done", "initialization_done"]
+# adaptations, a replan, a rejection limit, quiet iterations, a failed stage, a tick while busy
+LOOP = [
+    "tick", "monitored", "anomaly", "planned", "accepted", "executed",
+    "tick", "monitored", "no_anomaly",
+    "tick", "monitored", "anomaly", "planned", "rejected", "planned", "accepted", "tick",
+    "executed",
+    "tick", "monitored", "anomaly", "planned", "rejected", "planned", "rejected", "planned",
+    "rejected",
+    "tick", "stage_failed", "tick", "monitored", "anomaly", "no_plan",
+]
+
+
+@pytest.mark.parametrize("monitor", sorted(MONITORS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_the_platform_monitors_watch_the_orchestrator_identically(monitor):
+    # The orchestrator's MAPLE-K loop with one of the property statecharts the platform binds to
+    # it, also through stage timeouts (the clock jumps past the stage budget mid-iteration):
+    # here the listener's static guards, remembered selections and replayed effects all serve.
+    orchestrator = import_from_yaml(filepath=str(CHARTS / "adaptation_orchestrator.yaml"))
+    prop = import_from_yaml(filepath=str(monitor))
+    script = [(0.1, name, {}) for name in SETUP]
+    for round_ in range(4):
+        script += [(0.1, name, {}) for name in LOOP]
+        script += [(0.1, "tick", {}), (0.1, "monitored", {}), (2.0 + round_, "anomaly", {})]
+    expected = harness.run(Interpreter, orchestrator, script, prop=prop)
+    assert harness.run(FastInterpreter, orchestrator, script, prop=prop) == expected
+
+    interp = FastInterpreter(orchestrator)
+    listener = interp.bind_property_statechart(prop)
+    for dt, name, _ in script:
+        interp.clock.time += dt
+        interp.queue(name)
+        interp.execute()
+    interests = listener._interests.values()
+    assert any(interest.selections for interest in interests)
+    if monitor.stem != "stage_outcome":  # its stage exits run an action: never replayed
+        assert any(interest.effects for interest in interests)
