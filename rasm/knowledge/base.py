@@ -245,7 +245,8 @@ class KnowledgeBase:
         """
         with self._lock:
             sample = self._append_sample(key, value, time)
-            self._notify(key, sample)
+            if self._subscriptions:  # most stores have none: no call then
+                self._notify(key, sample)
             return sample
 
     def _append_sample(self, key: str, value: Any, time: float) -> Sample:
@@ -372,8 +373,9 @@ class KnowledgeBase:
             series_of = self._series
             for key in keys:
                 series = series_of.get(key)
-                sample = series.latest() if series is not None else None
-                out[key] = default if sample is None else sample.value
+                samples = series.samples if series is not None else None
+                # series.latest() without the call: the newest sample is just before head
+                out[key] = samples[series.head - 1].value if samples else default
         return out
 
     def read_sample(self, key: str) -> Sample | None:

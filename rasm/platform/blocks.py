@@ -568,6 +568,43 @@ class TrustworthinessChecker(Block):
 
     def observe(self, time: float, record: dict[str, Any]) -> list[Any]:
         """Feed one loop record to every monitor; returns the verdicts it decided."""
+        return self._observe(self.monitors, time, record)
+
+    def check_record(self, time: float, record: dict[str, Any]) -> None:
+        """:meth:`observe` for the trace writer, which needs no verdicts back: the same
+        bookkeeping, with verdict objects made only when ``on_verdict`` or an observer wants
+        them (the monitors' ``tally`` gives ``(property, value)`` pairs otherwise)."""
+        if self.on_verdict is not None or self.observers:
+            self._observe(self.monitors, time, record)
+            return
+        latest = self.latest
+        for monitor in self.monitors:
+            tally = getattr(monitor, "tally", None)
+            if tally is None:  # a monitor of another kind: its verdicts, kept as observe() does
+                self._observe((monitor,), time, record)
+                continue
+            try:
+                pairs = tally(time, record)
+            except Exception:  # a monitor fault is logged and the record skipped, never fatal
+                self._monitor_failed()
+                continue
+            for name, value in pairs:
+                latest[name] = value
+                if value is not True:
+                    self._unusual(name, value)
+
+    def _monitor_failed(self) -> None:
+        logging.getLogger("rasm.tc").exception("monitor failed on a record")
+        self.records_refused += 1
+
+    def _unusual(self, name: str, value: Any) -> None:
+        """Count a verdict that is not True: a violation, or inconclusive."""
+        if value is False:
+            self.violations[name] += 1
+        elif value is None:
+            self.inconclusive.add(name)
+
+    def _observe(self, monitors: Any, time: float, record: dict[str, Any]) -> list[Any]:
         out: list[Any] = []
         # every record steps every monitor and each decides about one verdict per property:
         # what is looked up once per record stays out of the per-verdict loop
@@ -575,21 +612,17 @@ class TrustworthinessChecker(Block):
         on_verdict = self.on_verdict
         observers = self.observers
         notify = on_verdict is not None or bool(observers)
-        for monitor in self.monitors:
+        for monitor in monitors:
             try:
                 verdicts = monitor.step(time, record)
             except Exception:  # a monitor fault is logged and the record skipped, never fatal
-                logging.getLogger("rasm.tc").exception("monitor failed on a record")
-                self.records_refused += 1
+                self._monitor_failed()
                 continue
             for verdict in verdicts:
                 value = verdict.value
                 latest[verdict.property] = value
                 if value is not True:  # the rare ones: a violation, or inconclusive
-                    if value is False:
-                        self.violations[verdict.property] += 1
-                    elif value is None:
-                        self.inconclusive.add(verdict.property)
+                    self._unusual(verdict.property, value)
                 if notify:
                     if on_verdict is not None:
                         on_verdict(verdict)

@@ -354,7 +354,7 @@ class Platform:
             clock=clock,
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
         )
-        self.trace.observers.append(self.tc.observe)
+        self.trace.observers.append(self.tc.check_record)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
 
     def _stage_component(self, stage: str, ref: str, package: str) -> Any:

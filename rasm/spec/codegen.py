@@ -474,7 +474,8 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     ``reads`` overrides, per property, the signals whose first values end its warm-up (by
     default: those it reads); explanations use it to evaluate sub-formulas in context.
 
-    The source defines ``factory()`` returning ``(step, run, finish_step, finish_run)``; it
+    The source defines ``factory()`` returning ``(step, tally, run, finish_step,
+    finish_run)`` (``tally``: ``step`` giving ``(property, value)`` pairs, not verdicts); it
     reads the names in ``Program.constants`` plus ``STATE`` (initial values), ``TUPLE_NEW``,
     ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``NUMERIC``, ``SCALAR``, ``UNSET``,
     ``REJECT_STEP`` and ``REJECT_RUN``, which the monitor provides.
@@ -535,19 +536,26 @@ def _indent(line):
 
 
 def _render(line, mode: str) -> str | None:
-    """A generated line for ``mode`` (step or run); None where the line is step-only."""
+    """A generated line for ``mode`` (step, tally or run); None where the line is online-only.
+
+    ``tally`` is ``step`` with each verdict as a plain ``(property, value)`` pair: what the
+    Trustworthiness Checker keeps of a verdict when nobody asked for the verdicts themselves.
+    """
+    online = mode != "run"
     if isinstance(line, str):
         return line
     if line[0] == "EARLY":  # early verdicts exist online only: run() keeps record order
-        return line[1] if mode == "step" else None
-    if line[0] == "ONLINE":  # the step function's version of a line, and run()'s
-        return line[1] if mode == "step" else line[2]
+        return line[1] if online else None
+    if line[0] == "ONLINE":  # the online functions' version of a line, and run()'s
+        return line[1] if online else line[2]
     _, number, index, time, value, *rest = line
-    if "EARLY" in rest and mode != "step":
+    if "EARLY" in rest and not online:
         return None
     pad = rest[0] if rest else ""
     if mode == "step":
         return f"{pad}out.append(TUPLE_NEW(Verdict, (NAME_{number}, {index}, {time}, {value})))"
+    if mode == "tally":
+        return f"{pad}out.append((NAME_{number}, {value}))"
     return f"{pad}values_{number}({value})"
 
 
@@ -575,7 +583,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         # one past-only property: its verdict is the body's last statement, so the step
         # function can return a one-element list directly (cheaper than append + return)
         single = (
-            mode == "step"
+            mode != "run"
             and len(blocks) == 1
             and isinstance(properties[-1], tuple)
             and properties[-1][0] == "EMIT"
@@ -604,6 +612,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         factory.append(f"    values_{number} = VALUES[{number}].append")
         factory.append(f"    NAME_{number} = NAMES[{number}]")
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
+    factory += ["    " + line for line in function("def tally(t, rec):", "tally")]
     factory += ["    " + line for line in function("def run(records):", "run")]
     for mode in ("step", "run"):
         factory += [
@@ -615,7 +624,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             rendered = (_render(line, mode) for line in block)
             factory += ["        " + text for text in rendered if text is not None]
         factory.append("        return out")
-    factory.append("    return step, run, finish_step, finish_run")
+    factory.append("    return step, tally, run, finish_step, finish_run")
     return "\n".join(factory) + "\n"
 
 

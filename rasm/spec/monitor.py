@@ -134,9 +134,11 @@ class Monitor:
         )
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
-        self._step, self._run, self._finish, self._finish_run = namespace["factory"]()
-        # the generated function itself, not a method around it: one call less per record
+        functions = namespace["factory"]()
+        self._step, self._tally, self._run, self._finish, self._finish_run = functions
+        # the generated functions themselves, not methods around them: one call less per record
         self.step = self._step
+        self.tally = self._tally
 
     # ----------------------------------------------------------------- online
     @property
@@ -150,6 +152,13 @@ class Monitor:
         (Each monitor replaces this method by its generated step function.)
         """
         return self._step(time, values)
+
+    def tally(self, time: float, values: Mapping[str, object]) -> list[tuple[str, bool | None]]:
+        """:meth:`step` giving each verdict as a ``(property, value)`` pair: for a caller that
+        keeps only those (cheaper than verdicts). Feeds the same monitor: use one or the other
+        per record. (Each monitor replaces this method by its generated tally function.)
+        """
+        return self._tally(time, values)
 
     def _refuse(self, time, values):
         raise SpecError("this monitor has finished; compile a new one for a new trace")
@@ -166,7 +175,7 @@ class Monitor:
         if self._finished:
             return []
         self._finished = True
-        self.step = self._refuse
+        self.step = self.tally = self._refuse
         return self._finish()
 
     # ----------------------------------------------------------------- offline
@@ -180,7 +189,7 @@ class Monitor:
             raise SpecError("this monitor has finished; compile a new one for a new trace")
         self._run(records)
         self._finished = True
-        self.step = self._refuse
+        self.step = self.tally = self._refuse
         self._finish_run()
         return [
             PropertyRun(name, self.starts[k], self._values[k]) for k, name in enumerate(self.names)
