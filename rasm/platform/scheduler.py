@@ -109,6 +109,13 @@ class Scheduler:
     def run_until(self, end: float | None) -> None:
         """Run jobs until the clock reaches ``end`` (None: until :meth:`stop`)."""
         clock, heap, simulated, run = self.clock, self._heap, self.simulated, self._run
+        # sismic's own SimulatedClock is read and moved through its attributes while it stands
+        # still (not start()ed): each `time` read is two property calls and each set a third
+        # and a time() call, at every turn; `time` is then `_time + 0` (no elapsed time) and
+        # the setter's other write, `_base`, is read only by a running clock
+        direct = (
+            type(clock) is SimulatedClock and hasattr(clock, "_time") and hasattr(clock, "_play")
+        )
         while True:
             # Peeked without the lock (taken only to take the inbox): a submit() racing with the
             # peek is served next turn, as if it had come just after a locked look.
@@ -130,7 +137,13 @@ class Scheduler:
             if simulated:
                 if due is None:
                     return  # nothing will ever happen again
-                clock.time = max(clock.time, due)
+                if direct and not clock._play:
+                    now = clock._time + 0
+                    if due > now:  # as the setter with max(now, due), which keeps an equal now
+                        clock._time = now = due
+                else:
+                    clock.time = max(clock.time, due)
+                    now = clock.time
             else:
                 with self._lock:
                     wait = None if due is None else due - clock.time
@@ -144,10 +157,10 @@ class Scheduler:
                         continue
                 if end is not None and clock.time >= end and (not heap or heap[0][0] > end):
                     return
+                now = clock.time
             # the jobs due now, then back to the checks above: on the wall clock a loop that
             # has fallen behind (a stage overrunning every period) would otherwise catch up for
             # ever, never reaching ``end`` nor the messages in the inbox
-            now = clock.time
             while heap and heap[0][0] <= now:
                 run(heapq.heappop(heap)[2])
             if not simulated and end is not None and clock.time >= end:

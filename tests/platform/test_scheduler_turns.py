@@ -66,3 +66,48 @@ def test_periodic_turns_interleave_in_time_then_scheduling_order():
         ("slow", 1.0),
         ("fast", 1.0),
     ]
+
+
+class PropertyOnlyClock(SimulatedClock):
+    """sismic's clock under another type: the scheduler reads and sets it only via ``time``."""
+
+
+def _journey(clock: SimulatedClock) -> list[tuple[str, float]]:
+    scheduler = Scheduler(clock)
+    seen: list[tuple[str, float]] = []
+
+    def note(name: str) -> None:
+        seen.append((name, clock.time))
+
+    def overrun() -> None:  # a stage overrun moves the simulated clock itself
+        note("overrun")
+        clock.time = clock.time + 0.7
+
+    def play() -> None:  # a running clock (standing still at speed 0) takes the property path
+        clock.speed = 0
+        clock.start()
+        note("play")
+
+    def pause() -> None:
+        clock.stop()
+        note("pause")
+
+    scheduler.every(0.25, lambda: note("tick"))
+    scheduler.at(0.5, overrun)
+    scheduler.at(1.0, lambda: note("already past"))
+    scheduler.at(1.5, play)
+    scheduler.at(2.0, lambda: scheduler.submit(lambda: note("submitted")))
+    scheduler.at(2.25, pause)
+    scheduler.at(2.25, lambda: note("same time"))
+    scheduler.run_until(3.0)
+    seen.append(("end", clock.time))
+    scheduler.run_until(3.0)  # nothing due: the clock stays
+    seen.append(("again", clock.time))
+    return seen
+
+
+def test_sismic_clock_read_directly_moves_as_through_its_time_property():
+    direct, general = _journey(SimulatedClock()), _journey(PropertyOnlyClock())
+    assert direct == general
+    assert ("overrun", 0.5) in direct and ("already past", 1.2) in direct
+    assert direct[-2:] == [("end", 3.0), ("again", 3.0)]
