@@ -29,7 +29,7 @@ from sismic.code import PythonEvaluator
 from sismic.exceptions import CodeEvaluationError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
-from sismic.model import Event
+from sismic.model import Event, InternalEvent, MetaEvent
 
 from rasm.statechart import fast
 from rasm.statechart.fast import FastInterpreter
@@ -90,6 +90,7 @@ _INTROSPECTION = frozenset({
     "f_globals", "f_locals", "f_back", "_getframe", "gi_frame", "cr_frame", "ag_frame", "tb_frame",
 })
 _EXPOSED = frozenset({"active", "time", "after", "idle", "event"})
+_ACTION_EXPOSED = frozenset({"active", "time", "send", "notify", "setdefault"})
 _EVENT_ONLY = frozenset({"event"})
 _NOTHING, _EVENT, _ALL = 0, 1, 2  # which of _EXPOSED a guard gets
 
@@ -112,6 +113,8 @@ class FastGuardEvaluator(PythonEvaluator):
     def __init__(self, interpreter=None, *, initial_context=None) -> None:
         super().__init__(interpreter, initial_context=initial_context)
         self._guard_codes: dict[str, tuple[CodeType, int]] = {}  # guard -> (code, names kind)
+        # action code -> (compiled, the exposed names it uses)
+        self._action_codes: dict[str, tuple[CodeType, frozenset[str]]] = {}
 
     def _compile_guard(self, guard: str) -> tuple[CodeType, int]:
         code = self._evaluable_code.get(guard)
@@ -149,6 +152,45 @@ class FastGuardEvaluator(PythonEvaluator):
             return bool(eval(code, exposed, self._context))
         except Exception as e:
             raise CodeEvaluationError(f"'{e}' occurred while evaluating '{guard}'") from e
+
+    def _execute_code(self, code, *, additional_context=None):
+        """sismic's ``_execute_code`` (actions, entry and exit code, the preamble), exposing only
+        the names the code uses (all of them when it could look at its namespace): building
+        ``send``, ``notify`` and ``active`` for code that never calls them is most of the cost
+        of a one-line action."""
+        if code is None:
+            return []
+        found = self._action_codes.get(code)
+        if found is None:
+            compiled = self._executable_code.get(code)
+            if compiled is None:
+                compiled = self._executable_code.setdefault(code, compile(code, "<string>", "exec"))
+            names = _names_used(compiled)
+            found = self._action_codes[code] = (
+                compiled, _ACTION_EXPOSED if names & _INTROSPECTION else names & _ACTION_EXPOSED
+            )
+        compiled, wanted = found
+        sent_events: list[Event] = []
+        exposed: dict[str, Any] = {}
+        if wanted:
+            interp = self._interpreter
+            if "active" in wanted:
+                exposed["active"] = lambda name: name in interp.configuration
+            if "time" in wanted:
+                exposed["time"] = interp.time
+            if "send" in wanted:
+                exposed["send"] = lambda name, **kw: sent_events.append(InternalEvent(name, **kw))
+            if "notify" in wanted:
+                exposed["notify"] = lambda name, **kw: sent_events.append(MetaEvent(name, **kw))
+            if "setdefault" in wanted:
+                exposed["setdefault"] = self._setdefault
+        if additional_context:
+            exposed.update(additional_context)
+        try:
+            exec(compiled, exposed, self._context)  # noqa: S102 - the chart's own code
+            return sent_events
+        except Exception as e:
+            raise CodeEvaluationError(f"'{e}' occurred while executing '{code}'") from e
 
 
 fast.PURE_GUARD_EVALUATIONS.add(FastGuardEvaluator.evaluate_guard)
