@@ -153,10 +153,12 @@ class Block:
         if self.on_deadline is None:
             return
         due = self.interpreter.next_deadline()
+        if due is None:  # the usual case: no timer, and no need to read the clock
+            return
         now = self.clock.time
         # The chart just ran until nothing more happened: a deadline not after now is stale
         # (a guard that also waits on something else); waking for it again would spin.
-        if due is None or due <= now or (self._armed is not None and now < self._armed <= due):
+        if due <= now or (self._armed is not None and now < self._armed <= due):
             return
         self._armed = due
         self.on_deadline(self, due)
