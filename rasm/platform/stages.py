@@ -19,7 +19,7 @@ from typing import Any
 __all__ = ["StageOutcome", "StageRunner"]
 
 
-@dataclass(frozen=True, init=False)
+@dataclass(frozen=True)
 class StageOutcome:
     """How a stage call ended: ``ok`` with a ``result``, an ``error`` (with traceback), or
     ``timed_out``. ``duration`` is wall-clock seconds."""
@@ -30,25 +30,6 @@ class StageOutcome:
     traceback: str = ""
     timed_out: bool = False
     duration: float = 0.0
-
-    def __init__(
-        self,
-        ok: bool,
-        result: Any = None,
-        error: BaseException | None = None,
-        traceback: str = "",
-        timed_out: bool = False,
-        duration: float = 0.0,
-    ) -> None:
-        # dataclass's own __init__ for a frozen class, without its object.__setattr__ per field
-        # (one is made for every stage run); the same signature and fields, a test checks
-        fields = self.__dict__
-        fields["ok"] = ok
-        fields["result"] = result
-        fields["error"] = error
-        fields["traceback"] = traceback
-        fields["timed_out"] = timed_out
-        fields["duration"] = duration
 
 
 class _Worker:
