@@ -50,7 +50,7 @@ from sismic.model import (
 )
 
 from rasm.statechart import fast_tables as ft
-from rasm.statechart.meta_guards import DISCRIMINANT, MISSING, guard_predicate
+from rasm.statechart.meta_guards import DISCRIMINANT, MISSING, NO_EVENT, guard_predicate
 
 __all__ = ["PURE_GUARD_EVALUATIONS", "FastInterpreter", "PropertyListener"]
 
@@ -613,7 +613,10 @@ class FastInterpreter(Interpreter):
             if not fast_events:
                 self._raise_event(_Meta("transition processed", **data))
             elif self._listeners:
-                self._announce("transition processed", None, data)
+                inner = step.event
+                self._announce(
+                    "transition processed", NO_EVENT if inner is None else _name_of(inner), data
+                )
 
         for state in entered_states:
             name = state.name
@@ -658,13 +661,22 @@ class _Interest:
         self.watch: dict[str, Any] = {}
 
 
+def _decidable(value: Any) -> bool:
+    """Whether guard predicates can decide for this discriminant (None: unknown)."""
+    return type(value) is str or value is NO_EVENT
+
+
 def _discriminant(event: MetaEvent) -> Any:
     """The value guards of ``event``'s name read (see meta_guards), None when there is none."""
     data = event.data
     if "state" in data:
         return data["state"] if event.name in ("state entered", "state exited") else None
-    inner = data.get("event")
-    return None if inner is None else _name_of(inner)
+    if "event" not in data:
+        return None
+    inner = data["event"]
+    if inner is None:
+        return NO_EVENT if event.name == "transition processed" else None
+    return _name_of(inner)
 
 
 class PropertyListener(PropertyStatechartListener):
@@ -863,10 +875,11 @@ class PropertyListener(PropertyStatechartListener):
         return found
 
     def _decide(self, name: str, value: Any, interest: _Interest) -> bool:
-        if type(value) is not str:
+        if not _decidable(value):
             return True
         for _, predicate in self._predicates(name, interest):
-            if predicate is None or predicate is True or predicate(value):
+            # None: undecided guard, or one that would raise (the delivery raises it again)
+            if predicate is None or predicate is True or predicate(value) is not False:
                 return True
         return False
 
@@ -898,7 +911,7 @@ class PropertyListener(PropertyStatechartListener):
             if known is not None:
                 self._selection_key = key
                 return list(known)
-            if type(value) is not str or any(
+            if not _decidable(value) or any(
                 p is None for _, p in self._predicates(name, interest)
             ):
                 key = None

@@ -4,7 +4,9 @@ Most guards of a property statechart compare one piece of the meta-event with co
 ``event.state == 'idle'``, ``event.state in STAGES``, ``event.event.name == 'accepted'``. For
 those, whether the guard holds follows from the meta-event's *discriminant* (the state's name for
 ``state entered``/``state exited``, the event's name for ``event consumed``/``event sent``/``delayed
-event sent``) without building the meta-event or evaluating the guard. :func:`guard_predicate`
+event sent``/``transition processed``, :data:`NO_EVENT` for an eventless transition, which guards
+test with ``event.event is None``) without building the meta-event or evaluating the guard.
+:func:`guard_predicate`
 recognises such guards and returns an exact predicate over the discriminant; anything else (other
 attributes, calls, comparisons with mutable or non-string values) gets ``None``: only evaluating
 the guard can tell.
@@ -22,7 +24,7 @@ import operator
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["DISCRIMINANT", "MISSING", "Predicate", "guard_predicate"]
+__all__ = ["DISCRIMINANT", "MISSING", "NO_EVENT", "Predicate", "guard_predicate"]
 
 #: meta-event name -> the guard expression that reads its discriminant (see module docstring)
 DISCRIMINANT: dict[str, str] = {
@@ -31,12 +33,26 @@ DISCRIMINANT: dict[str, str] = {
     "event consumed": "event.event.name",
     "event sent": "event.event.name",
     "delayed event sent": "event.event.name",
+    "transition processed": "event.event.name",
 }
 
 #: watched context name that must stay unbound (``event`` would shadow the meta-event)
 MISSING: Any = object()
 
-Predicate = Callable[[str], bool]
+
+class _NoEvent:
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "NO_EVENT"
+
+
+#: the discriminant of a ``transition processed`` meta-event for an eventless transition
+#: (``event.event`` is None: ``event.event is None`` holds, reading ``event.event.name`` raises)
+NO_EVENT: Any = _NoEvent()
+
+#: a predicate's answer for a value: True, False, or None when evaluating the guard would raise
+Predicate = Callable[[Any], "bool | None"]
 _OPS: dict[type, Callable[[Any, Any], bool]] = {
     ast.Eq: operator.eq,
     ast.NotEq: operator.ne,
@@ -48,6 +64,10 @@ _VALUE = object()  # marks the discriminant in a compiled tree
 
 class _Unknown(Exception):
     """The guard is not of a form decided by the discriminant alone."""
+
+
+class _Raises(Exception):
+    """Evaluating the guard for this value would raise (``event.event.name`` of no event)."""
 
 
 def _is_strings(value: Any) -> bool:
@@ -87,6 +107,16 @@ def _operand(node: ast.AST, path: tuple[str, ...], context: dict, watch: dict) -
 
 def _compile(node: ast.AST, path: tuple[str, ...], context: dict, watch: dict) -> Any:
     """A tree of (op, operands) over constants and _VALUE; raises _Unknown."""
+    if (
+        isinstance(node, ast.Compare)
+        and len(node.ops) == 1
+        and isinstance(node.ops[0], (ast.Is, ast.IsNot))
+        and path[-1:] == ("name",)
+        and _reads(node.left, path[:-1])
+        and isinstance(node.comparators[0], ast.Constant)
+        and node.comparators[0].value is None
+    ):  # `event.event is None`: whether there is an event at all
+        return (_is_no_event, [isinstance(node.ops[0], ast.Is)])
     if isinstance(node, ast.BoolOp):
         parts = [_compile(v, path, context, watch) for v in node.values]
         return (all if isinstance(node.op, ast.And) else any, parts)
@@ -103,14 +133,34 @@ def _compile(node: ast.AST, path: tuple[str, ...], context: dict, watch: dict) -
     raise _Unknown
 
 
-def _evaluate(tree: Any, value: str) -> bool:
+def _is_no_event(value: Any, when_none: bool) -> bool:
+    return (value is NO_EVENT) is when_none
+
+
+def _evaluate(tree: Any, value: Any) -> bool:
+    # `and`/`or` stop at the first operand that decides, as Python's do: a later operand that
+    # would raise is then never reached, in the guard as here
     func, parts = tree
     if func is all or func is any:
         return func(_evaluate(p, value) for p in parts)
     if func is operator.not_:
         return not _evaluate(parts[0], value)
+    if func is _is_no_event:
+        return _is_no_event(value, parts[0])
+    if value is NO_EVENT:
+        raise _Raises  # the guard reads the name of no event
     left, right = (value if p is _VALUE else p for p in parts)
     return bool(func(left, right))
+
+
+def _predicate(compiled: Any) -> Predicate:
+    def decide(value: Any) -> bool | None:
+        try:
+            return _evaluate(compiled, value)
+        except _Raises:
+            return None
+
+    return decide
 
 
 def guard_predicate(guard: str, meta_name: str, context: dict) -> tuple[Predicate, dict] | None:
@@ -134,4 +184,4 @@ def guard_predicate(guard: str, meta_name: str, context: dict) -> tuple[Predicat
     watch["event"] = context.get("event", MISSING)
     if watch["event"] is not MISSING:
         return None
-    return (lambda value: _evaluate(compiled, value)), watch
+    return _predicate(compiled), watch

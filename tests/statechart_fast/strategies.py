@@ -74,7 +74,10 @@ META_GUARDS = {
         "event.event.name == 'a'", "event.event.name != 'b'", "active('p1')",
         "event.event.name in NAMES and k < 3",
     ],
-    "transition processed": ["event.source == 's1'", "event.target is None", "idle(2)"],
+    "transition processed": [
+        "event.source == 's1'", "event.target is None", "idle(2)", "event.event is None",
+        "event.event is not None and event.event.name in NAMES", "event.event.name == 'b'",
+    ],
     "event sent": ["event.event.name == 'c'"],
     "step started": ["time > 1"],
     "step ended": ["k > 1", "time > 4"],

@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from sismic.model import Event, MetaEvent
 
-from rasm.statechart.meta_guards import DISCRIMINANT, MISSING, guard_predicate
+from rasm.statechart.meta_guards import DISCRIMINANT, MISSING, NO_EVENT, guard_predicate
 
 VALUES = ["s1", "s2", "idle", "a", "b", "", "s"]
 CONSTANTS = ["'s1'", "'a'", "('s1', 's2')", "['a', 'idle']", "{'s2', 'b'}", "'s1s2'", "NAMES",
@@ -33,6 +33,8 @@ def guards(draw: Any, reader: str, depth: int = 2) -> str:
         return f"({draw(guards(reader, depth - 1))}) {kind} ({draw(guards(reader, depth - 1))})"
     if draw(st.integers(0, 9)) == 0:
         reader = draw(st.sampled_from(READERS))
+    if reader.startswith("event.event") and draw(st.integers(0, 3)) == 0:
+        return f"event.event is {draw(st.sampled_from(['None', 'not None']))}"
     op = draw(st.sampled_from(["==", "!=", "in", "not in"]))
     constant = draw(st.sampled_from(CONSTANTS))
     if draw(st.booleans()):
@@ -40,10 +42,13 @@ def guards(draw: Any, reader: str, depth: int = 2) -> str:
     return f"{reader} {op} {constant}"
 
 
-def _meta(name: str, value: str) -> MetaEvent:
+def _meta(name: str, value: Any) -> MetaEvent:
     if DISCRIMINANT[name] == "event.state":
         return MetaEvent(name, state=value)
-    return MetaEvent(name, event=Event(value))
+    inner = None if value is NO_EVENT else Event(value)
+    if name == "transition processed":
+        return MetaEvent(name, source="s1", target="s2", event=inner)
+    return MetaEvent(name, event=inner)
 
 
 def _evaluate(guard: str, meta: MetaEvent, context: dict) -> Any:
@@ -63,11 +68,18 @@ def cases(draw: Any) -> tuple[str, str]:
 @given(case=cases(), value=st.sampled_from(VALUES), context=st.sampled_from(CONTEXTS))
 def test_a_predicate_decides_the_guard_exactly(case, value, context):
     guard, name = case
+    if name == "transition processed" and value == "":
+        value = NO_EVENT  # an eventless transition (only this meta-event can have none)
     found = guard_predicate(guard, name, context)
     if found is None:
         return  # undecided: the guard is evaluated, nothing to compare
     predicate, watch = found
-    assert _evaluate(guard, _meta(name, value), context) == ("value", predicate(value))
+    decided = predicate(value)
+    outcome = _evaluate(guard, _meta(name, value), context)
+    if decided is None:  # the guard raises for this value
+        assert outcome[0] == "error"
+    else:
+        assert outcome == ("value", decided)
     for key, bound in watch.items():
         assert context.get(key, MISSING) is bound
 
@@ -81,6 +93,10 @@ def test_recognised_forms_are_decided():
         "not (event.state in STAGES or event.state == 'x')": ("state entered", "x", False),
         "event.event.name == 'accepted'": ("event consumed", "accepted", True),
         "event.event.name in ('a', 'b') and event.event.name != 'a'": ("event sent", "a", False),
+        "event.event is None": ("transition processed", NO_EVENT, True),
+        "event.event is not None and event.event.name == 'a'": (
+            "transition processed", NO_EVENT, False,
+        ),
     }
     for guard, (name, value, expected) in decided.items():
         found = guard_predicate(guard, name, context)
@@ -96,7 +112,8 @@ def test_other_forms_are_left_to_evaluation():
     undecided = [
         ("event.state == 'a'", "event consumed"),  # no such attribute on that meta-event
         ("event.event.name == 'a'", "state entered"),
-        ("event.source == 'a'", "transition processed"),  # no discriminant
+        ("event.source == 'a'", "transition processed"),  # not its discriminant
+        ("event.state is None", "state entered"),  # `is` only tests for no event
         ("event.state in MUTABLE", "state entered"),  # a list can change in place
         ("event.state == N", "state entered"),
         ("event.state in UNBOUND", "state entered"),  # a global or builtin, not the context
@@ -109,5 +126,8 @@ def test_other_forms_are_left_to_evaluation():
     ]
     for guard, name in undecided:
         assert guard_predicate(guard, name, context) is None, guard
+    # the name of no event: evaluating the guard raises, the predicate says so with None
+    predicate = guard_predicate("event.event.name == 'a'", "transition processed", {})[0]
+    assert predicate(NO_EVENT) is None
     # a context name `event` hides the meta-event from every guard
     assert guard_predicate("event.state == 'a'", "state entered", {"event": 1}) is None
