@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 import yaml
@@ -293,3 +294,56 @@ def test_the_monitor_catches_every_rejected_plan_that_is_executed(data):
                 run.send(event)
             return
         run.send(event)
+
+
+# ------------------------------------------------------------- a rewrite that decides alike
+
+#: stage_outcome as first written (the stage left kept in a context variable set by an action);
+#: the shipped chart has a state per stage instead, so that every guard reads the meta-event only
+ORIGINAL_STAGE_OUTCOME = Path(__file__).parent / "data" / "stage_outcome_original.yaml"
+
+
+def _play(run, script) -> list[bool]:
+    """Feed (delay, event or None) items; after each, whether a bound monitor has failed."""
+    failed, out = False, []
+    for delay, event in script:
+        if not failed:
+            try:
+                run.advance(delay)
+                if event is not None:
+                    run.send(event)
+            except PropertyStatechartError:
+                failed = True
+        out.append(failed)
+    return out
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    data=st.data(),
+    broken=st.sampled_from([None, *sorted(MUTANTS)]),
+    budget=BUDGETS,
+    max_replans=MAX_REPLANS,
+)
+def test_the_rewritten_stage_outcome_decides_like_the_original(data, broken, budget, max_replans):
+    chart = load(CHART) if broken is None else mutant(*MUTANTS[broken][0])
+    context = {"stage_budget": budget, "max_replans": max_replans}
+    # a broken orchestrator's own script first (so its broken path is taken), then what the
+    # orchestrator's current state makes likely
+    script = [(0.0, item) if isinstance(item, str) else (item, None)
+              for item in (MUTANTS[broken][1] if broken is not None else ())]
+    run = start(chart, context=context)
+    run.send_all(BRING_UP)
+    _play(run, script)
+    for _ in range(data.draw(st.integers(min_value=0, max_value=40), label="length")):
+        script.append(data.draw(next_step(current(run)), label="delay, event"))
+        _play(run, script[-1:])
+    verdicts = {}
+    for name, monitor in (
+        ("original", load_statechart(ORIGINAL_STAGE_OUTCOME)),
+        ("shipped", load(monitor_path("stage_outcome"))),
+    ):
+        run = start(chart, context=context, monitors=[monitor], engine=SismicInterpreter)
+        run.send_all(BRING_UP)
+        verdicts[name] = _play(run, script)
+    assert verdicts["shipped"] == verdicts["original"]
