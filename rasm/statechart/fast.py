@@ -714,6 +714,9 @@ class PropertyListener(PropertyStatechartListener):
     #: Called instead of :attr:`before_change` when the listener only moves the property's time
     #: (a skipped meta-event at a new time); the atomic layer then saves just the time.
     before_time_change: Callable[[Interpreter], Any] | None = None
+    #: Called instead of :attr:`before_change` before a remembered effect is replayed (it only
+    #: changes the configuration, entry and idle times and time, see ``_replay``).
+    before_state_change: Callable[[Interpreter], Any] | None = None
 
     def __init__(self, interpreter: Interpreter) -> None:
         super().__init__(interpreter)
@@ -1001,11 +1004,16 @@ class PropertyListener(PropertyStatechartListener):
                     interp._time = now
                 return
         self._settled = False
-        if self.before_change is not None:
-            self.before_change(interp)
+        effect = None
         if selected and self._consume_directly and selected[0].event is not None:
             key, interest = self._selection_key, self._interest
             effect = None if key is None else interest.effects.get(key)
+        hook = self.before_change if effect is None else (
+            self.before_state_change or self.before_change
+        )
+        if hook is not None:
+            hook(interp)
+        if selected and self._consume_directly and selected[0].event is not None:
             if effect is not None:
                 self._replay(interp, effect, now)
             else:

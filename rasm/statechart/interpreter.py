@@ -263,6 +263,8 @@ class AtomicStepMixin:
 
     # id -> (property interpreter, its time) before a skipped meta-event moved its time
     _property_times: dict[int, tuple] | None = None
+    # id -> (property interpreter, configuration, entry and idle times, time) before a replay
+    _property_states: dict[int, tuple] | None = None
 
     def _before_property_change(self, interp: Any) -> None:
         # Called by a bound PropertyListener before it feeds its interpreter a meta-event; most
@@ -273,12 +275,29 @@ class AtomicStepMixin:
 
     def _before_property_time_change(self, interp: Any) -> None:
         # A skipped meta-event only moves the property's time: that is all there is to save
-        # (restored after any full snapshot taken later in the step, which saw the new time).
+        # (restored after any snapshot taken later in the step, which saw the new time).
         times = self._property_times
-        if times is not None and id(interp) not in times and id(interp) not in (
-            self._property_snapshots or ()
+        key = id(interp)
+        # (the three records are made together: none is None when times is not)
+        if (
+            times is not None
+            and key not in times
+            and key not in self._property_states
+            and key not in self._property_snapshots
         ):
-            times[id(interp)] = (interp, interp._time)
+            times[key] = (interp, interp._time)
+
+    def _before_property_state_change(self, interp: Any) -> None:
+        # A replayed effect only exits and enters states (PropertyListener._replay): its
+        # configuration, entry and idle times and time are all there is to save (restored after
+        # a full snapshot taken later in the step, before the time saved alone earlier).
+        states, snapshots = self._property_states, self._property_snapshots
+        key = id(interp)
+        if states is not None and key not in states and key not in snapshots:
+            states[key] = (
+                interp, interp._configuration.copy(), interp._entry_time.copy(),
+                interp._idle_time.copy(), interp._time,
+            )
 
     _listener_split: tuple = ((), [], [])
 
@@ -318,6 +337,7 @@ class AtomicStepMixin:
             self._lazy_snapshot = None
             if properties:
                 self._property_snapshots = {}
+                self._property_states = {}
                 self._property_times = {}
         pending = self._select_event(consume=False) if self._initialized else None
         deferred: list[Any] = []
@@ -337,18 +357,22 @@ class AtomicStepMixin:
                     self._restore(self._lazy_snapshot)
                 (self._initialized, self._time, self._sent_events, self._internal_queue,
                  self._external_queue) = light
+                # newest first: each older record then puts back what it covers
                 for interp, snap in (self._property_snapshots or {}).values():
                     AtomicStepMixin._restore(interp, snap)
+                for interp, conf, entry, idle, before in (self._property_states or {}).values():
+                    interp._configuration, interp._entry_time, interp._idle_time = conf, entry, idle
+                    interp._time = before
                 for interp, before in (self._property_times or {}).values():
                     interp._time = before
             self._lazy_snapshot = ()
-            self._property_snapshots = self._property_times = None
+            self._property_snapshots = self._property_states = self._property_times = None
             # Discard the event that made the step fail, or the next step fails on it again.
             event = self._select_event(consume=True) if consumed else None
             self.last_failure = StepFailure(self.time, event, exc)
             raise
         self._lazy_snapshot = ()
-        self._property_snapshots = self._property_times = None
+        self._property_snapshots = self._property_states = self._property_times = None
         if ordinary:
             self._listeners = listeners
             for meta_event in deferred:
@@ -369,6 +393,8 @@ class AtomicStepMixin:
             listener.before_change = self._before_property_change
         if hasattr(listener, "before_time_change"):
             listener.before_time_change = self._before_property_time_change
+        if hasattr(listener, "before_state_change"):
+            listener.before_state_change = self._before_property_state_change
         return listener
 
 

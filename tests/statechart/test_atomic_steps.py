@@ -222,3 +222,54 @@ def test_a_property_that_records_the_time_then_changes_is_restored_to_before_bot
     assert (watcher.time, watcher.configuration, watcher.context["exits"]) == (
         0, ["root", "watching"], 0
     )
+
+
+STATIC_PROPERTY = """
+statechart:
+  name: sees_a_left
+  root state:
+    name: root
+    initial: watching
+    states:
+      - name: watching
+        transitions:
+          - target: seen
+            event: state exited
+            guard: event.state == 'a'
+      - name: seen
+        transitions:
+          - target: watching
+            event: state entered
+            guard: event.state == 'a'
+"""
+
+
+def test_a_replayed_property_step_is_rolled_back_too():
+    # The property's reaction to leaving `a` has no action: after the first time it is replayed
+    # (its remembered effect applied, a partial snapshot taken). A later `go` that fails after
+    # `a` was exited must bring the property back exactly as it was before that step.
+    interp = Interpreter(chart(), initial_context={"divisor": 1}, clock=SimulatedClock())
+    listener = interp.bind_property_statechart(load_statechart(text=STATIC_PROPERTY))
+    watcher = listener.interpreter
+    interp.execute()
+    for event in ("go", "back"):  # both reactions executed once, and remembered
+        interp.clock.time += 1
+        interp.queue(event)
+        interp.execute()
+    assert any(interest.effects for interest in listener._interests.values())
+
+    def state(p):
+        return p.configuration, dict(p._entry_time), dict(p._idle_time), p.time
+
+    before = state(watcher)
+    interp.context["divisor"] = 0
+    interp.clock.time = 5
+    interp.queue("go")
+    with pytest.raises(CodeEvaluationError):
+        interp.execute()
+    assert state(watcher) == before
+    interp.context["divisor"] = 1  # and the property goes on as stock's would
+    interp.queue("go")
+    interp.execute()
+    assert watcher.configuration == ["root", "seen"]
+    assert watcher._entry_time["seen"] == 5
