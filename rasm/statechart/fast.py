@@ -177,6 +177,7 @@ class FastInterpreter(Interpreter):
         # Set before the stock constructor: it runs the preamble, which may call active().
         self._tables = ft.tables_for(statechart)
         self._conf_version = 0
+        self._step_count = 0  # execute_once calls: PropertyListener.needs checks once per step
         self._conf_cache_key: tuple[Any, int, int] | None = None
         self._conf_cache: list[str] = []
         self._reactive_key: tuple[Any, int, int] | None = None
@@ -263,6 +264,7 @@ class FastInterpreter(Interpreter):
     def execute_once(self) -> MacroStep | None:
         """Stock ``execute_once`` with cheap contract and meta-event bookkeeping."""
         self._time = self.clock.time
+        self._step_count += 1
         self._sent_events.clear()
         fast_events = self._fast_events
         if not fast_events:
@@ -765,6 +767,11 @@ class PropertyListener(PropertyStatechartListener):
             and not interpreter._tables.history_children
         )
         self._selection_key: tuple[str, str] | None = None  # of the last remembered selection
+        # needs(): the interest found valid during step `_checked_step` of the bound interpreter
+        source = self._time_source
+        self._step_source = source if isinstance(source, FastInterpreter) else None
+        self._checked: _Interest | None = None
+        self._checked_step = -1
         # static guards are only as exact as the evaluator is stock
         self._static_guards = (
             self._can_skip
@@ -783,24 +790,31 @@ class PropertyListener(PropertyStatechartListener):
         active state listens to ``name`` with a guard that could hold. ``value`` is the event's
         discriminant (:mod:`rasm.statechart.meta_guards`), None when unknown. True means
         "deliver it" (the delivery then decides exactly, as always)."""
-        if not self._settled or not self._static_guards:
-            return True
-        interp = self._interpreter
-        if (
-            interp._time != self._time_source._time  # type: ignore[union-attr]
-            or interp._listeners
-            or interp._internal_queue
-            or interp._external_queue
-            or not interp._configuration
-        ):
-            return True
-        interest = self._interest
-        if (
-            interp._configuration is not self._interest_conf
-            or interp._conf_version != self._interest_version
-            or (interest.watch and not self._watch_holds(interest))
-        ):
-            interest = self._current_interest()
+        interest = self._checked
+        if interest is None or self._checked_step != self._step_source._step_count:  # type: ignore
+            if not self._settled or not self._static_guards:
+                return True
+            interp = self._interpreter
+            if (
+                interp._time != self._time_source._time  # type: ignore[union-attr]
+                or interp._listeners
+                or interp._internal_queue
+                or interp._external_queue
+                or not interp._configuration
+            ):
+                return True
+            interest = self._interest
+            if (
+                interp._configuration is not self._interest_conf
+                or interp._conf_version != self._interest_version
+                or (interest.watch and not self._watch_holds(interest))
+            ):
+                interest = self._current_interest()
+            if self._step_source is not None:
+                # Until this step of the bound interpreter ends or this listener feeds its
+                # property, nothing checked above can change: only the listener changes the
+                # property while the bound interpreter steps.
+                self._checked, self._checked_step = interest, self._step_source._step_count
         found = interest.listening.get(name)
         if found is None:
             found = interest.listening[name] = self._listening(name)
@@ -990,6 +1004,7 @@ class PropertyListener(PropertyStatechartListener):
 
     def __call__(self, event: MetaEvent) -> None:
         interp = self._interpreter
+        self._checked = None  # whatever happens next may change the property
         selected = None
         if self._settled:  # only ever true when skipping is possible
             # the bound interpreter's time, without SynchronizedClock's two property calls
