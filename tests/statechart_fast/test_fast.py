@@ -280,3 +280,43 @@ def test_the_platform_monitors_watch_the_orchestrator_identically(monitor):
     assert any(interest.selections for interest in interests)
     if monitor.stem != "stage_outcome":  # its stage exits run an action: never replayed
         assert any(interest.effects for interest in interests)
+
+
+WATCHING_NAMES = chart("""
+statechart:
+  name: entries named in NAMES
+  preamble: NAMES = ('b',)
+  root state:
+    name: root
+    initial: idle
+    states:
+    - name: idle
+      transitions:
+      - {target: seen, event: state entered, guard: event.state in NAMES}
+    - name: seen
+      transitions:
+      - {target: idle, event: state entered, guard: event.state not in NAMES}
+""")
+
+
+def _watch_names(klass, rebind: bool) -> list[tuple[str, float]]:
+    interp = klass(CYCLE)
+    watcher = interp.bind_property_statechart(WATCHING_NAMES)._interpreter
+    interp.execute()
+    seen = []
+    for step, names in enumerate([None, None, ("a",), None, ("c",), None, ("b", "c"), None]):
+        if rebind and names is not None:
+            watcher.context["NAMES"] = names
+        interp.clock.time += step % 2
+        interp.queue("n")
+        interp.execute()
+        seen.append((watcher.configuration[-1], watcher.time))
+    return seen
+
+
+def test_a_context_name_rebound_between_steps_is_seen_by_the_next_step():
+    # The listener remembers what guards over NAMES decide, and checks the binding once per step
+    # of the bound interpreter: rebinding NAMES from outside between two steps must count.
+    expected = _watch_names(Interpreter, rebind=True)
+    assert expected != _watch_names(Interpreter, rebind=False)  # the rebinding matters
+    assert _watch_names(FastInterpreter, rebind=True) == expected
