@@ -112,18 +112,19 @@ class FastGuardEvaluator(PythonEvaluator):
 
     def __init__(self, interpreter=None, *, initial_context=None) -> None:
         super().__init__(interpreter, initial_context=initial_context)
-        self._guard_codes: dict[str, tuple[CodeType, int]] = {}  # guard -> (code, names kind)
+        # guard -> (code, names kind, the exposed names it uses)
+        self._guard_codes: dict[str, tuple[CodeType, int, frozenset[str]]] = {}
         # action code -> (compiled, the exposed names it uses)
         self._action_codes: dict[str, tuple[CodeType, frozenset[str]]] = {}
 
-    def _compile_guard(self, guard: str) -> tuple[CodeType, int]:
+    def _compile_guard(self, guard: str) -> tuple[CodeType, int, frozenset[str]]:
         code = self._evaluable_code.get(guard)
         if code is None:
             code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
         names = _names_used(code)
         wanted = _EXPOSED if names & _INTROSPECTION else names & _EXPOSED
         kind = _ALL if wanted - _EVENT_ONLY else _EVENT if wanted else _NOTHING
-        found = self._guard_codes[guard] = (code, kind)
+        found = self._guard_codes[guard] = (code, kind, wanted)
         return found
 
     def evaluate_guard(self, transition, event=None) -> bool:
@@ -131,23 +132,27 @@ class FastGuardEvaluator(PythonEvaluator):
         if guard is None:
             return True
         found = self._guard_codes.get(guard)
-        code, kind = self._compile_guard(guard) if found is None else found
+        code, kind, wanted = self._compile_guard(guard) if found is None else found
         if kind == _EVENT:  # the usual guard of a property statechart
             exposed: dict[str, Any] = {"event": event}
         elif kind == _NOTHING:
             exposed = {}
-        else:
+        else:  # what it uses of active, time, after, idle, event (a timer: `after` alone)
             interp = self._interpreter
             source = transition.source
             now = interp.time
             deadlines = self.deadlines
-            exposed = {
-                "active": lambda s: s in interp.configuration,
-                "time": now,
-                "after": lambda s: _waited(interp._entry_time[source], now, s, deadlines),
-                "idle": lambda s: _waited(interp._idle_time[source], now, s, deadlines),
-                "event": event,
-            }
+            exposed = {}
+            if "active" in wanted:
+                exposed["active"] = lambda s: s in interp.configuration
+            if "time" in wanted:
+                exposed["time"] = now
+            if "after" in wanted:
+                exposed["after"] = lambda s: _waited(interp._entry_time[source], now, s, deadlines)
+            if "idle" in wanted:
+                exposed["idle"] = lambda s: _waited(interp._idle_time[source], now, s, deadlines)
+            if "event" in wanted:
+                exposed["event"] = event
         try:
             return bool(eval(code, exposed, self._context))
         except Exception as e:
