@@ -299,7 +299,8 @@ class FastInterpreter(Interpreter):
         else:
             macro_step = None
 
-        self._check_invariants(macro_step)
+        if self._contracts_possible and not self._ignore_contract:
+            self._check_invariants(macro_step)
 
         if not fast_events:
             self._raise_event(_Meta("step ended"))
@@ -611,14 +612,15 @@ class FastInterpreter(Interpreter):
                 self._evaluate_contract_conditions(transition, "postconditions", step)
                 self._evaluate_contract_conditions(transition, "invariants", step)
             self._idle_time[transition.source] = now
-            data = {"source": transition.source, "target": transition.target, "event": step.event}
-            if not fast_events:
-                self._raise_event(_Meta("transition processed", **data))
-            elif self._listeners:
+            if not fast_events or self._listeners:
                 inner = step.event
-                self._announce(
-                    "transition processed", NO_EVENT if inner is None else _name_of(inner), data
-                )
+                data = {"source": transition.source, "target": transition.target, "event": inner}
+                if not fast_events:
+                    self._raise_event(_Meta("transition processed", **data))
+                else:
+                    self._announce(
+                        "transition processed", NO_EVENT if inner is None else _name_of(inner), data
+                    )
 
         for state in entered_states:
             name = state.name

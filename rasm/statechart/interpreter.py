@@ -263,43 +263,36 @@ class AtomicStepMixin:
         return super()._apply_step(step)
 
     _lazy_snapshot: tuple | None = ()  # () = not in a lazily snapshotted step
-    # id -> (property interpreter, its snapshot) taken before its first change in this step
-    _property_snapshots: dict[int, tuple] | None = None
-
-    # id -> (property interpreter, its time) before a skipped meta-event moved its time
-    _property_times: dict[int, tuple] | None = None
-    # id -> (property interpreter, configuration, entry and idle times, time) before a replay
-    _property_states: dict[int, tuple] | None = None
+    # What bound property interpreters looked like before their first change in this step, by
+    # id: (full snapshots, states before a replay, times before a skipped meta-event); each
+    # property is in at most one of them, the broadest taken. One attribute, set only in steps of
+    # an interpreter with property listeners: every attribute an instance gains after __init__
+    # slows down all of its attribute reads.
+    _property_records: tuple[dict, dict, dict] | None = None
 
     def _before_property_change(self, interp: Any) -> None:
         # Called by a bound PropertyListener before it feeds its interpreter a meta-event; most
         # meta-events are skipped, so most steps snapshot no property at all.
-        snapshots = self._property_snapshots
-        if snapshots is not None and id(interp) not in snapshots:
-            snapshots[id(interp)] = (interp, AtomicStepMixin._snapshot(interp))
+        records = self._property_records
+        if records is not None and id(interp) not in records[0]:
+            records[0][id(interp)] = (interp, AtomicStepMixin._snapshot(interp))
 
     def _before_property_time_change(self, interp: Any) -> None:
         # A skipped meta-event only moves the property's time: that is all there is to save
-        # (restored after any snapshot taken later in the step, which saw the new time).
-        times = self._property_times
+        # (restored after any record taken later in the step, which saw the new time).
+        records = self._property_records
         key = id(interp)
-        # (the three records are made together: none is None when times is not)
-        if (
-            times is not None
-            and key not in times
-            and key not in self._property_states
-            and key not in self._property_snapshots
-        ):
-            times[key] = (interp, interp._time)
+        if records is not None and all(key not in found for found in records):
+            records[2][key] = (interp, interp._time)
 
     def _before_property_state_change(self, interp: Any) -> None:
         # A replayed effect only exits and enters states (PropertyListener._replay): its
         # configuration, entry and idle times and time are all there is to save (restored after
         # a full snapshot taken later in the step, before the time saved alone earlier).
-        states, snapshots = self._property_states, self._property_snapshots
+        records = self._property_records
         key = id(interp)
-        if states is not None and key not in states and key not in snapshots:
-            states[key] = (
+        if records is not None and key not in records[0] and key not in records[1]:
+            records[1][key] = (
                 interp, interp._configuration.copy(), interp._entry_time.copy(),
                 interp._idle_time.copy(), interp._time,
             )
@@ -341,9 +334,7 @@ class AtomicStepMixin:
                      self._internal_queue.copy(), self._external_queue.copy())
             self._lazy_snapshot = None
             if properties:
-                self._property_snapshots = {}
-                self._property_states = {}
-                self._property_times = {}
+                self._property_records = ({}, {}, {})
         pending = self._select_event(consume=False) if self._initialized else None
         deferred: list[Any] = []
         if ordinary:
@@ -363,21 +354,24 @@ class AtomicStepMixin:
                 (self._initialized, self._time, self._sent_events, self._internal_queue,
                  self._external_queue) = light
                 # newest first: each older record then puts back what it covers
-                for interp, snap in (self._property_snapshots or {}).values():
+                snapshots, states, times = self._property_records or ({}, {}, {})
+                for interp, snap in snapshots.values():
                     AtomicStepMixin._restore(interp, snap)
-                for interp, conf, entry, idle, before in (self._property_states or {}).values():
+                for interp, conf, entry, idle, before in states.values():
                     interp._configuration, interp._entry_time, interp._idle_time = conf, entry, idle
                     interp._time = before
-                for interp, before in (self._property_times or {}).values():
+                for interp, before in times.values():
                     interp._time = before
             self._lazy_snapshot = ()
-            self._property_snapshots = self._property_states = self._property_times = None
+            if self._property_records is not None:
+                self._property_records = None
             # Discard the event that made the step fail, or the next step fails on it again.
             event = self._select_event(consume=True) if consumed else None
             self.last_failure = StepFailure(self.time, event, exc)
             raise
         self._lazy_snapshot = ()
-        self._property_snapshots = self._property_states = self._property_times = None
+        if self._property_records is not None:
+            self._property_records = None
         if ordinary:
             self._listeners = listeners
             for meta_event in deferred:
