@@ -39,8 +39,9 @@ class Sample(NamedTuple):
 
 
 _new_tuple = tuple.__new__
-# per declared type, the class a value needs to skip its check in _Series.add (json: never)
-_EXACT: dict[str, type] = {"float": float, "int": int, "bool": bool, "str": str}
+#: per declared type, the class a value must have exactly to be taken without its full check
+#: (by _Series.add here, by the Telegraf's digest); json values always get the full check
+EXACT_CLASS: dict[str, type] = {"float": float, "int": int, "bool": bool, "str": str}
 
 Callback = Callable[[str, Sample], object]
 """Called as ``callback(key, sample)`` after each registration."""
@@ -72,7 +73,7 @@ class _Series:
         self.check: Check = make_check(decl)
         # what add() accepts without calling check, which returns such a value unchanged: the
         # declared class exactly and, for numbers, within the bounds (None: no range test)
-        self.exact = _EXACT.get(decl.type)
+        self.exact = EXACT_CLASS.get(decl.type)
         self.low = self.high = None
         if decl.type in ("float", "int"):
             self.low = -_INF if decl.minimum is None else decl.minimum

@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from rasm.errors import PlatformError
-from rasm.knowledge.base import register_each
+from rasm.knowledge.base import EXACT_CLASS, register_each
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import Effector, Probe, Signal
@@ -364,9 +364,6 @@ class Telegraf(Block):
         return values
 
 
-# the class a value of each signal type must have to skip the full check (an int for a float
-# signal is converted by the full path; json values are not checked: they always take it)
-_EXACT: dict[str, type | None] = {"float": float, "int": int, "bool": bool, "str": str}
 # the range of an int without declared bounds in the fast test; larger ones take the full check
 _INT_RANGE = 1 << 1000
 
@@ -379,7 +376,8 @@ def _plan(signals: dict[str, Signal]) -> tuple[tuple[str, Signal, Any, Any, Any]
     """
     plan = []
     for key, signal in signals.items():
-        exact = _EXACT.get(signal.type)
+        # an int for a float signal is converted by the full check: only exact classes skip it
+        exact = EXACT_CLASS.get(signal.type)
         low = high = None
         if signal.type in ("float", "int"):
             unbounded = math.inf if signal.type == "float" else _INT_RANGE

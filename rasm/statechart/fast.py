@@ -805,13 +805,7 @@ class PropertyListener(PropertyStatechartListener):
                 or not interp._configuration
             ):
                 return True
-            interest = self._interest
-            if (
-                interp._configuration is not self._interest_conf
-                or interp._conf_version != self._interest_version
-                or (interest.watch and not self._watch_holds(interest))
-            ):
-                interest = self._current_interest()
+            interest = self._current_interest()
             if self._step_source is not None:
                 # Until this step of the bound interpreter ends or this listener feeds its
                 # property, nothing checked above can change: only the listener changes the

@@ -42,21 +42,10 @@ _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
 _IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
 
 
-# tuples found to hold only immutable values, by id (holding them, so an id is not reused while
-# it is here); contexts keep such constants for their whole life, e.g. a property's stage names
-_IMMUTABLE_TUPLES: dict[int, tuple] = {}
-
-
 def _copy_value(value: Any) -> Any:
     if isinstance(value, _IMMUTABLE):
         return value
-    if type(value) is tuple and _IMMUTABLE_TUPLES.get(id(value)) is value:
-        return value
     if isinstance(value, tuple) and all(isinstance(v, _IMMUTABLE) for v in value):
-        if type(value) is tuple:
-            if len(_IMMUTABLE_TUPLES) >= 1024:  # tuples made afresh at each step: start over
-                _IMMUTABLE_TUPLES.clear()
-            _IMMUTABLE_TUPLES[id(value)] = value
         return value
     try:
         return copy.deepcopy(value)
