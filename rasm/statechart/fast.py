@@ -263,14 +263,16 @@ class FastInterpreter(Interpreter):
 
     def execute_once(self) -> MacroStep | None:
         """Stock ``execute_once`` with cheap contract and meta-event bookkeeping."""
-        self._time = self.clock.time
+        self._time = now = self.clock.time
         self._step_count += 1
         self._sent_events.clear()
+        if self._idle_step_possible and self._idle_now(now):
+            return None
         fast_events = self._fast_events
         if not fast_events:
-            self._raise_event(_Meta("step started", time=self.time))
+            self._raise_event(_Meta("step started", time=self._time))
         elif self._listeners:
-            self._announce("step started", None, {"time": self.time})
+            self._announce("step started", None, {"time": self._time})
 
         computed_steps = self._compute_steps()
 
@@ -295,7 +297,7 @@ class FastInterpreter(Interpreter):
             for step in computed_steps:
                 executed_steps.append(self._apply_step(step))
                 executed_steps.extend(self._stabilize())
-            macro_step: MacroStep | None = MacroStep(time=self.time, steps=executed_steps)
+            macro_step: MacroStep | None = MacroStep(time=self._time, steps=executed_steps)
         else:
             macro_step = None
 
@@ -307,6 +309,28 @@ class FastInterpreter(Interpreter):
         elif self._listeners:
             self._announce("step ended", None, {})
         return macro_step
+
+    # Whether this class selects steps as FastInterpreter does (set per subclass), so that
+    # _idle_now may answer for _compute_steps.
+    _idle_step_possible = True
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._idle_step_possible = all(
+            getattr(cls, name) is getattr(FastInterpreter, name)
+            for name in ("_compute_steps", "_select_event", "_select_transitions")
+        )
+
+    def _idle_now(self, now: float) -> bool:
+        """True when a step at ``now`` has nothing to do and nobody to tell: no listener, no
+        event due, no eventless transition, no invariant to check. Stock then finds no step,
+        checks no contract and raises meta-events nobody hears: the step returns None."""
+        if self._listeners or not self._initialized or not self._tables.event_driven:
+            return False
+        if self._contracts_possible and not self._ignore_contract:
+            return False
+        internal, external = self._internal_queue, self._external_queue
+        return not (internal and internal[0][0] <= now) and not (external and external[0][0] <= now)
 
     def _check_invariants(self, macro_step: MacroStep | None) -> None:
         if self._contracts_possible and not self._ignore_contract:
@@ -342,7 +366,7 @@ class FastInterpreter(Interpreter):
         for step in steps:
             executed_steps.append(self._apply_step(step))
             executed_steps.extend(self._stabilize())
-        macro_step = MacroStep(time=self.time, steps=executed_steps)
+        macro_step = MacroStep(time=self._time, steps=executed_steps)
         self._check_invariants(macro_step)
         return macro_step
 
@@ -368,11 +392,20 @@ class FastInterpreter(Interpreter):
 
     # ---- events ---------------------------------------------------------------------------
 
+    def queue(self, event_or_name: str | Event, *event_or_names: str | Event, **parameters: Any):
+        """Stock ``queue``; one event by name or instance goes straight to the queue."""
+        if event_or_names:
+            return super().queue(event_or_name, *event_or_names, **parameters)
+        if isinstance(event_or_name, str):
+            event_or_name = Event(event_or_name, **parameters)
+        self._queue_event(event_or_name)
+        return self
+
     def _queue_event(self, event: Event) -> None:
         """Stock queueing; appends directly when the event goes last (the usual case)."""
         internal = isinstance(event, InternalEvent)
         queue: list = self._internal_queue if internal else self._external_queue
-        time = self.time + _delay(event)
+        time = self._time + _delay(event)
         if queue:
             last_time, last_event = queue[-1]
             # bisect_right on (time, not internal): equal keys go after, hence <=.
@@ -416,7 +449,7 @@ class FastInterpreter(Interpreter):
 
     def _select_event(self, *, consume: bool = False) -> Event | None:
         """Next event to process: internal queue first, then external (as stock)."""
-        now = self.time
+        now = self._time
         for queue in (self._internal_queue, self._external_queue):
             if queue:
                 time, event = queue[0]
@@ -573,7 +606,7 @@ class FastInterpreter(Interpreter):
         check = self._contracts_possible and not self._ignore_contract
         fast_events = self._fast_events
         skip_noop = self._skip_noop_actions
-        now = self.time
+        now = self._time
         sent_events: list[Event] = []
 
         for state in exited_states:

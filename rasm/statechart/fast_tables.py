@@ -175,6 +175,11 @@ class ChartTables:
                 if isinstance(obj, StateMixin):
                     self.invariant_states.add(obj.name)
         self.has_contracts = bool(self.needs_pre)
+        # whether any state or transition has code a step runs (the preamble runs once)
+        self.has_code = any(
+            getattr(state, "on_entry", None) or getattr(state, "on_exit", None)
+            for state in self.state.values()
+        ) or any(t.action for t in self.statechart.transitions)
 
     # ---- transitions ----------------------------------------------------------------------
 
@@ -206,6 +211,8 @@ class ChartTables:
                 classes = tuple(tuple(groups[p]) for p in order)
                 entries.append((source, frozenset(self.ancestors[source]), classes))
             self.selection[event] = tuple(entries)
+        # Whether a step without a due event can only move the time (no eventless transition)
+        self.event_driven = self.selection_ok and None not in self.selection
         # Event names some transition of a given state listens to.
         self.events_from: dict[str, frozenset[str]] = {}
         for name in self.state:

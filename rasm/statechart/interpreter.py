@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from types import CodeType
 from typing import Any
 
-from sismic.code import PythonEvaluator
+from sismic.code import Evaluator, PythonEvaluator
 from sismic.exceptions import CodeEvaluationError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
@@ -51,6 +51,17 @@ def _copy_value(value: Any) -> Any:
         return copy.deepcopy(value)
     except Exception:  # modules, locks, …: cannot be copied; rebinding is still restored
         return value
+
+
+def _consumed_event(light: tuple, internal: list, external: list) -> tuple[list, int] | None:
+    """Where the event a failed step consumed sits in the queues saved before it (``light``):
+    a step consumes at most one event, the head of one queue, and otherwise only adds events."""
+    for before, after in ((light[3], internal), (light[4], external)):
+        if before:
+            head = before[0][1]
+            if not any(event is head for _, event in after):
+                return before, 0
+    return None
 
 
 @dataclass(frozen=True)
@@ -217,38 +228,64 @@ class AtomicStepMixin:
     def _snapshot(self, with_properties: bool = True) -> tuple:
         # Spelled out attribute by attribute: this runs before every step (the hot path).
         state = (
-            self._initialized, self._time, self._memory.copy(), self._configuration.copy(),
-            self._entry_time.copy(), self._idle_time.copy(), self._sent_events.copy(),
+            self._initialized, self._time, self._sent_events.copy(),
             self._internal_queue.copy(), self._external_queue.copy(),
         )
-        evaluator = self._evaluator
-        context = evaluator._context.copy()
-        for key, value in context.items():
-            if type(value) not in _IMMUTABLE_TYPES:
-                context[key] = _copy_value(value)
-        memory = dict(getattr(evaluator, "_memory", {}))
         props = (
             tuple((p, AtomicStepMixin._snapshot(p)) for p in self._property_interpreters())
             if with_properties and self._listeners else ()
         )
-        return state, context, memory, props
+        return state, AtomicStepMixin._state_snapshot(self), props
+
+    def _state_snapshot(self) -> tuple:
+        """What a micro step may change besides the time and the queues (which execute_once
+        saves before the step starts): configuration, entry and idle times, and where the chart
+        can change them (None where it cannot), history memory, context and contract memory.
+        Also used on bound property interpreters, which may be stock sismic's."""
+        evaluator = self._evaluator
+        try:
+            tables = self._tables
+            fast = True
+        except AttributeError:  # a stock interpreter (a bound property): anything may change
+            tables, fast = None, False
+        context = None
+        if not fast or tables.has_code or not self._skip_noop_actions or (
+            type(evaluator).execute_action is not Evaluator.execute_action
+        ):
+            context = evaluator._context.copy()
+            for key, value in context.items():
+                if type(value) not in _IMMUTABLE_TYPES:
+                    context[key] = _copy_value(value)
+        return (
+            self._memory.copy() if not fast or tables.history_children else None,
+            self._configuration.copy(), self._entry_time.copy(), self._idle_time.copy(), context,
+            dict(getattr(evaluator, "_memory", {}))
+            if not fast or self._contracts_possible else None,
+        )
 
     def _restore(self, snapshot: tuple) -> None:
-        state, context, memory, props = snapshot
-        (self._initialized, self._time, self._memory, self._configuration, self._entry_time,
-         self._idle_time, self._sent_events, self._internal_queue, self._external_queue) = state
-        self._evaluator._context.clear()
-        self._evaluator._context.update(context)
-        if hasattr(self._evaluator, "_memory"):
-            self._evaluator._memory = memory
+        state, inner, props = snapshot
+        (self._initialized, self._time, self._sent_events, self._internal_queue,
+         self._external_queue) = state
+        AtomicStepMixin._restore_state(self, inner)
         for interp, snap in props:
             AtomicStepMixin._restore(interp, snap)
+
+    def _restore_state(self, inner: tuple) -> None:
+        memory, self._configuration, self._entry_time, self._idle_time, context, evaluated = inner
+        if memory is not None:
+            self._memory = memory
+        if context is not None:
+            self._evaluator._context.clear()
+            self._evaluator._context.update(context)
+        if evaluated is not None and hasattr(self._evaluator, "_memory"):
+            self._evaluator._memory = evaluated
 
     def _apply_step(self, step):
         # This interpreter's full snapshot is taken here, before the step's first change: most
         # steps find nothing to do and never get this far.
         if self._lazy_snapshot is None:
-            self._lazy_snapshot = self._snapshot(with_properties=False)
+            self._lazy_snapshot = self._state_snapshot()
         return super()._apply_step(step)
 
     _lazy_snapshot: tuple | None = ()  # () = not in a lazily snapshotted step
@@ -313,18 +350,18 @@ class AtomicStepMixin:
             properties, ordinary, eager = self._split_listeners(listeners)
         else:
             properties = ordinary = ()
+        # Before the first micro step only these change (guards are side-effect free): the
+        # time, the sent events, and the queues by at most the one event the step consumes. The
+        # rest is saved in _apply_step, bound properties in _before_property_change.
+        light = (self._initialized, self._time, self._sent_events.copy(),
+                 self._internal_queue.copy(), self._external_queue.copy())
         if eager:
-            snapshot = self._snapshot()
+            inner = self._state_snapshot()
+            saved = tuple((p, AtomicStepMixin._snapshot(p)) for p in self._property_interpreters())
         else:
-            # Before the first micro step only these change (guards are side-effect free); the
-            # rest is saved in _apply_step, bound properties in _before_property_change.
-            snapshot = None
-            light = (self._initialized, self._time, self._sent_events.copy(),
-                     self._internal_queue.copy(), self._external_queue.copy())
             self._lazy_snapshot = None
             if properties:
                 self._property_records = ({}, {}, {})
-        pending = self._select_event(consume=False) if self._initialized else None
         deferred: list[Any] = []
         if ordinary:
             # Hold meta-events for ordinary listeners until the step has succeeded.
@@ -333,15 +370,14 @@ class AtomicStepMixin:
             step = super().execute_once()
         except Exception as exc:
             self._listeners = listeners
-            queued = self._internal_queue + self._external_queue
-            consumed = pending is not None and not any(ev is pending for _, ev in queued)
-            if snapshot is not None:
-                self._restore(snapshot)
+            consumed = _consumed_event(light, self._internal_queue, self._external_queue)
+            if eager:
+                AtomicStepMixin._restore_state(self, inner)
+                for interp, snap in saved:
+                    AtomicStepMixin._restore(interp, snap)
             else:
                 if self._lazy_snapshot:
-                    self._restore(self._lazy_snapshot)
-                (self._initialized, self._time, self._sent_events, self._internal_queue,
-                 self._external_queue) = light
+                    self._restore_state(self._lazy_snapshot)
                 # newest first: each older record then puts back what it covers
                 snapshots, states, times = self._property_records or ({}, {}, {})
                 for interp, snap in snapshots.values():
@@ -351,11 +387,17 @@ class AtomicStepMixin:
                     interp._time = before
                 for interp, before in times.values():
                     interp._time = before
+            (self._initialized, self._time, self._sent_events, self._internal_queue,
+             self._external_queue) = light
             self._lazy_snapshot = ()
             if self._property_records is not None:
                 self._property_records = None
             # Discard the event that made the step fail, or the next step fails on it again.
-            event = self._select_event(consume=True) if consumed else None
+            if consumed is not None:
+                queue, index = consumed
+                event = queue.pop(index)[1]
+            else:
+                event = None
             self.last_failure = StepFailure(self.time, event, exc)
             raise
         self._lazy_snapshot = ()

@@ -259,3 +259,34 @@ def test_a_replayed_property_step_is_rolled_back_too():
     interp.execute()
     assert watcher.configuration == ["root", "seen"]
     assert watcher._entry_time["seen"] == 5
+
+
+DELAYED = """
+statechart:
+  name: delayed_failure
+  root state:
+    name: root
+    initial: a
+    states:
+      - name: a
+        on entry: send('later', delay=5)
+        transitions:
+          - target: b
+            event: later
+            action: x = 1 / 0
+      - name: b
+"""
+
+
+def test_a_delayed_event_that_fails_its_step_is_discarded():
+    # the event is due only at the step's new time, not at the time before it
+    clock = SimulatedClock()
+    interp = Interpreter(load_statechart(text=DELAYED), clock=clock)
+    interp.execute()
+    clock.time = 5
+    with pytest.raises(CodeEvaluationError):
+        interp.execute_once()
+    assert interp.last_failure.event.name == "later"
+    assert interp.configuration == ["root", "a"]
+    assert interp._internal_queue == []
+    assert interp.execute_once() is None  # nothing left to fail on
