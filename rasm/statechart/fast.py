@@ -688,9 +688,10 @@ class _Interest:
     meta-events it could react to, the guard predicates, the selections they make, and the
     context names (and the objects they were bound to) all of that read."""
 
-    __slots__ = ("effects", "listening", "predicates", "selections", "watch")
+    __slots__ = ("effects", "eventless", "listening", "predicates", "selections", "watch")
 
-    def __init__(self) -> None:
+    def __init__(self, eventless: bool = False) -> None:
+        self.eventless = eventless  # whether an active state has an eventless transition
         self.effects: dict[tuple[str, str], tuple] = {}
         self.listening: dict[str, bool | dict[Any, bool]] = {}
         self.predicates: dict[str, list[tuple[Transition, Any]]] = {}
@@ -821,24 +822,34 @@ class PropertyListener(PropertyStatechartListener):
 
     def needs(self, name: str, value: Any) -> bool:
         """False when delivering the meta-event ``name`` now would change nothing: the property
-        is settled, already at the current time, with nothing queued, and no transition of an
-        active state listens to ``name`` with a guard that could hold. ``value`` is the event's
-        discriminant (:mod:`rasm.statechart.meta_guards`), None when unknown. True means
-        "deliver it" (the delivery then decides exactly, as always)."""
+        is settled, with nothing queued, no transition of an active state listens to ``name``
+        with a guard that could hold, and the time moved (if it did) with no time-triggered
+        transition active, in which case the property's time is moved here, as the delivery
+        would. ``value`` is the event's discriminant (:mod:`rasm.statechart.meta_guards`), None
+        when unknown. True means "deliver it" (the delivery then decides exactly, as always)."""
         interest = self._checked
         if interest is None or self._checked_step != self._step_source._step_count:  # type: ignore
             if not self._settled or not self._static_guards:
                 return True
             interp = self._interpreter
             if (
-                interp._time != self._time_source._time  # type: ignore[union-attr]
-                or interp._listeners
+                interp._listeners
                 or interp._internal_queue
                 or interp._external_queue
                 or not interp._configuration
             ):
                 return True
             interest = self._current_interest()
+            now = self._time_source._time  # type: ignore[union-attr]
+            if interp._time != now:
+                if interest.eventless:
+                    return True  # the execution evaluates time-triggered transitions anew
+                # Any meta-event's execution would record the new time and nothing else: that is
+                # done here, once, rather than by delivering the first one.
+                hook = self.before_time_change or self.before_change
+                if hook is not None:
+                    hook(interp)
+                interp._time = now
             if self._step_source is not None:
                 # Until this step of the bound interpreter ends or this listener feeds its
                 # property, nothing checked above can change: only the listener changes the
@@ -868,7 +879,9 @@ class PropertyListener(PropertyStatechartListener):
             key = frozenset(conf)
             interest = self._interests.get(key)
             if interest is None:
-                interest = self._interests[key] = _Interest()
+                interest = self._interests[key] = _Interest(
+                    not self._eventless_sources.isdisjoint(key)
+                )
             self._interest = interest
         return interest
 
