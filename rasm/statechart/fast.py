@@ -441,7 +441,12 @@ class FastInterpreter(Interpreter):
         passed over (delivering would be a no-op)."""
         meta = None
         for listener in self._listeners:
-            if type(listener) is PropertyListener and not listener.needs(name, value):
+            if type(listener) is PropertyListener:
+                if not listener.needs(name, value):
+                    continue
+                if meta is None:
+                    meta = _Meta(name, **data)
+                listener.deliver(meta, value)
                 continue
             if meta is None:
                 meta = _Meta(name, **data)
@@ -1043,6 +1048,30 @@ class PropertyListener(PropertyStatechartListener):
             or interp._sent_events
             or not self._eventless_sources.isdisjoint(interp._configuration)
         )
+
+    def deliver(self, event: MetaEvent, value: Any) -> None:
+        """Deliver ``event`` (discriminant ``value``), which :meth:`needs` has just let through
+        in this step: when what its execution does is remembered for the active states (see
+        ``_effect_of``), it is replayed at once. What :meth:`needs` checked before remembering
+        its answer for the step (settled, nothing queued, same time, decided guards) is what
+        ``__call__`` would check again; the rest is ``__call__``."""
+        interest = self._checked
+        if (
+            interest is not None
+            and not interest.eventless
+            and self._checked_step == self._step_source._step_count  # type: ignore[union-attr]
+            and "delay" not in event.data
+        ):
+            effect = interest.effects.get((event.name, value))
+            if effect is not None:
+                interp = self._interpreter
+                self._checked = None  # the property changes
+                hook = self.before_state_change or self.before_change
+                if hook is not None:
+                    hook(interp)
+                self._replay(interp, effect, self._time_source._time)  # type: ignore[union-attr]
+                return
+        self(event)
 
     def __call__(self, event: MetaEvent) -> None:
         interp = self._interpreter

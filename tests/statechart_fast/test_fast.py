@@ -281,6 +281,36 @@ def test_the_platform_monitors_watch_the_orchestrator_identically(monitor):
     assert any(interest.effects for interest in interests)
 
 
+
+def test_deliveries_carry_their_meta_events_discriminant(monkeypatch):
+    # deliver() replays a remembered effect keyed by the discriminant _announce passes along:
+    # it must be the one guards read off the meta-event itself, for every kind announced.
+    from rasm.statechart.fast import _discriminant
+
+    seen: list[tuple[str, bool]] = []
+    deliver = PropertyListener.deliver
+
+    def checked(self, event, value):
+        assert value == _discriminant(event), event
+        before = self._interpreter._step_count
+        deliver(self, event, value)
+        seen.append((event.name, self._interpreter._step_count == before))
+
+    monkeypatch.setattr(PropertyListener, "deliver", checked)
+    orchestrator = import_from_yaml(filepath=str(CHARTS / "adaptation_orchestrator.yaml"))
+    interp = FastInterpreter(orchestrator)
+    for monitor in sorted(MONITORS.glob("*.yaml")):
+        interp.bind_property_statechart(import_from_yaml(filepath=str(monitor)))
+    for name in SETUP + LOOP * 3:
+        interp.clock.time += 0.1
+        interp.queue(name)
+        interp.execute()
+    names = {name for name, _ in seen}
+    assert {"state entered", "state exited", "event consumed", "transition processed"} <= names
+    assert any(replayed for _, replayed in seen)  # effects replayed without executing
+    assert not all(replayed for _, replayed in seen)  # and first learnt by executing
+
+
 WATCHING_NAMES = chart("""
 statechart:
   name: entries named in NAMES
