@@ -871,23 +871,26 @@ class PropertyListener(PropertyStatechartListener):
         return decided
 
     def _current_interest(self) -> _Interest:
-        """What is known about the active configuration (the interpreter's, non-empty)."""
+        """What is known about the active configuration (the interpreter's, non-empty), valid
+        for the context names it read as they are bound now."""
         interp = self._interpreter
         conf = interp._configuration
         interest = self._interest
         if (
-            conf is not self._interest_conf
-            or interp._conf_version != self._interest_version
-            or not self._watch_holds(interest)
+            conf is self._interest_conf
+            and interp._conf_version == self._interest_version
+            and self._watch_holds(interest)
         ):
-            self._interest_conf, self._interest_version = conf, interp._conf_version
-            key = frozenset(conf)
-            interest = self._interests.get(key)
-            if interest is None:
-                interest = self._interests[key] = _Interest(
-                    not self._eventless_sources.isdisjoint(key)
-                )
-            self._interest = interest
+            return interest
+        key = frozenset(conf)
+        interest = self._interests.get(key)
+        # what was found for these states may read names rebound since (by the property's own
+        # actions, or from outside): then nothing remembered is trusted
+        if interest is None or not self._watch_holds(interest):
+            interest = self._interests[key] = _Interest(not self._eventless_sources.isdisjoint(key))
+        self._interest, self._interest_conf, self._interest_version = (
+            interest, conf, interp._conf_version
+        )
         return interest
 
     def _watch_holds(self, interest: _Interest) -> bool:

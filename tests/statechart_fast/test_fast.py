@@ -349,3 +349,48 @@ def test_a_context_name_rebound_between_steps_is_seen_by_the_next_step():
     expected = _watch_names(Interpreter, rebind=True)
     assert expected != _watch_names(Interpreter, rebind=False)  # the rebinding matters
     assert _watch_names(FastInterpreter, rebind=True) == expected
+
+
+NESTED = chart("""
+statechart:
+  name: nested cycle
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      initial: a1
+      transitions: [{target: b, event: n}]
+      states: [{name: a1}]
+    - name: b
+      initial: b1
+      transitions: [{target: a, event: n}]
+      states: [{name: b1}]
+""")
+
+REBINDING_ITSELF = chart("""
+statechart:
+  name: a property that rebinds the names its guard reads
+  preamble: NAMES = ('b1',)
+  root state:
+    name: root
+    initial: watching
+    states:
+    - name: watching
+      transitions:
+      - {target: hit, event: state entered, guard: event.state in NAMES}
+    - name: hit
+      transitions:
+      - target: watching
+        event: state entered
+        guard: event.state == 'a'
+        action: NAMES = ('a1',)
+""")
+
+
+def test_a_property_that_rebinds_a_watched_name_is_seen_within_the_same_step():
+    # Back in `watching` after rebinding NAMES, the entry of a1 in the same step must be decided
+    # with the new NAMES, not with what was remembered about `watching` before.
+    script = [(0.1, "n", {}) for _ in range(4)]
+    expected = harness.run(Interpreter, NESTED, script, prop=REBINDING_ITSELF)
+    assert harness.run(FastInterpreter, NESTED, script, prop=REBINDING_ITSELF) == expected
