@@ -693,7 +693,9 @@ class _Interest:
     meta-events it could react to, the guard predicates, the selections they make, and the
     context names (and the objects they were bound to) all of that read."""
 
-    __slots__ = ("effects", "eventless", "listening", "predicates", "selections", "watch")
+    __slots__ = (
+        "effects", "eventless", "listening", "predicates", "selections", "targets", "watch"
+    )
 
     def __init__(self, eventless: bool = False) -> None:
         self.eventless = eventless  # whether an active state has an eventless transition
@@ -701,6 +703,8 @@ class _Interest:
         self.listening: dict[str, bool | dict[Any, bool]] = {}
         self.predicates: dict[str, list[tuple[Transition, Any]]] = {}
         self.selections: dict[tuple[str, str], tuple[Transition, ...]] = {}
+        # per remembered effect, the interest of the states it leads to
+        self.targets: dict[tuple[str, str], _Interest] = {}
         self.watch: dict[str, Any] = {}
 
 
@@ -1065,14 +1069,23 @@ class PropertyListener(PropertyStatechartListener):
             and self._checked_step == self._step_source._step_count  # type: ignore[union-attr]
             and "delay" not in event.data
         ):
-            effect = interest.effects.get((event.name, value))
+            key = (event.name, value)
+            effect = interest.effects.get(key)
             if effect is not None:
                 interp = self._interpreter
-                self._checked = None  # the property changes
                 hook = self.before_state_change or self.before_change
                 if hook is not None:
                     hook(interp)
                 self._replay(interp, effect, self._time_source._time)  # type: ignore[union-attr]
+                # needs() would find the same as before the replay, for the states it led to
+                target = interest.targets.get(key)
+                if target is not None and self._watch_holds(target):
+                    self._interest, self._interest_conf, self._interest_version = (
+                        target, interp._configuration, interp._conf_version
+                    )
+                else:
+                    target = interest.targets[key] = self._current_interest()
+                self._checked = target
                 return
         self(event)
 
