@@ -830,13 +830,15 @@ class PropertyListener(PropertyStatechartListener):
         return self._interpreter
 
     def needs(self, name: str, value: Any) -> bool:
-        """False when delivering the meta-event ``name`` now would change nothing: the property
-        is settled, with nothing queued, no transition of an active state listens to ``name``
-        with a guard that could hold, and the time moved (if it did) with no time-triggered
-        transition active, in which case the property's time is moved here, as the delivery
+        """False when delivering the meta-event ``name`` now would change nothing but the
+        property's time: the property is settled, with nothing queued, no time-triggered
+        transition active if the time moved, and no transition of an active state listens to
+        ``name`` with a guard that could hold. The time is then moved here, as the delivery
         would. ``value`` is the event's discriminant (:mod:`rasm.statechart.meta_guards`), None
         when unknown. True means "deliver it" (the delivery then decides exactly, as always)."""
         interest = self._checked
+        checked = False  # whether the checks below ran (and passed) in this call
+        moved = None
         if interest is None or self._checked_step != self._step_source._step_count:  # type: ignore
             if not self._settled or not self._static_guards:
                 return True
@@ -853,25 +855,35 @@ class PropertyListener(PropertyStatechartListener):
             if interp._time != now:
                 if interest.eventless:
                     return True  # the execution evaluates time-triggered transitions anew
-                # Any meta-event's execution would record the new time and nothing else: that is
-                # done here, once, rather than by delivering the first one.
+                moved = now  # moved below if the answer is no
+            checked = True
+        found = interest.listening.get(name)
+        if found is None:
+            found = interest.listening[name] = self._listening(name)
+        if type(found) is bool:
+            decided = found
+        else:
+            decided = found.get(value)
+            if decided is None:
+                decided = found[value] = self._decide(name, value, interest)
+        if checked:
+            if moved is not None:
+                if decided:
+                    # delivered: queued at the time before, as stock's, and its execution
+                    # moves the time
+                    return True
+                # This meta-event's execution would record the new time and nothing else: that
+                # is done here, and the later ones of the step find the time moved.
+                interp = self._interpreter
                 hook = self.before_time_change or self.before_change
                 if hook is not None:
                     hook(interp)
-                interp._time = now
+                interp._time = moved
             if self._step_source is not None:
                 # Until this step of the bound interpreter ends or this listener feeds its
                 # property, nothing checked above can change: only the listener changes the
                 # property while the bound interpreter steps.
                 self._checked, self._checked_step = interest, self._step_source._step_count
-        found = interest.listening.get(name)
-        if found is None:
-            found = interest.listening[name] = self._listening(name)
-        if type(found) is bool:
-            return found
-        decided = found.get(value)
-        if decided is None:
-            decided = found[value] = self._decide(name, value, interest)
         return decided
 
     def _current_interest(self) -> _Interest:

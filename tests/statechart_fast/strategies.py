@@ -221,7 +221,11 @@ def property_charts(draw: Any) -> Statechart:
                 t["guard"] = draw(st.sampled_from(["after(2)", "idle(3)"]))
             # notify() is sent without being queued: what a step sent must still be cleared by
             # the step after it, as stock does
-            actions = ["k += 1", "k = 0", "notify('seen', k=k)", "NAMES = ('s1', 'a')"]
+            # NAMES rebound to other values, or to a new object each time (watched by identity)
+            actions = [
+                "k += 1", "k = 0", "notify('seen', k=k)", "NAMES = ('s1', 'a')",
+                "NAMES = ('s2', 'b')", "NAMES = NAMES[1:] + NAMES[:1]",
+            ]
             if kind == "meta":  # a tick transition sending a tick would never stop either
                 actions += ["send('tick')", "send('tick', delay=1)"]
             if draw(st.booleans()):

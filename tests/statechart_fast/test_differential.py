@@ -13,6 +13,7 @@ from sismic.interpreter import Interpreter
 
 from rasm.statechart.fast import FastInterpreter
 from rasm.statechart.interpreter import FastGuardEvaluator
+from rasm.statechart.interpreter import Interpreter as PlatformInterpreter
 from tests.statechart_fast import harness
 from tests.statechart_fast.strategies import charts, property_charts, scripts
 
@@ -83,3 +84,70 @@ def test_same_meta_events_for_attached_listeners(chart, prop, script):
     assert any(record[0] == "meta" for record in records) or any(
         "error" in record[0] for record in records
     )
+
+
+class Platform(PlatformInterpreter):
+    """The platform's interpreter, binding properties as the platform does (its own default
+    class: FastInterpreter with the one-frame evaluator, remembered selections and replays)."""
+
+    def bind_property_statechart(self, statechart, *, interpreter_klass=None):  # noqa: D102
+        return super().bind_property_statechart(statechart)
+
+    def __repr__(self) -> str:  # as stock's, for PropertyStatechartError messages
+        return f"Interpreter({self._statechart!r})"
+
+
+@SETTINGS
+@given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
+def test_the_platform_interpreter_runs_as_stock_while_no_step_fails(chart, prop, script):
+    # The atomic-step layer only acts when a step raises (it rolls the step back, where stock is
+    # left half-applied): on runs without a failure, everything must be as stock's.
+    expected = harness.run(Interpreter, chart, script, prop=prop)
+    if any(record[0] in ("error", "init error") for record in expected):
+        return
+    assert harness.run(Platform, chart, script, prop=prop) == expected
+
+
+@SETTINGS
+@given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
+def test_a_failed_platform_step_leaves_everything_as_before_but_its_event(chart, prop, script):
+    try:
+        interp = harness.bounded(Platform)(chart)
+        if prop is not None:
+            interp.bind_property_statechart(prop)
+    except Exception:  # noqa: BLE001 - a chart whose preamble fails: nothing to roll back
+        return
+    watcher = harness._property(interp)
+
+    def state() -> tuple:
+        return harness.describe_state(interp), (
+            None if watcher is None else harness.describe_state(watcher)
+        )
+
+    def steps() -> None:
+        for _ in range(harness.MAX_STEPS):
+            before = state()
+            try:
+                if interp.execute_once() is None:
+                    return
+            except Exception:  # noqa: BLE001 - what a failure leaves is the point
+                after = state()
+                event = interp.last_failure.event
+                if event is None:
+                    assert after == before
+                    return
+                # the event the step consumed, the head of one queue, is gone; nothing else moved
+                alternatives = []
+                for queue in ("internal", "external"):
+                    found = before[0][queue]
+                    if found and found[0][1] == repr(event):
+                        alternatives.append(
+                            ({**before[0], queue: found[1:]}, before[1])
+                        )
+                assert after in alternatives
+
+    steps()
+    for dt, name, data in script:
+        interp.clock.time += dt
+        interp.queue(name, **data)
+        steps()
