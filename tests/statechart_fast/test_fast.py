@@ -15,6 +15,7 @@ from sismic.exceptions import (
 )
 from sismic.interpreter import Interpreter
 from sismic.io import import_from_yaml
+from sismic.model import Event
 
 from rasm.statechart.fast import FastInterpreter, PropertyListener
 from tests.statechart_fast import harness
@@ -394,3 +395,28 @@ def test_a_property_that_rebinds_a_watched_name_is_seen_within_the_same_step():
     script = [(0.1, "n", {}) for _ in range(4)]
     expected = harness.run(Interpreter, NESTED, script, prop=REBINDING_ITSELF)
     assert harness.run(FastInterpreter, NESTED, script, prop=REBINDING_ITSELF) == expected
+
+
+@pytest.mark.parametrize(
+    "queued",
+    [
+        (("n",), {}),
+        (("n", "n"), {}),
+        (("n", "x", "n"), {"v": 1}),
+        ((Event("n", v=2),), {}),
+        ((Event("n"), "n"), {"v": 3}),
+        ((Event("n", delay=1),), {}),
+        (("n",), {"delay": 0.5}),
+    ],
+)
+def test_queue_takes_events_as_stock_does(queued):
+    names, parameters = queued
+    runs = []
+    for klass in (Interpreter, FastInterpreter):
+        interp = klass(CYCLE)
+        interp.execute()
+        interp.queue(*names, **parameters)
+        queues = [(t, repr(e)) for t, e in interp._external_queue]
+        interp.clock.time += 1
+        runs.append((queues, [harness.describe_step(CYCLE, s) for s in interp.execute()]))
+    assert runs[1] == runs[0]
