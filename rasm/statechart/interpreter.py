@@ -53,14 +53,15 @@ def _copy_value(value: Any) -> Any:
         return value
 
 
-def _consumed_event(light: tuple, internal: list, external: list) -> tuple[list, int] | None:
-    """Where the event a failed step consumed sits in the queues saved before it (``light``):
-    a step consumes at most one event, the head of one queue, and otherwise only adds events."""
+def _consumed_from(light: tuple, internal: list, external: list) -> list | None:
+    """Which of the queues saved before a failed step (``light``) had the event the step
+    consumed at its head: a step consumes at most one event, the head of one queue, and
+    otherwise only adds events."""
     for before, after in ((light[3], internal), (light[4], external)):
         if before:
             head = before[0][1]
             if not any(event is head for _, event in after):
-                return before, 0
+                return before
     return None
 
 
@@ -370,7 +371,7 @@ class AtomicStepMixin:
             step = super().execute_once()
         except Exception as exc:
             self._listeners = listeners
-            consumed = _consumed_event(light, self._internal_queue, self._external_queue)
+            consumed = _consumed_from(light, self._internal_queue, self._external_queue)
             if eager:
                 AtomicStepMixin._restore_state(self, inner)
                 for interp, snap in saved:
@@ -393,11 +394,7 @@ class AtomicStepMixin:
             if self._property_records is not None:
                 self._property_records = None
             # Discard the event that made the step fail, or the next step fails on it again.
-            if consumed is not None:
-                queue, index = consumed
-                event = queue.pop(index)[1]
-            else:
-                event = None
+            event = None if consumed is None else consumed.pop(0)[1]
             self.last_failure = StepFailure(self.time, event, exc)
             raise
         self._lazy_snapshot = ()
