@@ -325,7 +325,12 @@ class FastInterpreter(Interpreter):
         """True when a step at ``now`` has nothing to do and nobody to tell: no listener, no
         event due, no eventless transition, no invariant to check. Stock then finds no step,
         checks no contract and raises meta-events nobody hears: the step returns None."""
-        if self._listeners or not self._initialized or not self._tables.event_driven:
+        if (
+            self._listeners
+            or not self._fast_events  # a subclass's _raise_event sees every meta-event
+            or not self._initialized
+            or not self._tables.event_driven
+        ):
             return False
         if self._contracts_possible and not self._ignore_contract:
             return False

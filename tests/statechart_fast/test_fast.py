@@ -420,3 +420,24 @@ def test_queue_takes_events_as_stock_does(queued):
         interp.clock.time += 1
         runs.append((queues, [harness.describe_step(CYCLE, s) for s in interp.execute()]))
     assert runs[1] == runs[0]
+
+
+def test_a_step_with_nothing_to_do_raises_its_meta_events_for_a_subclass():
+    # No listener and nothing due: FastInterpreter only moves the time, unless a subclass's
+    # _raise_event would see the step's meta-events, as with stock.
+    runs = []
+    for base in (Interpreter, FastInterpreter):
+
+        class Recording(base):  # type: ignore[valid-type,misc]
+            def _raise_event(self, event):
+                self.seen.append(repr(event))
+                return super()._raise_event(event)
+
+        interp = Recording(CYCLE)
+        interp.seen = seen = []
+        interp.execute()
+        interp.clock.time += 1
+        assert interp.execute_once() is None
+        runs.append((seen, interp.time))
+    assert runs[1] == runs[0]
+    assert "MetaEvent('step ended')" in runs[0][0]
