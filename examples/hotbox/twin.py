@@ -40,6 +40,8 @@ NOMINAL = {"heat_capacity": 500.0, "loss_closed": 2.0, "loss_open": 12.0}
 DEFAULT_SETTINGS = {"mode": "normal", "setpoint": 37.5, "power_limit": 60.0}
 MODE_LIMITS = {"normal": 60.0, "boost": 100.0}  # power limits of the app's plans, by mode
 PARAMS = ("heat_capacity", "loss_closed", "loss_open")
+# TwinUpdate((...)) without the named tuple's Python-level __new__: one per record
+_new_update = tuple.__new__
 
 
 # the window's running sums are summed afresh after this many records, so the rounding of
@@ -292,7 +294,7 @@ class HotboxTwin(DigitalTwin):
         # the window's change and length read off its records (no property or __len__ call)
         entries = recent._entries
         change = entries[-1][1] - entries[0][1]
-        error = self.rls.update(phi, change, weight=1.0 / (len(entries) - 1))
+        error = self.rls.update(phi, change, 1.0 / (len(entries) - 1))
         residual = abs(error)
         errors = self._errors = self._errors + 1
         # min(errors, 100) without the call (this runs once per record)
@@ -316,7 +318,7 @@ class HotboxTwin(DigitalTwin):
         changed = confident and self._worth_publishing(time)
         if changed:
             self._publish(time)
-        return TwinUpdate(residual, drift, changed)  # positional: cheaper than keywords
+        return _new_update(TwinUpdate, (residual, drift, changed))
 
     def _confident(self) -> bool:
         """Physical estimates, both lid states seen, and for a window of each the parameters'

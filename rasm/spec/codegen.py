@@ -474,11 +474,13 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     ``reads`` overrides, per property, the signals whose first values end its warm-up (by
     default: those it reads); explanations use it to evaluate sub-formulas in context.
 
-    The source defines ``factory()`` returning ``(step, tally, run, finish_step,
-    finish_run)`` (``tally``: ``step`` giving ``(property, value)`` pairs, not verdicts); it
+    The source defines ``factory()`` returning ``(step, tally, tally_into, run, finish_step,
+    finish_run)`` (``tally``: ``step`` giving ``(property, value)`` pairs, not verdicts;
+    ``tally_into(t, rec, latest, unusual)``: ``tally`` keeping the pairs itself, see
+    :meth:`rasm.spec.monitor.Monitor.tally_into`); it
     reads the names in ``Program.constants`` plus ``STATE`` (initial values), ``TUPLE_NEW``,
     ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``NUMERIC``, ``SCALAR``, ``UNSET``,
-    ``REJECT_STEP`` and ``REJECT_RUN``, which the monitor provides.
+    ``REJECT_STEP``, ``REJECT_INTO`` and ``REJECT_RUN``, which the monitor provides.
     """
     gen = _Generator(spec)
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
@@ -536,10 +538,14 @@ def _indent(line):
 
 
 def _render(line, mode: str) -> str | None:
-    """A generated line for ``mode`` (step, tally or run); None where the line is online-only.
+    """A generated line for ``mode`` (step, tally, into or run); None where the line is
+    online-only.
 
     ``tally`` is ``step`` with each verdict as a plain ``(property, value)`` pair: what the
     Trustworthiness Checker keeps of a verdict when nobody asked for the verdicts themselves.
+    ``into`` (``tally_into``) holds each property's latest value of the record in ``_last<n>``
+    and the values that are not True, in order, in ``odd``: it hands them over once the whole
+    record is decided, so a record that fails half way hands over nothing, as with ``tally``.
     """
     online = mode != "run"
     if isinstance(line, str):
@@ -556,6 +562,12 @@ def _render(line, mode: str) -> str | None:
         return f"{pad}out.append(TUPLE_NEW(Verdict, (NAME_{number}, {index}, {time}, {value})))"
     if mode == "tally":
         return f"{pad}out.append((NAME_{number}, {value}))"
+    if mode == "into":
+        last = f"_last{number}"
+        return (
+            f"{pad}{last} = {value}\n"
+            f"{pad}if {last} is not True: odd.append((NAME_{number}, {last}))"
+        )
     return f"{pad}values_{number}({value})"
 
 
@@ -575,6 +587,12 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             lines.append("    for t, rec in records:")
             indent = "        "
             reject = "REJECT_RUN"
+        elif mode == "into":
+            kept = [f"_last{number}" for number in range(len(blocks))]
+            lines.append("    odd = []")
+            lines.append("    " + " = ".join([*kept, "UNSET"]))
+            indent = "    "
+            reject = "REJECT_INTO"
         else:
             lines.append("    out = []")
             indent = "    "
@@ -583,7 +601,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         # one past-only property: its verdict is the body's last statement, so the step
         # function can return a one-element list directly (cheaper than append + return)
         single = (
-            mode != "run"
+            mode in ("step", "tally")
             and len(blocks) == 1
             and isinstance(properties[-1], tuple)
             and properties[-1][0] == "EMIT"
@@ -597,8 +615,15 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
                 continue
             if single and line is properties[-1]:
                 text = text.replace("out.append(", "return [", 1)[:-1] + "]"
-            lines.append(indent + text.replace("REJECT(", reject + "("))
+            for part in text.split("\n"):
+                lines.append(indent + part.replace("REJECT(", reject + "("))
         if mode == "run":
+            lines.append("    return None")
+        elif mode == "into":
+            for number in range(len(blocks)):
+                last = f"_last{number}"
+                lines.append(f"    if {last} is not UNSET: latest[NAME_{number}] = {last}")
+            lines += ["    for _name, _value in odd:", "        unusual(_name, _value)"]
             lines.append("    return None")
         else:
             lines.append("    return []" if single else "    return out")
@@ -613,6 +638,8 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         factory.append(f"    NAME_{number} = NAMES[{number}]")
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
     factory += ["    " + line for line in function("def tally(t, rec):", "tally")]
+    into = "def tally_into(t, rec, latest, unusual):"
+    factory += ["    " + line for line in function(into, "into")]
     factory += ["    " + line for line in function("def run(records):", "run")]
     for mode in ("step", "run"):
         factory += [
@@ -624,7 +651,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             rendered = (_render(line, mode) for line in block)
             factory += ["        " + text for text in rendered if text is not None]
         factory.append("        return out")
-    factory.append("    return step, tally, run, finish_step, finish_run")
+    factory.append("    return step, tally, tally_into, run, finish_step, finish_run")
     return "\n".join(factory) + "\n"
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import builtins
 import functools
 import numbers
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import CodeType
 from typing import NamedTuple
@@ -125,6 +125,7 @@ class Monitor:
             STARTS=self.starts,
             VALUES=self._values,
             REJECT_STEP=self._reject_step,
+            REJECT_INTO=self._reject_into,
             REJECT_RUN=self._reject_run,
             NUMERIC=NUMERIC,
             SCALAR=SCALAR,
@@ -135,10 +136,13 @@ class Monitor:
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
         functions = namespace["factory"]()
-        self._step, self._tally, self._run, self._finish, self._finish_run = functions
+        self._step, self._tally, self._tally_into, self._run, self._finish, self._finish_run = (
+            functions
+        )
         # the generated functions themselves, not methods around them: one call less per record
         self.step = self._step
         self.tally = self._tally
+        self.tally_into = self._tally_into
 
     # ----------------------------------------------------------------- online
     @property
@@ -160,12 +164,32 @@ class Monitor:
         """
         return self._tally(time, values)
 
-    def _refuse(self, time, values):
+    def tally_into(
+        self,
+        time: float,
+        values: Mapping[str, object],
+        latest: dict[str, bool | None],
+        unusual: Callable[[str, bool | None], object],
+    ) -> None:
+        """:meth:`tally` keeping the pairs itself: ``latest[property] = value`` for each, then
+        ``unusual(property, value)`` for each value that is not True, in :meth:`tally`'s order.
+        Nothing is handed over for a refused record, nor for one whose evaluation raised (the
+        exception propagates, as from :meth:`tally`). For a caller that keeps only the latest
+        value of each property and looks closer at the rest (the Trustworthiness Checker):
+        no pair is made for the common True verdict. (Each monitor replaces this method by its
+        generated function.)
+        """
+        return self._tally_into(time, values, latest, unusual)
+
+    def _refuse(self, time, values, *rest):
         raise SpecError("this monitor has finished; compile a new one for a new trace")
 
     def _reject_step(self, index, time, record, signal, kind) -> list:
         self.rejected.append(Rejection(index, time, describe_rejection(time, record, signal, kind)))
         return []
+
+    def _reject_into(self, index, time, record, signal, kind) -> None:
+        self._reject_step(index, time, record, signal, kind)
 
     def _reject_run(self, index, time, record, signal, kind):
         raise SpecError(f"record {index}: {describe_rejection(time, record, signal, kind)}")
@@ -175,7 +199,7 @@ class Monitor:
         if self._finished:
             return []
         self._finished = True
-        self.step = self.tally = self._refuse
+        self.step = self.tally = self.tally_into = self._refuse
         return self._finish()
 
     # ----------------------------------------------------------------- offline
@@ -189,7 +213,7 @@ class Monitor:
             raise SpecError("this monitor has finished; compile a new one for a new trace")
         self._run(records)
         self._finished = True
-        self.step = self.tally = self._refuse
+        self.step = self.tally = self.tally_into = self._refuse
         self._finish_run()
         return [
             PropertyRun(name, self.starts[k], self._values[k]) for k, name in enumerate(self.names)

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from rasm.errors import RasmError
 
@@ -15,9 +14,9 @@ class TwinError(RasmError):
     """A twin was misconfigured or given a model it cannot use (``load`` of a damaged model)."""
 
 
-@dataclass(frozen=True)
-class TwinUpdate:
-    """What one learning step found.
+class TwinUpdate(NamedTuple):
+    """What one learning step found (immutable; a named tuple, the cheapest record Python
+    makes: a twin returns one per record).
 
     * ``residual``: the size of this step's prediction error, in the predicted signal's unit
       (``|measured - predicted|``; each twin documents which prediction).
