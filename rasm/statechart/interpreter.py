@@ -309,8 +309,10 @@ class AtomicStepMixin:
         # (restored after any record taken later in the step, which saw the new time).
         records = self._property_records
         key = id(interp)
-        if records is not None and all(key not in found for found in records):
-            records[2][key] = (interp, interp._time)
+        if records is not None:
+            full, states, times = records
+            if key not in full and key not in states and key not in times:
+                times[key] = (interp, interp._time)
 
     def _before_property_state_change(self, interp: Any) -> None:
         # A replayed effect only exits and enters states (PropertyListener._replay): its
