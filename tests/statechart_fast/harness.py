@@ -89,11 +89,16 @@ def describe_state(interp: Interpreter) -> Any:
 
 
 def _property(interp: Interpreter) -> Interpreter | None:
-    for listener in interp._listeners:
-        inner = getattr(listener, "_interpreter", None)
-        if inner is not None:
-            return inner
-    return None
+    found = _properties(interp)
+    return found[0] if found else None
+
+
+def _properties(interp: Interpreter) -> list[Interpreter]:
+    """The interpreters of the property statecharts bound to ``interp``, in binding order."""
+    return [
+        inner for listener in interp._listeners
+        if (inner := getattr(listener, "_interpreter", None)) is not None
+    ]
 
 
 def run(
@@ -101,7 +106,7 @@ def run(
     chart: Statechart,
     script: Sequence[tuple[float, str, dict]],
     *,
-    prop: Statechart | None = None,
+    prop: Statechart | Sequence[Statechart] | None = None,
     ignore_contract: bool = False,
     restore_every: int = 0,
     record_meta: bool = False,
@@ -115,8 +120,9 @@ def run(
     records: list[Any] = []
     try:
         interp = bounded(klass)(chart, ignore_contract=ignore_contract)
-        if prop is not None:
-            interp.bind_property_statechart(prop, interpreter_klass=klass)
+        props = [] if prop is None else [prop] if isinstance(prop, Statechart) else list(prop)
+        for one in props:
+            interp.bind_property_statechart(one, interpreter_klass=klass)
     except Exception as e:  # noqa: BLE001 - the error itself is what is compared
         return [("init error", type(e).__name__, str(e))]
     if record_meta:
@@ -139,8 +145,7 @@ def run(
                 _restore(interp, snapshot)
                 records.append(("restored",))
             records.append(("state", describe_state(interp)))
-            inner = _property(interp)
-            if inner is not None:
+            for inner in _properties(interp):
                 records.append(("property", describe_state(inner)))
             if step is None:
                 return

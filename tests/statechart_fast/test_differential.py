@@ -63,6 +63,23 @@ def test_same_runs_with_a_property_statechart(chart, prop, script):
 
 
 @SETTINGS
+@given(chart=charts(), props=st.lists(property_charts(), min_size=2, max_size=3), script=scripts)
+def test_same_runs_with_several_property_statecharts(chart, props, script):
+    # as the platform binds three to its orchestrator: each listener decides, moves its time,
+    # replays and raises on its own, in binding order
+    assert_same(chart, script, prop=props)
+
+
+@SETTINGS
+@given(chart=charts(), props=st.lists(property_charts(), min_size=2, max_size=3), script=scripts)
+def test_the_platform_interpreter_runs_as_stock_with_several_properties(chart, props, script):
+    expected = harness.run(Interpreter, chart, script, prop=props)
+    if any(record[0] in ("error", "init error") for record in expected):
+        return
+    assert harness.run(Platform, chart, script, prop=props) == expected
+
+
+@SETTINGS
 @given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
 def test_same_runs_with_the_platform_guard_evaluator(chart, prop, script):
     assert_same(chart, script, OneFrameGuards, prop=prop)

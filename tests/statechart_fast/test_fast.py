@@ -441,3 +441,50 @@ def test_a_step_with_nothing_to_do_raises_its_meta_events_for_a_subclass():
         runs.append((seen, interp.time))
     assert runs[1] == runs[0]
     assert "MetaEvent('step ended')" in runs[0][0]
+
+
+SENDER = chart("""
+statechart:
+  name: sender
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      transitions:
+      - {target: b, event: n, action: "send('n', k=1)"}
+    - name: b
+      on entry: send('n', delay=2)
+      transitions:
+      - {target: a, event: n}
+""")
+
+
+@pytest.mark.parametrize("attach", ["bind", "callable"])
+def test_a_bound_interpreter_receives_the_sent_events_as_with_stock(attach):
+    # bind(): every event the sender sends is queued to the receiver (or given to a callable)
+    runs = []
+    for klass in (Interpreter, FastInterpreter):
+        sender, receiver = klass(SENDER), klass(TOGGLE)
+        received: list[str] = []
+        if attach == "bind":
+            sender.bind(receiver)
+        else:
+            sender.bind(lambda event, into=received: into.append(repr(event)))
+        sender.execute()
+        receiver.execute()
+        trace = []
+        for _ in range(6):
+            sender.clock.time += 1
+            receiver.clock.time += 1
+            sender.queue("n")
+            steps = sender.execute()
+            trace.append((
+                [harness.describe_step(SENDER, s) for s in steps],
+                [(t, repr(e)) for t, e in receiver._external_queue],
+                [harness.describe_step(TOGGLE, s) for s in receiver.execute()],
+                list(received),
+            ))
+        runs.append(trace)
+    assert runs[1] == runs[0]
+    assert any(queued for _, queued, _, _ in runs[0]) or any(seen for *_, seen in runs[0])
