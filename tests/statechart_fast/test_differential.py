@@ -71,15 +71,6 @@ def test_same_runs_with_several_property_statecharts(chart, props, script):
 
 
 @SETTINGS
-@given(chart=charts(), props=st.lists(property_charts(), min_size=2, max_size=3), script=scripts)
-def test_the_platform_interpreter_runs_as_stock_with_several_properties(chart, props, script):
-    expected = harness.run(Interpreter, chart, script, prop=props)
-    if any(record[0] in ("error", "init error") for record in expected):
-        return
-    assert harness.run(Platform, chart, script, prop=props) == expected
-
-
-@SETTINGS
 @given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
 def test_same_runs_with_the_platform_guard_evaluator(chart, prop, script):
     assert_same(chart, script, OneFrameGuards, prop=prop)
@@ -115,14 +106,15 @@ class Platform(PlatformInterpreter):
 
 
 @SETTINGS
-@given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
-def test_the_platform_interpreter_runs_as_stock_while_no_step_fails(chart, prop, script):
+@given(chart=charts(), props=st.lists(property_charts(), max_size=3), script=scripts)
+def test_the_platform_interpreter_runs_as_stock_while_no_step_fails(chart, props, script):
     # The atomic-step layer only acts when a step raises (it rolls the step back, where stock is
-    # left half-applied): on runs without a failure, everything must be as stock's.
-    expected = harness.run(Interpreter, chart, script, prop=prop)
+    # left half-applied): on runs without a failure, everything must be as stock's, with no
+    # property, one, or several as on the platform's orchestrator.
+    expected = harness.run(Interpreter, chart, script, prop=props)
     if any(record[0] in ("error", "init error") for record in expected):
         return
-    assert harness.run(Platform, chart, script, prop=prop) == expected
+    assert harness.run(Platform, chart, script, prop=props) == expected
 
 
 @SETTINGS
