@@ -10,6 +10,7 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sismic.interpreter import Interpreter
+from sismic.io import import_from_yaml
 
 from rasm.statechart.fast import FastInterpreter
 from rasm.statechart.interpreter import FastGuardEvaluator
@@ -160,3 +161,35 @@ def test_a_failed_platform_step_leaves_everything_as_before_but_its_event(chart,
         interp.clock.time += dt
         interp.queue(name, **data)
         steps()
+
+
+ORCHESTRATOR_EVENTS = [
+    "tick", "monitored", "no_anomaly", "anomaly", "planned", "no_plan", "accepted", "rejected",
+    "executed", "dropped", "stage_failed", "drift_detected", "managed_system_lost",
+    "managed_system_back", "failed", "reset",
+]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    script=st.lists(
+        st.tuples(
+            st.sampled_from([0, 0.1, 0.1, 0.6, 2.0]),  # the stage budget here is 1 s
+            st.sampled_from(ORCHESTRATOR_EVENTS),
+            st.just({}),
+        ),
+        max_size=40,
+    )
+)
+def test_the_orchestrator_with_its_monitors_runs_as_stock(script):
+    # The platform's own setting: the MAPLE-K orchestrator with the three monitors/ property
+    # statecharts, driven in any order, timers firing or not.
+    from tests.statechart_fast.test_fast import CHARTS, MONITORS
+
+    orchestrator = import_from_yaml(filepath=str(CHARTS / "adaptation_orchestrator.yaml"))
+    monitors = [import_from_yaml(filepath=str(p)) for p in sorted(MONITORS.glob("*.yaml"))]
+    setup = [(0.1, name, {}) for name in ("configure", "configuration_done", "initialization_done")]
+    expected = harness.run(Interpreter, orchestrator, setup + script, prop=monitors)
+    assert harness.run(FastInterpreter, orchestrator, setup + script, prop=monitors) == expected
+    if not any(record[0] in ("error", "init error") for record in expected):
+        assert harness.run(Platform, orchestrator, setup + script, prop=monitors) == expected
