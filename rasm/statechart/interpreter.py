@@ -40,6 +40,7 @@ __all__ = [
 
 _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
 _IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
+_LATER = object()  # a snapshot's context, to be saved before the step's first code runs
 
 
 def _copy_value(value: Any) -> Any:
@@ -110,6 +111,9 @@ class FastGuardEvaluator(PythonEvaluator):
     every step), exposing only the names a guard uses: the same values, the same errors."""
 
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
+    #: Called before any action, entry or exit code runs (the atomic layer saves the context
+    #: there, once per step: a step that runs no code cannot change it).
+    before_code: Any = None
 
     def __init__(self, interpreter=None, *, initial_context=None) -> None:
         super().__init__(interpreter, initial_context=initial_context)
@@ -176,6 +180,8 @@ class FastGuardEvaluator(PythonEvaluator):
                 compiled, _ACTION_EXPOSED if names & _INTROSPECTION else names & _ACTION_EXPOSED
             )
         compiled, wanted = found
+        if self.before_code is not None:
+            self.before_code()
         sent_events: list[Event] = []
         exposed: dict[str, Any] = {}
         if wanted:
@@ -238,11 +244,13 @@ class AtomicStepMixin:
         )
         return state, AtomicStepMixin._state_snapshot(self), props
 
-    def _state_snapshot(self) -> tuple:
+    def _state_snapshot(self, context_later: bool = False) -> list:
         """What a micro step may change besides the time and the queues (which execute_once
         saves before the step starts): configuration, entry and idle times, and where the chart
         can change them (None where it cannot), history memory, context and contract memory.
-        Also used on bound property interpreters, which may be stock sismic's."""
+        With ``context_later``, the context is left to :meth:`_save_context` (``_LATER``) when
+        the evaluator calls it before running any code. Also used on bound property
+        interpreters, which may be stock sismic's."""
         evaluator = self._evaluator
         try:
             tables = self._tables
@@ -253,16 +261,30 @@ class AtomicStepMixin:
         if not fast or tables.has_code or not self._skip_noop_actions or (
             type(evaluator).execute_action is not Evaluator.execute_action
         ):
-            context = evaluator._context.copy()
-            for key, value in context.items():
-                if type(value) not in _IMMUTABLE_TYPES:
-                    context[key] = _copy_value(value)
-        return (
+            context = (
+                _LATER
+                if context_later and getattr(evaluator, "before_code", None) == self._save_context
+                else AtomicStepMixin._context_copy(self)
+            )
+        return [
             self._memory.copy() if not fast or tables.history_children else None,
             self._configuration.copy(), self._entry_time.copy(), self._idle_time.copy(), context,
             dict(getattr(evaluator, "_memory", {}))
             if not fast or self._contracts_possible else None,
-        )
+        ]
+
+    def _context_copy(self) -> dict:
+        context = self._evaluator._context.copy()
+        for key, value in context.items():
+            if type(value) not in _IMMUTABLE_TYPES:
+                context[key] = _copy_value(value)
+        return context
+
+    def _save_context(self) -> None:
+        # FastGuardEvaluator.before_code: the first code of a step is about to run
+        saved = self._lazy_snapshot
+        if saved and saved[4] is _LATER:
+            saved[4] = self._context_copy()
 
     def _restore(self, snapshot: tuple) -> None:
         state, inner, props = snapshot
@@ -272,11 +294,11 @@ class AtomicStepMixin:
         for interp, snap in props:
             AtomicStepMixin._restore(interp, snap)
 
-    def _restore_state(self, inner: tuple) -> None:
+    def _restore_state(self, inner: list) -> None:
         memory, self._configuration, self._entry_time, self._idle_time, context, evaluated = inner
         if memory is not None:
             self._memory = memory
-        if context is not None:
+        if context is not None and context is not _LATER:  # _LATER: no code ran
             self._evaluator._context.clear()
             self._evaluator._context.update(context)
         if evaluated is not None and hasattr(self._evaluator, "_memory"):
@@ -286,10 +308,10 @@ class AtomicStepMixin:
         # This interpreter's full snapshot is taken here, before the step's first change: most
         # steps find nothing to do and never get this far.
         if self._lazy_snapshot is None:
-            self._lazy_snapshot = self._state_snapshot()
+            self._lazy_snapshot = self._state_snapshot(context_later=True)
         return super()._apply_step(step)
 
-    _lazy_snapshot: tuple | None = ()  # () = not in a lazily snapshotted step
+    _lazy_snapshot: list | tuple | None = ()  # () = not in a lazily snapshotted step
     # What bound property interpreters looked like before their first change in this step, by
     # id: (full snapshots, states before a replay, times before a skipped meta-event); each
     # property is in at most one of them, the broadest taken. One attribute, set only in steps of
@@ -450,6 +472,10 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
             clock=clock,
             ignore_contract=ignore_contract,
         )
+        evaluator = self._evaluator
+        if type(evaluator)._execute_code is FastGuardEvaluator._execute_code:
+            # the context is saved when a step first runs code, not at its first micro step
+            evaluator.before_code = self._save_context
 
     def next_deadline(self) -> float | None:
         """The earliest time at which a step could do something without a new external event.
