@@ -233,7 +233,8 @@ class AtomicStepMixin:
         ]
 
     def _snapshot(self, with_properties: bool = True) -> tuple:
-        # Spelled out attribute by attribute: this runs before every step (the hot path).
+        # Everything at once: for a property statechart before its first change in a step, or
+        # up front when a bound property's listener cannot say when it changes it.
         state = (
             self._initialized, self._time, self._sent_events.copy(),
             self._internal_queue.copy(), self._external_queue.copy(),
