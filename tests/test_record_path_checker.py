@@ -2,7 +2,7 @@
 
 check_record tallies (property, value) pairs instead of verdict objects when nobody listens for
 verdicts; the latest verdicts, the violation and inconclusive counts and the refused records
-must be observe()'s, for monitors with and without a tally, faulty ones included.
+must be observe()'s, for monitors with and without tally_into, faulty ones included.
 """
 
 from __future__ import annotations

@@ -571,33 +571,20 @@ class TrustworthinessChecker(Block):
     def check_record(self, time: float, record: dict[str, Any]) -> None:
         """:meth:`observe` for the trace writer, which needs no verdicts back: the same
         bookkeeping, with verdict objects made only when ``on_verdict`` or an observer wants
-        them (otherwise the monitors' ``tally_into`` keeps the values in ``latest`` itself, or
-        their ``tally`` gives ``(property, value)`` pairs)."""
+        them (otherwise the monitors' ``tally_into`` keeps the values in ``latest`` itself)."""
         if self.on_verdict is not None or self.observers:
             self._observe(self.monitors, time, record)
             return
         latest, unusual = self.latest, self._unusual
         for monitor in self.monitors:
             into = getattr(monitor, "tally_into", None)
-            if into is not None:
-                try:
-                    into(time, record, latest, unusual)
-                except Exception:  # a monitor fault is logged, the record skipped, never fatal
-                    self._monitor_failed()
-                continue
-            tally = getattr(monitor, "tally", None)
-            if tally is None:  # a monitor of another kind: its verdicts, kept as observe() does
+            if into is None:  # a monitor of another kind: its verdicts, kept as observe() does
                 self._observe((monitor,), time, record)
                 continue
             try:
-                pairs = tally(time, record)
-            except Exception:  # a monitor fault is logged and the record skipped, never fatal
+                into(time, record, latest, unusual)
+            except Exception:  # a monitor fault is logged, the record skipped, never fatal
                 self._monitor_failed()
-                continue
-            for name, value in pairs:
-                latest[name] = value
-                if value is not True:
-                    unusual(name, value)
 
     def _monitor_failed(self) -> None:
         logging.getLogger("rasm.tc").exception("monitor failed on a record")

@@ -323,11 +323,10 @@ class AtomicStepMixin:
         evaluator = self._evaluator
         try:
             tables = self._tables
-            fast = True
         except AttributeError:  # a stock interpreter (a bound property): anything may change
-            tables, fast = None, False
+            tables = None
         context = None
-        if not fast or tables.has_code or not self._skip_noop_actions or (
+        if tables is None or tables.has_code or not self._skip_noop_actions or (
             type(evaluator).execute_action is not Evaluator.execute_action
         ):
             context = (
@@ -336,10 +335,10 @@ class AtomicStepMixin:
                 else AtomicStepMixin._context_copy(self)
             )
         return [
-            self._memory.copy() if not fast or tables.history_children else None,
+            self._memory.copy() if tables is None or tables.history_children else None,
             self._configuration.copy(), self._entry_time.copy(), self._idle_time.copy(), context,
             dict(getattr(evaluator, "_memory", {}))
-            if not fast or self._contracts_possible else None,
+            if tables is None or self._contracts_possible else None,
         ]
 
     def _context_copy(self) -> dict:
