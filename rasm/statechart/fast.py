@@ -185,6 +185,7 @@ class FastInterpreter(Interpreter):
         self._fast_events = False
         self._contracts_possible = True
         self._preselected: tuple[Event, list[Transition]] | None = None
+        self._fold = _ListenerGroups()
         super().__init__(
             statechart,
             evaluator_klass=evaluator_klass,
@@ -443,19 +444,60 @@ class FastInterpreter(Interpreter):
         """Raise the meta-event ``name`` (``data``; ``value`` its discriminant, see
         :mod:`rasm.statechart.meta_guards`) to every listener, as stock does, built only if one
         of them may react: a :class:`PropertyListener` that says it would do nothing with it is
-        passed over (delivering would be a no-op)."""
+        passed over (delivering would be a no-op).
+
+        What the listeners did with a meta-event is remembered (see :class:`_ListenerGroup`):
+        when they are where they were then, it is done again in one lookup."""
+        fold = self._fold
+        step = self._step_count
+        group = fold.group if fold.step == step else None
+        if group is not None:
+            move = group.moves.get((name, value))
+            if move is not None:
+                ops, after, watched = move
+                if watched:
+                    # the context names the interests reached read must still be bound as they
+                    # were (the group's own were checked in this step; no property code ran)
+                    for listener, _, target in ops:
+                        if not listener._watch_holds(target):
+                            move = None
+                            break
+            if move is not None:
+                fold.group = after
+                now = self._time
+                for listener, effect, target in ops:
+                    interp = listener._interpreter
+                    hook = listener.before_state_change or listener.before_change
+                    if hook is not None:
+                        hook(interp)
+                    listener._replay(interp, effect, now)
+                    listener._interest, listener._interest_conf, listener._interest_version = (
+                        target, interp._configuration, interp._conf_version
+                    )
+                    listener._checked = target
+                return
         meta = None
+        ops = []  # (listener, effect replayed, interest after) of each delivery
         for listener in self._listeners:
             if type(listener) is PropertyListener:
                 if not listener.needs(name, value):
                     continue
                 if meta is None:
                     meta = _Meta(name, **data)
-                listener.deliver(meta, value)
+                effect = listener.deliver(meta, value)
+                if effect is None or ops is None:
+                    ops = None
+                else:
+                    ops.append((listener, effect, listener._checked))
                 continue
+            ops = None
             if meta is None:
                 meta = _Meta(name, **data)
             listener(meta)
+        if ops is not None:
+            fold.remember(self, group, name, value, ops)
+        else:
+            fold.step = -1
 
     def _select_event(self, *, consume: bool = False) -> Event | None:
         """Next event to process: internal queue first, then external (as stock)."""
@@ -711,6 +753,64 @@ class _Interest:
         # per remembered effect, the interest of the states it leads to
         self.targets: dict[tuple[str, str], _Interest] = {}
         self.watch: dict[str, Any] = {}
+
+
+class _ListenerGroup:
+    """The property listeners of an interpreter, each checked in the current step and known
+    to be in one :class:`_Interest`: ``moves`` maps a meta-event (name, discriminant) to what
+    delivering it did when they were so (nothing but remembered effects replayed), the group
+    they were in after, and whether the interests reached watch context names."""
+
+    __slots__ = ("moves",)
+
+    def __init__(self) -> None:
+        self.moves: dict[tuple[str, Any], tuple[tuple, _ListenerGroup, bool]] = {}
+
+
+class _ListenerGroups:
+    """An interpreter's :class:`_ListenerGroup` memo, and the group its listeners are in during
+    step ``step`` (any other step: unknown)."""
+
+    __slots__ = ("group", "groups", "step")
+
+    # Interests are replaced when a watched name is rebound: the memo is dropped past this.
+    LIMIT = 1024
+
+    def __init__(self) -> None:
+        self.step = -1
+        self.group: _ListenerGroup | None = None
+        self.groups: dict[tuple[_Interest, ...], _ListenerGroup] = {}
+
+    def remember(
+        self, interp: FastInterpreter, before: _ListenerGroup | None, name: str, value: Any,
+        ops: list[tuple[PropertyListener, tuple, _Interest]],
+    ) -> None:
+        """After the listeners of ``interp`` (all property listeners) took meta-event ``name``
+        from group ``before`` (None: unknown) by replaying ``ops``: remember that, and where
+        they are now."""
+        step = interp._step_count
+        key = []
+        for listener in interp._listeners:
+            checked = listener._checked
+            if (
+                checked is None
+                or listener._checked_step != step
+                or listener._step_source is not interp
+            ):
+                self.step = -1
+                return
+            key.append(checked)
+        groups = self.groups
+        after = groups.get(tuple(key))
+        if after is None:
+            if len(groups) >= self.LIMIT:
+                groups.clear()
+            after = groups[tuple(key)] = _ListenerGroup()
+        # a sent event's meta-events may carry a delay, which deliver() never replays
+        if before is not None and name != "event sent" and name != "delayed event sent":
+            watched = any(target.watch for _, _, target in ops)
+            before.moves[(name, value)] = (tuple(ops), after, watched)
+        self.step, self.group = step, after
 
 
 def _decidable(value: Any) -> bool:
@@ -1073,12 +1173,13 @@ class PropertyListener(PropertyStatechartListener):
             or not self._eventless_sources.isdisjoint(interp._configuration)
         )
 
-    def deliver(self, event: MetaEvent, value: Any) -> None:
+    def deliver(self, event: MetaEvent, value: Any) -> tuple | None:
         """Deliver ``event`` (discriminant ``value``), which :meth:`needs` has just let through
         in this step: when what its execution does is remembered for the active states (see
         ``_effect_of``), it is replayed at once. What :meth:`needs` checked before remembering
         its answer for the step (settled, nothing queued, same time, decided guards) is what
-        ``__call__`` would check again; the rest is ``__call__``."""
+        ``__call__`` would check again; the rest is ``__call__``. Returns the effect replayed,
+        None when the event was executed."""
         interest = self._checked
         if (
             interest is not None
@@ -1103,12 +1204,16 @@ class PropertyListener(PropertyStatechartListener):
                 else:
                     target = interest.targets[key] = self._current_interest()
                 self._checked = target
-                return
+                return effect
         self(event)
+        return None
 
     def __call__(self, event: MetaEvent) -> None:
         interp = self._interpreter
         self._checked = None  # whatever happens next may change the property
+        source = self._step_source
+        if source is not None:  # nor is what the bound interpreter's listeners did known
+            source._fold.step = -1
         selected = None
         if self._settled:  # only ever true when skipping is possible
             # the bound interpreter's time, without SynchronizedClock's two property calls

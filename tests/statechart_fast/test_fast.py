@@ -352,6 +352,54 @@ def test_a_context_name_rebound_between_steps_is_seen_by_the_next_step():
     assert _watch_names(FastInterpreter, rebind=True) == expected
 
 
+ARMED_BY_EXIT = chart("""
+statechart:
+  name: armed when a is left, then b must not be named in NAMES
+  preamble: NAMES = ('x',)
+  root state:
+    name: root
+    initial: watching
+    states:
+    - name: watching
+      transitions:
+      - {target: armed, event: state exited, guard: event.state == 'a'}
+    - name: armed
+      transitions:
+      - {target: watching, event: state entered, guard: event.state not in NAMES}
+      - {target: named, event: state entered, guard: event.state in NAMES}
+    - name: named
+      type: final
+""")
+
+
+def _armed_by_exit(klass) -> list[tuple[str, float] | str]:
+    interp = klass(CYCLE)
+    watcher = interp.bind_property_statechart(ARMED_BY_EXIT)._interpreter
+    interp.execute()
+    seen: list[tuple[str, float] | str] = []
+    for step in range(12):
+        if step == 9:  # after three a -> b steps, learnt and remembered: NAMES now names b
+            watcher.context["NAMES"] = ("b",)
+        interp.clock.time += 1
+        interp.queue("n")
+        try:
+            interp.execute()
+        except PropertyStatechartError:
+            seen.append("failed")
+            break
+        seen.append((watcher.configuration[-1], watcher.time))
+    return seen
+
+
+def test_remembered_deliveries_check_the_names_the_states_they_reach_read():
+    # What the listeners did with a meta-event is remembered per set of their states
+    # (FastInterpreter._announce): leaving `a` moves the property to `armed`, whose guards read
+    # NAMES. Rebound between steps, NAMES must be read anew there, not decided as remembered.
+    expected = _armed_by_exit(Interpreter)
+    assert expected[-1] == "failed"
+    assert _armed_by_exit(FastInterpreter) == expected
+
+
 NESTED = chart("""
 statechart:
   name: nested cycle
