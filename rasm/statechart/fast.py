@@ -955,7 +955,14 @@ class PropertyListener(PropertyStatechartListener):
                 or not interp._configuration
             ):
                 return True
-            interest = self._current_interest()
+            # _current_interest(), its usual answer without the call: the same states as last
+            interest = self._interest
+            if not (
+                interp._configuration is self._interest_conf
+                and interp._conf_version == self._interest_version
+                and (not interest.watch or self._watch_holds(interest))
+            ):
+                interest = self._current_interest()
             now = self._time_source._time  # type: ignore[union-attr]
             if interp._time != now:
                 if interest.eventless:
