@@ -759,11 +759,13 @@ class _ListenerGroup:
     """The property listeners of an interpreter, each checked in the current step and known
     to be in one :class:`_Interest`: ``moves`` maps a meta-event (name, discriminant) to what
     delivering it did when they were so (nothing but remembered effects replayed), the group
-    they were in after, and whether the interests reached watch context names."""
+    they were in after, and whether the interests reached watch context names that those of
+    this group do not (bound to the same objects): only those need checking on the way."""
 
-    __slots__ = ("moves",)
+    __slots__ = ("interests", "moves")
 
-    def __init__(self) -> None:
+    def __init__(self, interests: tuple[_Interest, ...]) -> None:
+        self.interests = interests
         self.moves: dict[tuple[str, Any], tuple[tuple, _ListenerGroup, bool]] = {}
 
 
@@ -801,16 +803,27 @@ class _ListenerGroups:
                 return
             key.append(checked)
         groups = self.groups
-        after = groups.get(tuple(key))
+        interests = tuple(key)
+        after = groups.get(interests)
         if after is None:
             if len(groups) >= self.LIMIT:
                 groups.clear()
-            after = groups[tuple(key)] = _ListenerGroup()
+            after = groups[interests] = _ListenerGroup(interests)
         # a sent event's meta-events may carry a delay, which deliver() never replays
         if before is not None and name != "event sent" and name != "delayed event sent":
-            watched = any(target.watch for _, _, target in ops)
+            # The group's own interests are checked whenever it is reached (see _announce):
+            # a name an interest reached watches, bound to the same object, needs no new check.
+            start = dict(zip(interp._listeners, before.interests, strict=True))
+            watched = any(
+                start[listener].watch.get(watched_name, _UNSEEN) is not bound
+                for listener, _, target in ops
+                for watched_name, bound in target.watch.items()
+            )
             before.moves[(name, value)] = (tuple(ops), after, watched)
         self.step, self.group = step, after
+
+
+_UNSEEN = object()  # not a name a watch has (MISSING is a binding a watch can record)
 
 
 def _decidable(value: Any) -> bool:
