@@ -205,3 +205,165 @@ def test_the_simulator_step_is_the_reference_step(temperature, setpoint, limit, 
         for name, value in want["hotbox/sensors"].items():
             assert _same(got["hotbox/sensors"][name], value), name
         assert _same(fast.power, slow.power) and _same(fast.temperature, slow.temperature)
+
+
+# -------------------------------------------------------------------- twin: the Hotbox's learning
+
+
+def _hotbox_twin_module():
+    from tests.twin.hotbox import twin_module
+
+    return twin_module
+
+
+class _ReferenceWindow:
+    """SlidingWindow.push as first written (the last entry read three times, the counter
+    read back)."""
+
+    @staticmethod
+    def push(window, time, temperature, power, lid):
+        entries = window._entries
+        if entries and time - entries[-1][0] > window.max_gap:
+            window.clear()
+        if entries:
+            before_time, before_temperature = entries[-1][0], entries[-1][1]
+            step = time - before_time
+            excess = before_temperature - _hotbox_twin_module().AMBIENT
+            term_power = step * power
+            term_loss = step * excess
+            window.power += term_power
+            window.loss += term_loss
+            if lid:
+                window.lid += term_loss
+                window._lid_intervals += 1
+            entries.append((time, temperature, term_power, term_loss, lid))
+        else:
+            entries.append((time, temperature, 0.0, 0.0, False))
+        edge = time - window.span + 1e-9
+        while len(entries) >= 2 and entries[1][0] <= edge:
+            entries.popleft()
+            _, _, term_power, term_loss, lid_open = entries[0]
+            window.power -= term_power
+            window.loss -= term_loss
+            if lid_open:
+                window.lid -= term_loss
+                window._lid_intervals -= 1
+        if not window._lid_intervals:
+            window.lid = 0.0
+        window._since_resum += 1
+        if window._since_resum >= window.resum_every:
+            window.resum()
+        return entries[0][0] <= edge
+
+
+def _reference_twin(**options):
+    """A HotboxTwin learning as first written: rls.update with the phi tuple, two
+    variance_factor calls, the reference window."""
+    module = _hotbox_twin_module()
+
+    class Reference(module.HotboxTwin):
+        def observe(self, time, values):
+            temperature = values.get("temperature")
+            power = values.get("heater_power")
+            if temperature is None or power is None:
+                return None
+            record = (float(time), float(temperature), float(power), bool(values.get("lid_open")))
+            pending, update = self._pending, None
+            if pending is not None and record[0] < pending[0]:
+                return None
+            if pending is not None and record[0] > pending[0]:
+                update = self._learn(*pending)
+            self._pending = record
+            return update
+
+        def _learn(self, time, temperature, power, lid):
+            recent = self._recent
+            if not _ReferenceWindow.push(recent, time, temperature, power, lid):
+                return None
+            a0, b0, c0 = self._scale
+            phi = (a0 * recent.power, -b0 * recent.loss, -c0 * recent.lid)
+            self._reference[lid] = phi
+            change = recent.change
+            error = self.rls.update(phi, change, 1.0 / (len(recent) - 1))
+            residual = abs(error)
+            self._errors += 1
+            self._square_error += (error * error - self._square_error) / min(self._errors, 100)
+            drift = False
+            confident = self._confident()
+            if self._armed:
+                drift = self.detector.update(residual)
+            elif confident and not self._relearning:
+                self._armed = True
+                self.detector.reset()
+            if drift:
+                self.drifts += 1
+                self.rls.reset_covariance()
+                self._armed = False
+                self._relearning = True
+                confident = False
+            changed = confident and self._worth_publishing(time)
+            if changed:
+                self._publish(time)
+            return module.TwinUpdate(residual, drift, changed)
+
+        def _confident(self):
+            reference = self._reference
+            if len(reference) < 2:
+                return False
+            theta = self.rls.theta
+            if theta[0] <= 0 or theta[1] <= 0 or theta[2] < 0:
+                return False
+            bound = self.confidence**2
+            variance = self.rls.variance_factor
+            return variance(reference[False]) <= bound and variance(reference[True]) <= bound
+
+    return Reference(**options)
+
+
+@settings(max_examples=50, deadline=None, database=None)
+@given(
+    st.integers(0, 10**6),  # the box's noise and plans
+    st.floats(100.0, 1500.0),  # the content's heat capacity after the change...
+    st.floats(5.0, 50.0),  # ...at this time
+    st.lists(st.tuples(st.integers(0, 599), st.sampled_from([-0.3, 0.0, 0.05, 1.5])), max_size=6),
+    st.floats(0.003, 0.05),  # drift_delta: small ones make drift (and relearning) frequent
+    st.floats(0.05, 1.5),  # drift_threshold
+    st.floats(0.3, 5.0),  # confidence: large ones make a model confident (published) early
+    st.integers(2, 300),  # resum_every
+)
+def test_the_hotbox_twin_learns_as_the_reference_learning(
+    seed, capacity, change_at, glitches, delta, threshold, confidence, resum_every
+):
+    from tests.twin.hotbox import box
+
+    options = dict(
+        drift_delta=delta,
+        drift_threshold=threshold,
+        drift_min_samples=5,
+        confidence=confidence,
+        min_interval=1.0,
+    )
+    fast = _hotbox_twin_module().HotboxTwin(**options)
+    slow = _reference_twin(**options)
+    fast._recent.resum_every = slow._recent.resum_every = resum_every
+    simulator = box(500.0, 2.0, 12.0)(
+        {"first_lid_opening": 3.0, "lid_every": 12.0, "lid_open_for": 5.0,
+         "content_change": [[change_at, capacity]]},
+        seed=seed,
+    )
+    shifts = dict(glitches)  # record n's time moved (back, repeated, or a hole after it)
+    for n in range(1, 601):
+        time = round(n * 0.1, 9) + shifts.get(n, 0.0)
+        if n % 50 == 0:
+            simulator.apply("heater", {"mode": "boost" if n % 100 else "normal",
+                                       "setpoint": 36.0 + (seed + n) % 4}, time)
+        signals = simulator.step(time, 0.1)["hotbox/sensors"]
+        values = {k: signals[k] for k in fast.inputs}
+        got, want = fast.observe(time, values), slow.observe(time, values)
+        assert repr(got) == repr(want) and type(got) is type(want)
+        assert repr((fast.rls.theta, fast.rls.P)) == repr((slow.rls.theta, slow.rls.P))
+    assert repr(fast.model()) == repr(slow.model())
+    assert repr(vars(fast._recent)) == repr(vars(slow._recent))
+    assert (fast.drifts, fast._armed, fast._relearning) == (
+        slow.drifts, slow._armed, slow._relearning
+    )

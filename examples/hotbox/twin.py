@@ -94,10 +94,11 @@ class SlidingWindow:
     def push(self, time: float, temperature: float, power: float, lid: bool) -> bool:
         """Add a record (later than the last one); True when the window spans ``span``."""
         entries = self._entries
-        if entries and time - entries[-1][0] > self.max_gap:
-            self.clear()
         if entries:
-            before_time, before_temperature = entries[-1][0], entries[-1][1]
+            before_time, before_temperature, _, _, _ = entries[-1]
+            if time - before_time > self.max_gap:
+                self.clear()
+        if entries:
             step = time - before_time
             excess = before_temperature - AMBIENT
             term_power = step * power
@@ -122,8 +123,8 @@ class SlidingWindow:
                 self._lid_intervals -= 1
         if not self._lid_intervals:
             self.lid = 0.0
-        self._since_resum += 1
-        if self._since_resum >= self.resum_every:
+        since_resum = self._since_resum = self._since_resum + 1
+        if since_resum >= self.resum_every:
             self.resum()
         return entries[0][0] <= edge
 
@@ -274,12 +275,15 @@ class HotboxTwin(DigitalTwin):
         power = values.get("heater_power")
         if temperature is None or power is None:
             return None
-        record = (float(time), float(temperature), float(power), bool(values.get("lid_open")))
+        time = float(time)
+        record = (time, float(temperature), float(power), bool(values.get("lid_open")))
         pending, update = self._pending, None
-        if pending is not None and record[0] < pending[0]:
-            return None  # out of order: the contract says this does not happen; ignore it
-        if pending is not None and record[0] > pending[0]:
-            update = self._learn(*pending)
+        if pending is not None:
+            before = pending[0]
+            if time < before:
+                return None  # out of order: the contract says this does not happen; ignore it
+            if time > before:
+                update = self._learn(*pending)
         self._pending = record
         return update
 
@@ -288,13 +292,13 @@ class HotboxTwin(DigitalTwin):
         if not recent.push(time, temperature, power, lid):
             return None  # less than one window of records yet
         a0, b0, c0 = self._scale
-        phi = (a0 * recent.power, -b0 * recent.loss, -c0 * recent.lid)
-        self._reference[lid] = phi
+        f0, f1, f2 = a0 * recent.power, -b0 * recent.loss, -c0 * recent.lid
+        self._reference[lid] = (f0, f1, f2)
         # overlapping windows share their records: each counts as 1/len of an observation
         # the window's change and length read off its records (no property or __len__ call)
         entries = recent._entries
         change = entries[-1][1] - entries[0][1]
-        error = self.rls.update(phi, change, 1.0 / (len(entries) - 1))
+        error = self.rls.update3(f0, f1, f2, change, 1.0 / (len(entries) - 1))
         residual = abs(error)
         errors = self._errors = self._errors + 1
         # min(errors, 100) without the call (this runs once per record)
@@ -329,9 +333,7 @@ class HotboxTwin(DigitalTwin):
         theta = self.rls.theta
         if theta[0] <= 0 or theta[1] <= 0 or theta[2] < 0:
             return False
-        bound = self.confidence**2
-        variance = self.rls.variance_factor
-        return variance(reference[False]) <= bound and variance(reference[True]) <= bound
+        return self.rls.variances_within((reference[False], reference[True]), self.confidence**2)
 
     def _live_params(self) -> dict[str, float]:
         return _to_params([s * t for s, t in zip(self._scale, self.rls.theta, strict=True)])

@@ -106,6 +106,24 @@ class RecursiveLeastSquares:
             )
         return sum(phi[i] * sum(P[i][j] * phi[j] for j in range(n)) for i in range(n))
 
+    def variances_within(self, phis: Sequence[Sequence[float]], bound: float) -> bool:
+        """True when ``variance_factor(phi) <= bound`` for every ``phi`` of ``phis`` (the
+        first one beyond it ends the test)."""
+        if self.n != 3:
+            return all(self.variance_factor(phi) <= bound for phi in phis)
+        # a twin asks this for its reference windows at every record: P read once, unrolled
+        # as variance_factor (the same floats)
+        (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P
+        for f0, f1, f2 in phis:
+            variance = (
+                f0 * (p00 * f0 + p01 * f1 + p02 * f2)
+                + f1 * (p10 * f0 + p11 * f1 + p12 * f2)
+                + f2 * (p20 * f0 + p21 * f1 + p22 * f2)
+            )
+            if not variance <= bound:
+                return False
+        return True
+
     def update(self, phi: Sequence[float], y: float, weight: float = 1.0) -> float:
         """Learn from one observation; returns the a-priori error ``y - phi · theta``.
 
@@ -118,7 +136,7 @@ class RecursiveLeastSquares:
         if len(phi) != n:
             raise TwinError(f"phi has {len(phi)} values for {n} parameters")
         if n == 3:
-            return self._update3(float(phi[0]), float(phi[1]), float(phi[2]), float(y), weight)
+            return self.update3(float(phi[0]), float(phi[1]), float(phi[2]), float(y), weight)
         return self._update(phi, y, weight)
 
     def _update(self, phi: Sequence[float], y: float, weight: float) -> float:
@@ -147,11 +165,20 @@ class RecursiveLeastSquares:
         self.points += 1
         return error
 
-    def _update3(self, f0: float, f1: float, f2: float, y: float, weight: float) -> float:
-        """:meth:`_update` for ``n == 3``, unrolled. Every sum adds its terms in the loops'
-        order (and ``sum()`` of floats starting at 0 adds them left to right), so the two agree
-        to the last bit on Python 3.11; from 3.12 on ``sum()`` compensates its rounding and the
-        two may differ in the last digits."""
+    def update3(self, f0: float, f1: float, f2: float, y: float, weight: float = 1.0) -> float:
+        """:meth:`update` of a three-parameter estimator with ``phi = (f0, f1, f2)``, for a
+        caller that has the numbers at hand (a twin, once per record): no sequence to check and
+        convert, the same floats.
+
+        Unrolled: every sum adds its terms in :meth:`_update`'s loops' order (and ``sum()`` of
+        floats starting at 0 adds them left to right), so the two agree to the last bit on
+        Python 3.11; from 3.12 on ``sum()`` compensates its rounding and the two may differ in
+        the last digits.
+        """
+        if self.n != 3:
+            raise TwinError(f"update3 is for 3 parameters; this estimator has {self.n}")
+        if not weight > 0:
+            raise TwinError(f"an observation's weight must be positive, not {weight!r}")
         t0, t1, t2 = self.theta
         error = y - (f0 * t0 + f1 * t1 + f2 * t2)
         (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P

@@ -197,10 +197,31 @@ def test_three_parameters_take_an_unrolled_update_with_the_loops_floats(
     rls = RecursiveLeastSquares(
         3, forgetting=forgetting, covariance=covariance, max_trace=max_trace
     )
+    # update3 (the numbers given one by one) and variances_within (several phis) on another
+    three = RecursiveLeastSquares(
+        3, forgetting=forgetting, covariance=covariance, max_trace=max_trace
+    )
     loops = Loops(rls)
+    previous = data[0][0]
     for phi, y, weight in data:
         # the same operations in the same order: the same floats, to the last bit
         assert rls.variance_factor(phi) == loops.variance_factor(phi)
-        assert rls.update(phi, y, weight) == loops.update(phi, y, weight)
-        assert rls.theta == loops.theta and rls.P == loops.P
-    assert rls.points == len(data)
+        for bound in (loops.variance_factor(phi), loops.variance_factor(previous), 1.0):
+            expected = all(loops.variance_factor(p) <= bound for p in (phi, previous))
+            assert three.variances_within((phi, previous), bound) is expected
+        error = loops.update(phi, y, weight)
+        assert rls.update(phi, y, weight) == error
+        assert three.update3(phi[0], phi[1], phi[2], y, weight) == error
+        assert rls.theta == three.theta == loops.theta and rls.P == three.P == loops.P
+        previous = phi
+    assert rls.points == three.points == len(data)
+
+
+def test_update3_and_variances_within_refuse_what_update_refuses():
+    with pytest.raises(TwinError, match="weight"):
+        RecursiveLeastSquares(3).update3(1.0, 1.0, 1.0, 1.0, weight=0.0)
+    with pytest.raises(TwinError, match="3 parameters"):
+        RecursiveLeastSquares(2).update3(1.0, 1.0, 1.0, 1.0)
+    two = RecursiveLeastSquares(2, covariance=2.0)
+    assert two.variances_within([[1.0, 0.0], [0.0, 1.0]], 2.0)
+    assert not two.variances_within([[1.0, 0.0], [1.0, 1.0]], 2.0)
