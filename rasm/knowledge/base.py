@@ -13,6 +13,7 @@ import sys
 import threading
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Iterable, Mapping
+from functools import partial
 from typing import Any, NamedTuple
 
 from rasm.errors import KnowledgeError
@@ -39,6 +40,9 @@ class Sample(NamedTuple):
 
 
 _new_tuple = tuple.__new__
+#: ``Sample`` of a plain ``(time, value)`` tuple: tuple.__new__ skips NamedTuple's Python-level
+#: __new__, partial keeps the call in C (a map over a slice of the ring makes no Python frame)
+_as_sample = partial(_new_tuple, Sample)
 #: per declared type, the class a value must have exactly to be taken without its full check
 #: (by _Series.add here, by the Telegraf's digest); json values always get the full check
 EXACT_CLASS: dict[str, type] = {"float": float, "int": int, "bool": bool, "str": str}
@@ -53,6 +57,11 @@ class _Series:
     Until the ring is full ``head`` is 0 and the lists are in order; afterwards ``head`` is the
     index of the oldest sample, so the logical order is ``[head:] + [:head]`` and both parts are
     sorted by time.
+
+    The ring holds plain ``(time, value)`` tuples: a :class:`Sample` (a named tuple, several
+    times dearer to make) is made of one only when it is handed out (a read of samples, a
+    subscriber, :meth:`KnowledgeBase.register_knowledge`'s answer), so a value stored and
+    never read as a sample costs none.
     """
 
     __slots__ = (
@@ -79,7 +88,7 @@ class _Series:
             self.low = -_INF if decl.minimum is None else decl.minimum
             self.high = _INF if decl.maximum is None else decl.maximum
         self.capacity = decl.history
-        self.samples: list[Sample] = []
+        self.samples: list[tuple[float, Any]] = []  # (time, value): see the class's docstring
         self.times: list[float] = []
         self.head = 0
         self.last = _BEFORE_ALL
@@ -87,16 +96,16 @@ class _Series:
     def __len__(self) -> int:
         return len(self.samples)
 
-    def add(self, value: Any, time: float) -> Sample:
-        """Check and store ``value`` at float ``time``; raise :class:`KnowledgeError` for a
-        refused value or a time before the last sample's (or not finite)."""
+    def add(self, value: Any, time: float) -> tuple[float, Any]:
+        """Check and store ``value`` at float ``time``; return ``(time, value as stored)``.
+        Raise :class:`KnowledgeError` for a refused value or a time before the last sample's
+        (or not finite)."""
         low = self.low
         if value.__class__ is not self.exact or not (low is None or low <= value <= self.high):
             value = self.check(value)  # NaN fails the range test: check decides on it
         if not self.last <= time < _INF:  # also false for NaN
             raise KnowledgeBase._bad_time(self.decl.key, time, self.last)
-        # tuple.__new__ skips NamedTuple's Python-level __new__ (measurably cheaper per write)
-        sample = _new_tuple(Sample, (time, value))
+        sample = (time, value)
         samples = self.samples
         if len(samples) < self.capacity:
             samples.append(sample)
@@ -112,7 +121,7 @@ class _Series:
 
     def latest(self) -> Sample | None:
         # when not full head is 0 and [-1] is the newest; when full the newest is just before head
-        return self.samples[self.head - 1] if self.samples else None
+        return _as_sample(self.samples[self.head - 1]) if self.samples else None
 
     def position(self, time: float, after: bool) -> int:
         """Logical index of the first sample with time >= ``time`` (> if ``after``)."""
@@ -129,10 +138,12 @@ class _Series:
         samples, head = self.samples, self.head
         older = len(samples) - head  # samples in the [head:] part
         if hi <= older:
-            return samples[head + lo : head + hi]
-        if lo >= older:
-            return samples[lo - older : hi - older]
-        return samples[head + lo :] + samples[: hi - older]
+            part = samples[head + lo : head + hi]
+        elif lo >= older:
+            part = samples[lo - older : hi - older]
+        else:
+            part = samples[head + lo :] + samples[: hi - older]
+        return list(map(_as_sample, part))
 
     def all(self) -> list[Sample]:
         return self.between(0, len(self.samples))
@@ -159,16 +170,23 @@ class Subscription:
 
 
 def register_each(
-    register: Callable[[str, Any, float], Any], values: Mapping[str, Any], time: float
+    register: Callable[[str, Any, float], Any],
+    values: Mapping[str, Any],
+    time: float,
+    into: dict[str, Any] | None = None,
 ) -> dict[str, Exception]:
     """Call ``register(key, value, time)`` for each value; return the refused ones with the error
-    each raised (a refused value does not stop the others)."""
+    each raised (a refused value does not stop the others). With ``into``, the value of each
+    sample ``register`` returned is put there under its key."""
     refused: dict[str, Exception] = {}
     for key, value in values.items():
         try:
-            register(key, value, time)
+            sample = register(key, value, time)
         except Exception as exc:
             refused[key] = exc
+            continue
+        if into is not None:
+            into[key] = sample.value
     return refused
 
 
@@ -245,12 +263,12 @@ class KnowledgeBase:
         a time older than the key's last sample. Subscribers are called before this returns.
         """
         with self._lock:
-            sample = self._append_sample(key, value, time)
+            sample = _as_sample(self._append_sample(key, value, time))
             if self._subscriptions:  # most stores have none: no call then
                 self._notify(key, sample)
             return sample
 
-    def _append_sample(self, key: str, value: Any, time: float) -> Sample:
+    def _append_sample(self, key: str, value: Any, time: float) -> tuple[float, Any]:
         """Check and store one value (the caller holds the lock); raise as register_knowledge."""
         series = self._series.get(key)
         if series is None:
@@ -269,17 +287,21 @@ class KnowledgeBase:
             except Exception:
                 _log.exception("knowledge subscriber %r failed on %r", subscription.callback, key)
 
-    def register_values(self, values: Mapping[str, Any], time: float) -> dict[str, Exception]:
+    def register_values(
+        self, values: Mapping[str, Any], time: float, *, into: dict[str, Any] | None = None
+    ) -> dict[str, Exception]:
         """Record every value of ``values`` at ``time``, as :meth:`register_knowledge` would one
         after the other, under one acquisition of the lock; return the refused ones.
 
         Each value is checked on its own: a refused one (``{key: the error register_knowledge
         would raise}``) is not stored and does not stop the others. Subscribers are called for
-        each stored value, in order, before this returns.
+        each stored value, in order, before this returns. With ``into``, each value stored is
+        put there too, under its key, as stored (its declared type's canonical form: what a
+        read gives back), so a caller needs no read to know it.
         """
         if type(self).register_knowledge is not KnowledgeBase.register_knowledge:
             # a store that registers its own way (Redis) is asked one value at a time
-            return register_each(self.register_knowledge, values, time)
+            return register_each(self.register_knowledge, values, time, into)
         refused: dict[str, Exception] = {}
         with self._lock:
             # a known key at a float time (every value of a running loop) is added directly
@@ -288,14 +310,16 @@ class KnowledgeBase:
                 try:
                     series = series_of.get(key)
                     if series is not None:
-                        sample = series.add(value, time)
+                        entry = series.add(value, time)
                     else:
-                        sample = self._append_sample(key, value, time)
+                        entry = self._append_sample(key, value, time)
                 except Exception as exc:
                     refused[key] = exc
                     continue
+                if into is not None:
+                    into[key] = entry[1]
                 if self._subscriptions:
-                    self._notify(key, sample)
+                    self._notify(key, _as_sample(entry))
         return refused
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
@@ -360,8 +384,9 @@ class KnowledgeBase:
         """The latest value of ``key``, or ``default`` if it has none."""
         with self._lock:
             series = self._series.get(key)
-            sample = series.latest() if series is not None else None
-            return default if sample is None else sample.value
+            if series is None or not series.samples:
+                return default
+            return series.samples[series.head - 1][1]  # the newest: see _Series.latest
 
     def read_values(self, keys: Iterable[str], default: Any = None) -> dict[str, Any]:
         """``{key: read_knowledge(key, default)}`` for each of ``keys``, read under one lock (a
@@ -376,7 +401,7 @@ class KnowledgeBase:
                 series = series_of.get(key)
                 samples = series.samples if series is not None else None
                 # series.latest() without the call: the newest sample is just before head
-                out[key] = samples[series.head - 1].value if samples else default
+                out[key] = samples[series.head - 1][1] if samples else default
         return out
 
     def read_sample(self, key: str) -> Sample | None:
@@ -421,7 +446,7 @@ class KnowledgeBase:
         """The latest value of every key that has one."""
         with self._lock:
             return {
-                key: series.latest().value  # type: ignore[union-attr]
+                key: series.samples[series.head - 1][1]  # the newest: see _Series.latest
                 for key, series in self._series.items()
                 if series.samples
             }

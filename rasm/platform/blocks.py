@@ -209,10 +209,16 @@ class KnowledgeManager(Block):
         return self.store.register_knowledge(key, value, self.clock.time if time is None else time)
 
     def register_values(
-        self, values: Mapping[str, Any], time: float | None = None
+        self,
+        values: Mapping[str, Any],
+        time: float | None = None,
+        *,
+        into: dict[str, Any] | None = None,
     ) -> dict[str, Exception]:
         """Store each of ``values`` as :meth:`register_knowledge` would, one after the other;
         return the refused ones, ``{key: the error}`` (a refused value does not stop the rest).
+        With ``into``, each value stored is put there too, as stored (see
+        :meth:`~rasm.knowledge.base.KnowledgeBase.register_values`).
         """
         if self._mode != "initialized":
             try:
@@ -224,8 +230,9 @@ class KnowledgeManager(Block):
         store = self.store
         batch = getattr(store, "register_values", None)
         if batch is not None:  # one lock for the batch (KnowledgeBase)
-            return batch(values, time)
-        return register_each(store.register_knowledge, values, time)
+            # a store's own register_values may not know `into`: asked without it when unused
+            return batch(values, time) if into is None else batch(values, time, into=into)
+        return register_each(store.register_knowledge, values, time, into)
 
     def read_knowledge(self, key: str, default: Any = None) -> Any:
         return self.store.read_knowledge(key, default)

@@ -25,6 +25,7 @@ from typing import Any
 from sismic.clock import SimulatedClock
 
 from rasm.errors import Location, PlatformError, RasmError, SourceError
+from rasm.knowledge.base import KnowledgeBase
 from rasm.platform.blocks import (
     AdaptationManager,
     CommunicationManager,
@@ -177,6 +178,7 @@ class Platform:
         self._timeline_start = 0.0
         self.twin: Any = None
         self._twin_inputs: frozenset[str] = frozenset()
+        self._twin_from_batch = False
         self._effector_gates: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ assembly
@@ -392,21 +394,40 @@ class Platform:
                 except Exception as exc:  # a stale model is relearned, never fatal
                     _log.warning("the twin's stored model was not restored: %s", exc)
             self._twin_inputs = frozenset(twin.inputs)
+            # a store read from memory holds, for an input just stored, the value stored: the
+            # batch tells it (register_values' `into`), no read needed
+            kind = type(self.kb)
+            self._twin_from_batch = (
+                kind.read_values is KnowledgeBase.read_values
+                and kind.read_knowledge is KnowledgeBase.read_knowledge
+            )
         return twin
 
-    def _observe_twin(self, time: float) -> dict[str, float]:
-        """Let the twin learn from the latest inputs; register its residual (returned, for the
-        trace record of the inputs that produced it), and publish its model and drift."""
+    def _observe_twin(
+        self, time: float, stored: dict[str, Any], batch: dict[str, Any] | None
+    ) -> None:
+        """Let the twin learn from the latest inputs; register its residual (and add it to
+        ``stored``, the trace record of the inputs that produced it), and publish its model and
+        drift. ``batch``: the values just stored, as stored, or None."""
         twin = self.twin
-        values = self.kb.read_values(twin.inputs)  # one lock for the inputs
+        inputs = twin.inputs
+        values: dict[str, Any] | None = {}
+        if batch is not None:
+            for key in inputs:
+                if key not in batch:  # an input not in this batch: its latest is read
+                    values = None
+                    break
+                values[key] = batch[key]  # type: ignore[index]
+        if not batch or values is None:
+            values = self.kb.read_values(inputs)  # one lock for the inputs
         try:
             update = twin.observe(time, values)
             residual = None if update is None else float(update.residual)
         except Exception as exc:  # a twin fault is logged; learning goes on with the next record
             _log.error("digital twin failed to learn: %s: %s", type(exc).__name__, exc)
-            return {}
+            return
         if update is None:
-            return {}
+            return
         try:
             self.km.register_knowledge("twin_residual", residual, time)
         except Exception as exc:  # a NaN residual is refused like any bad value
@@ -419,7 +440,8 @@ class Platform:
         if update.drift:
             self._emit(time, {"drift": True, "explanation": "the digital twin detected drift"})
             self.scheduler.submit(lambda: self.ao.send("drift_detected"))
-        return {} if residual is None else {"twin_residual": residual}
+        if residual is not None:
+            stored["twin_residual"] = residual
 
     def _chart(self, name: str) -> Path | None:
         """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
@@ -433,14 +455,20 @@ class Platform:
     def _register(self, values: dict[str, Any], time: float) -> None:
         """Store values in knowledge (one trace record for the batch, with the twin's residual
         when they were the twin's inputs)."""
+        observe = self.twin is not None and not self._twin_inputs.isdisjoint(values)
+        # the values as stored, for the twin (None: it reads them back)
+        batch: dict[str, Any] | None = {} if observe and self._twin_from_batch else None
         # one call for the batch: a bad value is refused on its own, logged and dropped
-        refused = self.km.register_values(values, time)
+        if batch is None:
+            refused = self.km.register_values(values, time)
+        else:
+            refused = self.km.register_values(values, time, into=batch)
         for key, exc in refused.items():
             _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
         # the trace record has the scalars stored
         stored = {k: v for k, v in values.items() if k not in refused and isinstance(v, _SCALARS)}
-        if self.twin is not None and not self._twin_inputs.isdisjoint(values):
-            stored.update(self._observe_twin(time))
+        if observe:
+            self._observe_twin(time, stored, batch)
         if stored:
             self._emit(time, stored)
 

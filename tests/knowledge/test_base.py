@@ -325,7 +325,8 @@ def test_a_batch_is_each_value_registered_one_after_the_other(batches):
     batched, batched_seen = _declared_base()
     single, single_seen = _declared_base()
     for values, time in batches:
-        refused = batched.register_values(values, time)
+        stored: dict = {}
+        refused = batched.register_values(values, time, into=stored)
         expected = {}
         for key, value in values.items():
             try:
@@ -336,10 +337,20 @@ def test_a_batch_is_each_value_registered_one_after_the_other(batches):
         assert [(type(e), str(e)) for e in refused.values()] == [
             (type(e), str(e)) for e in expected.values()
         ]
+        # `into` has each value stored, as a read gives it back
+        assert list(stored) == [key for key in values if key not in refused]
+        assert same(stored, {key: batched.read_knowledge(key) for key in stored})
+        assert same(stored, {key: single.read_knowledge(key) for key in stored})
     assert same([list(s) for _, s in batched_seen], [list(s) for _, s in single_seen])
     assert [k for k, _ in batched_seen] == [k for k, _ in single_seen]
+    # what is handed out is a Sample (the store keeps plain tuples)
+    assert all(type(s) is Sample for _, s in batched_seen)
     for key in single.keys():
-        assert same([list(s) for s in batched.history(key)], [list(s) for s in single.history(key)])
+        history = batched.history(key)
+        assert same([list(s) for s in history], [list(s) for s in single.history(key)])
+        assert all(type(s) is Sample for s in history)
+        assert type(batched.read_sample(key)) is Sample or not history
+        assert batched.read_sample(key) == (history[-1] if history else None)
 
 
 def test_a_batch_goes_through_a_store_that_registers_its_own_way():
@@ -352,9 +363,12 @@ def test_a_batch_goes_through_a_store_that_registers_its_own_way():
 
     kb = Counting()
     kb.declare("speed", "float", minimum=0.0)
-    refused = kb.register_values({"speed": -1.0, "other": 2.0}, 1.0)
-    assert list(refused) == ["speed"] and Counting.calls == 2
+    kb.declare("count", "float")
+    stored: dict = {}
+    refused = kb.register_values({"speed": -1.0, "other": 2.0, "count": 3}, 1.0, into=stored)
+    assert list(refused) == ["speed"] and Counting.calls == 3
     assert kb.read_knowledge("other") == 2.0
+    assert stored == {"other": 2.0, "count": 3.0} and type(stored["count"]) is float
 
 
 def test_a_subscriber_failing_in_a_batch_fails_neither_the_batch_nor_the_others():

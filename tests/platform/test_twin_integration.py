@@ -108,3 +108,56 @@ def test_residual_model_and_drift_reach_knowledge_trace_and_chart(hotbox, tmp_pa
         components={"twin": again},
     ).build()
     assert again.loaded == {"version": versions[-1], "params": {"points": versions[-1] * 50}}
+
+
+class WitnessTwin(PessimistTwin):
+    """Keeps what it was given next to what knowledge holds when it is asked to learn."""
+
+    def __init__(self, inputs):
+        super().__init__()
+        self.inputs = inputs
+        self.kb = None
+        self.seen = []
+
+    def observe(self, time, values):
+        self.seen.append((dict(values), self.kb.read_values(self.inputs)))
+        return super().observe(time, values)
+
+
+def test_the_twin_gets_the_latest_value_of_each_input_however_it_was_stored(hotbox):
+    # all inputs in each probe batch (taken from the batch); one registered by the Monitor
+    # stage, never in a probe batch (read back)
+    for inputs in (("temperature", "heater_power"), ("temperature", "temperature_mean")):
+        twin = WitnessTwin(inputs)
+        platform = Platform(
+            hotbox, clock="simulated", seed=1, knowledge="memory", components={"twin": twin}
+        )
+        platform.build()
+        twin.kb = platform.kb
+        platform.run(5)
+        assert len(twin.seen) > 40
+        assert all(given == held and list(given) == list(inputs) for given, held in twin.seen)
+        assert all(type(v) is type(h) for given, held in twin.seen for v, h in zip(
+            given.values(), held.values(), strict=True
+        ))
+    # a refused input: the twin gets the one knowledge still holds; an int for a float: the
+    # float stored
+    twin = WitnessTwin(("temperature", "temperature_mean"))
+    platform = Platform(
+        hotbox, clock="simulated", seed=1, knowledge="memory", components={"twin": twin}
+    )
+    platform.build()
+    twin.kb = platform.kb
+    platform.start()
+    platform.scheduler.run_until(2.0)
+    time = platform.clock.time
+    before = platform.kb.read_knowledge("temperature")
+    platform._register({"temperature": "hot", "heater_power": 5}, time + 1.0)
+    given, held = twin.seen[-1]
+    assert given == held == {"temperature": before, "temperature_mean": held["temperature_mean"]}
+    twin.inputs = ("temperature", "heater_power")
+    platform._register({"temperature": 36, "heater_power": 5}, time + 2.0)
+    given, held = twin.seen[-1]
+    assert given == held == {"temperature": 36.0, "heater_power": 5.0}
+    assert type(given["temperature"]) is float and type(given["heater_power"]) is float
+    platform.stop()
