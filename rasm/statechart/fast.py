@@ -272,7 +272,7 @@ class FastInterpreter(Interpreter):
         fast_events = self._fast_events
         if not fast_events:
             self._raise_event(_Meta("step started", time=self._time))
-        elif self._listeners:
+        elif self._listeners and not self._fold.start(self):
             self._announce("step started", None, {"time": self._time})
 
         computed_steps = self._compute_steps()
@@ -802,13 +802,7 @@ class _ListenerGroups:
                 self.step = -1
                 return
             key.append(checked)
-        groups = self.groups
-        interests = tuple(key)
-        after = groups.get(interests)
-        if after is None:
-            if len(groups) >= self.LIMIT:
-                groups.clear()
-            after = groups[interests] = _ListenerGroup(interests)
+        after = self._group_of(tuple(key))
         # a sent event's meta-events may carry a delay, which deliver() never replays
         if before is not None and name != "event sent" and name != "delayed event sent":
             # The group's own interests are checked whenever it is reached (see _announce):
@@ -821,6 +815,59 @@ class _ListenerGroups:
             )
             before.moves[(name, value)] = (tuple(ops), after, watched)
         self.step, self.group = step, after
+
+    def _group_of(self, interests: tuple[_Interest, ...]) -> _ListenerGroup:
+        groups = self.groups
+        group = groups.get(interests)
+        if group is None:
+            if len(groups) >= self.LIMIT:
+                groups.clear()
+            group = groups[interests] = _ListenerGroup(interests)
+        return group
+
+    def start(self, interp: FastInterpreter) -> bool:
+        """Announce ``step started`` (the step's first meta-event) when no listener of ``interp``
+        can react to it, doing for each what :meth:`PropertyListener.needs` does then: check
+        that it is settled, nothing queued, its states and the names they read as remembered
+        and nothing time-triggered to evaluate, then move its time. False, having changed
+        nothing, when that is not so for one of them (``needs`` then decides, one by one)."""
+        now = interp._time
+        interests = []
+        for listener in interp._listeners:
+            if (
+                type(listener) is not PropertyListener
+                or listener._step_source is not interp
+                or not listener._settled
+                or not listener._static_guards
+            ):
+                return False
+            prop = listener._interpreter
+            conf = prop._configuration
+            if prop._listeners or prop._internal_queue or prop._external_queue or not conf:
+                return False
+            interest = listener._interest
+            if not (
+                conf is listener._interest_conf
+                and prop._conf_version == listener._interest_version
+                and (not interest.watch or listener._watch_holds(interest))
+            ):
+                return False
+            if prop._time != now and interest.eventless:
+                return False
+            if interest.listening.get("step started") is not False:
+                return False
+            interests.append(interest)
+        step = interp._step_count
+        for listener, interest in zip(interp._listeners, interests, strict=True):
+            prop = listener._interpreter
+            if prop._time != now:
+                hook = listener.before_time_change or listener.before_change
+                if hook is not None:
+                    hook(prop)
+                prop._time = now
+            listener._checked, listener._checked_step = interest, step
+        self.step, self.group = step, self._group_of(tuple(interests))
+        return True
 
 
 _UNSEEN = object()  # not a name a watch has (MISSING is a binding a watch can record)
