@@ -353,10 +353,13 @@ class HotboxTwin(DigitalTwin):
         # the published model differ by more than `tolerance` of the window's heat flows
         old0, old1, old2 = self._published_theta
         new0, new1, new2 = self.rls.theta
+        # the same for every window (the same floats as computed in the loop)
+        step0, step1, step2 = new0 - old0, new1 - old1, new2 - old2
+        tolerance = self.tolerance
         for p0, p1, p2 in self._reference.values():
             flows = abs(p0 * old0) + abs(p1 * old1) + abs(p2 * old2)
-            moved = p0 * (new0 - old0) + p1 * (new1 - old1) + p2 * (new2 - old2)
-            if abs(moved) > self.tolerance * flows:
+            moved = p0 * step0 + p1 * step1 + p2 * step2
+            if abs(moved) > tolerance * flows:
                 return True
         return False
 

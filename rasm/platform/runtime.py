@@ -465,8 +465,11 @@ class Platform:
             refused = self.km.register_values(values, time, into=batch)
         for key, exc in refused.items():
             _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
-        # the trace record has the scalars stored
-        stored = {k: v for k, v in values.items() if k not in refused and isinstance(v, _SCALARS)}
+        # the trace record has the scalars stored (a loop, not a comprehension: no function call)
+        stored: dict[str, Any] = {}
+        for key, value in values.items():
+            if key not in refused and isinstance(value, _SCALARS):
+                stored[key] = value
         if observe:
             self._observe_twin(time, stored, batch)
         if stored:
