@@ -139,11 +139,19 @@ def load_component(
         raise PlatformError(f"{ref}: creating {class_name}() failed: {exc}") from exc
 
 
+def _str_keys(value: dict) -> bool:
+    # a loop rather than all(generator): the monitor's result is checked at every iteration
+    for key in value:
+        if not isinstance(key, str):
+            return False
+    return True
+
+
 def as_signals(value: Any) -> dict[str, Any]:
     """Monitor's result: derived signals to register (a dict), or nothing."""
     if value is None:
         return {}
-    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
+    if not isinstance(value, dict) or not _str_keys(value):
         raise StageError(
             f"monitor must return a dict of signals or None, not {type(value).__name__}"
         )

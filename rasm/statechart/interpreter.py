@@ -554,10 +554,12 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
         """
         if not self._initialized:
             return self.time
-        candidates = [t for t, _ in self._internal_queue[:1]] + [
-            t for t, _ in self._external_queue[:1]
-        ]
-        candidates.extend(getattr(self._evaluator, "deadlines", ()))
+        internal, external = self._internal_queue, self._external_queue
+        deadlines = getattr(self._evaluator, "deadlines", ())
+        if not (internal or external or deadlines):
+            return None  # the usual answer, after every send: nothing queued, no timer
+        candidates = [queue[0][0] for queue in (internal, external) if queue]
+        candidates.extend(deadlines)
         due = min(candidates, default=math.inf)
         return None if due == math.inf else due
 
