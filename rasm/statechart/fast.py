@@ -212,6 +212,14 @@ class FastInterpreter(Interpreter):
 
     # ---- public API -----------------------------------------------------------------------
 
+    def attach(self, listener: Callable[[MetaEvent], Any]) -> None:
+        super().attach(listener)
+        self._fold.step = -1  # what the listeners did as a group is not what they do now
+
+    def detach(self, listener: Callable[[MetaEvent], Any]) -> None:
+        super().detach(listener)
+        self._fold.step = -1
+
     @property
     def configuration(self) -> list[str]:
         """Active state names ordered by depth, ties broken by name (as stock sismic)."""
@@ -807,6 +815,7 @@ class _ListenerGroups:
         if before is not None and name != "event sent" and name != "delayed event sent":
             # The group's own interests are checked whenever it is reached (see _announce):
             # a name an interest reached watches, bound to the same object, needs no new check.
+            # (the same listeners: attach() and detach() forget the group)
             start = dict(zip(interp._listeners, before.interests, strict=True))
             watched = any(
                 start[listener].watch.get(watched_name, _UNSEEN) is not bound

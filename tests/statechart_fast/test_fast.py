@@ -400,6 +400,68 @@ def test_remembered_deliveries_check_the_names_the_states_they_reach_read():
     assert _armed_by_exit(FastInterpreter) == expected
 
 
+TOGGLE_ATTACHING = chart("""
+statechart:
+  name: toggle that attaches a listener when told to
+  preamble: |
+    later = None
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      transitions:
+      - target: b
+        event: n
+        action: |
+          if later is not None:
+              attach(later)
+              later = None
+    - name: b
+      transitions:
+      - {target: a, event: n}
+""")
+
+ENTERING_B = chart("""
+statechart:
+  name: counts nothing, watches b entered
+  root state:
+    name: root
+    initial: watching
+    states:
+    - name: watching
+      transitions:
+      - {target: seen, event: state entered, guard: event.state == 'b'}
+    - name: seen
+      transitions:
+      - {target: watching, event: state exited, guard: event.state == 'b'}
+""")
+
+
+def _attached_mid_step(klass) -> list[tuple[str, object]]:
+    interp = klass(TOGGLE_ATTACHING)
+    interp.bind_property_statechart(ENTERING_B)
+    interp.context["attach"] = interp.attach
+    heard: list[tuple[str, object]] = []
+    interp.execute()
+    for step in range(10):
+        if step == 8:  # the listeners' group has long been learnt for a -> b
+            interp.context["later"] = lambda meta: heard.append((meta.name, dict(meta.data)))
+        interp.clock.time += 1
+        interp.queue("n")
+        interp.execute()
+    return heard
+
+
+def test_a_listener_attached_within_a_step_hears_the_rest_of_it():
+    # What the listeners did as a group is remembered (FastInterpreter._announce); a listener
+    # attached by an action, in the middle of a step, must hear that step's later meta-events.
+    expected = _attached_mid_step(Interpreter)
+    heard = ("transition processed", {"source": "a", "target": "b", "event": Event("n")})
+    assert heard in expected  # the recorder heard the rest of the step it was attached in
+    assert _attached_mid_step(FastInterpreter) == expected
+
+
 NESTED = chart("""
 statechart:
   name: nested cycle
