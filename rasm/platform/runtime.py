@@ -411,14 +411,15 @@ class Platform:
         drift. ``batch``: the values just stored, as stored, or None."""
         twin = self.twin
         inputs = twin.inputs
-        values: dict[str, Any] | None = {}
-        if batch is not None:
+        values: dict[str, Any] | None = None
+        if batch:
+            values = {}
             for key in inputs:
                 if key not in batch:  # an input not in this batch: its latest is read
                     values = None
                     break
-                values[key] = batch[key]  # type: ignore[index]
-        if not batch or values is None:
+                values[key] = batch[key]
+        if values is None:
             values = self.kb.read_values(inputs)  # one lock for the inputs
         try:
             update = twin.observe(time, values)

@@ -96,14 +96,6 @@ class RecursiveLeastSquares:
         """``phi' P phi``: how uncertain the prediction for ``phi`` is, in units of the noise."""
         n = self.n
         P = self.P
-        if n == 3:  # a twin asks this for a reference window at every record: unrolled
-            f0, f1, f2 = phi
-            (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = P
-            return (
-                f0 * (p00 * f0 + p01 * f1 + p02 * f2)
-                + f1 * (p10 * f0 + p11 * f1 + p12 * f2)
-                + f2 * (p20 * f0 + p21 * f1 + p22 * f2)
-            )
         return sum(phi[i] * sum(P[i][j] * phi[j] for j in range(n)) for i in range(n))
 
     def variances_within(self, phis: Sequence[Sequence[float]], bound: float) -> bool:
@@ -111,8 +103,8 @@ class RecursiveLeastSquares:
         first one beyond it ends the test)."""
         if self.n != 3:
             return all(self.variance_factor(phi) <= bound for phi in phis)
-        # a twin asks this for its reference windows at every record: P read once, unrolled
-        # as variance_factor (the same floats)
+        # a twin asks this for its reference windows at every record: P read once, and
+        # variance_factor's sums unrolled term for term (the same floats)
         (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P
         for f0, f1, f2 in phis:
             variance = (
