@@ -15,4 +15,4 @@ else
 fi
 # Compile the hot modules (rasm/compiled: about 1.6 times faster, same source). Without a C
 # compiler rasm runs as plain Python; an edited module runs as plain Python until rebuilt.
-.venv/bin/python -m rasm.compiled build >/dev/null || echo "warning: rasm runs as plain Python (no compiled build)" >&2
+.venv/bin/python -m rasm.compiled build || echo "warning: rasm runs as plain Python (no compiled build)" >&2

@@ -131,3 +131,26 @@ def test_the_demonstrators_leave_the_same_trace_compiled_and_as_plain_python(app
     assert plain["compiled"] == []
     assert len(compiled["trace"]) > 200
     assert compiled["trace"] == plain["trace"]
+
+
+def test_a_failed_build_says_why_and_keeps_the_build_there_was(toy):
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.compiled", "build", "--force"],
+        env={**os.environ, **toy, "CC": "/bin/false"},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 1
+    assert "build failed: CompileError" in done.stderr and "/bin/false" in done.stderr
+    assert done.stdout == ""  # the compiler's chatter went to the log, shown with the error
+    file, answer, state = python(IMPORT_TOY, toy).split()
+    assert file.endswith(SUFFIX) and state == "compiled"
+
+
+def test_status_names_every_module_and_the_folder(toy):
+    out = python("from rasm.compiled.__main__ import main; main(['status'])", toy)
+    lines = out.splitlines()
+    assert [line.split()[0] for line in lines[:-1]] == list(MODULES)
+    assert {line.split(None, 1)[1] for line in lines[:-1]} == {"not built"}
+    assert lines[-1] == f"folder: {Path(toy['RASM_COMPILED_DIR']) / rasm.compiled.folder().name}"
