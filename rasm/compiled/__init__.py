@@ -1,9 +1,9 @@
 """The compiled build of rasm's hot modules: the same Python source, compiled by Cython.
 
 The modules a MAPLE-K iteration spends its time in (the fast statechart interpreter, the blocks,
-the record path, knowledge, the bus, the online monitors' operators) run about 1.6 times faster
-compiled; nothing else changes, because the source is the same. The build is optional and is
-never stale:
+the record path, knowledge, the bus, the online monitors' operators) run faster compiled (the
+Hotbox about 1.45 times); nothing else changes, because the source is the same. The build is
+optional and is never stale:
 
 - ``python -m rasm.compiled build`` compiles :data:`MODULES` into a folder of the environment
   (:func:`folder`), with a manifest holding the SHA-256 of each source it compiled;
@@ -34,8 +34,8 @@ from typing import Any
 
 __all__ = ["MODULES", "build", "folder", "install", "loaded", "source_of", "status"]
 
-# The modules worth compiling: where the loop spends its time (measured with callgrind, see the
-# docs). Others gain little and would only make the build longer.
+# The modules worth compiling: where the loop spends its time (profiled with py-spy, see
+# docs/performance-statecharts.md). Others gain little and would only make the build longer.
 MODULES: tuple[str, ...] = (
     "rasm.statechart.fast",
     "rasm.statechart.fast_tables",
