@@ -154,3 +154,20 @@ def test_status_names_every_module_and_the_folder(toy):
     assert [line.split()[0] for line in lines[:-1]] == list(MODULES)
     assert {line.split(None, 1)[1] for line in lines[:-1]} == {"not built"}
     assert lines[-1] == f"folder: {Path(toy['RASM_COMPILED_DIR']) / rasm.compiled.folder().name}"
+
+
+@needs_build
+def test_the_hot_modules_run_compiled_under_pytest_started_after_rasm_was_imported(tmp_path):
+    # pytest's assertion rewriter, put first once rasm is imported, would take them as plain
+    # Python if rasm.testing (the plugin) did not put the compiled finder back in front
+    (tmp_path / "test_probe.py").write_text(
+        "import sysconfig\n"
+        "def test_probe():\n"
+        "    import rasm.statechart.fast as fast\n"
+        "    assert fast.__file__.endswith(sysconfig.get_config_var('EXT_SUFFIX'))\n"
+    )
+    code = f"""
+    import sys, rasm, pytest
+    sys.exit(pytest.main(["-q", "-p", "no:cacheprovider", {str(tmp_path / "test_probe.py")!r}]))
+    """
+    assert "1 passed" in python(code, {"RASM_PURE_PYTHON": ""})

@@ -130,10 +130,15 @@ _finder: _CompiledFinder | None = None
 
 
 def install() -> bool:
-    """Put the compiled build's finder first on ``sys.meta_path`` (once); False when there is
-    no build here or ``RASM_PURE_PYTHON`` is set. ``rasm/__init__`` calls it."""
+    """Put the compiled build's finder first on ``sys.meta_path`` (back in front if another
+    finder was put before it since); False when there is no build here or ``RASM_PURE_PYTHON``
+    is set. ``rasm/__init__`` calls it, and ``rasm.testing`` again (see there)."""
     global _finder
     if _finder is not None:
+        if sys.meta_path[:1] != [_finder]:
+            if _finder in sys.meta_path:
+                sys.meta_path.remove(_finder)
+            sys.meta_path.insert(0, _finder)
         return True
     if os.environ.get("RASM_PURE_PYTHON", "") not in ("", "0"):
         return False
