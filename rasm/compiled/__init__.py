@@ -79,6 +79,10 @@ def _tag() -> str:
     return suffix.strip(".").rsplit(".", 1)[0]
 
 
+def _off() -> bool:
+    return os.environ.get("RASM_PURE_PYTHON", "") not in ("", "0")
+
+
 def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -140,7 +144,7 @@ def install() -> bool:
                 sys.meta_path.remove(_finder)
             sys.meta_path.insert(0, _finder)
         return True
-    if os.environ.get("RASM_PURE_PYTHON", "") not in ("", "0"):
+    if _off():
         return False
     where = folder()
     entries = _read_manifest(where)
@@ -160,14 +164,15 @@ def loaded() -> frozenset[str]:
 def status(modules: Iterable[str] = MODULES) -> dict[str, str]:
     """Per module, what an import would take: ``compiled``, ``stale`` (edited since the build:
     plain Python), ``not built`` or ``off`` (``RASM_PURE_PYTHON``)."""
-    off = os.environ.get("RASM_PURE_PYTHON", "") not in ("", "0")
-    entries = _read_manifest(folder())
+    off = _off()
+    where = folder()
+    entries = _read_manifest(where)
     found = {}
     for name in modules:
         entry = entries.get(name)
         if off:
             found[name] = "off"
-        elif entry is None or not (folder() / entry["file"]).is_file():
+        elif entry is None or not (where / entry["file"]).is_file():
             found[name] = "not built"
         else:
             source = source_of(name)
