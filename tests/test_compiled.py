@@ -171,3 +171,11 @@ def test_the_hot_modules_run_compiled_under_pytest_started_after_rasm_was_import
     sys.exit(pytest.main(["-q", "-p", "no:cacheprovider", {str(tmp_path / "test_probe.py")!r}]))
     """
     assert "1 passed" in python(code, {"RASM_PURE_PYTHON": ""})
+
+
+def test_an_unknown_command_is_refused_with_exit_2_and_no_traceback():
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.compiled", "bogus"], capture_output=True, text=True
+    )
+    assert done.returncode == 2
+    assert "invalid choice: 'bogus'" in done.stderr and "Traceback" not in done.stderr
