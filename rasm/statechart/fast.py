@@ -113,6 +113,36 @@ def _name_of(event: Event) -> Any:
     return event.name if type(event) in _PLAIN_EVENTS and type(event.name) is str else None
 
 
+_new_object = object.__new__
+
+
+def _micro_step(
+    event: Event | None = None,
+    transition: Transition | None = None,
+    entered: list[str] | None = None,
+    exited: list[str] | None = None,
+    sent: list[Event] | None = None,
+) -> MicroStep:
+    """``MicroStep(event, transition, entered, exited, sent)``: the same slots set to the same
+    values, without the Python-level ``__init__`` (a call with keywords costs several times the
+    object, and steps make several per macro step)."""
+    step = _new_object(MicroStep)
+    step.event = event
+    step.transition = transition
+    step.entered_states = entered if entered else []
+    step.exited_states = exited if exited else []
+    step.sent_events = sent if sent else []
+    return step
+
+
+def _macro_step(time: float, steps: list[MicroStep]) -> MacroStep:
+    """``MacroStep(time, steps)`` without the Python-level ``__init__`` (see _micro_step)."""
+    macro = _new_object(MacroStep)
+    macro._time = time
+    macro._steps = steps
+    return macro
+
+
 def _standard_contracts(evaluator: Evaluator) -> bool:
     """True if the evaluator's contract methods are sismic's own (so no-contract means no-op)."""
     klass = type(evaluator)
@@ -306,7 +336,7 @@ class FastInterpreter(Interpreter):
             for step in computed_steps:
                 executed_steps.append(self._apply_step(step))
                 executed_steps.extend(self._stabilize())
-            macro_step: MacroStep | None = MacroStep(time=self._time, steps=executed_steps)
+            macro_step: MacroStep | None = _macro_step(self._time, executed_steps)
         else:
             macro_step = None
 
@@ -380,7 +410,7 @@ class FastInterpreter(Interpreter):
         for step in steps:
             executed_steps.append(self._apply_step(step))
             executed_steps.extend(self._stabilize())
-        macro_step = MacroStep(time=self._time, steps=executed_steps)
+        macro_step = _macro_step(self._time, executed_steps)
         self._check_invariants(macro_step)
         return macro_step
 
@@ -479,9 +509,7 @@ class FastInterpreter(Interpreter):
                     if hook is not None:
                         hook(interp)
                     listener._replay(interp, effect, now)
-                    listener._interest, listener._interest_conf, listener._interest_version = (
-                        target, interp._configuration, interp._conf_version
-                    )
+                    listener._interest_at = (target, interp._configuration, interp._conf_version)
                     listener._checked = target
                 return
         meta = None
@@ -595,16 +623,11 @@ class FastInterpreter(Interpreter):
         steps_for = self._tables.steps_for
         for transition in transitions:
             if transition.target is None:
-                steps.append(MicroStep(event=event, transition=transition))
+                steps.append(_micro_step(event, transition))
                 continue
             exits, entered = steps_for(transition)
             steps.append(
-                MicroStep(
-                    event=event,
-                    transition=transition,
-                    entered_states=list(entered),
-                    exited_states=[s for s in exits if s in conf],
-                )
+                _micro_step(event, transition, list(entered), [s for s in exits if s in conf])
             )
         return steps
 
@@ -633,7 +656,7 @@ class FastInterpreter(Interpreter):
             return None
         kind = kinds[best]
         if kind == ft.FINAL_CHILD_OF_ROOT:
-            return MicroStep(exited_states=[best, tables.root])  # type: ignore[list-item]
+            return _micro_step(exited=[best, tables.root])  # type: ignore[list-item]
         if kind == ft.HISTORY:
             states_to_enter = self._memory.get(best, [tables.state[best].memory])  # type: ignore
             depth = tables.depth
@@ -641,10 +664,10 @@ class FastInterpreter(Interpreter):
             states_to_enter.sort(  # type: ignore[union-attr]
                 key=lambda x: (depth[x] if x in depth else chart.depth_for(x), x)
             )
-            return MicroStep(entered_states=states_to_enter, exited_states=[best])
+            return _micro_step(entered=states_to_enter, exited=[best])
         if kind == ft.PARALLEL:
-            return MicroStep(entered_states=list(tables.parallel_children[best]))
-        return MicroStep(entered_states=[tables.state[best].initial])  # type: ignore
+            return _micro_step(entered=list(tables.parallel_children[best]))
+        return _micro_step(entered=[tables.state[best].initial])  # type: ignore
 
     # ---- micro step -----------------------------------------------------------------------
 
@@ -734,12 +757,8 @@ class FastInterpreter(Interpreter):
             self._raise_event(event)  # type: ignore[arg-type]
             self._sent_events.append(event)
 
-        return MicroStep(
-            event=step.event,
-            transition=step.transition,
-            entered_states=step.entered_states,
-            exited_states=step.exited_states,
-            sent_events=sent_events,
+        return _micro_step(
+            step.event, step.transition, step.entered_states, step.exited_states, sent_events
         )
 
 
@@ -749,11 +768,14 @@ class _Interest:
     context names (and the objects they were bound to) all of that read."""
 
     __slots__ = (
-        "effects", "eventless", "listening", "predicates", "selections", "targets", "watch"
+        "effects", "eventless", "listening", "predicates", "quiet_start", "selections", "targets",
+        "watch",
     )
 
     def __init__(self, eventless: bool = False) -> None:
         self.eventless = eventless  # whether an active state has an eventless transition
+        # listening["step started"] is False: known that no active transition listens to it
+        self.quiet_start = False
         self.effects: dict[tuple[str, str], tuple] = {}
         self.listening: dict[str, bool | dict[Any, bool]] = {}
         self.predicates: dict[str, list[tuple[Transition, Any]]] = {}
@@ -842,39 +864,45 @@ class _ListenerGroups:
         nothing, when that is not so for one of them (``needs`` then decides, one by one)."""
         now = interp._time
         interests = []
+        moved = []  # the listeners whose property's time moves
+        # This runs at every step of a chart with property statecharts: each check reads as few
+        # attributes as it can (an attribute read is most of what it costs, compiled).
         for listener in interp._listeners:
-            if (
-                type(listener) is not PropertyListener
-                or listener._step_source is not interp
-                or not listener._settled
-                or not listener._static_guards
-            ):
+            # _starter: interp, for a settled PropertyListener it steps with static guards
+            if type(listener) is not PropertyListener or listener._starter is not interp:
                 return False
             prop = listener._interpreter
             conf = prop._configuration
             if prop._listeners or prop._internal_queue or prop._external_queue or not conf:
                 return False
-            interest = listener._interest
-            if not (
-                conf is listener._interest_conf
-                and prop._conf_version == listener._interest_version
-                and (not interest.watch or listener._watch_holds(interest))
-            ):
+            interest, interest_conf, version = listener._interest_at
+            if conf is not interest_conf or prop._conf_version != version:
                 return False
-            if prop._time != now and interest.eventless:
-                return False
-            if interest.listening.get("step started") is not False:
+            watch = interest.watch
+            if watch:
+                # _watch_holds() without the call; a name rebound is left to needs(), which
+                # finds it again and forgets what it remembered
+                context = listener._context
+                for name, bound in watch.items():
+                    if context.get(name, MISSING) is not bound:
+                        return False
+            if prop._time != now:
+                if interest.eventless:
+                    return False
+                moved.append(listener)
+            if not interest.quiet_start:
                 return False
             interests.append(interest)
         step = interp._step_count
-        for listener, interest in zip(interp._listeners, interests, strict=True):
+        for listener in moved:
             prop = listener._interpreter
-            if prop._time != now:
-                hook = listener.before_time_change or listener.before_change
-                if hook is not None:
-                    hook(prop)
-                prop._time = now
-            listener._checked, listener._checked_step = interest, step
+            hook = listener.before_time_change or listener.before_change
+            if hook is not None:
+                hook(prop)
+            prop._time = now
+        listeners = interp._listeners
+        for index in range(len(interests)):  # (zip(..., strict=True) is a call with keywords)
+            listeners[index]._checked, listeners[index]._checked_step = interests[index], step
         self.step, self.group = step, self._group_of(tuple(interests))
         return True
 
@@ -942,6 +970,9 @@ class PropertyListener(PropertyStatechartListener):
     def __init__(self, interpreter: Interpreter) -> None:
         super().__init__(interpreter)
         self._settled = False
+        # the interpreter whose steps may announce `step started` to this listener in one pass
+        # (_ListenerGroups.start): its bound interpreter while settled with static guards
+        self._starter: Interpreter | None = None
         self._can_skip = (
             isinstance(interpreter, FastInterpreter)
             and isinstance(interpreter._evaluator, PythonEvaluator)
@@ -963,9 +994,12 @@ class PropertyListener(PropertyStatechartListener):
         # needs(): per set of active states, (meta-event name, discriminant) -> whether it could
         # react, and the context names those answers read (name -> object)
         self._interests: dict[frozenset[str], _Interest] = {}
-        self._interest = _Interest()
-        self._interest_conf: set[str] | None = None
-        self._interest_version = -1
+        # the interest of the active states, with the configuration set and its version it
+        # was found for: (interest, configuration, version)
+        self._interest_at: tuple[_Interest, set[str] | None, int] = (_Interest(), None, -1)
+        # the evaluator's context, where the names guards read are bound (sismic never
+        # replaces it; predicates exist only with a PythonEvaluator, see _static_guards)
+        self._context = getattr(interpreter._evaluator, "_context", None)
         # a selected meta-event is consumed without the queue round trip (see
         # FastInterpreter._consume) when the interpreter's class changes none of what it skips
         klass = type(interpreter)
@@ -1025,10 +1059,10 @@ class PropertyListener(PropertyStatechartListener):
             ):
                 return True
             # _current_interest(), its usual answer without the call: the same states as last
-            interest = self._interest
+            interest, interest_conf, version = self._interest_at
             if not (
-                interp._configuration is self._interest_conf
-                and interp._conf_version == self._interest_version
+                interp._configuration is interest_conf
+                and interp._conf_version == version
                 and (not interest.watch or self._watch_holds(interest))
             ):
                 interest = self._current_interest()
@@ -1041,6 +1075,8 @@ class PropertyListener(PropertyStatechartListener):
         found = interest.listening.get(name)
         if found is None:
             found = interest.listening[name] = self._listening(name)
+            if name == "step started":
+                interest.quiet_start = found is False
         if type(found) is bool:
             decided = found
         else:
@@ -1072,10 +1108,10 @@ class PropertyListener(PropertyStatechartListener):
         for the context names it read as they are bound now."""
         interp = self._interpreter
         conf = interp._configuration
-        interest = self._interest
+        interest, interest_conf, version = self._interest_at
         if (
-            conf is self._interest_conf
-            and interp._conf_version == self._interest_version
+            conf is interest_conf
+            and interp._conf_version == version
             and self._watch_holds(interest)
         ):
             return interest
@@ -1085,20 +1121,18 @@ class PropertyListener(PropertyStatechartListener):
         # actions, or from outside): then nothing remembered is trusted
         if interest is None or not self._watch_holds(interest):
             interest = self._interests[key] = _Interest(not self._eventless_sources.isdisjoint(key))
-        self._interest, self._interest_conf, self._interest_version = (
-            interest, conf, interp._conf_version
-        )
+        self._interest_at = (interest, conf, interp._conf_version)
         return interest
 
     def _watch_holds(self, interest: _Interest) -> bool:
         # the context names a predicate read must still be bound to the same objects
         watch = interest.watch
         if watch:
-            context = self._interpreter._evaluator._context
+            context = self._context
             for name, bound in watch.items():
                 if context.get(name, MISSING) is not bound:
                     self._interests.clear()
-                    self._interest_conf = None
+                    self._interest_at = (self._interest_at[0], None, -1)
                     return False
         return True
 
@@ -1274,9 +1308,7 @@ class PropertyListener(PropertyStatechartListener):
                 # needs() would find the same as before the replay, for the states it led to
                 target = interest.targets.get(key)
                 if target is not None and self._watch_holds(target):
-                    self._interest, self._interest_conf, self._interest_version = (
-                        target, interp._configuration, interp._conf_version
-                    )
+                    self._interest_at = (target, interp._configuration, interp._conf_version)
                 else:
                     target = interest.targets[key] = self._current_interest()
                 self._checked = target
@@ -1304,9 +1336,10 @@ class PropertyListener(PropertyStatechartListener):
                     interp._time = now
                 return
         self._settled = False
+        self._starter = None
         effect = None
         if selected and self._consume_directly and selected[0].event is not None:
-            key, interest = self._selection_key, self._interest
+            key, interest = self._selection_key, self._interest_at[0]
             effect = None if key is None else interest.effects.get(key)
         hook = self.before_change if effect is None else (
             self.before_state_change or self.before_change
@@ -1341,3 +1374,4 @@ class PropertyListener(PropertyStatechartListener):
         if interp.final:
             raise PropertyStatechartError(self._interpreter)
         self._settled = self._can_skip
+        self._starter = self._step_source if self._settled and self._static_guards else None

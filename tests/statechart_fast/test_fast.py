@@ -7,6 +7,8 @@ import pickle
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from sismic.exceptions import (
     ConflictingTransitionsError,
     InvariantError,
@@ -15,9 +17,9 @@ from sismic.exceptions import (
 )
 from sismic.interpreter import Interpreter
 from sismic.io import import_from_yaml
-from sismic.model import Event
+from sismic.model import Event, MacroStep, MicroStep
 
-from rasm.statechart.fast import FastInterpreter, PropertyListener
+from rasm.statechart.fast import FastInterpreter, PropertyListener, _macro_step, _micro_step
 from tests.statechart_fast import harness
 
 CHARTS = Path(__file__).resolve().parents[2] / "statecharts"
@@ -598,3 +600,30 @@ def test_a_bound_interpreter_receives_the_sent_events_as_with_stock(attach):
         runs.append(trace)
     assert runs[1] == runs[0]
     assert any(queued for _, queued, _, _ in runs[0]) or any(seen for *_, seen in runs[0])
+
+
+# ---------------------------------------------------------------- steps built without __init__
+
+_STEP_PARTS = st.one_of(st.none(), st.integers(), st.text(max_size=2))
+_STEP_LISTS = st.one_of(st.none(), st.lists(st.text(max_size=2), max_size=3))
+
+
+@settings(max_examples=200, deadline=None, database=None)
+@given(_STEP_PARTS, _STEP_PARTS, _STEP_LISTS, _STEP_LISTS, _STEP_LISTS)
+def test_steps_built_without_init_are_what_sismic_builds(event, transition, entered, exited, sent):
+    """The interpreter builds micro and macro steps without calling sismic's __init__: every
+    slot holds what the constructor puts there (an empty or missing list becomes a new [])."""
+    ours = _micro_step(event, transition, entered, exited, sent)
+    stock = MicroStep(event, transition, entered, exited, sent)
+    assert type(ours) is MicroStep
+    for name in MicroStep.__slots__:
+        assert getattr(ours, name) == getattr(stock, name)
+        assert (getattr(ours, name) is getattr(stock, name)) == (
+            name in ("event", "transition") or bool(getattr(stock, name))
+        )
+    assert repr(ours) == repr(stock)
+    macro, stock_macro = _macro_step(1.5, [ours]), MacroStep(1.5, [ours])
+    assert type(macro) is MacroStep
+    assert [getattr(macro, n) for n in MacroStep.__slots__] == [
+        getattr(stock_macro, n) for n in MacroStep.__slots__
+    ]
