@@ -135,6 +135,15 @@ def _micro_step(
     return step
 
 
+def _event(name: str, data: dict[str, Any]) -> Event:
+    """``Event(name, **data)`` for a ``data`` dict nobody else holds (a ``**parameters``),
+    without the Python-level ``__init__`` (see _micro_step)."""
+    event = _new_object(Event)
+    event.name = name
+    event.data = data
+    return event
+
+
 def _macro_step(time: float, steps: list[MicroStep]) -> MacroStep:
     """``MacroStep(time, steps)`` without the Python-level ``__init__`` (see _micro_step)."""
     macro = _new_object(MacroStep)
@@ -441,7 +450,7 @@ class FastInterpreter(Interpreter):
         if event_or_names:
             return super().queue(event_or_name, *event_or_names, **parameters)
         if isinstance(event_or_name, str):
-            event_or_name = Event(event_or_name, **parameters)
+            event_or_name = _event(event_or_name, parameters)  # (a new dict at every call)
         self._queue_event(event_or_name)
         return self
 

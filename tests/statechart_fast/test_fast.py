@@ -19,7 +19,13 @@ from sismic.interpreter import Interpreter
 from sismic.io import import_from_yaml
 from sismic.model import Event, MacroStep, MicroStep
 
-from rasm.statechart.fast import FastInterpreter, PropertyListener, _macro_step, _micro_step
+from rasm.statechart.fast import (
+    FastInterpreter,
+    PropertyListener,
+    _event,
+    _macro_step,
+    _micro_step,
+)
 from tests.statechart_fast import harness
 
 CHARTS = Path(__file__).resolve().parents[2] / "statecharts"
@@ -627,3 +633,12 @@ def test_steps_built_without_init_are_what_sismic_builds(event, transition, ente
     assert [getattr(macro, n) for n in MacroStep.__slots__] == [
         getattr(stock_macro, n) for n in MacroStep.__slots__
     ]
+
+
+@settings(max_examples=100, deadline=None, database=None)
+@given(st.text(max_size=3), st.dictionaries(st.text(max_size=3), _STEP_PARTS, max_size=3))
+def test_events_built_without_init_are_what_sismic_builds(name, data):
+    ours, stock = _event(name, dict(data)), Event(name, **data)
+    assert type(ours) is Event
+    assert (ours.name, ours.data, repr(ours)) == (stock.name, stock.data, repr(stock))
+    assert ours == stock and hash(ours) == hash(stock)
