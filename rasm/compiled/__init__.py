@@ -37,6 +37,7 @@ __all__ = ["MODULES", "build", "folder", "install", "loaded", "source_of", "stat
 # The modules worth compiling: where the loop spends its time (profiled with py-spy, see
 # docs/performance-statecharts.md). Others gain little and would only make the build longer.
 MODULES: tuple[str, ...] = (
+    "rasm.statechart.clock",
     "rasm.statechart.fast",
     "rasm.statechart.fast_tables",
     "rasm.statechart.interpreter",

@@ -21,12 +21,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
 
-from sismic.clock import Clock, SimulatedClock
+from sismic.clock import Clock
 from sismic.model import MacroStep, Statechart
 
 from rasm.errors import PlatformError, RasmError
 from rasm.resources import platform_chart
-from rasm.statechart import Interpreter, load_statechart
+from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 
 __all__ = ["MODES", "Block", "ModeListener", "shared_chart"]
 

@@ -22,8 +22,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sismic.clock import SimulatedClock
-
 from rasm.errors import Location, PlatformError, RasmError, SourceError
 from rasm.knowledge.base import KnowledgeBase
 from rasm.platform.blocks import (
@@ -50,7 +48,7 @@ from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.trace import TraceWriter
 from rasm.resources import data_dir
-from rasm.statechart import MonotonicClock
+from rasm.statechart import MonotonicClock, SimulatedClock
 
 __all__ = ["Platform", "RunSummary", "STAGES"]
 

@@ -19,6 +19,8 @@ from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
 
+from rasm.statechart.clock import SimulatedClock as FasterSimulatedClock
+
 __all__ = ["Scheduler"]
 
 Job = Callable[[], Any]
@@ -114,7 +116,9 @@ class Scheduler:
         # and a time() call, at every turn; `time` is then `_time + 0` (no elapsed time) and
         # the setter's other write, `_base`, is read only by a running clock
         direct = (
-            type(clock) is SimulatedClock and hasattr(clock, "_time") and hasattr(clock, "_play")
+            type(clock) in (SimulatedClock, FasterSimulatedClock)
+            and hasattr(clock, "_time")
+            and hasattr(clock, "_play")
         )
         while True:
             # Peeked without the lock (taken only to take the inbox): a submit() racing with the

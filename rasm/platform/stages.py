@@ -13,14 +13,12 @@ import threading
 import time as _time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
-__all__ = ["StageOutcome", "StageRunner"]
+__all__ = ["StageOutcome", "StageRunner", "succeeded"]
 
 
-@dataclass(frozen=True)
-class StageOutcome:
+class StageOutcome(NamedTuple):
     """How a stage call ended: ``ok`` with a ``result``, an ``error`` (with traceback), or
     ``timed_out``. ``duration`` is wall-clock seconds."""
 
@@ -30,6 +28,16 @@ class StageOutcome:
     traceback: str = ""
     timed_out: bool = False
     duration: float = 0.0
+
+
+# StageOutcome(True, result, duration=d) without the named tuple's Python-level __new__ (two
+# stage calls per loop iteration end this way)
+_new_tuple = tuple.__new__
+
+
+def succeeded(result: Any, duration: float) -> StageOutcome:
+    """``StageOutcome(True, result, duration=duration)``."""
+    return _new_tuple(StageOutcome, (True, result, None, "", False, duration))
 
 
 class _Worker:
@@ -59,7 +67,7 @@ class _Worker:
                     )
                 )
             else:
-                reply.put(StageOutcome(True, result, duration=_time.perf_counter() - start))
+                reply.put(succeeded(result, _time.perf_counter() - start))
 
 
 class StageRunner:
@@ -85,7 +93,7 @@ class StageRunner:
             duration = _time.perf_counter() - start
             if duration > budget:
                 return StageOutcome(False, timed_out=True, duration=duration)
-            return StageOutcome(True, result, duration=duration)
+            return succeeded(result, duration)
         if self._worker is None:
             self._worker = _Worker()
         reply: queue.SimpleQueue[StageOutcome] = queue.SimpleQueue()
