@@ -385,6 +385,30 @@ class FastInterpreter(Interpreter):
         internal, external = self._internal_queue, self._external_queue
         return not (internal and internal[0][0] <= now) and not (external and external[0][0] <= now)
 
+    def _compute_steps(self) -> list[MicroStep]:
+        """Stock ``_compute_steps``, word for word (here so that it runs compiled, with the
+        micro steps built as :func:`_micro_step` builds them)."""
+        if not self._initialized:
+            self._initialized = True
+            return [_micro_step(entered=[self._statechart.root])]  # type: ignore[list-item]
+        event = self._select_event()
+        transitions = self._select_transitions(event, states=self._configuration)
+        if len(transitions) == 0:
+            # no event, no step; or an empty step, so that the event is consumed
+            return [] if event is None else [_micro_step(event)]
+        transitions = self._sort_transitions(transitions)
+        event = None if transitions[0].event is None else event
+        return self._create_steps(event, transitions)
+
+    def _stabilize(self) -> list[MicroStep]:
+        """Stock ``_stabilize``, word for word (here so that it runs compiled)."""
+        steps = []
+        step = self._create_stabilization_step(self._configuration)
+        while step is not None:
+            steps.append(self._apply_step(step))
+            step = self._create_stabilization_step(self._configuration)
+        return steps
+
     def _check_invariants(self, macro_step: MacroStep | None) -> None:
         if self._contracts_possible and not self._ignore_contract:
             states = self._tables.state
@@ -631,7 +655,8 @@ class FastInterpreter(Interpreter):
         conf = self._configuration
         steps_for = self._tables.steps_for
         for transition in transitions:
-            if transition.target is None:
+            target = transition._target if type(transition) is Transition else transition.target
+            if target is None:
                 steps.append(_micro_step(event, transition))
                 continue
             exits, entered = steps_for(transition)
@@ -685,11 +710,23 @@ class FastInterpreter(Interpreter):
         tables = self._tables
         table = tables.state
         chart = self._statechart
-        # Unknown names go through state_for, which raises stock's StatechartError.
-        entered_states = [
-            table[n] if n in table else chart.state_for(n) for n in step.entered_states
-        ]
-        exited_states = [table[n] if n in table else chart.state_for(n) for n in step.exited_states]
+        entered_names = step.entered_states
+        exited_names = step.exited_states
+        if tables.names_plain:
+            # each state's name is the name it is known by: the names are used as they are, and
+            # the states looked up only where they are needed (unknown names go through
+            # state_for first, which raises stock's StatechartError)
+            for names in (entered_names, exited_names):
+                for n in names:
+                    if n not in table:
+                        chart.state_for(n)
+            entered_states = exited_states = None
+        else:
+            entered_states = [table[n] if n in table else chart.state_for(n) for n in entered_names]
+            exited_states = [table[n] if n in table else chart.state_for(n) for n in exited_names]
+            entered_names = [state.name for state in entered_states]
+            exited_names = [state.name for state in exited_states]
+        entry_code, exit_code = tables.entry_code, tables.exit_code
 
         conf = self._configuration
         history = tables.history_children
@@ -701,9 +738,9 @@ class FastInterpreter(Interpreter):
         now = self._time
         sent_events: list[Event] = []
 
-        for state in exited_states:
-            name = state.name
-            if not skip_noop or getattr(state, "on_exit", None):
+        for index, name in enumerate(exited_names):
+            state = table[name] if exited_states is None else exited_states[index]
+            if not skip_noop or name in exit_code:
                 sent_events.extend(evaluator.execute_on_exit(state))
             if name in history:
                 for child, deep in history[name]:
@@ -736,10 +773,14 @@ class FastInterpreter(Interpreter):
             if check:
                 self._evaluate_contract_conditions(transition, "postconditions", step)
                 self._evaluate_contract_conditions(transition, "invariants", step)
-            self._idle_time[transition.source] = now
+            if type(transition) is Transition:  # its source and target properties, read as they do
+                source, target = transition._source, transition._target
+            else:
+                source, target = transition.source, transition.target
+            self._idle_time[source] = now
             if not fast_events or self._listeners:
                 inner = step.event
-                data = {"source": transition.source, "target": transition.target, "event": inner}
+                data = {"source": source, "target": target, "event": inner}
                 if not fast_events:
                     self._raise_event(_Meta("transition processed", **data))
                 else:
@@ -747,11 +788,11 @@ class FastInterpreter(Interpreter):
                         "transition processed", NO_EVENT if inner is None else _name_of(inner), data
                     )
 
-        for state in entered_states:
-            name = state.name
+        for index, name in enumerate(entered_names):
+            state = table[name] if entered_states is None else entered_states[index]
             if check:
                 self._evaluate_contract_conditions(state, "preconditions", step)
-            if not skip_noop or getattr(state, "on_entry", None):
+            if not skip_noop or name in entry_code:
                 sent_events.extend(evaluator.execute_on_entry(state))
             conf.add(name)
             self._conf_version += 1

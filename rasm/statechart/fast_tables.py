@@ -63,6 +63,9 @@ def fingerprint(statechart: Statechart) -> tuple:
                 getattr(state, "initial", None),
                 getattr(state, "memory", None),
                 _contracts(state),
+                state.name,
+                bool(getattr(state, "on_entry", None)),
+                bool(getattr(state, "on_exit", None)),
             )
         )
     transitions = tuple(
@@ -100,6 +103,13 @@ class ChartTables:
         # stabilisation candidates by (-depth, name).
         self.config_key = {n: (d, n) for n, d in self.depth.items()}
         self.source_key = {n: (-d, n) for n, d in self.depth.items()}
+        # States with entry or exit code (sismic's calls for the others do nothing), and whether
+        # each state's `name` (a property) is the name it is registered under, so that the
+        # interpreter can use the names it holds.
+        states = self.state.items()
+        self.entry_code = frozenset(n for n, s in states if getattr(s, "on_entry", None))
+        self.exit_code = frozenset(n for n, s in states if getattr(s, "on_exit", None))
+        self.names_plain = all(s.name == n for n, s in self.state.items())
         self._build_stabilization()
         self._build_history()
         self._build_contracts()

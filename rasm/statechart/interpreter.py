@@ -30,7 +30,7 @@ from sismic.code import Evaluator, PythonEvaluator
 from sismic.exceptions import CodeEvaluationError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
-from sismic.model import Event, InternalEvent, MetaEvent
+from sismic.model import Event, InternalEvent, MetaEvent, Transition
 
 from rasm.statechart import fast
 from rasm.statechart.fast import FastInterpreter
@@ -39,6 +39,7 @@ __all__ = [
     "AtomicStepMixin", "DeadlineEvaluator", "FastGuardEvaluator", "Interpreter", "StepFailure",
 ]
 
+_STOCK_TIME = SismicInterpreter.time  # the property
 _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
 _IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
 _LATER = object()  # a snapshot's context, to be saved before the step's first code runs
@@ -74,6 +75,17 @@ class StepFailure:
     time: float
     event: Event | None
     exception: BaseException
+
+
+def _source_of(transition: Transition) -> str:
+    """``transition.source``: sismic's property returns ``_source``, read directly (a guard's
+    timer reads it at every step)."""
+    return transition._source if type(transition) is Transition else transition.source
+
+
+def _time_of(interp: SismicInterpreter) -> float:
+    """``interp.time``: sismic's property returns ``_time``, read directly."""
+    return interp._time if getattr(type(interp), "time", None) is _STOCK_TIME else interp.time
 
 
 def _waited(since: float, now: float, seconds: float, deadlines: list[float] | None) -> bool:
@@ -183,8 +195,8 @@ class FastGuardEvaluator(PythonEvaluator):
             exposed = {}
         else:  # what it uses of active, time, after, idle, event (a timer: `after` alone)
             interp = self._interpreter
-            source = transition.source
-            now = interp.time
+            source = _source_of(transition)
+            now = _time_of(interp)
             deadlines = self.deadlines
             exposed = {}
             if "active" in wanted:
@@ -226,10 +238,10 @@ class FastGuardEvaluator(PythonEvaluator):
                 return None
         interp = self._interpreter
         since = interp._entry_time if timer == "after" else interp._idle_time
-        source = transition.source
+        source = _source_of(transition)
         if source not in since:
             return None
-        return _waited(since[source], interp.time, seconds, self.deadlines)
+        return _waited(since[source], _time_of(interp), seconds, self.deadlines)
 
     def _execute_code(self, code, *, additional_context=None):
         """sismic's ``_execute_code`` (actions, entry and exit code, the preamble), exposing only

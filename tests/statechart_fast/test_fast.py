@@ -17,7 +17,7 @@ from sismic.exceptions import (
 )
 from sismic.interpreter import Interpreter
 from sismic.io import import_from_yaml
-from sismic.model import Event, MacroStep, MicroStep
+from sismic.model import Event, MacroStep, MicroStep, Transition
 
 from rasm.statechart.fast import (
     FastInterpreter,
@@ -642,3 +642,65 @@ def test_events_built_without_init_are_what_sismic_builds(name, data):
     assert type(ours) is Event
     assert (ours.name, ours.data, repr(ours)) == (stock.name, stock.data, repr(stock))
     assert ours == stock and hash(ours) == hash(stock)
+
+
+# ------------------------------------------- states and transitions read through their properties
+
+
+class _RenamingTransition(Transition):
+    """A transition subclass whose `source`/`target` are its own (not sismic's `_source`)."""
+
+    @property
+    def target(self):
+        return "b" if self._target == "a" else "a"
+
+
+def _renamed_chart():
+    """The flat cycle with a state whose `name` is not the name it is registered under, and a
+    transition whose `target` property says something else than its `_target`."""
+    statechart = chart("""
+statechart:
+  name: renamed
+  root state:
+    name: root
+    initial: a
+    states:
+    - name: a
+      on entry: x = 1
+      transitions:
+      - {target: b, event: e}
+    - name: b
+      transitions:
+      - {target: a, event: e}
+""")
+    statechart.state_for("b")._name = "B"  # as a state renamed after it was registered
+    original = statechart.transitions_from("a")[0]
+    statechart._transitions.remove(original)
+    statechart.add_transition(_RenamingTransition("a", "a", event="e"))  # really a -> b
+    return statechart
+
+
+def _record_renamed(klass) -> list:
+    statechart = _renamed_chart()
+    interp = klass(statechart)
+    records: list = []
+    interp.attach(lambda meta: records.append(repr(meta)))
+    for _ in range(4):
+        try:
+            records.append(harness.describe_step(statechart, interp.execute_once()))
+        except Exception as e:  # noqa: BLE001 - the error itself is what is compared
+            records.append((type(e).__name__, str(e)))
+        records.append(
+            (sorted(interp._configuration), interp._entry_time, interp._idle_time)
+        )
+        interp.queue("e")
+    return records
+
+
+def test_states_and_transitions_are_read_through_their_properties_when_they_differ():
+    """The fast path uses the names it holds and a transition's `_source`/`_target` only where
+    the `name`, `source`, `target` properties are sismic's and agree: otherwise it reads them,
+    as stock does."""
+    expected = _record_renamed(Interpreter)
+    assert "B" in expected[-1][0]  # the renamed state entered under its new name, as stock does
+    assert _record_renamed(FastInterpreter) == expected
