@@ -242,6 +242,10 @@ class FastInterpreter(Interpreter):
         # Whether any contract evaluation can do something (``_ignore_contract`` is read live).
         self._contracts_possible = self._tables.has_contracts or not self._fast_contracts
         self._skip_noop_actions = _standard_actions(self._evaluator)
+        # sismic's execute_action returns [] for a transition without action: not called then
+        self._skip_noop_transitions = (
+            type(self._evaluator).execute_action is Evaluator.execute_action
+        )
 
     def __repr__(self) -> str:
         # Stock text for this class itself, so that messages embedding the repr of a property
@@ -769,7 +773,8 @@ class FastInterpreter(Interpreter):
             if check:
                 self._evaluate_contract_conditions(transition, "preconditions", step)
                 self._evaluate_contract_conditions(transition, "invariants", step)
-            sent_events.extend(evaluator.execute_action(transition, step.event))
+            if not self._skip_noop_transitions or transition.action:
+                sent_events.extend(evaluator.execute_action(transition, step.event))
             if check:
                 self._evaluate_contract_conditions(transition, "postconditions", step)
                 self._evaluate_contract_conditions(transition, "invariants", step)
