@@ -189,8 +189,9 @@ class Block:
                 return steps
             steps.append(step)
             # the macro step's entered_states, then its sent_events, read from its micro steps
-            # (those properties build a new list at each call)
-            micro_steps = step.steps
+            # (those properties build a new list at each call; `steps` is sismic's property
+            # returning `_steps`, read directly)
+            micro_steps = step._steps if type(step) is MacroStep else step.steps
             for micro in micro_steps:
                 for state in micro.entered_states:
                     self._entered(state)
