@@ -1,3 +1,4 @@
+# distutils: extra_compile_args = -ffp-contract=off
 """Recursive least squares with a forgetting factor, in plain Python.
 
 The twins rasm ships estimate a handful of parameters (the Hotbox: three), updated once per
@@ -7,12 +8,23 @@ lists: about 3 µs instead of 14 µs), written in the generic loops' order of op
 give the same floats. The estimator is exact (no approximation beyond floating point) and its
 whole state is JSON-able, so a learned model can be persisted in knowledge and restored after a
 restart.
+
+The three-parameter paths (:meth:`RecursiveLeastSquares.update3`, and ``n == 3`` in
+:meth:`~RecursiveLeastSquares.variances_within` and :meth:`~RecursiveLeastSquares.differs_on`)
+take every number through ``float()`` into a local first. In plain Python ``float()`` of a
+float is that very float; the compiled build (Cython, see ``rasm.compiled``) then types those
+locals as C doubles and computes without making an object per operation (update3: about
+10,000 machine instructions a call down to 5,500): the same IEEE operations in the same order,
+so the same floats. Two things keep it so: no fused multiply-add (the ``distutils`` line below; GCC
+fuses by default where the processor has one), and a zero divisor is divided by Python itself
+(:func:`_divide_as_python`), so the error is Python's ``ZeroDivisionError`` with its message.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from operator import truediv
 from typing import Any
 
 from rasm.twin.base import TwinError
@@ -20,6 +32,12 @@ from rasm.twin.base import TwinError
 __all__ = ["RecursiveLeastSquares"]
 
 Matrix = list[list[float]]
+
+
+def _divide_as_python(numerator: float, divisor: float) -> float:
+    """``numerator / divisor`` as Python divides: called where the divisor is zero, it raises
+    Python's ZeroDivisionError (the compiled build's C division would word it differently)."""
+    return truediv(numerator, divisor)
 
 
 def _diagonal(values: Sequence[float]) -> Matrix:
@@ -104,13 +122,18 @@ class RecursiveLeastSquares:
         if self.n != 3:
             return all(self.variance_factor(phi) <= bound for phi in phis)
         # a twin asks this for its reference windows at every record: P read once, and
-        # variance_factor's sums unrolled term for term (the same floats)
-        (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P
+        # variance_factor's sums unrolled term for term (the same floats); float(): see the
+        # module's docstring (bound is compared as given, as variance_factor's callers do)
+        row0, row1, row2 = self.P
+        p00, p01, p02 = float(row0[0]), float(row0[1]), float(row0[2])
+        p10, p11, p12 = float(row1[0]), float(row1[1]), float(row1[2])
+        p20, p21, p22 = float(row2[0]), float(row2[1]), float(row2[2])
         for f0, f1, f2 in phis:
+            x0, x1, x2 = float(f0), float(f1), float(f2)
             variance = (
-                f0 * (p00 * f0 + p01 * f1 + p02 * f2)
-                + f1 * (p10 * f0 + p11 * f1 + p12 * f2)
-                + f2 * (p20 * f0 + p21 * f1 + p22 * f2)
+                x0 * (p00 * x0 + p01 * x1 + p02 * x2)
+                + x1 * (p10 * x0 + p11 * x1 + p12 * x2)
+                + x2 * (p20 * x0 + p21 * x1 + p22 * x2)
             )
             if not variance <= bound:
                 return False
@@ -159,8 +182,8 @@ class RecursiveLeastSquares:
 
     def update3(self, f0: float, f1: float, f2: float, y: float, weight: float = 1.0) -> float:
         """:meth:`update` of a three-parameter estimator with ``phi = (f0, f1, f2)``, for a
-        caller that has the numbers at hand (a twin, once per record): no sequence to check and
-        convert, the same floats.
+        caller that has the numbers at hand (a twin, once per record): no sequence to check.
+        The numbers are taken with ``float()``, as :meth:`update` takes ``phi`` and ``y``.
 
         Unrolled: every sum adds its terms in :meth:`_update`'s loops' order (and ``sum()`` of
         floats starting at 0 adds them left to right), so the two agree to the last bit on
@@ -171,16 +194,29 @@ class RecursiveLeastSquares:
             raise TwinError(f"update3 is for 3 parameters; this estimator has {self.n}")
         if not weight > 0:
             raise TwinError(f"an observation's weight must be positive, not {weight!r}")
-        t0, t1, t2 = self.theta
-        error = y - (f0 * t0 + f1 * t1 + f2 * t2)
-        (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P
-        q0 = p00 * f0 + p01 * f1 + p02 * f2  # P phi
-        q1 = p10 * f0 + p11 * f1 + p12 * f2
-        q2 = p20 * f0 + p21 * f1 + p22 * f2
-        denominator = self.forgetting / weight + (f0 * q0 + f1 * q1 + f2 * q2)
+        # every number into a float local (C doubles when compiled: see the module's docstring)
+        x0, x1, x2, target, share = float(f0), float(f1), float(f2), float(y), float(weight)
+        theta, (row0, row1, row2) = self.theta, self.P
+        t0, t1, t2 = float(theta[0]), float(theta[1]), float(theta[2])
+        p00, p01, p02 = float(row0[0]), float(row0[1]), float(row0[2])
+        p10, p11, p12 = float(row1[0]), float(row1[1]), float(row1[2])
+        p20, p21, p22 = float(row2[0]), float(row2[1]), float(row2[2])
+        forgetting = float(self.forgetting)
+        error = target - (x0 * t0 + x1 * t1 + x2 * t2)
+        q0 = p00 * x0 + p01 * x1 + p02 * x2  # P phi
+        q1 = p10 * x0 + p11 * x1 + p12 * x2
+        q2 = p20 * x0 + p21 * x1 + p22 * x2
+        # every divisor that may be zero is tested where the division is (Python's error)
+        if not share:  # a positive weight whose float is 0
+            _divide_as_python(forgetting, share)
+        denominator = forgetting / share + (x0 * q0 + x1 * q1 + x2 * q2)
+        if not denominator:
+            _divide_as_python(q0, denominator)
         g0, g1, g2 = q0 / denominator, q1 / denominator, q2 / denominator
         self.theta = [t0 + g0 * error, t1 + g1 * error, t2 + g2 * error]
-        scale = 1.0 / self.forgetting
+        if not forgetting:  # only if set to 0 after construction
+            _divide_as_python(1.0, forgetting)
+        scale = 1.0 / forgetting
         # P <- (P - gain Pphi') / forgetting from its upper triangle, kept exactly symmetric
         n00 = (p00 - g0 * q0) * scale
         n01 = (p01 - g0 * q1) * scale
@@ -188,15 +224,54 @@ class RecursiveLeastSquares:
         n11 = (p11 - g1 * q1) * scale
         n12 = (p12 - g1 * q2) * scale
         n22 = (p22 - g2 * q2) * scale
-        if self.max_trace is not None:
+        max_trace = self.max_trace
+        if max_trace is not None:
             trace = n00 + n11 + n22
-            if trace > self.max_trace:
-                shrink = self.max_trace / trace
+            if trace > max_trace:  # compared as given (an int is compared exactly)
+                if not trace:
+                    _divide_as_python(max_trace, trace)
+                shrink = float(max_trace) / trace
                 n00, n01, n02 = n00 * shrink, n01 * shrink, n02 * shrink
                 n11, n12, n22 = n11 * shrink, n12 * shrink, n22 * shrink
         self.P = [[n00, n01, n02], [n01, n11, n12], [n02, n12, n22]]
         self.points += 1
         return error
+
+    def differs_on(
+        self, phis: Iterable[Sequence[float]], theta: Sequence[float], tolerance: float
+    ) -> bool:
+        """True when, for some ``phi`` of ``phis``, the estimate predicts ``phi`` differently
+        from ``theta`` by more than ``tolerance`` of ``theta``'s terms there: ``|phi · (self.theta
+        - theta)| > tolerance * sum |phi_i theta_i|`` (the first such ``phi`` ends the test).
+
+        What a twin asks before publishing a new version of its model: has the live estimate
+        moved in a direction its data see (``theta`` the published model, ``phis`` recent
+        regressors)? Directions no ``phi`` excites are ignored, however far they wander.
+        """
+        current = self.theta
+        if self.n != 3:
+            steps = [new - old for new, old in zip(current, theta, strict=True)]
+            for phi in phis:
+                flows = moved = 0.0
+                for p, old, step in zip(phi, theta, steps, strict=True):
+                    flows += abs(p * old)
+                    moved += p * step
+                if abs(moved) > tolerance * flows:
+                    return True
+            return False
+        # float(): see the module's docstring; the steps are the same for every phi
+        old0, old1, old2 = float(theta[0]), float(theta[1]), float(theta[2])
+        step0 = float(current[0]) - old0
+        step1 = float(current[1]) - old1
+        step2 = float(current[2]) - old2
+        limit = float(tolerance)
+        for f0, f1, f2 in phis:
+            x0, x1, x2 = float(f0), float(f1), float(f2)
+            flows = abs(x0 * old0) + abs(x1 * old1) + abs(x2 * old2)
+            moved = x0 * step0 + x1 * step1 + x2 * step2
+            if abs(moved) > limit * flows:
+                return True
+        return False
 
     def reset_covariance(self, covariance: Any = None) -> None:
         """``P`` back to the prior ``P0`` (or to ``covariance``); ``theta`` is kept."""

@@ -4,7 +4,9 @@ forgetting follows a change, weights, persistence, and clear errors."""
 from __future__ import annotations
 
 import json
+import math
 import random
+from fractions import Fraction
 
 import pytest
 from hypothesis import given, settings
@@ -225,3 +227,115 @@ def test_update3_and_variances_within_refuse_what_update_refuses():
     two = RecursiveLeastSquares(2, covariance=2.0)
     assert two.variances_within([[1.0, 0.0], [0.0, 1.0]], 2.0)
     assert not two.variances_within([[1.0, 0.0], [1.0, 1.0]], 2.0)
+
+
+def _differs_on_as_first_written(live, phis, theta, tolerance):
+    """The Hotbox twin's publication test before it moved here (its loop, three terms)."""
+    old0, old1, old2 = theta
+    new0, new1, new2 = live
+    step0, step1, step2 = new0 - old0, new1 - old1, new2 - old2
+    for p0, p1, p2 in phis:
+        flows = abs(p0 * old0) + abs(p1 * old1) + abs(p2 * old2)
+        moved = p0 * step0 + p1 * step1 + p2 * step2
+        if abs(moved) > tolerance * flows:
+            return True
+    return False
+
+
+def _differs_on_in_loops(live, phis, theta, tolerance):
+    return any(
+        abs(sum(p * (new - old) for p, new, old in zip(phi, live, theta, strict=True)))
+        > tolerance * sum(abs(p * old) for p, old in zip(phi, theta, strict=True))
+        for phi in phis
+    )
+
+
+numbers = st.floats(-1e6, 1e6) | st.sampled_from([0.0, -0.0, math.inf, math.nan, 1e-300])
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(
+    live=st.lists(numbers, min_size=3, max_size=3),
+    theta=st.lists(numbers, min_size=3, max_size=3),
+    phis=st.lists(st.tuples(numbers, numbers, numbers), max_size=3),
+    tolerance=st.floats(0.0, 1.0) | st.integers(0, 2),
+)
+def test_differs_on_is_the_twins_publication_test_as_first_written(live, theta, phis, tolerance):
+    rls = RecursiveLeastSquares(3)
+    rls.theta = list(live)
+    expected = _differs_on_as_first_written(live, phis, tuple(theta), tolerance)
+    assert rls.differs_on(phis, tuple(theta), tolerance) is expected
+    assert rls.differs_on(iter(phis), theta, tolerance) is expected  # any iterable, sequences
+
+
+@settings(max_examples=100, deadline=None, database=None)
+@given(
+    data=st.integers(1, 5).flatmap(
+        lambda n: st.tuples(
+            st.lists(st.floats(-100, 100), min_size=n, max_size=n),
+            st.lists(st.floats(-100, 100), min_size=n, max_size=n),
+            st.lists(st.lists(st.floats(-100, 100), min_size=n, max_size=n), max_size=3),
+        )
+    ),
+    tolerance=st.floats(0.0, 1.0),
+)
+def test_differs_on_any_number_of_parameters_is_the_definition(data, tolerance):
+    live, theta, phis = data
+    rls = RecursiveLeastSquares(len(live))
+    rls.theta = list(live)
+    assert rls.differs_on(phis, theta, tolerance) is _differs_on_in_loops(
+        live, phis, theta, tolerance
+    )
+
+
+@settings(max_examples=60, deadline=None, database=None)
+@given(
+    phi=st.lists(st.integers(-1000, 1000), min_size=3, max_size=3),
+    y=st.integers(-1000, 1000),
+    weight=st.integers(1, 5),
+    previous=st.lists(st.integers(-1000, 1000), min_size=3, max_size=3),
+)
+def test_the_three_parameter_paths_take_ints_as_the_loops_do(phi, y, weight, previous):
+    # the numbers go through float(); with floats in the estimator an int computes as its float
+    rls, floats = RecursiveLeastSquares(3, max_trace=5e3), RecursiveLeastSquares(3, max_trace=5e3)
+    loops = Loops(rls)
+    for bound in (0, 10**6, 10**9):
+        assert rls.variances_within((phi, previous), bound) is all(
+            loops.variance_factor(p) <= bound for p in (phi, previous)
+        )
+    error = loops.update([float(p) for p in phi], float(y), float(weight))
+    assert floats.update3(*map(float, phi), float(y), float(weight)) == error
+    assert rls.update3(*phi, y, weight) == error
+    assert rls.theta == floats.theta == loops.theta and rls.P == floats.P == loops.P
+
+
+def _python_zero_division() -> str:
+    """What this Python says when a float is divided by zero."""
+    with pytest.raises(ZeroDivisionError) as raised:
+        1.0 / 0.0  # noqa: B018 - the division is the test
+    return str(raised.value)
+
+
+def test_a_zero_divisor_raises_pythons_own_zero_division_error_and_changes_nothing():
+    # the compiled build divides C doubles; its own error would read "float division"
+    message = f"^{_python_zero_division()}$"
+    rls = RecursiveLeastSquares(3, covariance=2.0)
+    with pytest.raises(ZeroDivisionError, match=message):  # forgetting / inf + phi' P phi == 0
+        rls.update3(0.0, 0.0, 0.0, 1.0, weight=math.inf)
+    assert (
+        rls.theta == [0.0, 0.0, 0.0]
+        and rls.P == [[2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]
+        and rls.points == 0
+    )
+    shrunk = RecursiveLeastSquares(3, max_trace=-1.0)  # a trace of 0 is above it
+    shrunk.P = [[0.0] * 3 for _ in range(3)]
+    with pytest.raises(ZeroDivisionError, match=message):
+        shrunk.update3(1.0, 1.0, 1.0, 1.0)
+    assert shrunk.points == 0
+    with pytest.raises(ZeroDivisionError, match=message):  # positive, but 0.0 as a float
+        RecursiveLeastSquares(3).update3(1.0, 1.0, 1.0, 1.0, weight=Fraction(1, 10**400))
+    unforgetting = RecursiveLeastSquares(3, covariance=2.0)
+    unforgetting.forgetting = 0.0  # only after construction; theta is updated before 1 / 0
+    with pytest.raises(ZeroDivisionError, match=message):
+        unforgetting.update3(1.0, 1.0, 1.0, 3.0)
+    assert unforgetting.theta == [1.0, 1.0, 1.0] and unforgetting.points == 0
