@@ -317,6 +317,21 @@ def _reference_twin(**options):
             variance = self.rls.variance_factor
             return variance(reference[False]) <= bound and variance(reference[True]) <= bound
 
+        def _worth_publishing(self, time):
+            published = self._published
+            if published["version"] == 0 or self._relearning:
+                return True
+            if time - published["learned_at"] < self.min_interval:
+                return False
+            old0, old1, old2 = self._published_theta
+            new0, new1, new2 = self.rls.theta
+            for p0, p1, p2 in self._reference.values():
+                flows = abs(p0 * old0) + abs(p1 * old1) + abs(p2 * old2)
+                moved = p0 * (new0 - old0) + p1 * (new1 - old1) + p2 * (new2 - old2)
+                if abs(moved) > self.tolerance * flows:
+                    return True
+            return False
+
     return Reference(**options)
 
 
@@ -367,3 +382,54 @@ def test_the_hotbox_twin_learns_as_the_reference_learning(
     assert (fast.drifts, fast._armed, fast._relearning) == (
         slow.drifts, slow._armed, slow._relearning
     )
+
+
+def _outcome(call, *args):
+    """What a call gave: its answer's repr, or the exception's type and message."""
+    try:
+        return repr(call(*args))
+    except Exception as exc:  # noqa: BLE001 - the exceptions are compared
+        return f"raised {type(exc).__name__}: {exc}"
+
+
+@settings(max_examples=30, deadline=None, database=None)
+@given(
+    st.integers(0, 10**6),  # the box's noise and plans
+    st.sampled_from(["missing", None, "yesterday", 2, 2.0, -50.0]),  # the model's learned_at
+    st.integers(0, 3),  # its version
+    st.integers(2, 4),  # confident at records whose count is not a multiple of this
+)
+def test_the_twin_asks_confidence_and_publication_as_the_reference_does(
+    seed, learned_at, version, period
+):
+    """Confidence and publication are asked in another order than the reference asks them:
+    the same answers and, for a hand-written model whose learned_at is not a number, the
+    same failures on the same records. Confidence is scripted (the same for both twins), so
+    that armed twins also meet records where they are not confident."""
+    from tests.twin.hotbox import box
+
+    twins = fast, slow = (
+        _hotbox_twin_module().HotboxTwin(min_interval=1.0),
+        _reference_twin(min_interval=1.0),
+    )
+    model = {
+        "version": version,
+        "params": {"heat_capacity": 450.0, "loss_closed": 2.5, "loss_open": 11.0},
+    }
+    if learned_at != "missing":
+        model["learned_at"] = learned_at
+    for twin in twins:
+        twin.load(dict(model))
+        twin._confident = lambda twin=twin: twin.rls.points % period != 0
+    simulator = box(450.0, 2.5, 11.0)(
+        {"first_lid_opening": 2.0, "lid_every": 6.0, "lid_open_for": 3.0}, seed=seed
+    )
+    for n in range(1, 201):
+        time = round(n * 0.1, 9)
+        signals = simulator.step(time, 0.1)["hotbox/sensors"]
+        values = {k: signals[k] for k in fast.inputs}
+        assert _outcome(fast.observe, time, values) == _outcome(slow.observe, time, values)
+        assert repr((fast.rls.theta, fast._armed, fast.detector.samples)) == repr(
+            (slow.rls.theta, slow._armed, slow.detector.samples)
+        )
+    assert repr(fast.model()) == repr(slow.model())

@@ -307,19 +307,22 @@ class HotboxTwin(DigitalTwin):
         )
 
         drift = False
-        confident = self._confident()
         if self._armed:
             drift = self.detector.update(residual)
-        elif confident and not self._relearning:
-            self._armed = True
-            self.detector.reset()
-        if drift:
-            self.drifts += 1
-            self.rls.reset_covariance()
-            self._armed = False
-            self._relearning = True
-            confident = False
-        changed = confident and self._worth_publishing(time)
+            if drift:
+                self.drifts += 1
+                self.rls.reset_covariance()
+                self._armed = False
+                self._relearning = True
+            # a new version needs a confident estimate worth publishing; while armed the estimate
+            # is nearly always confident and seldom worth publishing: the cheaper test goes first
+            changed = not drift and self._worth_publishing(time) and self._confident()
+        else:
+            confident = self._confident()
+            if confident and not self._relearning:
+                self._armed = True
+                self.detector.reset()
+            changed = confident and self._worth_publishing(time)
         if changed:
             self._publish(time)
         return _new_update(TwinUpdate, (residual, drift, changed))
@@ -344,24 +347,20 @@ class HotboxTwin(DigitalTwin):
         return a, b, c
 
     def _worth_publishing(self, time: float) -> bool:
+        """Whether a confident estimate is worth publishing now. Pure, so :meth:`_learn` may
+        ask it before or after :meth:`_confident`."""
         published = self._published
         if published["version"] == 0 or self._relearning:
             return True
+        if published.get("learned_at").__class__ is not float and not self._confident():
+            # a hand-written model's learned_at may be anything (or missing): only a confident
+            # estimate may trip over it, whichever of the two tests is asked first
+            return False
         if time - published["learned_at"] < self.min_interval:
             return False
         # a new version when, on the latest window of either lid state, the live estimate and
         # the published model differ by more than `tolerance` of the window's heat flows
-        old0, old1, old2 = self._published_theta
-        new0, new1, new2 = self.rls.theta
-        # the same for every window (the same floats as computed in the loop)
-        step0, step1, step2 = new0 - old0, new1 - old1, new2 - old2
-        tolerance = self.tolerance
-        for p0, p1, p2 in self._reference.values():
-            flows = abs(p0 * old0) + abs(p1 * old1) + abs(p2 * old2)
-            moved = p0 * step0 + p1 * step1 + p2 * step2
-            if abs(moved) > tolerance * flows:
-                return True
-        return False
+        return self.rls.differs_on(self._reference.values(), self._published_theta, self.tolerance)
 
     def _publish(self, time: float) -> None:
         if not self._armed:  # the first confident model: from now on large errors are drift
