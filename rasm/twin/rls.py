@@ -1,4 +1,3 @@
-# distutils: extra_compile_args = -ffp-contract=off
 """Recursive least squares with a forgetting factor, in plain Python.
 
 The twins rasm ships estimate a handful of parameters (the Hotbox: three), updated once per
@@ -15,9 +14,10 @@ take every number through ``float()`` into a local first. In plain Python ``floa
 float is that very float; the compiled build (Cython, see ``rasm.compiled``) then types those
 locals as C doubles and computes without making an object per operation (update3: about
 10,000 machine instructions a call down to 5,500): the same IEEE operations in the same order,
-so the same floats. Two things keep it so: no fused multiply-add (the ``distutils`` line below; GCC
-fuses by default where the processor has one), and a zero divisor is divided by Python itself
-(:func:`_divide_as_python`), so the error is Python's ``ZeroDivisionError`` with its message.
+so the same floats. Two things keep it so: no fused multiply-add (``rasm.compiled`` builds with
+``-ffp-contract=off``; GCC fuses by default where the processor has one), and a zero divisor is
+divided by Python itself (:func:`_divide_as_python`), so the error is Python's
+``ZeroDivisionError`` with its message.
 """
 
 from __future__ import annotations
