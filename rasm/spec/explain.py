@@ -57,7 +57,8 @@ def _subformulas(node: Expr) -> list[Expr]:
     found: list[Expr] = []
 
     def walk(n: Expr) -> None:
-        if not isinstance(n, Literal):
+        # a literal is its own explanation, but the property itself needs its table (its start)
+        if not isinstance(n, Literal) or n is node:
             found.append(n)
         for c in children(n):
             walk(c)

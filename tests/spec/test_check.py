@@ -304,3 +304,14 @@ def test_files_that_are_not_utf8_are_placed_at_their_first_bad_byte(tmp_path, ca
     props.write_bytes(b"input x: float\n# caf\xe9\nproperty p:\n  always (x < 1)\n")
     assert main(["check", str(props), str(trace)]) == 2
     assert f"{props}:2:6: not a UTF-8 text file" in capsys.readouterr().err
+
+
+def test_a_property_that_is_a_literal_is_explained():
+    # found by test_every_violation_is_explained: the explanation looked up the property's own
+    # table, which was never made for a literal
+    from rasm.spec import load_specification
+    from rasm.spec.check import check_records
+
+    spec = load_specification(HEADER + "property p0: false\n", source="p.rv")
+    (prop,) = check_records(spec, [(0, {}), (1, {})]).properties
+    assert [e.lines for e in prop.explanations] == [("false failed",), ("false failed",)]
