@@ -6,8 +6,10 @@ witness time, a deque of not-yet-old-enough witnesses). Anything above a future 
 *stream* (``rasm.spec.streams``) whose values come late; the generated code feeds the streams
 their immediate inputs and reads the property's verdicts off the top stream.
 
-The same body is generated twice: in ``step(t, record)`` (verdict objects, one call per record)
-and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm check``).
+The same body is generated several times: in ``step(t, record)`` (verdict objects, one call per
+record), its variants ``tally`` and ``tally_into`` (plain values, for the Trustworthiness
+Checker) and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm
+check``).
 """
 
 from __future__ import annotations
@@ -114,6 +116,7 @@ class _Generator:
         # later one): (index of their first line, pending deque, upper bound), for the parent
         # that may keep the records it decides out of them (online_skip)
         self.windows: dict[Source, tuple[int, str, float]] = {}
+        self.prevs: dict[tuple[int, str], str] = {}  # (property, operand) -> its prev's value
 
     def fresh(self, prefix: str) -> str:
         self.count += 1
@@ -166,10 +169,15 @@ class _Generator:
         if isinstance(node, Call):
             return "imm", f"{_call(node.func)}({', '.join(values)})"
         if isinstance(node, Prev):
-            held = self.variable("p", self.undefined(node.operand))
-            out = self.fresh("v")
-            self.lines += [f"{out} = {held}", f"{held} = {values[0]}"]
-            return "imm", out
+            # the same prev(φ) twice in a property holds the same values (its lines run on the
+            # same records, and φ's text names the same values): one pair of lines serves both
+            key = (self.root_number, values[0])
+            if key not in self.prevs:
+                held = self.variable("p", self.undefined(node.operand))
+                out = self.fresh("v")
+                self.lines += [f"{out} = {held}", f"{held} = {values[0]}"]
+                self.prevs[key] = out
+            return "imm", self.prevs[key]
         if isinstance(node, Past):  # once, after normalise()
             return "imm", self.once(node.bound.low, node.bound.high, values[0])
         if isinstance(node, Since):
@@ -544,8 +552,9 @@ def _render(line, mode: str) -> str | None:
     ``tally`` is ``step`` with each verdict as a plain ``(property, value)`` pair: what the
     Trustworthiness Checker keeps of a verdict when nobody asked for the verdicts themselves.
     ``into`` (``tally_into``) holds each property's latest value of the record in ``_last<n>``
-    and the values that are not True, in order, in ``odd``: it hands them over once the whole
-    record is decided, so a record that fails half way hands over nothing, as with ``tally``.
+    and the values that are not True, in order, in ``odd`` (a list made for the first such
+    value): it hands them over once the whole record is decided, so a record that fails half
+    way hands over nothing, as with ``tally``.
     """
     online = mode != "run"
     if isinstance(line, str):
@@ -564,22 +573,35 @@ def _render(line, mode: str) -> str | None:
         return f"{pad}out.append((NAME_{number}, {value}))"
     if mode == "into":
         last = f"_last{number}"
+        if value == "True":  # an early verdict: nothing unusual to note
+            return f"{pad}{last} = True"
+        # the list is made for the first unusual value only: most records have none
         return (
             f"{pad}{last} = {value}\n"
-            f"{pad}if {last} is not True: odd.append((NAME_{number}, {last}))"
+            f"{pad}if {last} is not True:\n"
+            f"{pad}    if odd is None: odd = []\n"
+            f"{pad}    odd.append((NAME_{number}, {last}))"
         )
     return f"{pad}values_{number}({value})"
 
 
 def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
+    # an event holds no value from one record to the next (absent means false): its variable is
+    # a local of each function, set by every record; only inputs are held in the closure
     for name in _used(spec):
-        if name in events:
-            gen.state[signal_variable(name)] = False
-        else:
+        if name not in events:
             gen.state[signal_variable(name)] = defaults.get(name, UNSET)
     cells = sorted(gen.state) + ["i", "last_t"]
     update = _update_lines(spec, events)
     properties = [line for block in blocks for line in block]
+
+    def rendered(body: list, mode: str, reject: str = "") -> list[str]:
+        lines = []
+        for line in body:
+            text = _render(line, mode)
+            if text is not None:
+                lines += [part.replace("REJECT(", reject + "(") for part in text.split("\n")]
+        return lines
 
     def function(header: str, mode: str) -> list[str]:
         lines = [header, "    nonlocal " + ", ".join(cells)]
@@ -587,17 +609,10 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             lines.append("    for t, rec in records:")
             indent = "        "
             reject = "REJECT_RUN"
-        elif mode == "into":
-            kept = [f"_last{number}" for number in range(len(blocks))]
-            lines.append("    odd = []")
-            lines.append("    " + " = ".join([*kept, "UNSET"]))
-            indent = "    "
-            reject = "REJECT_INTO"
         else:
             lines.append("    out = []")
             indent = "    "
             reject = "REJECT_STEP"
-        body = [*update, "i += 1", *properties]
         # one past-only property: its verdict is the body's last statement, so the step
         # function can return a one-element list directly (cheaper than append + return)
         single = (
@@ -609,25 +624,34 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         )
         if single:
             lines.pop()  # no "out = []"
-        for line in body:
-            text = _render(line, mode)
-            if text is None:
-                continue
-            if single and line is properties[-1]:
-                text = text.replace("out.append(", "return [", 1)[:-1] + "]"
-            for part in text.split("\n"):
-                lines.append(indent + part.replace("REJECT(", reject + "("))
+        body = rendered([*update, "i += 1", *properties[:-1]], mode, reject)
+        last = rendered(properties[-1:], mode, reject)
+        if single:
+            last = [text.replace("out.append(", "return [", 1)[:-1] + "]" for text in last]
+        lines += [indent + text for text in body + last]
         if mode == "run":
-            lines.append("    return None")
-        elif mode == "into":
-            for number in range(len(blocks)):
-                last = f"_last{number}"
-                lines.append(f"    if {last} is not UNSET: latest[NAME_{number}] = {last}")
-            lines += ["    for _name, _value in odd:", "        unusual(_name, _value)"]
             lines.append("    return None")
         else:
             lines.append("    return []" if single else "    return out")
         return lines
+
+    def into_function() -> list[str]:
+        """``tally_into``: the values handed over once the whole record is decided."""
+        kept = [f"_last{number}" for number in range(len(blocks))]
+        decide = ["odd = None", *(f"{last} = UNSET" for last in kept)]
+        decide += rendered(properties, "into")
+        decide += [
+            f"if {last} is not UNSET: latest[NAME_{n}] = {last}" for n, last in enumerate(kept)
+        ]
+        decide += [
+            "if odd is not None:",
+            "    for _name, _value in odd:",
+            "        unusual(_name, _value)",
+            "return None",
+        ]
+        lines = ["def tally_into(t, rec, latest, unusual):", "    nonlocal " + ", ".join(cells)]
+        general = [*rendered([*update, "i += 1"], "into", "REJECT_INTO"), *decide]
+        return lines + ["    " + text for text in general]
 
     factory = ["def factory():"]
     for name in sorted(gen.state):
@@ -638,8 +662,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         factory.append(f"    NAME_{number} = NAMES[{number}]")
     factory += ["    " + line for line in function("def step(t, rec):", "step")]
     factory += ["    " + line for line in function("def tally(t, rec):", "tally")]
-    into = "def tally_into(t, rec, latest, unusual):"
-    factory += ["    " + line for line in function(into, "into")]
+    factory += ["    " + line for line in into_function()]
     factory += ["    " + line for line in function("def run(records):", "run")]
     for mode in ("step", "run"):
         factory += [
@@ -648,8 +671,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             "        out = []",
         ]
         for block in finishes:
-            rendered = (_render(line, mode) for line in block)
-            factory += ["        " + text for text in rendered if text is not None]
+            factory += ["        " + text for text in rendered(block, mode)]
         factory.append("        return out")
     factory.append("    return step, tally, tally_into, run, finish_step, finish_run")
     return "\n".join(factory) + "\n"
@@ -675,23 +697,22 @@ def _update_lines(spec: Specification, events: set[str]) -> list[str]:
         "    _t = COERCE(t, 'float')",
         "    if _t is BAD: return REJECT(i + 1, t, rec, None, 'time')",
         "    t = _t",
-        # one test for both a nan and a time going back: neither is >= last_t
-        "if t.__class__ not in NUMERIC or not t >= last_t: return REJECT(i + 1, t, rec, None, "
-        "'time' if t.__class__ not in NUMERIC or t != t else 'backwards')",
+        # t is an int or a float now; one test for both a nan and a time going back: neither
+        # is >= last_t
+        "if not t >= last_t: return REJECT(i + 1, t, rec, None, 'time' if t != t else 'backwards')",
     ]
     assigns = []
     for name in _used(spec):
         kind = spec.signals[name]
         var = signal_variable(name)
         tmp = f"n_{name}"
-        if name in events:
+        if name in events:  # a local: a rejected record leaves no trace of it
             checks += [
-                f"{tmp} = rec.get({name!r}, False)",
-                f"if {tmp} is not True and {tmp} is not False:",
-                f"    {tmp} = COERCE({tmp}, 'bool')",
-                f"    if {tmp} is BAD: return REJECT(i + 1, t, rec, {name!r}, 'bool')",
+                f"{var} = rec.get({name!r}, False)",
+                f"if {var} is not True and {var} is not False:",
+                f"    {var} = COERCE({var}, 'bool')",
+                f"    if {var} is BAD: return REJECT(i + 1, t, rec, {name!r}, 'bool')",
             ]
-            assigns.append(f"{var} = {tmp}")
             continue
         check = {
             "float": f"{tmp}.__class__ not in NUMERIC",

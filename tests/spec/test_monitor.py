@@ -145,3 +145,15 @@ def test_numeric_subclasses_are_accepted_and_non_records_refused():
         "'n' must be an integer, not true",
     ]
     assert mon.step(3, {"x": 2})[0] == Verdict("p", 1, 3, False)
+
+
+@pytest.mark.parametrize("order", [("a", "b"), ("b", "a")])
+def test_a_prev_shared_within_a_property_is_not_shared_across_properties(order):
+    # one prev(p) serves a property however often it occurs; another property, warming up
+    # later, has its own: at its first record prev(p) is still undefined (false)
+    formulas = {"a": "prev(p) and (prev(p) or p)", "b": "(x > 0) and prev(p)"}
+    text = "event p\ninput x: float\n" + "".join(f"property {n}: {formulas[n]}\n" for n in order)
+    mon = compile(text)
+    records = [(0, {"p": True}), (1, {"x": 1.0, "p": True}), (2, {"x": 1.0})]
+    got = {(v.property, v.index): v.value for t, rec in records for v in mon.step(t, rec)}
+    assert got == {("a", 0): False, ("a", 1): True, ("a", 2): True, ("b", 1): False, ("b", 2): True}
