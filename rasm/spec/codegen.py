@@ -9,7 +9,9 @@ their immediate inputs and reads the property's verdicts off the top stream.
 The same body is generated several times: in ``step(t, record)`` (verdict objects, one call per
 record), its variants ``tally`` and ``tally_into`` (plain values, for the Trustworthiness
 Checker) and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm
-check``).
+check``). ``tally_into`` has a second, *quiet* copy for a record that carries none of the
+file's events (most records of a loop): the events' values (false) folded in by
+:mod:`rasm.spec.fold`.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from rasm.spec.ast import (
     Until,
 )
 from rasm.spec.expr import _ARITH, _COMPARE, HELPERS, _max2, _min2
+from rasm.spec.fold import fold
 from rasm.spec.loader import signals_of
 from rasm.spec.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
 from rasm.spec.streams import (
@@ -474,6 +477,8 @@ def signal_variable(name: str) -> str:
 # --------------------------------------------------------------------------- whole programs
 
 UNSET = type("Unset", (), {"__repr__": lambda self: "<unset>"})()
+# the locals of tally_into whose values fold() may follow: verdicts, temporaries, the odd list
+_FOLDED_LOCALS = r"_last\d+|v\d+|odd"
 
 
 def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) -> Program:
@@ -636,8 +641,9 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
         return lines
 
     def into_function() -> list[str]:
-        """``tally_into``: the values handed over once the whole record is decided."""
+        """``tally_into``; with a quiet path for records that carry none of the events."""
         kept = [f"_last{number}" for number in range(len(blocks))]
+        # one line each: fold() drops those a quiet record surely sets
         decide = ["odd = None", *(f"{last} = UNSET" for last in kept)]
         decide += rendered(properties, "into")
         decide += [
@@ -650,6 +656,23 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
             "return None",
         ]
         lines = ["def tally_into(t, rec, latest, unusual):", "    nonlocal " + ", ".join(cells)]
+        absent = [name for name in _used(spec) if name in events]
+        if absent:
+            # such a record reads each absent event as false: the same code with those values
+            # folded in (rasm.spec.fold) decides the same, without reading or testing them
+            if len(absent) > 5:
+                gen.constants["QUIET"] = frozenset(absent)
+                none = "QUIET.isdisjoint(rec)"  # one set lookup per key of the record
+            else:  # a few dict lookups cost less than iterating over the record's keys
+                none = " and ".join(f"{name!r} not in rec" for name in absent)
+            known = tuple((signal_variable(name), False) for name in absent)
+            quiet = [
+                *rendered(_update_lines(spec, events, absent), "into", "REJECT_INTO"),
+                "i += 1",
+                *fold("\n".join(decide), known, _FOLDED_LOCALS).splitlines(),
+            ]
+            lines.append(f"    if rec.__class__ is dict and {none}:")
+            lines += ["        " + text for text in quiet]
         general = [*rendered([*update, "i += 1"], "into", "REJECT_INTO"), *decide]
         return lines + ["    " + text for text in general]
 
@@ -686,8 +709,10 @@ def _used(spec: Specification) -> list[str]:
     return list(used)
 
 
-def _update_lines(spec: Specification, events: set[str]) -> list[str]:
+def _update_lines(spec: Specification, events: set[str], absent=()) -> list[str]:
     """Validate a record's time and values, then update the held signals (all or nothing).
+
+    The events in ``absent`` are left out: the caller knows the record does not carry them.
 
     The fast tests look at exact classes; anything else (a numpy float, an int subclass) takes
     the slow path through COERCE, which converts what it can and refuses the rest.
@@ -703,6 +728,8 @@ def _update_lines(spec: Specification, events: set[str]) -> list[str]:
     ]
     assigns = []
     for name in _used(spec):
+        if name in absent:
+            continue
         kind = spec.signals[name]
         var = signal_variable(name)
         tmp = f"n_{name}"
