@@ -14,6 +14,7 @@ import threading
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Iterable, Mapping
 from functools import partial
+from operator import itemgetter
 from typing import Any, NamedTuple
 
 from rasm.errors import KnowledgeError
@@ -43,6 +44,7 @@ _new_tuple = tuple.__new__
 #: ``Sample`` of a plain ``(time, value)`` tuple: tuple.__new__ skips NamedTuple's Python-level
 #: __new__, partial keeps the call in C (a map over a slice of the ring makes no Python frame)
 _as_sample = partial(_new_tuple, Sample)
+_time_of = itemgetter(0)  # the time of a (time, value) sample, for a binary search by time
 #: per declared type, the class a value must have exactly to be taken without its full check
 #: (by _Series.add here, by the Telegraf's digest); json values always get the full check
 EXACT_CLASS: dict[str, type] = {"float": float, "int": int, "bool": bool, "str": str}
@@ -52,71 +54,68 @@ Callback = Callable[[str, Sample], object]
 
 
 class _Series:
-    """The samples of one key: two rings (samples, times) filled by append, then overwritten.
+    """The samples of one key: a ring filled by append, then overwritten.
 
-    Until the ring is full ``head`` is 0 and the lists are in order; afterwards ``head`` is the
+    Until the ring is full ``head`` is 0 and the list is in order; afterwards ``head`` is the
     index of the oldest sample, so the logical order is ``[head:] + [:head]`` and both parts are
-    sorted by time.
+    sorted by time. The newest sample is always ``samples[head - 1]``.
 
     The ring holds plain ``(time, value)`` tuples: a :class:`Sample` (a named tuple, several
     times dearer to make) is made of one only when it is handed out (a read of samples, a
     subscriber, :meth:`KnowledgeBase.register_knowledge`'s answer), so a value stored and
-    never read as a sample costs none.
+    never read as a sample costs none. The times are read from the tuples (a binary search by
+    key), not kept in a second ring: :meth:`add` runs for every value stored, a search only for
+    a time-range query.
     """
 
-    __slots__ = (
-        "decl",
-        "check",
-        "exact",
-        "low",
-        "high",
-        "capacity",
-        "samples",
-        "times",
-        "head",
-        "last",
-    )
+    __slots__ = ("decl", "check", "accept", "capacity", "samples", "head")
 
     def __init__(self, decl: Declaration) -> None:
         self.decl = decl
         self.check: Check = make_check(decl)
-        # what add() accepts without calling check, which returns such a value unchanged: the
-        # declared class exactly and, for numbers, within the bounds (None: no range test)
-        self.exact = EXACT_CLASS.get(decl.type)
-        self.low = self.high = None
+        # what add() accepts without calling check, which returns such a value unchanged:
+        # (the declared class exactly, low, high) and, for numbers, within the bounds (low is
+        # None: no range test); one attribute, as add() reads it for every value
+        low = high = None
         if decl.type in ("float", "int"):
-            self.low = -_INF if decl.minimum is None else decl.minimum
-            self.high = _INF if decl.maximum is None else decl.maximum
+            low = -_INF if decl.minimum is None else decl.minimum
+            high = _INF if decl.maximum is None else decl.maximum
+        self.accept: tuple[type | None, Any, Any] = (EXACT_CLASS.get(decl.type), low, high)
         self.capacity = decl.history
         self.samples: list[tuple[float, Any]] = []  # (time, value): see the class's docstring
-        self.times: list[float] = []
         self.head = 0
-        self.last = _BEFORE_ALL
 
     def __len__(self) -> int:
         return len(self.samples)
+
+    def last(self) -> float:
+        """The time of the newest sample (below every finite time when there is none)."""
+        samples = self.samples
+        return samples[self.head - 1][0] if samples else _BEFORE_ALL
 
     def add(self, value: Any, time: float) -> tuple[float, Any]:
         """Check and store ``value`` at float ``time``; return ``(time, value as stored)``.
         Raise :class:`KnowledgeError` for a refused value or a time before the last sample's
         (or not finite)."""
-        low = self.low
-        if value.__class__ is not self.exact or not (low is None or low <= value <= self.high):
+        exact, low, high = self.accept
+        cls = type(value)
+        if cls is not exact:
+            cls = value.__class__  # what an object says it is decides, as it always did
+        if cls is not exact or not (low is None or low <= value <= high):
             value = self.check(value)  # NaN fails the range test: check decides on it
-        if not self.last <= time < _INF:  # also false for NaN
-            raise KnowledgeBase._bad_time(self.decl.key, time, self.last)
-        sample = (time, value)
         samples = self.samples
-        if len(samples) < self.capacity:
+        head = self.head
+        last = samples[head - 1][0] if samples else _BEFORE_ALL  # as last(), without the call
+        if not last <= time < _INF:  # also false for NaN
+            raise KnowledgeBase._bad_time(self.decl.key, time, last)
+        sample = (time, value)
+        capacity = self.capacity
+        if len(samples) < capacity:
             samples.append(sample)
-            self.times.append(time)
         else:
-            head = self.head
             samples[head] = sample
-            self.times[head] = time
             head += 1
-            self.head = 0 if head == self.capacity else head
-        self.last = time
+            self.head = 0 if head == capacity else head
         return sample
 
     def latest(self) -> Sample | None:
@@ -126,12 +125,12 @@ class _Series:
     def position(self, time: float, after: bool) -> int:
         """Logical index of the first sample with time >= ``time`` (> if ``after``)."""
         search = bisect_right if after else bisect_left
-        times, head = self.times, self.head
-        size = len(times)
-        found = search(times, time, head, size) - head
+        samples, head = self.samples, self.head
+        size = len(samples)
+        found = search(samples, time, head, size, key=_time_of) - head
         if found < size - head or head == 0:
             return found
-        return size - head + search(times, time, 0, head)
+        return size - head + search(samples, time, 0, head, key=_time_of)
 
     def between(self, lo: int, hi: int) -> list[Sample]:
         """Logical slice ``[lo, hi)``, oldest first."""
@@ -270,9 +269,8 @@ class KnowledgeBase:
 
     def _append_sample(self, key: str, value: Any, time: float) -> tuple[float, Any]:
         """Check and store one value (the caller holds the lock); raise as register_knowledge."""
-        series = self._series.get(key)
-        if series is None:
-            series = self._infer(key, value)
+        series_of = self._series
+        series = series_of[key] if key in series_of else self._infer(key, value)
         if type(time) is not float:
             # the value is checked first: its error is the one raised when both are bad
             series.check(value)
@@ -299,18 +297,22 @@ class KnowledgeBase:
         put there too, under its key, as stored (its declared type's canonical form: what a
         read gives back), so a caller needs no read to know it.
         """
-        if type(self).register_knowledge is not KnowledgeBase.register_knowledge:
+        kind = type(self)
+        # (the class itself first: the same answer, without two attribute lookups)
+        if kind is not KnowledgeBase and (
+            kind.register_knowledge is not KnowledgeBase.register_knowledge
+        ):
             # a store that registers its own way (Redis) is asked one value at a time
             return register_each(self.register_knowledge, values, time, into)
         refused: dict[str, Exception] = {}
         with self._lock:
             # a known key at a float time (every value of a running loop) is added directly
-            series_of = self._series if type(time) is float else {}
+            series_of = self._series if type(time) is float else _NO_SERIES
             for key, value in values.items():
                 try:
-                    series = series_of.get(key)
-                    if series is not None:
-                        entry = series.add(value, time)
+                    # `in` and [] rather than .get(): two dict lookups, no method call
+                    if key in series_of:
+                        entry = series_of[key].add(value, time)
                     else:
                         entry = self._append_sample(key, value, time)
                 except Exception as exc:
@@ -339,7 +341,7 @@ class KnowledgeBase:
             else:
                 new = False
             checked: list[Sample] = []
-            last = series.last
+            last = series.last()
             for time, value in samples:
                 value = series.check(value)
                 time = self._time(key, time)
@@ -472,3 +474,6 @@ class KnowledgeBase:
     def _unsubscribe(self, subscription: Subscription) -> None:
         with self._lock:
             self._subscriptions = tuple(s for s in self._subscriptions if s is not subscription)
+
+
+_NO_SERIES: dict[str, _Series] = {}  # never written: every key takes the general path
