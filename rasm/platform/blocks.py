@@ -350,11 +350,12 @@ class Telegraf(Block):
             if key not in payload:
                 continue
             value = payload[key]
+            cls = type(value)
+            if cls is not exact:  # (no attribute lookup for the common value)
+                cls = value.__class__  # what an object says it is decides, as it always did
             # the common good value in one test: its exact declared class, in range and finite
             # (the int sentinel range keeps huge ints on the full check, which fails on them)
-            if value.__class__ is exact and (
-                low is None or (low <= value <= high and value - value == 0)
-            ):
+            if cls is exact and (low is None or (low <= value <= high and value - value == 0)):
                 values[key] = value
                 continue
             problem = _check_value(signal, value)

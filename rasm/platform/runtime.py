@@ -467,8 +467,12 @@ class Platform:
         # the trace record has the scalars stored (a loop, not a comprehension: no function call)
         stored: dict[str, Any] = {}
         for key, value in values.items():
-            if key not in refused and isinstance(value, _SCALARS):
-                stored[key] = value
+            if key not in refused:
+                cls = type(value)  # the exact scalar classes without isinstance's call
+                if cls is float or cls is bool or cls is str or cls is int or (
+                    isinstance(value, _SCALARS)
+                ):
+                    stored[key] = value
         if observe:
             self._observe_twin(time, stored, batch)
         if stored:

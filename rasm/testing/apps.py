@@ -117,13 +117,17 @@ def trace_line(time: float, record: Mapping[str, Any]) -> dict[str, Any]:
     line: dict[str, Any] = {"time": rounded}
     # one pass that is _jsonable then json_copy's fast path: a record is mostly finite floats,
     # bools and ascii strings under str keys, copied here without two calls per value
+    # type() first, a pointer test; __class__ (what an object says it is, an attribute lookup)
+    # only when type() is not the class looked for, so the answer is what __class__ gave
     try:
-        if rounded.__class__ is not float:  # an int time: json_copy decides on its size
-            raise _NotPlain
+        if type(rounded) is not float and rounded.__class__ is not float:
+            raise _NotPlain  # an int time: json_copy decides on its size
         for key, value in record.items():
-            if key.__class__ is not str or not key.isascii():
+            if (type(key) is not str and key.__class__ is not str) or not key.isascii():
                 raise _NotPlain
-            cls = value.__class__
+            cls = type(value)
+            if cls is not float and cls is not bool and cls is not str and value is not None:
+                cls = value.__class__
             if cls is float:
                 line[key] = value if value - value == 0 else None  # nan and inf: null
             elif cls is bool or value is None or (cls is str and value.isascii()):
@@ -274,11 +278,9 @@ def run_app(
 
     platform.on_record.append(collect)
     summary = platform.run(duration)
-    return Trace(
-        records,
-        summary=summary,
-        app=manifest.name,
-        seed=seed,
-        scenario=platform.scenario,
+    trace = Trace(
+        (), summary=summary, app=manifest.name, seed=seed, scenario=platform.scenario,
         duration=duration,
     )
+    trace.records = records  # fresh dicts of collect()'s own: no copy of each (Trace() makes one)
+    return trace

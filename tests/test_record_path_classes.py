@@ -1,0 +1,138 @@
+"""The per-record class tests: ``type()`` first (a pointer test), ``__class__`` only after.
+
+Telegraf's digest, the store's ring, the trace copy and the platform's record of the values
+stored decide on a value's class. They read ``type(value)`` first and fall back to
+``value.__class__`` (an attribute lookup) only when that is not the class looked for, so their
+answer is the one ``__class__`` always gave, also for an object that says it is another class.
+The platform's record keeps the scalars as ``isinstance`` says, subclasses included.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from typing import Any
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rasm.platform.blocks import Telegraf
+from rasm.platform.manifest import Probe, Signal
+from rasm.platform.runtime import Platform
+from rasm.testing.apps import trace_line
+
+
+class ClaimsFloat:
+    """Says it is a float (``__class__``) and computes like 1.5."""
+
+    @property  # type: ignore[misc]
+    def __class__(self) -> type:
+        return float
+
+    def __le__(self, other: Any) -> bool:
+        return 1.5 <= other
+
+    def __ge__(self, other: Any) -> bool:
+        return 1.5 >= other
+
+    def __sub__(self, other: Any) -> float:
+        return 0.0
+
+    def __float__(self) -> float:
+        return 1.5
+
+
+class ClaimsNan(ClaimsFloat):
+    """Says it is a float, finite to float() but not to ``x - x == 0``: which test decided
+    shows (the trace copy's fast path takes ``x - x``, its general path math.isfinite)."""
+
+    def __sub__(self, other: Any) -> float:
+        return math.nan
+
+
+class ClaimsStr:
+    """Says it is a str: a trace key taken as one (its isascii() is asked, as of a str)."""
+
+    @property  # type: ignore[misc]
+    def __class__(self) -> type:
+        return str
+
+    def isascii(self) -> bool:
+        return True
+
+
+def test_telegraf_takes_a_value_that_says_it_is_a_float_as_it_is():
+    probe = Probe("box", {"t": Signal("t", "float", 0.0, 2.0)})
+    tg = Telegraf([probe], lambda values, time: None)
+    tg.send("configure")
+    claims = ClaimsFloat()
+    assert tg.digest("box", {"t": claims}, 1.0)["t"] is claims
+
+
+def test_a_trace_line_decides_on_what_says_it_is_a_str_or_a_float_as_before():
+    # the fast path takes both as what they say they are: x - x is nan, so the value is null
+    key = ClaimsStr()
+    assert trace_line(1.0, {key: ClaimsNan()}) == {"time": 1.0, key: None}
+    assert trace_line(1.0, {"k": ClaimsNan()}) == {"time": 1.0, "k": None}
+    rounded = ClaimsFloat()  # a time rounded to what says it is a float: the fast path too
+    time = type("Time", (), {"__round__": lambda self, digits: rounded})()
+    assert trace_line(time, {"k": ClaimsNan()}) == {"time": rounded, "k": None}
+
+
+class Level(IntEnum):
+    LOW = 1
+
+
+class Name(str):
+    pass
+
+
+class Reading(float):
+    pass
+
+
+class _Recorder:
+    """What Platform._register uses of the platform: the Knowledge Manager and _emit."""
+
+    twin = None
+    _twin_inputs = frozenset()
+
+    def __init__(self, refuse: set[str]) -> None:
+        self.refuse = refuse
+        self.emitted: list[dict[str, Any]] = []
+        self.km = self
+
+    def register_values(self, values: dict[str, Any], time: float) -> dict[str, Exception]:
+        return {key: ValueError("refused") for key in values if key in self.refuse}
+
+    def _emit(self, time: float, record: dict[str, Any]) -> None:
+        self.emitted.append(record)
+
+
+VALUES = st.one_of(
+    st.floats(allow_nan=True),
+    st.integers(),
+    st.booleans(),
+    st.text(max_size=2),
+    st.none(),
+    st.lists(st.integers(), max_size=2),
+    st.dictionaries(st.text(max_size=1), st.integers(), max_size=1),
+    st.sampled_from([Level.LOW, Name("n"), Reading(2.5), ClaimsFloat(), b"x", 1j]),
+)
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(st.dictionaries(st.text("abc", max_size=2), VALUES), st.sets(st.text("abc", max_size=2)))
+def test_the_record_of_a_registration_holds_the_scalars_stored(values, refuse):
+    platform = _Recorder(refuse)
+    Platform._register(platform, values, 1.0)
+    # the straightforward version: a comprehension with isinstance
+    expected = {
+        k: v
+        for k, v in values.items()
+        if k not in refuse and isinstance(v, (int, float, bool, str))
+    }
+    assert len(platform.emitted) == (1 if expected else 0)
+    record = platform.emitted[0] if expected else {}
+    assert list(record) == list(expected)
+    assert all(record[k] is expected[k] for k in expected)
