@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
-__all__ = ["LOOP_KEYS", "TraceWriter"]
+__all__ = ["LOOP_KEYS", "TraceWriter", "round_time"]
 
 #: The keys the loop itself writes in trace records (SPEC §4, docs/runtime.md). A knowledge
 #: signal of one of these names would forge the loop's own events in the trace and in what the
@@ -50,9 +50,37 @@ def jsonable(value: Any) -> Any:
     return value
 
 
+# below 2**52 a float's floor and the halves between integers are floats: see round_time
+_FAST_ROUND_BELOW = 2.0**52
+
+
+def round_time(time: float) -> Any:
+    """``round(time, 9)``: a record's time to the nanosecond, as a trace holds it.
+
+    round() converts to decimal and back (thousands of instructions, and every record is
+    rounded). For a positive float ``t`` whose product ``p = t * 1e9`` (the exact ``P = t *
+    10**9`` rounded to a float) is below 2**52, with ``k`` its floor: rounding to a float is
+    monotonic and ``k``, ``k + 1/2`` and ``k + 1`` are floats, so ``p < k + 1/2`` means ``P``
+    is within 1/2 of ``k``, and ``p > k + 1/2`` within 1/2 of ``k + 1``. That integer over
+    1e9 (both exact, the division correctly rounded) is the float nearest it times 10**-9:
+    what round() gives. Anything else (``p`` exactly ``k + 1/2``, a time not a float, 0,
+    negative, large or not finite) is round()'s.
+    """
+    if type(time) is float:
+        scaled = time * 1e9
+        if 0.0 < scaled < _FAST_ROUND_BELOW:
+            whole = scaled // 1.0  # exact, as is the fraction
+            fraction = scaled - whole
+            if fraction < 0.5:
+                return whole / 1e9
+            if fraction > 0.5:
+                return (whole + 1.0) / 1e9
+    return round(time, 9)
+
+
 def _line(time: float, record: dict[str, Any]) -> str:
     """The record's JSON line: ``time`` first (to the nanosecond), a non-finite float null."""
-    line = {"time": round(time, 9)}
+    line = {"time": round_time(time)}
     for key, value in record.items():
         line[key] = jsonable(value)
     return _encode(line) + "\n"

@@ -18,6 +18,7 @@ from typing import Any
 from rasm.platform.manifest import AppManifest, load_manifest
 from rasm.platform.runtime import Platform, RunSummary
 from rasm.platform.trace import jsonable as _jsonable
+from rasm.platform.trace import round_time
 
 __all__ = ["Trace", "run_app", "app_manifest"]
 
@@ -113,7 +114,7 @@ def json_copy(value: Any) -> Any:
 def trace_line(time: float, record: Mapping[str, Any]) -> dict[str, Any]:
     """The record as it reads back from the trace file: ``time`` first (rounded to the
     nanosecond), a non-finite float at the top level as None, and every value a JSON value."""
-    rounded = round(time, 9)
+    rounded = round_time(time)
     line: dict[str, Any] = {"time": rounded}
     # one pass that is _jsonable then json_copy's fast path: a record is mostly finite floats,
     # bools and ascii strings under str keys, copied here without two calls per value
