@@ -1,4 +1,5 @@
-"""The loop's time: a record's time is rounded as round(time, 9) rounds it."""
+"""The loop's time: a record's time is rounded as round(time, 9) rounds it, and the scheduler's
+now() is its clock's time."""
 
 from __future__ import annotations
 
@@ -6,10 +7,14 @@ import math
 import random
 
 import pytest
+import sismic.clock.clock as sismic_clock
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from sismic.clock import SimulatedClock
 
+from rasm.platform.scheduler import Scheduler
 from rasm.platform.trace import round_time
+from rasm.statechart import MonotonicClock
 
 SETTINGS = settings(max_examples=400, deadline=None, database=None)
 
@@ -66,3 +71,50 @@ def test_round_time_on_a_run_of_simulated_times():
     for _ in range(200_000):
         now += 0.1
         assert _same(round_time(now), round(now, 9))
+
+
+# -------------------------------------------------------------------- Scheduler.now
+
+CLOCK_OPS = st.lists(
+    st.one_of(
+        st.tuples(st.just("set"), st.sampled_from([-0.0, 0.0, 1, 2.5]) | st.floats(-1, 50)),
+        st.tuples(st.just("wall"), st.floats(0, 5)),  # the wall clock moves on
+        st.tuples(st.just("speed"), st.floats(0.25, 4)),
+        st.tuples(st.sampled_from(["start", "stop"]), st.none()),
+    ),
+    max_size=20,
+)
+
+
+@SETTINGS
+@given(CLOCK_OPS)
+def test_the_schedulers_now_is_the_clocks_time(ops):
+    wall = [1000.0]
+    with pytest.MonkeyPatch.context() as patch:  # a running clock reads this wall clock
+        patch.setattr(sismic_clock, "time", lambda: wall[0])
+        clock = SimulatedClock()
+        jobs = Scheduler(clock)
+        for op, arg in ops:
+            if op == "wall":
+                wall[0] += arg
+            elif op == "set":
+                if not arg < clock.time:  # (sismic refuses to go back)
+                    clock.time = arg
+            elif op == "speed":
+                clock.speed = arg
+            else:
+                getattr(clock, op)()
+            assert _same(jobs.now(), clock.time)
+
+
+class _OwnClock(SimulatedClock):
+    """A clock of another class: now() asks it."""
+
+    @property
+    def time(self) -> float:
+        return 42.0
+
+
+@pytest.mark.parametrize("clock", [_OwnClock(), MonotonicClock(running=False)])
+def test_the_schedulers_now_asks_any_other_clock(clock):
+    assert _same(Scheduler(clock).now(), clock.time)

@@ -498,8 +498,9 @@ class Platform:
         # Delivered on the transport's thread: hand it to the loop thread (digested at the
         # loop's time then).
         topic, payload = message.topic, message.payload
-        digest, clock = self.tg.digest, self.clock
-        self.scheduler.submit(lambda: digest(topic, payload, clock.time))
+        scheduler = self.scheduler
+        digest, now = self.tg.digest, scheduler.now
+        scheduler.submit(lambda: digest(topic, payload, now()))
 
     def _on_effector(self, name: str, message: Any) -> None:
         payload = dict(message.payload)
@@ -562,7 +563,7 @@ class Platform:
         # the simulated world starts at 0 whatever the managing system's restored timeline
         try:
             readings = self.simulator.step(
-                self.clock.time - self._started_at, self.manifest.simulator_period
+                self.scheduler.now() - self._started_at, self.manifest.simulator_period
             )
         except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
             _log.error("the simulator's step failed: %s", describe_failure(exc), exc_info=exc)

@@ -43,10 +43,27 @@ class Scheduler:
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
         self.missed = 0  # turns of periodic jobs skipped because they were already past
+        # sismic's own SimulatedClock is read and moved through its attributes while it stands
+        # still (not start()ed): each `time` read is two Python-level property calls and each
+        # set a third and a time() call; `time` is then `_time + 0` (no elapsed time) and the
+        # setter's other write, `_base`, is read only by a running clock
+        self._direct = (
+            type(clock) in (SimulatedClock, FasterSimulatedClock)
+            and hasattr(clock, "_time")
+            and hasattr(clock, "_play")
+        )
 
     @property
     def time(self) -> float:
         return self.clock.time
+
+    def now(self) -> float:
+        """The clock's time, ``clock.time``: read directly from a simulated clock standing
+        still (the loop asks at every reading of the managed system)."""
+        clock = self.clock
+        if self._direct and not clock._play:
+            return clock._time + 0
+        return clock.time
 
     def at(self, time: float, job: Job) -> None:
         """Run ``job`` at ``time`` (loop thread only; other threads use :meth:`submit`)."""
@@ -111,15 +128,7 @@ class Scheduler:
     def run_until(self, end: float | None) -> None:
         """Run jobs until the clock reaches ``end`` (None: until :meth:`stop`)."""
         clock, heap, simulated, run = self.clock, self._heap, self.simulated, self._run
-        # sismic's own SimulatedClock is read and moved through its attributes while it stands
-        # still (not start()ed): each `time` read is two property calls and each set a third
-        # and a time() call, at every turn; `time` is then `_time + 0` (no elapsed time) and
-        # the setter's other write, `_base`, is read only by a running clock
-        direct = (
-            type(clock) in (SimulatedClock, FasterSimulatedClock)
-            and hasattr(clock, "_time")
-            and hasattr(clock, "_play")
-        )
+        direct = self._direct  # (see __init__)
         while True:
             # Peeked without the lock (taken only to take the inbox): a submit() racing with the
             # peek is served next turn, as if it had come just after a locked look.
