@@ -179,6 +179,7 @@ def test_batches_and_single_writes_store_what_the_reference_store_stores(
             assert _same(kb.history(key), ref.history(key, None, None, None))
             held = ref.samples.get(key) or []
             assert _same(kb.read_sample(key), held[-1] if held else None)
+            assert _same(kb.read_knowledge(key, "none"), held[-1].value if held else "none")
             # range bounds on, just before and just after every time held (a wrap included)
             bounds = sorted({s.time + d for s in held for d in (-0.125, 0.0, 0.125)})
             for bound in bounds:

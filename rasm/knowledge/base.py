@@ -63,9 +63,9 @@ class _Series:
     The ring holds plain ``(time, value)`` tuples: a :class:`Sample` (a named tuple, several
     times dearer to make) is made of one only when it is handed out (a read of samples, a
     subscriber, :meth:`KnowledgeBase.register_knowledge`'s answer), so a value stored and
-    never read as a sample costs none. The times are read from the tuples (a binary search by
-    key), not kept in a second ring: :meth:`add` runs for every value stored, a search only for
-    a time-range query.
+    never read as a sample costs none (:meth:`between` keeps those it makes in the ring). The
+    times are read from the tuples (a binary search by key), not kept in a second ring:
+    :meth:`add` runs for every value stored, a search only for a time-range query.
     """
 
     __slots__ = ("decl", "check", "accept", "capacity", "samples", "head")
@@ -133,16 +133,22 @@ class _Series:
         return size - head + search(samples, time, 0, head, key=_time_of)
 
     def between(self, lo: int, hi: int) -> list[Sample]:
-        """Logical slice ``[lo, hi)``, oldest first."""
+        """Logical slice ``[lo, hi)``, oldest first.
+
+        A plain tuple handed out is made a :class:`Sample` once and kept so in the ring: a
+        window read at every iteration (a sliding mean) makes one only for each new sample.
+        """
         samples, head = self.samples, self.head
-        older = len(samples) - head  # samples in the [head:] part
-        if hi <= older:
-            part = samples[head + lo : head + hi]
-        elif lo >= older:
-            part = samples[lo - older : hi - older]
-        else:
-            part = samples[head + lo :] + samples[: hi - older]
-        return list(map(_as_sample, part))
+        size = len(samples)
+        out = []
+        for index in range(head + lo, head + hi):
+            if index >= size:  # past the end of the ring: its start holds the newer part
+                index -= size
+            sample = samples[index]
+            if type(sample) is not Sample:
+                sample = samples[index] = _as_sample(sample)
+            out.append(sample)
+        return out
 
     def all(self) -> list[Sample]:
         return self.between(0, len(self.samples))
@@ -262,7 +268,12 @@ class KnowledgeBase:
         a time older than the key's last sample. Subscribers are called before this returns.
         """
         with self._lock:
-            sample = _as_sample(self._append_sample(key, value, time))
+            series_of = self._series
+            # a known key at a float time (every value of a running loop) is added directly
+            if type(time) is float and key in series_of:
+                sample = _as_sample(series_of[key].add(value, time))
+            else:
+                sample = _as_sample(self._append_sample(key, value, time))
             if self._subscriptions:  # most stores have none: no call then
                 self._notify(key, sample)
             return sample
@@ -385,10 +396,13 @@ class KnowledgeBase:
     def read_knowledge(self, key: str, default: Any = None) -> Any:
         """The latest value of ``key``, or ``default`` if it has none."""
         with self._lock:
-            series = self._series.get(key)
-            if series is None or not series.samples:
+            series_of = self._series
+            if key not in series_of:
                 return default
-            return series.samples[series.head - 1][1]  # the newest: see _Series.latest
+            series = series_of[key]
+            samples = series.samples
+            # the newest (see _Series.latest), if any
+            return samples[series.head - 1][1] if samples else default
 
     def read_values(self, keys: Iterable[str], default: Any = None) -> dict[str, Any]:
         """``{key: read_knowledge(key, default)}`` for each of ``keys``, read under one lock (a
@@ -434,7 +448,7 @@ class KnowledgeBase:
             if series is None:
                 return []
             lo = 0 if since is None else series.position(since, after=False)
-            hi = len(series) if until is None else series.position(until, after=True)
+            hi = len(series.samples) if until is None else series.position(until, after=True)
             if last is not None:
                 lo = max(lo, hi - last)
             return series.between(lo, hi) if lo < hi else []
