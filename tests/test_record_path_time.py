@@ -118,3 +118,35 @@ class _OwnClock(SimulatedClock):
 @pytest.mark.parametrize("clock", [_OwnClock(), MonotonicClock(running=False)])
 def test_the_schedulers_now_asks_any_other_clock(clock):
     assert _same(Scheduler(clock).now(), clock.time)
+
+
+# -------------------------------------------------------------------- periodic turns
+
+
+class _Watched(Scheduler):
+    """A scheduler with its own at(): it sees every job scheduled, the periodic turns too."""
+
+    def __init__(self, clock) -> None:
+        super().__init__(clock)
+        self.seen: list[float] = []
+
+    def at(self, time, job) -> None:
+        self.seen.append(time)
+        super().at(time, job)
+
+
+@pytest.mark.parametrize("own", ["subclass", "instance", "none"])
+def test_the_turns_of_a_periodic_job_go_through_the_schedulers_own_at(own):
+    clock = SimulatedClock()
+    jobs = _Watched(clock) if own == "subclass" else Scheduler(clock)
+    seen: list[float] = []
+    if own == "instance":
+        plain_at = jobs.at
+        jobs.at = lambda time, job: (seen.append(time), plain_at(time, job))
+    ran: list[float] = []
+    jobs.every(0.5, lambda: ran.append(clock.time), start=0.0)
+    jobs.run_until(2.0)
+    assert ran == [0.0, 0.5, 1.0, 1.5, 2.0]
+    # the first turn and every next one, the one after the end included
+    expected = [] if own == "none" else [0.0, 0.5, 1.0, 1.5, 2.0, 2.5]
+    assert (jobs.seen if own == "subclass" else seen) == expected

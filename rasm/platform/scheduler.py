@@ -9,12 +9,12 @@ next job is due or another thread submits one: it never polls.
 
 from __future__ import annotations
 
-import heapq
 import itertools
 import math
 import threading
 from collections.abc import Callable
 from functools import partial
+from heapq import heappop, heappush
 from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
@@ -67,7 +67,7 @@ class Scheduler:
 
     def at(self, time: float, job: Job) -> None:
         """Run ``job`` at ``time`` (loop thread only; other threads use :meth:`submit`)."""
-        heapq.heappush(self._heap, (time, next(self._order), job))
+        heappush(self._heap, (time, next(self._order), job))
 
     def after(self, delay: float, job: Job) -> None:
         self.at(self.clock.time + max(delay, 0.0), job)
@@ -90,6 +90,11 @@ class Scheduler:
                 f"a period of {period:g} s is too short to move the clock at {first:g} s"
             )
 
+        heap, order = self._heap, self._order  # (never replaced)
+        # every turn of every periodic job is scheduled: at()'s push without the call, unless
+        # at() is another one (a subclass's, or one set on this scheduler)
+        push = type(self).at is Scheduler.at and "at" not in vars(self)
+
         def tick(n: int = 0) -> None:
             try:
                 job()
@@ -100,7 +105,11 @@ class Scheduler:
                     if current > turn:
                         self.missed += current - turn
                         turn = current
-                self.at(first + turn * period, partial(tick, turn))
+                due = first + turn * period
+                if push:
+                    heappush(heap, (due, next(order), partial(tick, turn)))
+                else:
+                    self.at(due, partial(tick, turn))
 
         self.at(first, tick)
 
@@ -175,6 +184,6 @@ class Scheduler:
             # has fallen behind (a stage overrunning every period) would otherwise catch up for
             # ever, never reaching ``end`` nor the messages in the inbox
             while heap and heap[0][0] <= now:
-                run(heapq.heappop(heap)[2])
+                run(heappop(heap)[2])
             if not simulated and end is not None and clock.time >= end:
                 return
