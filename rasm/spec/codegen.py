@@ -500,6 +500,7 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     events = {item.name for item in spec.events}
     blocks: list[list] = []
     finishes: list[list] = []
+    every: list[bool] = []  # per property: a value on every record, never UNSET
     program = Program("", gen.constants, gen.state)
     for number, prop in enumerate(spec.properties):
         gen.lines, gen.finish_lines = [], []
@@ -512,6 +513,9 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
             needed = reads[number]
         warm = tuple(name for name in needed if name not in events and name not in defaults)
         program.reads.append(warm)
+        # past-only, judged from the first record, and reading only signals that always have
+        # a value (``reads`` may leave out some the formula reads)
+        every.append(kind == "imm" and not warm and reads is None)
         program.roots.append(value if kind == "stream" else None)
         body: list = list(gen.lines)
         finish: list = list(gen.finish_lines)
@@ -536,7 +540,7 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
         blocks.append(block)
         if kind == "stream":
             finishes.append([f"if {started}:", *(_indent(line) for line in finish)])
-    program.source = _assemble(spec, gen, blocks, finishes, defaults, events)
+    program.source = _assemble(spec, gen, blocks, finishes, defaults, events, every)
     return program
 
 
@@ -590,7 +594,7 @@ def _render(line, mode: str) -> str | None:
     return f"{pad}values_{number}({value})"
 
 
-def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
+def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) -> str:
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure
     for name in _used(spec):
@@ -643,12 +647,13 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events) -> str:
     def into_function() -> list[str]:
         """``tally_into``; with a quiet path for records that carry none of the events."""
         kept = [f"_last{number}" for number in range(len(blocks))]
-        # one line each: fold() drops those a quiet record surely sets
-        decide = ["odd = None", *(f"{last} = UNSET" for last in kept)]
+        # UNSET: no value for the property yet (one line each: fold() drops those a quiet
+        # record surely sets)
+        decide = ["odd = None", *(f"{kept[n]} = UNSET" for n in range(len(kept)) if not every[n])]
         decide += rendered(properties, "into")
-        decide += [
-            f"if {last} is not UNSET: latest[NAME_{n}] = {last}" for n, last in enumerate(kept)
-        ]
+        for number, last in enumerate(kept):
+            handover = f"latest[NAME_{number}] = {last}"
+            decide.append(handover if every[number] else f"if {last} is not UNSET: {handover}")
         decide += [
             "if odd is not None:",
             "    for _name, _value in odd:",
@@ -727,9 +732,8 @@ def _update_lines(spec: Specification, events: set[str], absent=()) -> list[str]
         "if not t >= last_t: return REJECT(i + 1, t, rec, None, 'time' if t != t else 'backwards')",
     ]
     assigns = []
-    for name in _used(spec):
-        if name in absent:
-            continue
+    names = [name for name in _used(spec) if name not in absent]
+    for name in names:
         kind = spec.signals[name]
         var = signal_variable(name)
         tmp = f"n_{name}"
@@ -748,13 +752,17 @@ def _update_lines(spec: Specification, events: set[str], absent=()) -> list[str]
             "str": f"{tmp}.__class__ is not str",
             "any": f"{tmp}.__class__ not in SCALAR",
         }[kind]
-        checks += [
-            f"{tmp} = rec.get({name!r}, UNSET)",
-            f"if {tmp} is not UNSET and {check}:",
-            f"    {tmp} = COERCE({tmp}, {kind!r})",
-            f"    if {tmp} is BAD: return REJECT(i + 1, t, rec, {name!r}, {kind!r})",
+        coerce = [
+            f"{tmp} = COERCE({tmp}, {kind!r})",
+            f"if {tmp} is BAD: return REJECT(i + 1, t, rec, {name!r}, {kind!r})",
         ]
-        assigns.append(f"if {tmp} is not UNSET: {var} = {tmp}")
+        checks.append(f"{tmp} = rec.get({name!r}, UNSET)")
+        if name == names[-1]:  # the last check: nothing can refuse the record after it
+            checks += [f"if {tmp} is not UNSET:", f"    if {check}:"]
+            checks += ["        " + line for line in coerce] + [f"    {var} = {tmp}"]
+        else:
+            checks += [f"if {tmp} is not UNSET and {check}:", *("    " + line for line in coerce)]
+            assigns.append(f"if {tmp} is not UNSET: {var} = {tmp}")
     # a record that is not a mapping (no .get), or a time that cannot be compared
     guarded = [
         "try:",

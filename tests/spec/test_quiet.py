@@ -248,3 +248,42 @@ def test_a_quiet_record_that_fails_half_way_hands_nothing_over():
     with pytest.raises(OverflowError):
         monitor.tally_into(1.0, {"n": 10**400}, latest, lambda *pair: unusual.append(pair))
     assert latest == {"small": False, "ratio": True} and unusual == [("small", False)]
+
+
+@st.composite
+def with_refusals(draw):
+    """Records with refused ones among them: good values for every signal but one, which is
+    wrong (or the time goes back), so that a partial update would show."""
+    trace = draw(records(max_size=20))
+    for _ in range(draw(st.integers(1, 4))):
+        at = draw(st.integers(0, len(trace)))
+        rec = {name: draw(value) for name, value in GOOD.items() if name not in ("p", "q")}
+        if draw(st.booleans()):
+            rec.update((name, draw(GOOD[name])) for name in ("p", "q"))
+        time = trace[at - 1][0] if at else 0
+        if draw(st.integers(0, 3)) == 0 and isinstance(time, (int, float)):
+            time = time - 1
+        else:
+            wrong = draw(st.sampled_from(sorted(WRONG)))
+            rec[wrong] = draw(st.sampled_from(WRONG[wrong]))
+        trace.insert(at, (time, rec))
+    return trace
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(formulas(3), min_size=1, max_size=3), with_refusals())
+def test_a_refused_record_changes_nothing(formulas_, trace):
+    """Whatever a refused record holds (good values next to the bad one, on either path), the
+    monitor goes on as if it had never come."""
+    text = _spec(formulas_)
+    full, without = compile(text), compile(text)
+    seen: list = []
+    kept: list = []
+    for time, rec in trace:
+        refused = len(full.rejected)
+        got = outcome(full.tally_into, time, rec, {}, lambda *pair: seen.append(pair))
+        if len(full.rejected) == refused:
+            note = lambda *pair: kept.append(pair)  # noqa: E731
+            assert outcome(without.tally_into, time, rec, {}, note) == got
+        assert seen == kept
+    assert outcome(full.finish) == outcome(without.finish)
