@@ -536,7 +536,7 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
             block += [_indent(line) for line in body]
         else:
             started = "i >= 0"
-            block = [f"if i == 0: STARTS[{number}] = 0", *body]
+            block = [("FIRST", f"if i == 0: STARTS[{number}] = 0"), *body]
         blocks.append(block)
         if kind == "stream":
             finishes.append([f"if {started}:", *(_indent(line) for line in finish)])
@@ -555,19 +555,21 @@ def _indent(line):
 
 
 def _render(line, mode: str) -> str | None:
-    """A generated line for ``mode`` (step, tally, into or run); None where the line is
-    online-only.
+    """A generated line for ``mode`` (step, tally, into, quiet or run); None where the line is
+    online-only (or, for ``quiet``, only for the first record).
 
     ``tally`` is ``step`` with each verdict as a plain ``(property, value)`` pair: what the
     Trustworthiness Checker keeps of a verdict when nobody asked for the verdicts themselves.
-    ``into`` (``tally_into``) holds each property's latest value of the record in ``_last<n>``
-    and the values that are not True, in order, in ``odd`` (a list made for the first such
-    value): it hands them over once the whole record is decided, so a record that fails half
-    way hands over nothing, as with ``tally``.
+    ``into`` (``tally_into``; ``quiet``: its quiet path) holds each property's latest value of
+    the record in ``_last<n>`` and the values that are not True, in order, in ``odd`` (a list
+    made for the first such value): it hands them over once the whole record is decided, so a
+    record that fails half way hands over nothing, as with ``tally``.
     """
     online = mode != "run"
     if isinstance(line, str):
         return line
+    if line[0] == "FIRST":  # the quiet path of tally_into never sees the first record
+        return None if mode == "quiet" else line[1]
     if line[0] == "EARLY":  # early verdicts exist online only: run() keeps record order
         return line[1] if online else None
     if line[0] == "ONLINE":  # the online functions' version of a line, and run()'s
@@ -580,7 +582,7 @@ def _render(line, mode: str) -> str | None:
         return f"{pad}out.append(TUPLE_NEW(Verdict, (NAME_{number}, {index}, {time}, {value})))"
     if mode == "tally":
         return f"{pad}out.append((NAME_{number}, {value}))"
-    if mode == "into":
+    if mode in ("into", "quiet"):
         last = f"_last{number}"
         if value == "True":  # an early verdict: nothing unusual to note
             return f"{pad}{last} = True"
@@ -600,6 +602,9 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
     for name in _used(spec):
         if name not in events:
             gen.state[signal_variable(name)] = defaults.get(name, UNSET)
+    absent = [name for name in _used(spec) if name in events]  # from a quiet record
+    if absent:
+        gen.state["dict_after_first"] = None  # see into_function
     cells = sorted(gen.state) + ["i", "last_t"]
     update = _update_lines(spec, events)
     properties = [line for block in blocks for line in block]
@@ -647,21 +652,27 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
     def into_function() -> list[str]:
         """``tally_into``; with a quiet path for records that carry none of the events."""
         kept = [f"_last{number}" for number in range(len(blocks))]
-        # UNSET: no value for the property yet (one line each: fold() drops those a quiet
-        # record surely sets)
-        decide = ["odd = None", *(f"{kept[n]} = UNSET" for n in range(len(kept)) if not every[n])]
-        decide += rendered(properties, "into")
-        for number, last in enumerate(kept):
-            handover = f"latest[NAME_{number}] = {last}"
-            decide.append(handover if every[number] else f"if {last} is not UNSET: {handover}")
-        decide += [
-            "if odd is not None:",
-            "    for _name, _value in odd:",
-            "        unusual(_name, _value)",
-            "return None",
-        ]
+
+        def decide(mode: str) -> list[str]:
+            # UNSET: no value for the property yet (one line each: fold() drops those a quiet
+            # record surely sets)
+            lines = [
+                "odd = None",
+                *(f"{kept[n]} = UNSET" for n in range(len(kept)) if not every[n]),
+            ]
+            lines += rendered(properties, mode)
+            for number, last in enumerate(kept):
+                handover = f"latest[NAME_{number}] = {last}"
+                lines.append(handover if every[number] else f"if {last} is not UNSET: {handover}")
+            return lines + [
+                "if odd is not None:",
+                "    for _name, _value in odd:",
+                "        unusual(_name, _value)",
+                "return None",
+            ]
+
         lines = ["def tally_into(t, rec, latest, unusual):", "    nonlocal " + ", ".join(cells)]
-        absent = [name for name in _used(spec) if name in events]
+        general = rendered([*update, "i += 1"], "into", "REJECT_INTO")
         if absent:
             # such a record reads each absent event as false: the same code with those values
             # folded in (rasm.spec.fold) decides the same, without reading or testing them
@@ -674,12 +685,14 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
             quiet = [
                 *rendered(_update_lines(spec, events, absent), "into", "REJECT_INTO"),
                 "i += 1",
-                *fold("\n".join(decide), known, _FOLDED_LOCALS).splitlines(),
+                *fold("\n".join(decide("quiet")), known, _FOLDED_LOCALS).splitlines(),
             ]
-            lines.append(f"    if rec.__class__ is dict and {none}:")
+            # dict_after_first is None until the general code accepted a record: the quiet
+            # path never sees the first record (and leaves out what only that one does)
+            lines.append(f"    if rec.__class__ is dict_after_first and {none}:")
             lines += ["        " + text for text in quiet]
-        general = [*rendered([*update, "i += 1"], "into", "REJECT_INTO"), *decide]
-        return lines + ["    " + text for text in general]
+            general.append("dict_after_first = dict")
+        return lines + ["    " + text for text in [*general, *decide("into")]]
 
     factory = ["def factory():"]
     for name in sorted(gen.state):

@@ -79,6 +79,7 @@ def state(function) -> dict:
     cells = {
         name: cell.cell_contents
         for name, cell in zip(function.__code__.co_freevars, function.__closure__, strict=True)
+        if name != "dict_after_first"  # tally_into's own: which path the next record takes
     }
     queues = {
         name: list(value)
@@ -229,13 +230,16 @@ def test_the_quiet_path_is_taken_for_a_record_without_events():
     sys.settrace(trace)
     try:
         monitor.tally_into(0.0, {"x": 1.0}, latest, print)
+        first, lines[:] = list(lines), []
+        monitor.tally_into(1.0, {"x": 1.0}, latest, print)
         quiet_lines, lines[:] = list(lines), []
-        monitor.tally_into(1.0, {"x": 1.0, "p": True}, latest, print)
+        monitor.tally_into(2.0, {"x": 1.0, "p": True}, latest, print)
     finally:
         sys.settrace(None)
+    assert all(n == quiet or n >= general for n in first)  # the first record: general code
     assert all(quiet <= n < general for n in quiet_lines)  # never in the general code
     assert all(n == quiet or n >= general for n in lines)  # straight to the general code
-    assert latest == {"a": True}
+    assert latest == {"a": True} and monitor.starts == [0]
 
 
 def test_a_quiet_record_that_fails_half_way_hands_nothing_over():
