@@ -599,22 +599,26 @@ def _render(line, mode: str) -> str | None:
 def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) -> str:
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure
-    for name in _used(spec):
+    used = _used(spec)
+    for name in used:
         if name not in events:
             gen.state[signal_variable(name)] = defaults.get(name, UNSET)
-    absent = [name for name in _used(spec) if name in events]  # from a quiet record
+    absent = [name for name in used if name in events]  # from a quiet record
     if absent:
         gen.state["dict_after_first"] = None  # see into_function
     cells = sorted(gen.state) + ["i", "last_t"]
-    update = _update_lines(spec, events)
+    update = _update_lines(spec, used, events)
     properties = [line for block in blocks for line in block]
 
     def rendered(body: list, mode: str, reject: str = "") -> list[str]:
         lines = []
         for line in body:
             text = _render(line, mode)
-            if text is not None:
-                lines += [part.replace("REJECT(", reject + "(") for part in text.split("\n")]
+            if text is None:
+                continue
+            if reject:
+                text = text.replace("REJECT(", reject + "(")
+            lines += text.split("\n") if "\n" in text else [text]
         return lines
 
     def function(header: str, mode: str) -> list[str]:
@@ -683,7 +687,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
                 none = " and ".join(f"{name!r} not in rec" for name in absent)
             known = tuple((signal_variable(name), False) for name in absent)
             quiet = [
-                *rendered(_update_lines(spec, events, absent), "into", "REJECT_INTO"),
+                *rendered(_update_lines(spec, used, events, absent), "into", "REJECT_INTO"),
                 "i += 1",
                 *fold("\n".join(decide("quiet")), known, _FOLDED_LOCALS).splitlines(),
             ]
@@ -727,8 +731,9 @@ def _used(spec: Specification) -> list[str]:
     return list(used)
 
 
-def _update_lines(spec: Specification, events: set[str], absent=()) -> list[str]:
-    """Validate a record's time and values, then update the held signals (all or nothing).
+def _update_lines(spec: Specification, used: list[str], events: set[str], absent=()) -> list[str]:
+    """Validate a record's time and the ``used`` signals' values, then update the held signals
+    (all or nothing).
 
     The events in ``absent`` are left out: the caller knows the record does not carry them.
 
@@ -745,7 +750,7 @@ def _update_lines(spec: Specification, events: set[str], absent=()) -> list[str]
         "if not t >= last_t: return REJECT(i + 1, t, rec, None, 'time' if t != t else 'backwards')",
     ]
     assigns = []
-    names = [name for name in _used(spec) if name not in absent]
+    names = [name for name in used if name not in absent]
     for name in names:
         kind = spec.signals[name]
         var = signal_variable(name)
