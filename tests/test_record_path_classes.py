@@ -16,7 +16,7 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.blocks import Telegraf
+from rasm.platform.blocks import Telegraf, _check_value
 from rasm.platform.manifest import Probe, Signal
 from rasm.platform.runtime import Platform
 from rasm.testing.apps import trace_line
@@ -136,3 +136,56 @@ def test_the_record_of_a_registration_holds_the_scalars_stored(values, refuse):
     record = platform.emitted[0] if expected else {}
     assert list(record) == list(expected)
     assert all(record[k] is expected[k] for k in expected)
+
+
+# -------------------------------------------------------------------- Telegraf's range test
+
+ODD_BOUNDS = Probe(
+    "box/odd",
+    {
+        "any": Signal("any", "float", -math.inf, math.inf),
+        "up": Signal("up", "float", math.inf, math.inf),
+        "nan": Signal("nan", "float", math.nan, None),
+        "top": Signal("top", "float", None, 1e308),
+        "count": Signal("count", "int", -math.inf, 2.5),
+        "big": Signal("big", "int", None, None),
+    },
+)
+EDGE_VALUES = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([math.inf, -math.inf, math.nan, 1.7976931348623157e308, -0.0, 2.5, 3]),
+    st.integers(),
+    st.sampled_from([2**1000, 2**1000 + 1, -(2**1000), 10**400]),
+    st.booleans(),
+)
+
+
+@settings(max_examples=400, deadline=None, database=None)
+@given(st.dictionaries(st.sampled_from(sorted(ODD_BOUNDS.signals)), EDGE_VALUES))
+def test_telegraf_range_test_agrees_with_the_full_check_on_any_bounds(payload):
+    # the straightforward version: every value through the full check
+    expected, problems, raised = {}, [], None
+    for key, signal in ODD_BOUNDS.signals.items():
+        if key in payload:
+            try:
+                problem = _check_value(signal, payload[key])
+            except Exception as exc:  # a huge int has no float for math.isfinite
+                raised = type(exc)
+                break
+            if problem:
+                problems.append(problem)
+            else:
+                value = payload[key]
+                expected[key] = float(value) if signal.type == "float" else value
+    tg = Telegraf([ODD_BOUNDS], lambda values, time: None)
+    tg.send("configure")
+    try:
+        got = tg.digest(ODD_BOUNDS.topic, payload, 1.0)
+    except Exception as exc:
+        assert type(exc) is raised
+        return
+    assert raised is None
+    assert [(k, type(v), v) for k, v in got.items()] == [
+        (k, type(v), v) for k, v in expected.items()
+    ]
+    assert sorted(tg.rejected.elements()) == sorted(problems)

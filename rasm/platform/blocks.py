@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 from collections import Counter, defaultdict, deque
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -341,7 +342,8 @@ class Telegraf(Block):
         if self._mode != "initialized":
             self.rejected["not running"] += 1
             return {}
-        plan = self._plans.get(topic)
+        plans = self._plans
+        plan = plans[topic] if topic in plans else None  # (no .get method call)
         if plan is None or not isinstance(payload, dict):
             self.rejected["unroutable"] += 1
             return {}
@@ -353,9 +355,9 @@ class Telegraf(Block):
             cls = type(value)
             if cls is not exact:  # (no attribute lookup for the common value)
                 cls = value.__class__  # what an object says it is decides, as it always did
-            # the common good value in one test: its exact declared class, in range and finite
-            # (the int sentinel range keeps huge ints on the full check, which fails on them)
-            if cls is exact and (low is None or (low <= value <= high and value - value == 0)):
+            # the common good value in one test: its exact declared class and in range, which
+            # for a float is finite too (see _plan)
+            if cls is exact and (low is None or low <= value <= high):
                 values[key] = value
                 continue
             problem = _check_value(signal, value)
@@ -374,23 +376,30 @@ class Telegraf(Block):
 
 # the range of an int without declared bounds in the fast test; larger ones take the full check
 _INT_RANGE = 1 << 1000
+_FLOAT_MAX = sys.float_info.max
 
 
 def _plan(signals: dict[str, Signal]) -> tuple[tuple[str, Signal, Any, Any, Any], ...]:
     """``(field, signal, exact class, low, high)`` per field: the fast test of Telegraf.digest.
 
     ``low`` is None when the class alone decides (bool, str); numbers need ``low <= value <=
-    high`` and finite, with the declared bounds or unbounded ones.
+    high``, with the declared bounds or unbounded ones. A float's bounds are within the finite
+    floats (an infinite or missing bound is the largest float), so the range test also refuses
+    inf, -inf and nan (a nan bound refuses everything): they take the full check, as they did.
     """
     plan = []
     for key, signal in signals.items():
         # an int for a float signal is converted by the full check: only exact classes skip it
         exact = EXACT_CLASS.get(signal.type)
-        low = high = None
-        if signal.type in ("float", "int"):
-            unbounded = math.inf if signal.type == "float" else _INT_RANGE
-            low = -unbounded if signal.minimum is None else signal.minimum
-            high = unbounded if signal.maximum is None else signal.maximum
+        low, high = signal.minimum, signal.maximum
+        if signal.type == "float":
+            low = -_FLOAT_MAX if low is None or low < -_FLOAT_MAX else low
+            high = _FLOAT_MAX if high is None or high > _FLOAT_MAX else high
+        elif signal.type == "int":  # ints are finite; beyond the sentinel the full check fails
+            low = -_INT_RANGE if low is None else low
+            high = _INT_RANGE if high is None else high
+        else:
+            low = high = None
         plan.append((key, signal, exact, low, high))
     return tuple(plan)
 
