@@ -108,8 +108,11 @@ def test_the_generated_sequences_reach_every_stage_and_outcome():
     seen_states: set[str] = set()
     seen_events: set[str] = set()
 
-    # Derandomized: a coverage claim must not depend on the luck of one run.
-    @settings(max_examples=100, deadline=None, database=None, derandomize=True)
+    # Derandomized: a coverage claim must not depend on the luck of one run. What Hypothesis
+    # draws still depends on the constants it finds in the modules the process has imported, so
+    # on which tests ran before: 100 examples missed stage_timeout and adaptation_cancelled after
+    # tests/platform and tests/turtlebot; 300 reach every outcome in every order tried.
+    @settings(max_examples=300, deadline=None, database=None, derandomize=True)
     @given(data=st.data(), budget=BUDGETS, max_replans=MAX_REPLANS)
     def explore(data, budget, max_replans):
         run = start(load(CHART), context={"stage_budget": budget, "max_replans": max_replans})
