@@ -19,7 +19,7 @@ from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
 
-from rasm.statechart.clock import SimulatedClock as FasterSimulatedClock
+from rasm.statechart.clock import SimulatedClock as RasmSimulatedClock
 
 __all__ = ["Scheduler"]
 
@@ -47,12 +47,12 @@ class Scheduler:
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
         self.missed = 0  # turns of periodic jobs skipped because they were already past
-        # sismic's own SimulatedClock is read and moved through its attributes while it stands
-        # still (not start()ed): each `time` read is two Python-level property calls and each
-        # set a third and a time() call; `time` is then `_time + 0` (no elapsed time) and the
-        # setter's other write, `_base`, is read only by a running clock
+        # sismic's SimulatedClock (or rasm's, which reads it the same way) is read and moved
+        # through its attributes while it stands still (not start()ed): each `time` read is a
+        # property call and each set another and a time() call; `time` is then `_time + 0` (no
+        # elapsed time) and the setter's other write, `_base`, is read only by a running clock
         self._direct = (
-            type(clock) in (SimulatedClock, FasterSimulatedClock)
+            type(clock) in (SimulatedClock, RasmSimulatedClock)
             and hasattr(clock, "_time")
             and hasattr(clock, "_play")
         )

@@ -15,7 +15,7 @@ import traceback
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
-__all__ = ["StageOutcome", "StageRunner", "succeeded"]
+__all__ = ["StageOutcome", "StageRunner"]
 
 
 class StageOutcome(NamedTuple):
@@ -35,7 +35,7 @@ class StageOutcome(NamedTuple):
 _new_tuple = tuple.__new__
 
 
-def succeeded(result: Any, duration: float) -> StageOutcome:
+def _succeeded(result: Any, duration: float) -> StageOutcome:
     """``StageOutcome(True, result, duration=duration)``."""
     return _new_tuple(StageOutcome, (True, result, None, "", False, duration))
 
@@ -67,7 +67,7 @@ class _Worker:
                     )
                 )
             else:
-                reply.put(succeeded(result, _time.perf_counter() - start))
+                reply.put(_succeeded(result, _time.perf_counter() - start))
 
 
 class StageRunner:
@@ -93,7 +93,7 @@ class StageRunner:
             duration = _time.perf_counter() - start
             if duration > budget:
                 return StageOutcome(False, timed_out=True, duration=duration)
-            return succeeded(result, duration)
+            return _succeeded(result, duration)
         if self._worker is None:
             self._worker = _Worker()
         reply: queue.SimpleQueue[StageOutcome] = queue.SimpleQueue()

@@ -113,6 +113,17 @@ def _name_of(event: Event) -> Any:
     return event.name if type(event) in _PLAIN_EVENTS and type(event.name) is str else None
 
 
+def _source_of(transition: Transition) -> str:
+    """``transition.source``: sismic's property returns ``_source``, read directly (steps and
+    guard timers read it at every step); a subclass's own property is asked."""
+    return transition._source if type(transition) is Transition else transition.source
+
+
+def _target_of(transition: Transition) -> str | None:
+    """``transition.target``, as :func:`_source_of` reads the source."""
+    return transition._target if type(transition) is Transition else transition.target
+
+
 _new_object = object.__new__
 
 
@@ -659,8 +670,7 @@ class FastInterpreter(Interpreter):
         conf = self._configuration
         steps_for = self._tables.steps_for
         for transition in transitions:
-            target = transition._target if type(transition) is Transition else transition.target
-            if target is None:
+            if _target_of(transition) is None:
                 steps.append(_micro_step(event, transition))
                 continue
             exits, entered = steps_for(transition)
@@ -778,10 +788,7 @@ class FastInterpreter(Interpreter):
             if check:
                 self._evaluate_contract_conditions(transition, "postconditions", step)
                 self._evaluate_contract_conditions(transition, "invariants", step)
-            if type(transition) is Transition:  # its source and target properties, read as they do
-                source, target = transition._source, transition._target
-            else:
-                source, target = transition.source, transition.target
+            source, target = _source_of(transition), _target_of(transition)
             self._idle_time[source] = now
             if not fast_events or self._listeners:
                 inner = step.event

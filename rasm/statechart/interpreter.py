@@ -30,10 +30,10 @@ from sismic.code import Evaluator, PythonEvaluator
 from sismic.exceptions import CodeEvaluationError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
-from sismic.model import Event, InternalEvent, MetaEvent, Transition
+from sismic.model import Event, InternalEvent, MetaEvent
 
 from rasm.statechart import fast
-from rasm.statechart.fast import FastInterpreter
+from rasm.statechart.fast import FastInterpreter, _source_of
 
 __all__ = [
     "AtomicStepMixin", "DeadlineEvaluator", "FastGuardEvaluator", "Interpreter", "StepFailure",
@@ -75,12 +75,6 @@ class StepFailure:
     time: float
     event: Event | None
     exception: BaseException
-
-
-def _source_of(transition: Transition) -> str:
-    """``transition.source``: sismic's property returns ``_source``, read directly (a guard's
-    timer reads it at every step)."""
-    return transition._source if type(transition) is Transition else transition.source
 
 
 def _time_of(interp: SismicInterpreter) -> float:
