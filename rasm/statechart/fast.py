@@ -215,6 +215,19 @@ class FastInterpreter(Interpreter):
     interpreter runs it (tables are rebuilt for interpreters created after an edit).
     """
 
+    # The attributes a step reads and writes (stock's, then this class's) are slots: a slot is
+    # read and written without the instance dict lookup (most of what an attribute access costs,
+    # compiled), and keeps its name, value and meaning. The instance still has a ``__dict__``
+    # (stock's class has one) for anything else.
+    __slots__ = (
+        "_ignore_contract", "_statechart", "_initialized", "clock", "_time", "_memory",
+        "_configuration", "_entry_time", "_idle_time", "_sent_events", "_internal_queue",
+        "_external_queue", "_listeners", "_evaluator",
+        "_tables", "_conf_version", "_step_count", "_conf_cache_key", "_conf_cache",
+        "_reactive_key", "_reactive", "_fast_events", "_contracts_possible", "_preselected",
+        "_fold", "_fast_contracts", "_skip_noop_actions", "_skip_noop_transitions",
+    )
+
     def __init__(
         self,
         statechart: Statechart,
@@ -1017,6 +1030,14 @@ class PropertyListener(PropertyStatechartListener):
     Under the same conditions, the closing step of an execution (the one that finds nothing to
     do) is not run when no active state has an eventless transition and no event is queued.
     """
+
+    # Slots, as FastInterpreter's (read at every meta-event of the bound interpreter's steps).
+    __slots__ = (
+        "_interpreter", "_settled", "_starter", "_can_skip", "_eventless_sources", "_names",
+        "_time_source", "_interests", "_interest_at", "_context", "_consume_directly",
+        "_effects_possible", "_selection_key", "_step_source", "_checked", "_checked_step",
+        "_static_guards",
+    )
 
     #: Called with the property's interpreter just before the listener changes it (a meta-event
     #: that is not skipped, or the time a skipped one records); the platform's atomic layer

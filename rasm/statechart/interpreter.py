@@ -530,6 +530,10 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
     :class:`DeadlineEvaluator` so that :meth:`next_deadline` knows the timers.
     """
 
+    # AtomicStepMixin's per-step records, written at every step: slots (see FastInterpreter's),
+    # found before the mixin's class defaults, so set in __init__.
+    __slots__ = ("_lazy_snapshot", "_property_records", "_listener_split")
+
     def __init__(
         self,
         statechart,
@@ -539,6 +543,9 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
         clock=None,
         ignore_contract: bool = False,
     ) -> None:
+        self._lazy_snapshot = AtomicStepMixin._lazy_snapshot
+        self._property_records = AtomicStepMixin._property_records
+        self._listener_split = AtomicStepMixin._listener_split
         super().__init__(
             statechart,
             evaluator_klass=evaluator_klass,
