@@ -82,6 +82,16 @@ class ChartTables:
     interpreter reads them with one lookup.
     """
 
+    # Read several times per micro step: slots, read without an instance dict lookup.
+    __slots__ = (
+        "ancestors", "children", "config_key", "depth", "descendant_set", "descendants",
+        "entry_code", "event_driven", "events_from", "exit_code", "exit_enter", "fingerprint",
+        "has_code", "has_contracts", "history_children", "invariant_states", "names_plain",
+        "needs_inv", "needs_post", "needs_pre", "pairs", "parallel_children", "root",
+        "selection", "selection_ok", "source_key", "stabilization", "state", "statechart",
+        "transitions",
+    )
+
     def __init__(self, statechart: Statechart) -> None:
         self.statechart = statechart
         self.fingerprint = fingerprint(statechart)

@@ -10,6 +10,7 @@ import pytest
 from sismic.io import import_from_yaml
 
 from rasm.statechart.fast import FastInterpreter, PropertyListener
+from rasm.statechart.fast_tables import ChartTables
 from rasm.statechart.interpreter import Interpreter
 
 CHART = import_from_yaml("""
@@ -55,7 +56,7 @@ def _shadowed_slots(klass: type) -> list[tuple[str, str, str]]:
     return found
 
 
-@pytest.mark.parametrize("klass", [FastInterpreter, Interpreter, PropertyListener])
+@pytest.mark.parametrize("klass", [FastInterpreter, Interpreter, PropertyListener, ChartTables])
 def test_no_slot_is_shadowed_by_a_class_attribute(klass: type) -> None:
     assert _shadowed_slots(klass) == []
 
@@ -77,7 +78,8 @@ def test_the_shadow_check_finds_a_shadowed_slot() -> None:
 def test_every_slot_is_set_after_construction(klass: type) -> None:
     interp = klass(CHART)
     listener = interp.bind_property_statechart(PROPERTY)
-    for obj, owner in ((interp, klass), (listener, PropertyListener)):
+    parts = ((interp, klass), (listener, PropertyListener), (interp._tables, ChartTables))
+    for obj, owner in parts:
         for base in owner.__mro__:
             for name in base.__dict__.get("__slots__", ()):
                 getattr(obj, name)  # AttributeError for a slot never set
