@@ -34,9 +34,11 @@ MODES = ("instantiated", "configuration", "initialization", "initialized", "faul
 _MODE_SET = frozenset(MODES)
 # the modes whose work the block does itself, not through an on_enter_<state> hook
 _LIFECYCLE_WORK = frozenset({"configuration", "initialization", "fault", "terminated"})
-# state -> its interned hook name: a name built afresh for each getattr misses the type's
-# attribute cache (it caches interned names only) and is hashed again every time
-_HOOK_NAMES: dict[str, str] = {}
+# state -> its interned hook name, for the states that are neither a mode nor lifecycle work (the
+# core task's sub-states, entered at every loop iteration): one lookup tells a state needs its
+# hook only. A name built afresh for each getattr misses the type's attribute cache (it caches
+# interned names only) and is hashed again every time.
+_SUBSTATE_HOOKS: dict[str, str] = {}
 
 ModeListener = Callable[["Block", str], Any]
 
@@ -136,9 +138,16 @@ class Block:
 
     def send(self, event: str | None, **data: Any) -> list[MacroStep]:
         """Queue ``event`` (if any) and run the chart until it is stable, doing each mode's work."""
-        with self._lock:
+        # acquire/release rather than `with`: compiled, a `with` costs several hundred
+        # instructions more, and this runs at every loop iteration
+        lock = self._lock
+        lock.acquire()
+        try:
             if event is not None:
-                self.interpreter.queue(event, **data)
+                if data:
+                    self.interpreter.queue(event, **data)
+                else:  # no keyword dict to copy
+                    self.interpreter.queue(event)
             if self._running:  # re-entrant call from a hook: the outer loop will run it
                 return []
             self._running = True
@@ -148,6 +157,8 @@ class Block:
                 self._running = False
             self._arm_timer()
             return steps
+        finally:
+            lock.release()
 
     def _arm_timer(self) -> None:
         if self.on_deadline is None:
@@ -200,18 +211,25 @@ class Block:
                     self.on_event_sent(sent.name, dict(sent.data))
 
     def _entered(self, state: str) -> None:
-        if state in _MODE_SET:
-            self._mode = state
-            for listener in list(self._listeners):
-                listener(self, state)
-        if state not in _LIFECYCLE_WORK:
-            name = _HOOK_NAMES.get(state)
-            if name is None:
-                name = _HOOK_NAMES.setdefault(state, sys.intern(f"on_enter_{state}"))
-            hook = getattr(self, name, None)
-            if hook is not None:
-                hook()
-        elif state == "configuration":
+        name = _SUBSTATE_HOOKS.get(state)
+        if name is None:  # a mode, lifecycle work, or a sub-state entered for the first time
+            if state in _MODE_SET:
+                self._mode = state
+                for listener in list(self._listeners):
+                    listener(self, state)
+            if state in _LIFECYCLE_WORK:
+                self._lifecycle_work(state)
+                return
+            name = sys.intern(f"on_enter_{state}")
+            if state not in _MODE_SET:
+                _SUBSTATE_HOOKS[state] = name
+        hook = getattr(self, name, None)
+        if hook is not None:
+            hook()
+
+    def _lifecycle_work(self, state: str) -> None:
+        """The block's own work on entering ``state``, one of :data:`_LIFECYCLE_WORK`."""
+        if state == "configuration":
             self._do(self.on_configuration, "configuration_done")
         elif state == "initialization":
             self._do(self.on_initialization, "initialization_done")

@@ -132,7 +132,7 @@ class AdaptationOrchestrator(Block):
         if func is None:
             outcome = StageOutcome(True, None)
         else:
-            outcome = self.runner.call(lambda: func(ctx), self.stage_budget)
+            outcome = self.runner.call(func, self.stage_budget, ctx)
         ok, result, error, tb, timed_out, duration = outcome  # (a named tuple: one unpacking)
         self.sm.record_stage(stage, start, duration)
         self.emit(start, {"stage": stage, "duration": round(duration, 9)})
@@ -171,27 +171,28 @@ class AdaptationOrchestrator(Block):
     def on_enter_monitoring(self) -> None:
         self.stats.iterations += 1
         self.ctx = StageContext(self.knowledge, self.clock.time, self.stats.iterations)
+        self._stage("monitor", "monitor", self._monitored)
 
-        def done(ctx: StageContext, result: Any) -> str:
-            signals = as_signals(result)
-            if signals:
-                self.register(signals, self.clock.time)
-            return "monitored"
-
-        self._stage("monitor", "monitor", done)
+    # Each stage's outcome is a method (bound at each call) rather than a closure, which would
+    # cost a new function object per iteration.
+    def _monitored(self, ctx: StageContext, result: Any) -> str:
+        signals = as_signals(result)
+        if signals:
+            self.register(signals, self.clock.time)
+        return "monitored"
 
     def on_enter_analysing(self) -> None:
-        def done(ctx: StageContext, result: Any) -> str:
-            anomaly = as_anomaly(result)
-            if anomaly is None:
-                return "no_anomaly"
-            ctx.anomaly = anomaly
-            ctx.rejections = []
-            self.stats.anomalies += 1
-            self.emit(self.clock.time, {"anomaly": True, "explanation": anomaly.reason})
-            return "anomaly"
+        self._stage("analyse", "analyse", self._analysed)
 
-        self._stage("analyse", "analyse", done)
+    def _analysed(self, ctx: StageContext, result: Any) -> str:
+        anomaly = as_anomaly(result)
+        if anomaly is None:
+            return "no_anomaly"
+        ctx.anomaly = anomaly
+        ctx.rejections = []
+        self.stats.anomalies += 1
+        self.emit(self.clock.time, {"anomaly": True, "explanation": anomaly.reason})
+        return "anomaly"
 
     def on_enter_planning(self) -> None:
         def done(ctx: StageContext, result: Any) -> str:
