@@ -196,3 +196,53 @@ def test_a_value_that_says_it_is_a_float_is_taken_as_it_is_when_in_range():
     kb.declare("f", "float", minimum=0.0, maximum=2.0)
     assert kb.register_values({"f": CLAIMS_FLOAT}, 1.0) == {}
     assert kb.read_knowledge("f") is CLAIMS_FLOAT
+
+
+# one key's life: writes (many, so that the oldest are dropped several times over), reads of
+# every kind, a re-declaration with another history, a restore of samples in bulk
+OP = st.one_of(
+    st.tuples(st.just("write"), st.integers(1, 12)),
+    st.tuples(st.just("declare"), st.integers(1, 9)),
+    st.tuples(st.just("load"), st.integers(0, 12)),
+)
+
+
+@SETTINGS
+@given(st.integers(1, 9), st.lists(OP, min_size=1, max_size=12))
+def test_a_key_holds_its_last_history_samples_through_many_writes(history, ops):
+    kb = KnowledgeBase()
+    kb.declare("x", "float", history=history)
+    held: list[Sample] = []  # what the key holds: its last `history` samples
+    now = 0.0
+    for op, n in ops:
+        if op == "declare":  # a new history keeps the newest samples held
+            history = n
+            kb.declare("x", "float", history=history)
+            held = held[-history:]
+        else:
+            fresh = [Sample(now + i, float(len(held) + i)) for i in range(n)]
+            now += n
+            if op == "write":
+                for sample in fresh:
+                    assert kb.register_knowledge("x", sample.value, sample.time) == sample
+            else:
+                assert kb.load_samples("x", fresh) == n
+            held = (held + fresh)[-history:]
+        assert kb.history("x") == held
+        assert kb.read_sample("x") == (held[-1] if held else None)
+        assert kb.read_knowledge("x", "none") == (held[-1].value if held else "none")
+        assert kb.read_values(["x"], "none") == {"x": held[-1].value if held else "none"}
+        assert kb.snapshot() == ({"x": held[-1].value} if held else {})
+        for last in (None, 1, 3):
+            for since in (None, now - 4.5, now - 3.0):
+                for until in (None, now - 2.0, now - 1.5):
+                    want = [
+                        s for s in held
+                        if (since is None or s.time >= since)
+                        and (until is None or s.time <= until)
+                    ]
+                    want = want if last is None else want[max(0, len(want) - last) :]
+                    assert kb.history("x", last=last, since=since, until=until) == want
+        # a time before the newest sample held is refused, whatever was dropped before it
+        if held:
+            assert kb.register_values({"x": 0.0}, held[-1].time - 0.5) != {}

@@ -1,8 +1,9 @@
 """The Knowledge Manager's store: typed values with a bounded history per key.
 
-Every key holds a ring of its last ``history`` samples plus a parallel ring of their times, so a
-write is O(1) (no SQL, no shifting) and a time-range query is two binary searches. One re-entrant
-lock guards the store: bus callbacks, the loop and the storage flusher use it from their threads.
+Every key holds a list of its last ``history`` samples (time, value), so a write is an append
+(no SQL; the oldest are dropped in bulk) and a time-range query is two binary searches. One
+re-entrant lock guards the store: bus callbacks, the loop and the storage flusher use it from
+their threads.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ class Sample(NamedTuple):
 
 _new_tuple = tuple.__new__
 #: ``Sample`` of a plain ``(time, value)`` tuple: tuple.__new__ skips NamedTuple's Python-level
-#: __new__, partial keeps the call in C (a map over a slice of the ring makes no Python frame)
+#: __new__, partial keeps the call in C (a map over a slice of the samples makes no Python frame)
 _as_sample = partial(_new_tuple, Sample)
 _time_of = itemgetter(0)  # the time of a (time, value) sample, for a binary search by time
 #: per declared type, the class a value must have exactly to be taken without its full check
@@ -58,96 +59,96 @@ Callback = Callable[[str, Sample], object]
 
 
 class _Series:
-    """The samples of one key: a ring filled by append, then overwritten.
+    """The samples of one key: a list filled by append, its oldest dropped in bulk.
 
-    Until the ring is full ``head`` is 0 and the list is in order; afterwards ``head`` is the
-    index of the oldest sample, so the logical order is ``[head:] + [:head]`` and both parts are
-    sorted by time. The newest sample is always ``samples[head - 1]``.
+    The list holds the ``capacity`` newest samples at its end, in time order, and up to
+    ``capacity // 4 + 1`` older ones before them, dropped all at once when there are more
+    (:meth:`add`): a sample is stored with one append, and the newest is always
+    ``samples[-1]``, where a ring overwritten in place would read and move a head index at
+    every write. The samples held are ``samples[start():]``; those before are never handed out.
 
-    The ring holds plain ``(time, value)`` tuples: a :class:`Sample` (a named tuple, several
+    The list holds plain ``(time, value)`` tuples: a :class:`Sample` (a named tuple, several
     times dearer to make) is made of one only when it is handed out (a read of samples, a
     subscriber, :meth:`KnowledgeBase.register_knowledge`'s answer), so a value stored and
-    never read as a sample costs none (:meth:`between` keeps those it makes in the ring). The
-    times are read from the tuples (a binary search by key), not kept in a second ring:
+    never read as a sample costs none (:meth:`between` keeps those it makes in the list). The
+    times are read from the tuples (a binary search by key), not kept in a second list:
     :meth:`add` runs for every value stored, a search only for a time-range query.
     """
 
-    __slots__ = ("decl", "check", "accept", "capacity", "samples", "head")
+    __slots__ = ("decl", "check", "accept", "capacity", "samples")
 
     def __init__(self, decl: Declaration) -> None:
         self.decl = decl
         self.check: Check = make_check(decl)
+        self.capacity = decl.history
         # what add() accepts without calling check, which returns such a value unchanged:
         # (the declared class exactly, low, high) and, for numbers, within the bounds (low is
-        # None: no range test); one attribute, as add() reads it for every value
+        # None: no range test); then the length past which the oldest are dropped. One
+        # attribute, as add() reads it for every value
         low = high = None
         if decl.type in ("float", "int"):
             low = -_INF if decl.minimum is None else decl.minimum
             high = _INF if decl.maximum is None else decl.maximum
-        self.accept: tuple[type | None, Any, Any] = (EXACT_CLASS.get(decl.type), low, high)
-        self.capacity = decl.history
+        limit = self.capacity + self.capacity // 4 + 1
+        self.accept: tuple[type | None, Any, Any, int] = (
+            EXACT_CLASS.get(decl.type), low, high, limit
+        )
         self.samples: list[tuple[float, Any]] = []  # (time, value): see the class's docstring
-        self.head = 0
+
+    def start(self) -> int:
+        """The index in ``samples`` of the oldest sample held."""
+        excess = len(self.samples) - self.capacity
+        return excess if excess > 0 else 0
 
     def __len__(self) -> int:
-        return len(self.samples)
+        size = len(self.samples)
+        capacity = self.capacity
+        return size if size < capacity else capacity
 
     def last(self) -> float:
         """The time of the newest sample (below every finite time when there is none)."""
         samples = self.samples
-        return samples[self.head - 1][0] if samples else _BEFORE_ALL
+        return samples[-1][0] if samples else _BEFORE_ALL
 
     def add(self, value: Any, time: float) -> tuple[float, Any]:
         """Check and store ``value`` at float ``time``; return ``(time, value as stored)``.
         Raise :class:`KnowledgeError` for a refused value or a time before the last sample's
         (or not finite)."""
-        exact, low, high = self.accept
+        exact, low, high, limit = self.accept
         cls = type(value)
         if cls is not exact:
             cls = value.__class__  # what an object says it is decides, as it always did
         if cls is not exact or not (low is None or low <= value <= high):
             value = self.check(value)  # NaN fails the range test: check decides on it
         samples = self.samples
-        head = self.head
-        last = samples[head - 1][0] if samples else _BEFORE_ALL  # as last(), without the call
+        last = samples[-1][0] if samples else _BEFORE_ALL  # as last(), without the call
         if not last <= time < _INF:  # also false for NaN
             raise KnowledgeBase._bad_time(self.decl.key, time, last)
         sample = (time, value)
-        capacity = self.capacity
-        if len(samples) < capacity:
-            samples.append(sample)
-        else:
-            samples[head] = sample
-            head += 1
-            self.head = 0 if head == capacity else head
+        samples.append(sample)
+        if len(samples) > limit:  # the oldest past capacity go together (one move of the rest)
+            del samples[: len(samples) - self.capacity]
         return sample
 
     def latest(self) -> Sample | None:
-        # when not full head is 0 and [-1] is the newest; when full the newest is just before head
-        return _as_sample(self.samples[self.head - 1]) if self.samples else None
+        return _as_sample(self.samples[-1]) if self.samples else None
 
     def position(self, time: float, after: bool) -> int:
         """Logical index of the first sample with time >= ``time`` (> if ``after``)."""
         search = bisect_right if after else bisect_left
-        samples, head = self.samples, self.head
-        size = len(samples)
-        found = search(samples, time, head, size, key=_time_of) - head
-        if found < size - head or head == 0:
-            return found
-        return size - head + search(samples, time, 0, head, key=_time_of)
+        start = self.start()
+        return search(self.samples, time, start, key=_time_of) - start
 
     def between(self, lo: int, hi: int) -> list[Sample]:
         """Logical slice ``[lo, hi)``, oldest first.
 
-        A plain tuple handed out is made a :class:`Sample` once and kept so in the ring: a
+        A plain tuple handed out is made a :class:`Sample` once and kept so in the list: a
         window read at every iteration (a sliding mean) makes one only for each new sample.
         """
-        samples, head = self.samples, self.head
-        size = len(samples)
+        samples = self.samples
+        start = self.start()
         out = []
-        for index in range(head + lo, head + hi):
-            if index >= size:  # past the end of the ring: its start holds the newer part
-                index -= size
+        for index in range(start + lo, start + hi):
             sample = samples[index]
             if type(sample) is not Sample:
                 sample = samples[index] = _as_sample(sample)
@@ -155,7 +156,7 @@ class _Series:
         return out
 
     def all(self) -> list[Sample]:
-        return self.between(0, len(self.samples))
+        return self.between(0, len(self))
 
 
 class Subscription:
@@ -415,8 +416,7 @@ class KnowledgeBase:
                 return default
             series = series_of[key]
             samples = series.samples
-            # the newest (see _Series.latest), if any
-            return samples[series.head - 1][1] if samples else default
+            return samples[-1][1] if samples else default  # the newest, if any
         finally:
             lock.release()
 
@@ -432,8 +432,8 @@ class KnowledgeBase:
             for key in keys:
                 series = series_of.get(key)
                 samples = series.samples if series is not None else None
-                # series.latest() without the call: the newest sample is just before head
-                out[key] = samples[series.head - 1][1] if samples else default
+                # series.latest() without the call: the newest sample is the last
+                out[key] = samples[-1][1] if samples else default
         return out
 
     def read_sample(self, key: str) -> Sample | None:
@@ -466,7 +466,7 @@ class KnowledgeBase:
             if series is None:
                 return []
             lo = 0 if since is None else series.position(since, after=False)
-            hi = len(series.samples) if until is None else series.position(until, after=True)
+            hi = len(series) if until is None else series.position(until, after=True)
             if last is not None:
                 lo = max(lo, hi - last)
             return series.between(lo, hi) if lo < hi else []
@@ -482,7 +482,7 @@ class KnowledgeBase:
         """The latest value of every key that has one."""
         with self._lock:
             return {
-                key: series.samples[series.head - 1][1]  # the newest: see _Series.latest
+                key: series.samples[-1][1]  # the newest: see _Series.latest
                 for key, series in self._series.items()
                 if series.samples
             }
