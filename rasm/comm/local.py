@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
-import time
+from time import time as _wall_time
 from typing import Any
 
 from rasm.comm.envelope import check_payload, decode, encode
@@ -62,7 +62,7 @@ class LocalTransport(Transport):
                 self._topics_seen.clear()
             self._topics_seen.add(topic)
         uid = self._uid_prefix + str(next(self._uids))
-        timestamp = time.time()
+        timestamp = _wall_time()  # (a global, not the time module's attribute, per message)
         if self.strict:
             payload, _, _ = decode(encode(payload, uid=uid, timestamp=timestamp))
         else:

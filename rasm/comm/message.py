@@ -67,7 +67,8 @@ class TransportStats:
         try:
             self.published += published
             self.delivered += delivered
-            self.errors += errors
+            if errors:  # mostly none: no read and write of a counter that stays as it is
+                self.errors += errors
         finally:
             lock.release()
 

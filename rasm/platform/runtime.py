@@ -411,12 +411,14 @@ class Platform:
         inputs = twin.inputs
         values: dict[str, Any] | None = None
         if batch:
-            values = {}
+            # a local only ever a dict: compiled, its items are set without a type test
+            found: dict[str, Any] = {}
             for key in inputs:
                 if key not in batch:  # an input not in this batch: its latest is read
-                    values = None
                     break
-                values[key] = batch[key]
+                found[key] = batch[key]
+            else:
+                values = found
         if values is None:
             values = self.kb.read_values(inputs)  # one lock for the inputs
         try:
@@ -438,9 +440,14 @@ class Platform:
             self._emit(time, {"twin_model_version": model.get("version")})
         if update.drift:
             self._emit(time, {"drift": True, "explanation": "the digital twin detected drift"})
-            self.scheduler.submit(lambda: self.ao.send("drift_detected"))
+            self.scheduler.submit(self._drift_detected)
         if residual is not None:
             stored["twin_residual"] = residual
+
+    def _drift_detected(self) -> None:
+        # a method, not a lambda in _observe_twin: compiled, a lambda there would make that
+        # function allocate a closure on every call (every record), drift or not
+        self.ao.send("drift_detected")
 
     def _chart(self, name: str) -> Path | None:
         """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
@@ -464,15 +471,18 @@ class Platform:
             refused = self.km.register_values(values, time, into=batch)
         for key, exc in refused.items():
             _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
-        # the trace record has the scalars stored (a loop, not a comprehension: no function call)
+        # the trace record has the scalars stored (a loop, not a comprehension: no function
+        # call); the refused ones are taken out after, in the rare batch that has any
         stored: dict[str, Any] = {}
         for key, value in values.items():
-            if key not in refused:
-                cls = type(value)  # the exact scalar classes without isinstance's call
-                if cls is float or cls is bool or cls is str or cls is int or (
-                    isinstance(value, _SCALARS)
-                ):
-                    stored[key] = value
+            cls = type(value)  # the exact scalar classes without isinstance's call
+            if cls is float or cls is bool or cls is str or cls is int or (
+                isinstance(value, _SCALARS)
+            ):
+                stored[key] = value
+        if refused:
+            for key in refused:
+                stored.pop(key, None)
         if observe:
             self._observe_twin(time, stored, batch)
         if stored:
