@@ -569,7 +569,7 @@ class FastInterpreter(Interpreter):
                     hook = listener.before_state_change or listener.before_change
                     if hook is not None:
                         hook(interp)
-                    listener._replay(interp, effect, now)
+                    _replay(interp, effect, now)
                     listener._interest_at = (target, interp._configuration, interp._conf_version)
                     listener._checked = target
                 return
@@ -599,14 +599,15 @@ class FastInterpreter(Interpreter):
     def _select_event(self, *, consume: bool = False) -> Event | None:
         """Next event to process: internal queue first, then external (as stock)."""
         now = self._time
-        for queue in (self._internal_queue, self._external_queue):
-            if queue:
-                time, event = queue[0]
-                if time <= now:
-                    if consume:
-                        queue.pop(0)
-                    return event
-        return None
+        queue = self._internal_queue
+        if not (queue and queue[0][0] <= now):
+            queue = self._external_queue
+            if not (queue and queue[0][0] <= now):
+                return None
+        event = queue[0][1]
+        if consume:
+            queue.pop(0)
+        return event
 
     # ---- transition selection ---------------------------------------------------------------
 
@@ -1003,6 +1004,27 @@ def _discriminant(event: MetaEvent) -> Any:
     return _name_of(inner)
 
 
+def _replay(interp: FastInterpreter, effect: tuple, now: float) -> None:
+    """Apply a remembered effect (see PropertyListener._effect_of) at ``now``: the same changes
+    as the execution it was remembered from, without the step machinery. (A function, not a
+    method: it is called at most meta-events of a step, and needs no listener.)"""
+    exited, sources, entered = effect
+    interp._time = now
+    interp._sent_events.clear()
+    conf = interp._configuration
+    for name in exited:
+        conf.remove(name)
+    idle = interp._idle_time
+    for name in sources:
+        idle[name] = now
+    entry = interp._entry_time
+    for name in entered:
+        conf.add(name)
+        entry[name] = now
+        idle[name] = now
+    interp._conf_version += len(exited) + len(entered)
+
+
 class PropertyListener(PropertyStatechartListener):
     """Feeds meta-events to a property statechart, skipping the executions that would do nothing.
 
@@ -1047,7 +1069,7 @@ class PropertyListener(PropertyStatechartListener):
     #: (a skipped meta-event at a new time); the atomic layer then saves just the time.
     before_time_change: Callable[[Interpreter], Any] | None = None
     #: Called instead of :attr:`before_change` before a remembered effect is replayed (it only
-    #: changes the configuration, entry and idle times and time, see ``_replay``).
+    #: changes the configuration, entry and idle times and time, see :func:`_replay`).
     before_state_change: Callable[[Interpreter], Any] | None = None
 
     def __init__(self, interpreter: Interpreter) -> None:
@@ -1336,25 +1358,6 @@ class PropertyListener(PropertyStatechartListener):
             entered.extend(micro.entered_states)
         return tuple(exited), tuple(sources), tuple(entered)
 
-    def _replay(self, interp: FastInterpreter, effect: tuple, now: float) -> None:
-        """Apply a remembered effect (see _effect_of) at ``now``: the same changes as the
-        execution it was remembered from, without the step machinery."""
-        exited, sources, entered = effect
-        interp._time = now
-        interp._sent_events.clear()
-        conf = interp._configuration
-        for name in exited:
-            conf.remove(name)
-        idle = interp._idle_time
-        for name in sources:
-            idle[name] = now
-        entry = interp._entry_time
-        for name in entered:
-            conf.add(name)
-            entry[name] = now
-            idle[name] = now
-        interp._conf_version += len(exited) + len(entered)
-
     def _quiet(self, interp: FastInterpreter) -> bool:
         # the closing step would also clear what the last step sent (a notify() is sent without
         # being queued): when there is something to clear, it runs
@@ -1387,7 +1390,7 @@ class PropertyListener(PropertyStatechartListener):
                 hook = self.before_state_change or self.before_change
                 if hook is not None:
                     hook(interp)
-                self._replay(interp, effect, self._time_source._time)  # type: ignore[union-attr]
+                _replay(interp, effect, self._time_source._time)  # type: ignore[union-attr]
                 # needs() would find the same as before the replay, for the states it led to
                 target = interest.targets.get(key)
                 if target is not None and self._watch_holds(target):
@@ -1431,7 +1434,7 @@ class PropertyListener(PropertyStatechartListener):
             hook(interp)
         if selected and self._consume_directly and selected[0].event is not None:
             if effect is not None:
-                self._replay(interp, effect, now)
+                _replay(interp, effect, now)
             else:
                 step = interp._consume(event, selected, now)  # type: ignore[attr-defined]
                 quiet = self._quiet(interp)

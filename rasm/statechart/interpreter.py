@@ -411,7 +411,7 @@ class AtomicStepMixin:
                 times[key] = (interp, interp._time)
 
     def _before_property_state_change(self, interp: Any) -> None:
-        # A replayed effect only exits and enters states (PropertyListener._replay): its
+        # A replayed effect only exits and enters states (fast._replay): its
         # configuration, entry and idle times and time are all there is to save (restored after
         # a full snapshot taken later in the step, before the time saved alone earlier).
         records = self._property_records
