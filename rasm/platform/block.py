@@ -69,6 +69,15 @@ def shared_chart(name: str | Path) -> Statechart:
 class Block:
     """Base class of every building block. ``chart_name`` names its chart in ``statecharts/``."""
 
+    # The attributes the loop reads at every step are slots: compiled code reads a slot without
+    # the instance dict lookup (most of what an attribute access costs). ``__dict__`` keeps any
+    # other attribute working (a subclass's, a user's), ``__weakref__`` weak references.
+    __slots__ = (
+        "name", "depends_on", "clock", "interpreter", "failure_reason", "step_failures",
+        "_lock", "_running", "_listeners", "_mode", "on_deadline", "_armed",
+        "__dict__", "__weakref__",
+    )
+
     chart_name: ClassVar[str] = ""
     short_name: ClassVar[str] = ""
 

@@ -154,6 +154,8 @@ class LoggingAndTracking(Block):
 class StateManager(Block):
     """State Manager (sm): the mode of every block and the timing history of every stage."""
 
+    __slots__ = ("modes", "nodes", "stage_timing")  # slots, as Block's (read per iteration)
+
     chart_name = "state_manager"
     short_name = "sm"
 
@@ -196,6 +198,8 @@ class StateManager(Block):
 
 class KnowledgeManager(Block):
     """Knowledge Manager (km): ``register_knowledge`` / ``read_knowledge`` over the store."""
+
+    __slots__ = ("store",)  # a slot, as Block's (read for every record)
 
     chart_name = "knowledge_manager"
     short_name = "km"
@@ -284,6 +288,8 @@ class CommunicationManager(Block):
     and nothing is published unless the block is ``initialized``.
     """
 
+    __slots__ = ("transport", "endpoints")  # slots, as Block's (read for every reading)
+
     chart_name = "communication_manager"
     short_name = "cm"
 
@@ -322,6 +328,8 @@ class Telegraf(Block):
     Each value is checked against its signal's declared type and range; bad data is logged and
     counted, never stored.
     """
+
+    __slots__ = ("routes", "_plans", "register", "digested", "rejected")  # as Block's
 
     chart_name = "telegraf"
     short_name = "tg"
@@ -548,6 +556,13 @@ class TrustworthinessChecker(Block):
     system's current mode (and its effector is known). The online monitors of the app's and the
     platform's properties run over every record of the loop (:meth:`observe`).
     """
+
+    # slots, as Block's (read for every record)
+    __slots__ = (
+        "online", "monitors", "effectors", "send_to_effector", "mode_of", "on_verdict",
+        "observers", "latest", "violations", "inconclusive", "records_refused", "_action",
+        "_outcome",
+    )
 
     chart_name = "trustworthiness_checker"
     short_name = "tc"

@@ -58,6 +58,13 @@ class LoopStats:
 class AdaptationOrchestrator(Block):
     """Adaptation Orchestrator (ao): ``orchestration_loop`` is its chart; this is its driver."""
 
+    # Slots, as Block's: the attributes a loop iteration reads (the twin's are set on a
+    # plan's check only, and stay in the instance dict).
+    __slots__ = (
+        "twin", "components", "knowledge", "rules", "register", "emit", "am", "tm", "sm",
+        "stage_budget", "max_actions", "runner", "stats", "ctx", "_plans",
+    )
+
     chart_name = "adaptation_orchestrator"
     short_name = "ao"
 

@@ -97,6 +97,16 @@ def _remove_sqlite(path: Path) -> None:
 class Platform:
     """One application's managing system (and, with ``role='all'``, its managed system)."""
 
+    # The attributes read for every record and loop job are slots: compiled code reads a slot
+    # without the instance dict lookup. The blocks are set by build(); before it, reading one
+    # raises the same AttributeError as without a slot. ``__dict__`` keeps every other
+    # attribute (and a subclass's) as it was.
+    __slots__ = (
+        "manifest", "clock", "scheduler", "trace", "on_record", "simulator", "twin",
+        "_twin_inputs", "_twin_from_batch", "_started_at", "kb", "km", "tg", "cm", "tc", "ao",
+        "__dict__", "__weakref__",
+    )
+
     def __init__(
         self,
         manifest: AppManifest,

@@ -1,0 +1,100 @@
+"""The platform's hot classes keep the attributes the loop reads in slots (read without the
+instance dict): a slot is only what a read sees when no class before it in the MRO defines the
+same name, and an instance keeps its ``__dict__`` for everything else (a subclass's, a user's)."""
+
+from __future__ import annotations
+
+import pytest
+
+from rasm.platform.block import Block
+from rasm.platform.blocks import (
+    CommunicationManager,
+    KnowledgeManager,
+    StateManager,
+    Telegraf,
+    TrustworthinessChecker,
+)
+from rasm.platform.orchestrator import AdaptationOrchestrator
+from rasm.platform.runtime import Platform
+
+from .conftest import HOTBOX
+
+CLASSES = [
+    Block,
+    AdaptationOrchestrator,
+    CommunicationManager,
+    KnowledgeManager,
+    StateManager,
+    Telegraf,
+    TrustworthinessChecker,
+    Platform,
+]
+
+
+def _shadowed_slots(klass: type) -> list[tuple[str, str, str]]:
+    """(slot, class declaring it, class shadowing it) for each slot of ``klass``'s MRO that a
+    class earlier in the MRO defines as something else."""
+    found = []
+    mro = klass.__mro__
+    for index, owner in enumerate(mro):
+        for name in owner.__dict__.get("__slots__", ()):
+            for earlier in mro[:index]:
+                if name in earlier.__dict__:
+                    found.append((name, owner.__name__, earlier.__name__))
+    return found
+
+
+def _slots(klass: type) -> list[str]:
+    return [
+        name
+        for base in klass.__mro__
+        for name in base.__dict__.get("__slots__", ())
+        if name not in ("__dict__", "__weakref__")
+    ]
+
+
+@pytest.mark.parametrize("klass", CLASSES)
+def test_no_slot_is_shadowed_by_a_class_attribute(klass: type) -> None:
+    assert _shadowed_slots(klass) == []
+
+
+def test_the_shadow_check_finds_a_shadowed_slot() -> None:
+    class Base:
+        __slots__ = ("_x",)
+
+    class Mixin:
+        _x = 0
+
+    class Both(Mixin, Base):
+        pass
+
+    assert _shadowed_slots(Both) == [("_x", "Base", "Mixin")]
+
+
+@pytest.mark.parametrize("klass", CLASSES)
+def test_instances_keep_a_dict_and_weak_references(klass: type) -> None:
+    assert "__dict__" in dir(klass) and "__weakref__" in dir(klass)
+
+
+def test_every_slot_is_set_once_the_platform_is_built() -> None:
+    platform = Platform(HOTBOX, clock="simulated", knowledge="memory")
+    platform.build()
+    objects = [platform, platform.ao, platform.cm, platform.km, platform.sm, platform.tg,
+               platform.tc]
+    assert {type(obj) for obj in objects} == set(CLASSES) - {Block}
+    for obj in objects:
+        for name in _slots(type(obj)):
+            getattr(obj, name)  # AttributeError for a slot never set
+            assert name not in vars(obj)  # nor is a slot's name in the instance dict
+
+
+def test_a_subclass_keeps_its_own_attributes_and_class_defaults() -> None:
+    class Mine(Telegraf):
+        digested = 5  # a subclass's class default of a slot's name: the instance's value wins
+        extra = "class"
+
+    block = Mine([], lambda values, time: None)
+    block.extra = "mine"
+    block.own = 1
+    assert (block.digested, block.extra, block.own) == (0, "mine", 1)
+    assert vars(block) == {"digested": 0, "extra": "mine", "own": 1}
