@@ -33,6 +33,8 @@ class LocalTransport(Transport):
     A callback that publishes again is delivered to recursively, depth first.
     """
 
+    __slots__ = ("url", "strict", "_uid_prefix", "_uids", "_topics_seen")  # as Transport's
+
     def __init__(self, *, strict: bool = False) -> None:
         super().__init__()
         self.url = "local"

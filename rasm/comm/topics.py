@@ -102,6 +102,11 @@ class TopicIndex(Generic[T]):
     threads consistent: they always see one whole generation, never a half-applied change.
     """
 
+    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
+    __slots__ = (
+        "_lock", "_state", "__dict__", "__weakref__",
+    )
+
     def __init__(self) -> None:
         self._lock = threading.Lock()
         # (exact topic -> items, ((pattern, levels, item), ...), topic -> matching items)

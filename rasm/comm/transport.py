@@ -69,6 +69,11 @@ class Transport(ABC):
     ``qos=None`` (the default) means the QoS configured for the topic, else 0.
     """
 
+    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
+    __slots__ = (
+        "stats", "_index", "_sub_lock", "_state", "__dict__", "__weakref__",
+    )
+
     #: The URL this transport was opened with (``local`` or ``mqtt://host:port``).
     url: str
 

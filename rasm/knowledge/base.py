@@ -206,6 +206,11 @@ class KnowledgeBase:
     ``default_history`` is the history of keys registered without a declaration.
     """
 
+    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
+    __slots__ = (
+        "default_history", "_lock", "_series", "_subscriptions", "__dict__", "__weakref__",
+    )
+
     def __init__(self, *, default_history: int = DEFAULT_HISTORY) -> None:
         Declaration("default", "float", history=default_history)  # validates the number
         self.default_history = default_history

@@ -33,6 +33,12 @@ Job = Callable[[], Any]
 class Scheduler:
     """Runs jobs at their times. ``clock`` is a ``SimulatedClock`` (jumps) or a real clock."""
 
+    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
+    __slots__ = (
+        "clock", "simulated", "_heap", "_order", "_lock", "_wake", "_waiting", "_inbox",
+        "_stopping", "on_error", "missed", "_direct", "__dict__", "__weakref__",
+    )
+
     def __init__(self, clock: Clock) -> None:
         self.clock = clock
         self.simulated = isinstance(clock, SimulatedClock)

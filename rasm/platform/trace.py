@@ -89,6 +89,11 @@ def _line(time: float, record: dict[str, Any]) -> str:
 class TraceWriter:
     """Collects loop records; writes them to ``path`` (if any) and hands them to ``observers``."""
 
+    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
+    __slots__ = (
+        "path", "_out", "_owned", "observers", "records", "last_time", "__dict__", "__weakref__",
+    )
+
     def __init__(self, path: str | Path | None = None) -> None:
         self.path = Path(path) if path is not None and str(path) != "-" else None
         self._out: TextIO | None = None

@@ -6,6 +6,11 @@ from __future__ import annotations
 
 import pytest
 
+from rasm.comm.local import LocalTransport
+from rasm.comm.topics import TopicIndex
+from rasm.comm.transport import Transport
+from rasm.knowledge.base import KnowledgeBase
+from rasm.knowledge.redis import RedisKnowledgeBase
 from rasm.platform.block import Block
 from rasm.platform.blocks import (
     CommunicationManager,
@@ -16,6 +21,8 @@ from rasm.platform.blocks import (
 )
 from rasm.platform.orchestrator import AdaptationOrchestrator
 from rasm.platform.runtime import Platform
+from rasm.platform.scheduler import Scheduler
+from rasm.platform.trace import TraceWriter
 
 from .conftest import HOTBOX
 
@@ -28,6 +35,13 @@ CLASSES = [
     Telegraf,
     TrustworthinessChecker,
     Platform,
+    Scheduler,
+    TraceWriter,
+    KnowledgeBase,
+    RedisKnowledgeBase,
+    Transport,
+    LocalTransport,
+    TopicIndex,
 ]
 
 
@@ -80,8 +94,9 @@ def test_every_slot_is_set_once_the_platform_is_built() -> None:
     platform = Platform(HOTBOX, clock="simulated", knowledge="memory")
     platform.build()
     objects = [platform, platform.ao, platform.cm, platform.km, platform.sm, platform.tg,
-               platform.tc]
-    assert {type(obj) for obj in objects} == set(CLASSES) - {Block}
+               platform.tc, platform.scheduler, platform.trace, platform.kb, platform.transport,
+               platform.transport._index]
+    assert {type(obj) for obj in objects} == set(CLASSES) - {Block, RedisKnowledgeBase, Transport}
     for obj in objects:
         for name in _slots(type(obj)):
             getattr(obj, name)  # AttributeError for a slot never set
