@@ -148,6 +148,44 @@ def test_a_failed_build_says_why_and_keeps_the_build_there_was(toy):
     assert file.endswith(SUFFIX) and state == "compiled"
 
 
+def test_a_source_edited_during_the_build_is_not_recorded_as_compiled(tmp_path):
+    # The C compiler is a wrapper that edits the module (Cython has already read it) before
+    # compiling: the binary holds the old text, so its manifest entry must not name the new one.
+    (tmp_path / "toyedit").mkdir()
+    (tmp_path / "toyedit" / "__init__.py").write_text("")
+    hot = tmp_path / "toyedit" / "hot.py"
+    hot.write_text("def answer():\n    return 42\n")
+    compiler = tmp_path / "cc"
+    compiler.write_text(
+        f"#!/bin/sh\nprintf 'def answer():\\n    return 43\\n' > {hot}\nexec cc \"$@\"\n"
+    )
+    compiler.chmod(0o755)
+    env = {
+        "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)]),
+        "RASM_COMPILED_DIR": str(tmp_path / "build"),
+        "RASM_PURE_PYTHON": "",
+        "CC": str(compiler),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", "from rasm.compiled import build; build(['toyedit.hot'])"],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 1
+    assert "SourceChangedError: edited while it was being compiled" in done.stderr
+    assert str(hot) in done.stderr
+    assert hot.read_text().endswith("return 43\n")  # the wrapper did run
+    # nothing was installed: the edited module runs from its source
+    answer = python(
+        "import rasm, rasm.compiled, toyedit.hot\n"
+        "print(toyedit.hot.answer(), rasm.compiled.status(['toyedit.hot'])['toyedit.hot'])",
+        env,
+    )
+    assert answer.split() == ["43", "not", "built"]
+
+
 def test_status_names_every_module_and_the_folder(toy):
     out = python("from rasm.compiled.__main__ import main; main(['status'])", toy)
     lines = out.splitlines()

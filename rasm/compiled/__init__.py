@@ -32,7 +32,9 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MODULES", "build", "folder", "install", "loaded", "source_of", "status"]
+__all__ = [
+    "MODULES", "SourceChangedError", "build", "folder", "install", "loaded", "source_of", "status",
+]
 
 # The modules worth compiling: where the loop spends its time (profiled with py-spy, see
 # docs/performance-statecharts.md). Others gain little and would only make the build longer.
@@ -184,6 +186,10 @@ def status(modules: Iterable[str] = MODULES) -> dict[str, str]:
     return found
 
 
+class SourceChangedError(RuntimeError):
+    """A module's source changed while :func:`build` compiled it (nothing was installed)."""
+
+
 def build(
     modules: Iterable[str] = MODULES, *, into: Path | None = None, jobs: int | None = None
 ) -> Path:
@@ -203,6 +209,9 @@ def build(
         if source is None:
             raise FileNotFoundError(f"no Python source for module {name}")
         sources[name] = source
+    # Digests taken before compiling: a source edited while the build runs must not be recorded
+    # as the source of a binary compiled from its older text (checked again after the build).
+    digests = {name: _digest(source) for name, source in sources.items()}
     with tempfile.TemporaryDirectory(prefix="rasm-compiled-") as scratch:
         staged = Path(scratch) / "out"
         extensions = cythonize(
@@ -221,11 +230,17 @@ def build(
         command.build_temp = str(Path(scratch) / "tmp")
         command.parallel = jobs or os.cpu_count() or 1
         dist.run_command("build_ext")
+        edited = [str(s) for name, s in sources.items() if _digest(s) != digests[name]]
+        if edited:
+            raise SourceChangedError(
+                f"edited while it was being compiled: {', '.join(edited)}; the build there was is "
+                "kept: build again once the edits are done"
+            )
         suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
         entries = {}
         for name, source in sources.items():
             file = name.replace(".", "/") + suffix
-            entries[name] = {"file": file, "sha256": _digest(source), "source": str(source)}
+            entries[name] = {"file": file, "sha256": digests[name], "source": str(source)}
         # replace the old build whole, so that no binary outlives its manifest entry
         if where.exists():
             shutil.rmtree(where)
