@@ -23,6 +23,7 @@ from rasm.platform.orchestrator import AdaptationOrchestrator
 from rasm.platform.runtime import Platform
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.trace import TraceWriter
+from tests.slots import shadowed_slots, slot_names
 
 from .conftest import HOTBOX
 
@@ -45,44 +46,9 @@ CLASSES = [
 ]
 
 
-def _shadowed_slots(klass: type) -> list[tuple[str, str, str]]:
-    """(slot, class declaring it, class shadowing it) for each slot of ``klass``'s MRO that a
-    class earlier in the MRO defines as something else."""
-    found = []
-    mro = klass.__mro__
-    for index, owner in enumerate(mro):
-        for name in owner.__dict__.get("__slots__", ()):
-            for earlier in mro[:index]:
-                if name in earlier.__dict__:
-                    found.append((name, owner.__name__, earlier.__name__))
-    return found
-
-
-def _slots(klass: type) -> list[str]:
-    return [
-        name
-        for base in klass.__mro__
-        for name in base.__dict__.get("__slots__", ())
-        if name not in ("__dict__", "__weakref__")
-    ]
-
-
 @pytest.mark.parametrize("klass", CLASSES)
 def test_no_slot_is_shadowed_by_a_class_attribute(klass: type) -> None:
-    assert _shadowed_slots(klass) == []
-
-
-def test_the_shadow_check_finds_a_shadowed_slot() -> None:
-    class Base:
-        __slots__ = ("_x",)
-
-    class Mixin:
-        _x = 0
-
-    class Both(Mixin, Base):
-        pass
-
-    assert _shadowed_slots(Both) == [("_x", "Base", "Mixin")]
+    assert shadowed_slots(klass) == []
 
 
 @pytest.mark.parametrize("klass", CLASSES)
@@ -98,7 +64,7 @@ def test_every_slot_is_set_once_the_platform_is_built() -> None:
                platform.transport._index]
     assert {type(obj) for obj in objects} == set(CLASSES) - {Block, RedisKnowledgeBase, Transport}
     for obj in objects:
-        for name in _slots(type(obj)):
+        for name in slot_names(type(obj)):
             getattr(obj, name)  # AttributeError for a slot never set
             assert name not in vars(obj)  # nor is a slot's name in the instance dict
 

@@ -12,6 +12,7 @@ from sismic.io import import_from_yaml
 from rasm.statechart.fast import FastInterpreter, PropertyListener
 from rasm.statechart.fast_tables import ChartTables
 from rasm.statechart.interpreter import Interpreter
+from tests.slots import shadowed_slots
 
 CHART = import_from_yaml("""
 statechart:
@@ -43,22 +44,9 @@ statechart:
 """)
 
 
-def _shadowed_slots(klass: type) -> list[tuple[str, str, str]]:
-    """(slot, class declaring it, class shadowing it) for each slot of ``klass``'s MRO that a
-    class earlier in the MRO defines as something else."""
-    found = []
-    mro = klass.__mro__
-    for index, owner in enumerate(mro):
-        for name in owner.__dict__.get("__slots__", ()):
-            for earlier in mro[:index]:
-                if name in earlier.__dict__:
-                    found.append((name, owner.__name__, earlier.__name__))
-    return found
-
-
 @pytest.mark.parametrize("klass", [FastInterpreter, Interpreter, PropertyListener, ChartTables])
 def test_no_slot_is_shadowed_by_a_class_attribute(klass: type) -> None:
-    assert _shadowed_slots(klass) == []
+    assert shadowed_slots(klass) == []
 
 
 def test_the_shadow_check_finds_a_shadowed_slot() -> None:
@@ -71,7 +59,7 @@ def test_the_shadow_check_finds_a_shadowed_slot() -> None:
     class Both(Mixin, Base):
         pass
 
-    assert _shadowed_slots(Both) == [("_x", "Base", "Mixin")]
+    assert shadowed_slots(Both) == [("_x", "Base", "Mixin")]
 
 
 @pytest.mark.parametrize("klass", [FastInterpreter, Interpreter])
