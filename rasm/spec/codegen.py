@@ -16,7 +16,6 @@ file's events (most records of a loop): the events' values (false) folded in by
 
 from __future__ import annotations
 
-import ast
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -502,7 +501,6 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     blocks: list[list] = []
     finishes: list[list] = []
     every: list[bool] = []  # per property: a value on every record, never UNSET
-    warmups: list[str] = []  # the properties' "started" flags
     program = Program("", gen.constants, gen.state)
     for number, prop in enumerate(spec.properties):
         gen.lines, gen.finish_lines = [], []
@@ -531,7 +529,6 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
             finish += drain
         if warm:
             started = gen.variable("started", False)
-            warmups.append(started)
             ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in warm)
             block: list = [f"if not {started} and {ready}:", f"    {started} = True"]
             block.append(f"    STARTS[{number}] = i")
@@ -543,9 +540,7 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
         blocks.append(block)
         if kind == "stream":
             finishes.append([f"if {started}:", *(_indent(line) for line in finish)])
-    program.source = _assemble(
-        spec, gen, blocks, finishes, defaults, events, every, warmups, exact=reads is None
-    )
+    program.source = _assemble(spec, gen, blocks, finishes, defaults, events, every)
     return program
 
 
@@ -601,9 +596,7 @@ def _render(line, mode: str) -> str | None:
     return f"{pad}values_{number}({value})"
 
 
-def _assemble(
-    spec, gen: _Generator, blocks, finishes, defaults, events, every, warmups, *, exact: bool
-) -> str:
+def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) -> str:
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure
     used = _used(spec)
@@ -664,16 +657,17 @@ def _assemble(
         """``tally_into``; with a quiet path for records that carry none of the events."""
         kept = [f"_last{number}" for number in range(len(blocks))]
 
-        def decide(mode: str, settled: frozenset = frozenset(), gate: tuple = ()) -> list[str]:
-            # UNSET: no value for the property yet, unless it gets one on every record (every)
-            # or on every quiet record (settled)
-            sure = [every[n] or n in settled for n in range(len(kept))]
-            lines = ["odd = None", *(f"{kept[n]} = UNSET" for n in range(len(kept)) if not sure[n])]
+        def decide(mode: str) -> list[str]:
+            # UNSET: no value for the property yet (one line each: fold() drops those a quiet
+            # record surely sets)
+            lines = [
+                "odd = None",
+                *(f"{kept[n]} = UNSET" for n in range(len(kept)) if not every[n]),
+            ]
             lines += rendered(properties, mode)
-            lines += gate
             for number, last in enumerate(kept):
                 handover = f"latest[NAME_{number}] = {last}"
-                lines.append(handover if sure[number] else f"if {last} is not UNSET: {handover}")
+                lines.append(handover if every[number] else f"if {last} is not UNSET: {handover}")
             return lines + [
                 "if odd is not None:",
                 "    for _name, _value in odd:",
@@ -683,7 +677,6 @@ def _assemble(
 
         lines = ["def tally_into(t, rec, latest, unusual):", "    nonlocal " + ", ".join(cells)]
         general = rendered([*update, "i += 1"], "into", "REJECT_INTO")
-        gate: tuple = ()
         if absent:
             # such a record reads each absent event as false: the same code with those values
             # folded in (rasm.spec.fold) decides the same, without reading or testing them
@@ -692,28 +685,18 @@ def _assemble(
                 none = "QUIET.isdisjoint(rec)"  # one set lookup per key of the record
             else:  # a few dict lookups cost less than iterating over the record's keys
                 none = " and ".join(f"{name!r} not in rec" for name in absent)
-            # ... and every property has started (see the gate below): no warm-up tests
-            known = (
-                *((signal_variable(name), False) for name in absent),
-                *((flag, True) for flag in warmups),
-            )
-            decided = fold("\n".join(decide("quiet")), known, _FOLDED_LOCALS)
-            settled = _set_first(decided, kept) if exact else frozenset()
-            if settled:  # those need no UNSET marker, nor a test of it
-                decided = fold("\n".join(decide("quiet", settled)), known, _FOLDED_LOCALS)
+            known = tuple((signal_variable(name), False) for name in absent)
             quiet = [
                 *rendered(_update_lines(spec, used, events, absent), "into", "REJECT_INTO"),
                 "i += 1",
-                *decided.splitlines(),
+                *fold("\n".join(decide("quiet")), known, _FOLDED_LOCALS).splitlines(),
             ]
-            # dict_after_first is None until the general code decided a record with every
-            # property started: the quiet path never sees the first record (and leaves out
-            # what only that one does) nor a warm-up
+            # dict_after_first is None until the general code accepted a record: the quiet
+            # path never sees the first record (and leaves out what only that one does)
             lines.append(f"    if rec.__class__ is dict_after_first and {none}:")
             lines += ["        " + text for text in quiet]
-            ready = " and ".join(warmups)
-            gate = (f"if {ready}: dict_after_first = dict" if ready else "dict_after_first = dict",)
-        return lines + ["    " + text for text in [*general, *decide("into", gate=gate)]]
+            general.append("dict_after_first = dict")
+        return lines + ["    " + text for text in [*general, *decide("into")]]
 
     factory = ["def factory():"]
     for name in sorted(gen.state):
@@ -737,33 +720,6 @@ def _assemble(
         factory.append("        return out")
     factory.append("    return step, tally, tally_into, run, finish_step, finish_run")
     return "\n".join(factory) + "\n"
-
-
-def _set_first(source: str, names: list[str]) -> frozenset[int]:
-    """The positions in ``names`` of the locals that ``source`` (statements) surely sets before
-    reading them: a top-level assignment of a value other than the ``UNSET`` marker, with no
-    read of the name before it. (Generated code assigns UNSET to a ``_last<n>`` only literally:
-    the values of properties are never UNSET.)"""
-    wanted = {name: n for n, name in enumerate(names)}
-    read: set[str] = set()
-    found: set[int] = set()
-    for statement in ast.parse(source).body:
-        loads = {
-            n.id
-            for n in ast.walk(statement)
-            if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)
-        }
-        if (
-            isinstance(statement, ast.Assign)
-            and len(statement.targets) == 1
-            and isinstance(statement.targets[0], ast.Name)
-            and statement.targets[0].id in wanted
-            and not (isinstance(statement.value, ast.Name) and statement.value.id == "UNSET")
-            and statement.targets[0].id not in read | loads
-        ):
-            found.add(wanted[statement.targets[0].id])
-        read |= loads
-    return frozenset(found)
 
 
 def _used(spec: Specification) -> list[str]:

@@ -18,7 +18,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.spec import compile
-from rasm.spec.codegen import _set_first
 from rasm.spec.loader import load_specification
 
 from .reference import reference_verdicts
@@ -292,25 +291,3 @@ def test_a_refused_record_changes_nothing(formulas_, trace):
             assert outcome(without.tally_into, time, rec, {}, note) == got
         assert seen == kept
     assert outcome(full.finish) == outcome(without.finish)
-
-
-@pytest.mark.parametrize(
-    ("source", "expected"),
-    [
-        ("_last0 = UNSET\n_last0 = x\n_last1 = True\n", {0, 1}),
-        ("_last0 = UNSET\nif c:\n    _last0 = x\n", set()),  # set on some records only
-        ("y = _last0\n_last0 = x\n", set()),  # read before it is set
-        ("_last0 = _last0 or x\n", set()),
-        ("while q:\n    _last1 = q.pop()\n_last0 = UNSET\n", set()),
-    ],
-)
-def test_the_properties_a_quiet_record_surely_decides(source, expected):
-    """Only these need no "no value yet" marker: the handover reads them unguarded."""
-    assert _set_first(source, ["_last0", "_last1"]) == expected
-
-
-def test_the_quiet_path_of_the_hotbox_file_has_no_warm_up_and_no_marker():
-    source = compile((ROOT / FILES[2]).read_text()).program.source
-    quiet = source[source.index("rec.__class__ is dict") : source.index("return None")]
-    decide = quiet[quiet.index("i += 1") :]  # what follows the record's validation
-    assert "started" not in decide and "UNSET" not in decide
