@@ -29,9 +29,7 @@ from rasm.knowledge.values import (
 
 _log = logging.getLogger("rasm.knowledge")
 
-# Locking: the per-record paths take their lock with acquire() and release() (in try/finally),
-# not a `with` statement, which compiled looks up and binds __enter__ and __exit__ at each use
-# (about 600 instructions, a fifth of a locked counter update). Same lock, same semantics.
+# Locks are taken with acquire() and release(), not `with` (docs/compiled.md, "Writing for it").
 
 # Below every finite time: the first sample of a key may have any finite time, -inf is refused.
 _BEFORE_ALL = -sys.float_info.max
@@ -278,7 +276,7 @@ class KnowledgeBase:
         a time older than the key's last sample. Subscribers are called before this returns.
         """
         lock = self._lock
-        lock.acquire()  # not `with`: see Locking above
+        lock.acquire()  # not `with`: see the note on locks above
         try:
             series_of = self._series
             # a known key at a float time (every value of a running loop) is added directly
@@ -331,7 +329,7 @@ class KnowledgeBase:
             return register_each(self.register_knowledge, values, time, into)
         refused: dict[str, Exception] = {}
         lock = self._lock
-        lock.acquire()  # not `with`: see Locking above
+        lock.acquire()  # not `with`: see the note on locks above
         try:
             # a known key at a float time (every value of a running loop) is added directly
             series_of = self._series if type(time) is float else _NO_SERIES
@@ -414,7 +412,7 @@ class KnowledgeBase:
     def read_knowledge(self, key: str, default: Any = None) -> Any:
         """The latest value of ``key``, or ``default`` if it has none."""
         lock = self._lock
-        lock.acquire()  # not `with`: see Locking above
+        lock.acquire()  # not `with`: see the note on locks above
         try:
             series_of = self._series
             if key not in series_of:
@@ -465,7 +463,7 @@ class KnowledgeBase:
                 f"history of {key!r}: last must be a whole number >= 0, got {last!r}"
             )
         lock = self._lock
-        lock.acquire()  # not `with`: see Locking above
+        lock.acquire()  # not `with`: see the note on locks above
         try:
             series = self._series.get(key)
             if series is None:

@@ -25,9 +25,7 @@ __all__ = ["Scheduler"]
 
 Job = Callable[[], Any]
 
-# Locking: the per-record paths take their lock with acquire() and release() (in try/finally),
-# not a `with` statement, which compiled looks up and binds __enter__ and __exit__ at each use
-# (about 600 instructions, a fifth of a locked counter update). Same lock, same semantics.
+# Locks are taken with acquire() and release(), not `with` (docs/compiled.md, "Writing for it").
 
 
 class Scheduler:
@@ -126,7 +124,7 @@ class Scheduler:
     def submit(self, job: Job) -> None:
         """Run ``job`` on the loop thread as soon as possible (thread-safe)."""
         lock = self._lock
-        lock.acquire()  # not `with`: see Locking above
+        lock.acquire()  # not `with`: see the note on locks above
         try:
             self._inbox.append(job)
             if self._waiting:  # notify() would find no waiter otherwise
@@ -157,7 +155,7 @@ class Scheduler:
             # peek is served next turn, as if it had come just after a locked look.
             if self._inbox or self._stopping:
                 lock = self._lock
-                lock.acquire()  # not `with`: see Locking above
+                lock.acquire()  # not `with`: see the note on locks above
                 try:
                     if self._stopping:
                         self._stopping = False
