@@ -1007,7 +1007,7 @@ def _discriminant(event: MetaEvent) -> Any:
 def _replay(interp: FastInterpreter, effect: tuple, now: float) -> None:
     """Apply a remembered effect (see PropertyListener._effect_of) at ``now``: the same changes
     as the execution it was remembered from, without the step machinery. (A function, not a
-    method: it is called at most meta-events of a step, and needs no listener.)"""
+    method: it needs no listener, and a call makes no bound method.)"""
     exited, sources, entered = effect
     interp._time = now
     interp._sent_events.clear()
