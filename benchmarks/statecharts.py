@@ -18,9 +18,6 @@ Cases (see docs/performance-statecharts.md for the figures):
   ``hotbox_iterations_per_s=N`` (target 5,000), after ``hotbox_records_per_s=N`` (the sensor
   records digested per CPU second in the same runs: five per iteration).
 
-The first line, ``compiled_modules=N/M``, says how many of rasm's hot modules ran compiled
-(docs/compiled.md); ``RASM_PURE_PYTHON=1`` measures rasm as plain Python.
-
 Run: ``.venv/bin/python benchmarks/statecharts.py [--quick]``.
 """
 
@@ -231,11 +228,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     header = f"{'case':<24}{'stock ev/s':>12}{'rasm ev/s':>12}{'ratio':>8}"
     if PlatformInterpreter is not None:
         header += f"{'platform ev/s':>15}{'ratio':>8}"
-    # whether rasm's hot modules run compiled (docs/compiled.md): the figures depend on it
-    from rasm.compiled import status
-
-    states = status().values()
-    print(f"compiled_modules={sum(s == 'compiled' for s in states)}/{len(states)}")
     print(header)
     for name, (stock, rasm, platform, events, dt) in cases.items():
         factories = [stock, rasm] + ([platform] if platform is not None else [])

@@ -6,9 +6,3 @@ property language checked online, and z3-checked legitimacy rules.
 """
 
 __version__ = "0.1.0"
-
-# The compiled build of the hot modules, when one was built and matches the source
-# (rasm.compiled); installed before any of them is imported.
-from rasm import compiled as _compiled  # noqa: E402
-
-_compiled.install()

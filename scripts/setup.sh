@@ -1,6 +1,5 @@
 #!/usr/bin/env bash
-# Create .venv and install rasm into it (editable, with the test extras when asked: setup.sh test),
-# then build its compiled modules.
+# Create .venv and install rasm into it (editable; with the test extras when asked: setup.sh test).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -9,11 +8,7 @@ if [ ! -x .venv/bin/python ]; then
     .venv/bin/pip install -q --upgrade pip
 fi
 if [ "${1:-}" = "test" ]; then
-    .venv/bin/pip install -q -e '.[test,compiled]'
+    .venv/bin/pip install -q -e '.[test]'
 else
-    .venv/bin/pip install -q -e '.[compiled]'
+    .venv/bin/pip install -q -e .
 fi
-# Compile the hot modules (rasm/compiled: the Hotbox about 1.45 times faster, same source).
-# Without a C compiler rasm runs as plain Python; an edited module runs as plain Python until
-# rebuilt.
-.venv/bin/python -m rasm.compiled build || echo "warning: rasm runs as plain Python (no compiled build)" >&2

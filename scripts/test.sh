@@ -22,8 +22,4 @@ for svc in mosquitto redis-server influxdb; do
 done
 bash scripts/setup.sh test
 .venv/bin/ruff check rasm tests benchmarks examples
-# setup.sh has just built the compiled modules (rasm/compiled): the suite runs them, and fails if
-# they are missing; then the tests of what they do run again as plain Python.
-RASM_EXPECT_COMPILED=1 .venv/bin/python -m pytest "$@"
-RASM_PURE_PYTHON=1 .venv/bin/python -m pytest "$@" tests/statechart_fast tests/statechart \
-    tests/test_record_path_equivalence.py tests/test_record_path_checker.py tests/platform
+.venv/bin/python -m pytest "$@"

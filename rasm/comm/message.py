@@ -7,7 +7,6 @@ from typing import Any, NamedTuple
 
 __all__ = ["Message", "TransportStats"]
 
-# Locks are taken with acquire() and release(), not `with` (docs/compiled.md, "Writing for it").
 
 
 class Message(NamedTuple):

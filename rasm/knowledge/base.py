@@ -29,7 +29,6 @@ from rasm.knowledge.values import (
 
 _log = logging.getLogger("rasm.knowledge")
 
-# Locks are taken with acquire() and release(), not `with` (docs/compiled.md, "Writing for it").
 
 # Below every finite time: the first sample of a key may have any finite time, -inf is refused.
 _BEFORE_ALL = -sys.float_info.max

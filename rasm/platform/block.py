@@ -147,7 +147,7 @@ class Block:
 
     def send(self, event: str | None, **data: Any) -> list[MacroStep]:
         """Queue ``event`` (if any) and run the chart until it is stable, doing each mode's work."""
-        # not `with` (docs/compiled.md, "Writing for it"): this runs at every loop iteration
+        # not `with`: this runs at every loop iteration
         lock = self._lock
         lock.acquire()
         try:

@@ -25,7 +25,6 @@ __all__ = ["Scheduler"]
 
 Job = Callable[[], Any]
 
-# Locks are taken with acquire() and release(), not `with` (docs/compiled.md, "Writing for it").
 
 
 class Scheduler:

@@ -47,7 +47,7 @@ class SimulatedClock(_sismic_clock.SimulatedClock):
 
     sismic computes ``time`` as ``_time + _elapsed``, two Python property calls; a simulated run
     reads the clock a few dozen times per loop iteration. This reads the same attributes and does
-    the same arithmetic in one (compiled, see docs/compiled.md) property.
+    the same arithmetic in one property.
     """
 
     @property

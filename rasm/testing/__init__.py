@@ -12,14 +12,6 @@ The pytest plugin (:mod:`rasm.testing.plugin`, loaded automatically) adds the ``
 fixture. The tutorial is ``docs/testing.md``.
 """
 
-# ruff: noqa: E402 (the imports below come after the finder is back in front)
-# pytest loads the plugin (this package first) after putting its assertion rewriter first on
-# sys.meta_path; where rasm was imported before pytest started, the rewriter would now take the
-# hot modules as plain Python: the compiled build's finder goes back in front of it.
-from rasm import compiled as _compiled
-
-_compiled.install()
-
 from rasm.testing.apps import Trace, run_app
 from rasm.testing.assertions import PropertyViolation, assert_properties, check_trace
 from rasm.testing.failures import failures_dir

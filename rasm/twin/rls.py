@@ -8,16 +8,6 @@ give the same floats. The estimator is exact (no approximation beyond floating p
 whole state is JSON-able, so a learned model can be persisted in knowledge and restored after a
 restart.
 
-The three-parameter paths (:meth:`RecursiveLeastSquares.update3`, and ``n == 3`` in
-:meth:`~RecursiveLeastSquares.variances_within` and :meth:`~RecursiveLeastSquares.differs_on`)
-take every number through ``float()`` into a local first. In plain Python ``float()`` of a
-float is that very float; the compiled build (Cython, see ``rasm.compiled``) then types those
-locals as C doubles and computes without making an object per operation (update3: about
-10,000 machine instructions a call down to 5,500): the same IEEE operations in the same order,
-so the same floats. Two things keep it so: no fused multiply-add (``rasm.compiled`` builds with
-``-ffp-contract=off``; GCC fuses by default where the processor has one), and a zero divisor is
-divided by Python itself (:func:`_divide_as_python`), so the error is Python's
-``ZeroDivisionError`` with its message.
 """
 
 from __future__ import annotations
@@ -35,8 +25,7 @@ Matrix = list[list[float]]
 
 
 def _divide_as_python(numerator: float, divisor: float) -> float:
-    """``numerator / divisor`` as Python divides: called where the divisor is zero, it raises
-    Python's ZeroDivisionError (the compiled build's C division would word it differently)."""
+    """``numerator / divisor``: called where the divisor is zero, it raises ZeroDivisionError."""
     return truediv(numerator, divisor)
 
 
@@ -194,7 +183,6 @@ class RecursiveLeastSquares:
             raise TwinError(f"update3 is for 3 parameters; this estimator has {self.n}")
         if not weight > 0:
             raise TwinError(f"an observation's weight must be positive, not {weight!r}")
-        # every number into a float local (C doubles when compiled: see the module's docstring)
         x0, x1, x2, target, share = float(f0), float(f1), float(f2), float(y), float(weight)
         theta, (row0, row1, row2) = self.theta, self.P
         t0, t1, t2 = float(theta[0]), float(theta[1]), float(theta[2])

@@ -14,7 +14,6 @@ import inspect
 
 import pytest
 
-from rasm.compiled import source_of
 from rasm.platform.block import Block
 
 from .support import BLOCKS, chart_path, load, transition_events
@@ -26,10 +25,7 @@ def sent_by(cls: type) -> set[str]:
     """The string literals in the first argument of every ``.post(...)``/``.send(...)`` call in
     ``cls``'s source (``post("a" if ok else "b")`` gives both). Event names computed at run time
     (``post(event)``) are out of reach of this check."""
-    # the class in its module's source file (a compiled module has no source to inspect)
-    source = source_of(cls.__module__)
-    assert source is not None, cls.__module__
-    module = ast.parse(source.read_text())
+    module = ast.parse(inspect.getsource(importlib.import_module(cls.__module__)))
     (tree,) = [n for n in module.body if isinstance(n, ast.ClassDef) and n.name == cls.__name__]
     names = set()
     for node in ast.walk(tree):
