@@ -491,7 +491,7 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
     finish_run)`` (``tally``: ``step`` giving ``(property, value)`` pairs, not verdicts;
     ``tally_into(t, rec, latest, unusual)``: ``tally`` keeping the pairs itself, see
     :meth:`rasm.spec.monitor.Monitor.tally_into`); it
-    reads the names in ``Program.constants`` plus ``STATE`` (initial values), ``TUPLE_NEW``,
+    reads the names in ``Program.constants`` plus ``STATE`` (initial values),
     ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``NUMERIC``, ``SCALAR``, ``UNSET``,
     ``REJECT_STEP``, ``REJECT_INTO`` and ``REJECT_RUN``, which the monitor provides.
     """
@@ -579,7 +579,7 @@ def _render(line, mode: str) -> str | None:
         return None
     pad = rest[0] if rest else ""
     if mode == "step":
-        return f"{pad}out.append(TUPLE_NEW(Verdict, (NAME_{number}, {index}, {time}, {value})))"
+        return f"{pad}out.append(Verdict(NAME_{number}, {index}, {time}, {value}))"
     if mode == "tally":
         return f"{pad}out.append((NAME_{number}, {value}))"
     if mode in ("into", "quiet"):

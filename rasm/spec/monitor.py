@@ -29,12 +29,17 @@ _WANT = {
 
 
 class Verdict(NamedTuple):
-    """A property's value at one record: True, False, or None (inconclusive, at the end)."""
+    """A property's value at one record: True, False, or None (inconclusive, at the end).
+
+    ``error`` is set (and ``value`` is False) when the property could not be evaluated at this
+    record: the checker cannot vouch for it, so it counts as not satisfied everywhere.
+    """
 
     property: str
     index: int
     time: float
     value: bool | None
+    error: str | None = None
 
 
 @dataclass(frozen=True)
@@ -119,7 +124,6 @@ class Monitor:
         namespace = dict(self.program.constants)
         namespace.update(
             STATE=self.program.state,
-            TUPLE_NEW=tuple.__new__,  # Verdict((…)) without NamedTuple's Python-level __new__
             Verdict=Verdict,
             NAMES=self.names,
             STARTS=self.starts,
