@@ -718,7 +718,12 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
         for block in finishes:
             factory += ["        " + text for text in rendered(block, mode)]
         factory.append("        return out")
-    factory.append("    return step, tally, tally_into, run, finish_step, finish_run")
+    # which held signals have had a value so far (a property not judged names the missing ones)
+    held = [name for name in used if name not in events]
+    factory.append("    def held():")
+    pairs = ", ".join(f"{name!r}: {signal_variable(name)} is not UNSET" for name in held)
+    factory.append("        return {" + pairs + "}")
+    factory.append("    return step, tally, tally_into, run, finish_step, finish_run, held")
     return "\n".join(factory) + "\n"
 
 

@@ -6,7 +6,7 @@ import builtins
 import functools
 import numbers
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import CodeType
 from typing import NamedTuple
 
@@ -53,11 +53,18 @@ class Rejection:
 
 @dataclass
 class PropertyRun:
-    """A property's verdicts over a whole trace: ``values[k]`` is the verdict at ``start + k``."""
+    """A property's verdicts over a whole trace: ``values[k]`` is the verdict at ``start + k``.
+
+    ``errors`` maps a record index to why the property could not be evaluated there (its value
+    there is False); ``missing`` names the signals that never had a value when ``start`` is None
+    (the property was never judged).
+    """
 
     name: str
     start: int | None
     values: list
+    errors: dict[int, str] = field(default_factory=dict)
+    missing: tuple[str, ...] = ()
 
 
 BAD = type("Bad", (), {"__repr__": lambda self: "<bad value>"})()
@@ -140,9 +147,15 @@ class Monitor:
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
         functions = namespace["factory"]()
-        self._step, self._tally, self._tally_into, self._run, self._finish, self._finish_run = (
-            functions
-        )
+        (
+            self._step,
+            self._tally,
+            self._tally_into,
+            self._run,
+            self._finish,
+            self._finish_run,
+            self._held,
+        ) = functions
         # the generated functions themselves, not methods around them: one call less per record
         self.step = self._step
         self.tally = self._tally
@@ -185,6 +198,15 @@ class Monitor:
         """
         return self._tally_into(time, values, latest, unusual)
 
+    def missing(self, name: str) -> tuple[str, ...]:
+        """The signals property ``name`` waits for: those it reads that have had no value yet
+        (empty once it has started)."""
+        k = self.names.index(name)
+        if self.starts[k] is not None:
+            return ()
+        held = self._held()
+        return tuple(s for s in self.program.reads[k] if not held.get(s, False))
+
     def _refuse(self, time, values, *rest):
         raise SpecError("this monitor has finished; compile a new one for a new trace")
 
@@ -220,7 +242,8 @@ class Monitor:
         self.step = self.tally = self.tally_into = self._refuse
         self._finish_run()
         return [
-            PropertyRun(name, self.starts[k], self._values[k]) for k, name in enumerate(self.names)
+            PropertyRun(name, self.starts[k], self._values[k], missing=self.missing(name))
+            for k, name in enumerate(self.names)
         ]
 
 
