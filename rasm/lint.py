@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from rasm.errors import Location, RasmError, SourceError, SourceErrors
 
@@ -71,16 +72,31 @@ def _lint_manifest(path: Path, text: str) -> list[str]:
     except ImportError:
         return []  # manifests are checked once the runtime is installed
     try:
-        load_manifest(path)
+        manifest = load_manifest(path)
     except (SourceError, SourceErrors) as exc:
         return _errors_of(exc)
-    return []
+    return _lint_app_signals(manifest)
+
+
+def _lint_app_signals(manifest: Any) -> list[str]:
+    """The property and rule files the manifest names, against what the app provides."""
+    from rasm.platform.signals import app_problems
+
+    return [_one_line(e) for e in app_problems(manifest)]
 
 
 def _lint_model(path: Path, text: str) -> list[str]:
     from rasm.workflow.model import lint_model
 
     return [_one_line(e) for e in lint_model(path)]
+
+
+def _lint_model_beside_app(path: Path, text: str) -> list[str]:
+    """A model linted with its app's manifest: the app's signal check (the one ``rasm run``
+    applies) judges the property and rule files both name, so the model's own is left out."""
+    from rasm.workflow.model import lint_model
+
+    return [_one_line(e) for e in lint_model(path, signals=False)]
 
 
 def _yaml_kind(path: Path, text: str) -> Callable[[Path, str], list[str]] | None:
@@ -146,8 +162,18 @@ def _read(path: Path) -> str:
 
 
 def lint_paths(paths: Iterable[str]) -> list[str]:
-    """Problems in every file named or found in the folders named."""
-    problems: list[str] = []
+    """Problems in every file named or found in the folders named, each once (a file named
+    twice, or a property file linted alone and as part of its app, is reported once)."""
+    named: dict[Path, Path] = {}
     for path in _files(paths):
-        problems.extend(lint_file(path))
-    return problems
+        named.setdefault(path.resolve(), path)
+    files = list(named.values())
+    apps = {p.resolve().parent for p in files if _yaml_kind(p, _read(p)) is _lint_manifest}
+    problems: list[str] = []
+    for path in files:
+        kind = _yaml_kind(path, _read(path)) if path.suffix in YAML_SUFFIXES else None
+        if kind is _lint_model and path.resolve().parent in apps:
+            problems.extend(_lint_model_beside_app(path, _read(path)))
+        else:
+            problems.extend(lint_file(path))
+    return list(dict.fromkeys(problems))

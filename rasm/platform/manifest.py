@@ -67,6 +67,8 @@ class AppManifest:
     file: Path
     description: str = ""
     components: dict[str, str] = field(default_factory=dict)
+    # stage -> {name: type}: the Monitor's derived signals, the fields of the Plan's plans
+    produces: dict[str, dict[str, str]] = field(default_factory=dict)
     simulator: str | None = None
     simulator_period: float = 0.1
     scenario: dict[str, Any] = field(default_factory=dict)
@@ -92,6 +94,13 @@ class AppManifest:
     twin_dt: float = 0.5
     raw: dict[str, Any] = field(default_factory=dict)
 
+    def component_path(self, stage: str) -> list[str]:
+        """Where ``stage``'s module:Class is in app.yaml (for :func:`manifest_location`)."""
+        written = self.raw.get("components", {}).get(stage)
+        if isinstance(written, dict):
+            return ["components", stage, "component"]
+        return ["components", stage]
+
     @property
     def signals(self) -> dict[str, Signal]:
         out: dict[str, Signal] = {}
@@ -107,6 +116,16 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
         path = list(error.absolute_path)
         where = ".".join(str(p) for p in path) or "the manifest"
         message = error.message
+        if error.validator == "propertyNames":
+            node = _node_at(src.data, path)
+            bad = str(error.instance)
+            errors.append(
+                src.error(
+                    f"{where}: '{bad}' is not a name (letters, digits and _, not first a digit)",
+                    src.key(node, bad) if bad in node else src.at(path),
+                )
+            )
+            continue
         if error.validator == "additionalProperties":
             extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
             if extra and isinstance(error.instance, dict):
@@ -126,6 +145,37 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
             where = ".".join(str(p) for p in path)
             errors.append(src.error(f"{where}: must be a finite number, not {node}", src.at(path)))
     return errors
+
+
+def _derived_signal_problems(
+    src: YamlSource, derived: dict[str, str], probes: list[Probe]
+) -> list[SourceError]:
+    """The Monitor's declared signals share knowledge with the probes' and the trace with the
+    loop's keys: a loop key would forge the loop's events, a probe signal's other type would
+    have every value refused."""
+    declared = src.data["components"]["monitor"].get("produces", {}) if derived else {}
+    by_probe = {key: (probe, signal) for probe in probes for key, signal in probe.signals.items()}
+    problems = []
+    for name, kind in derived.items():
+        where = src.key(declared, name)
+        if name in LOOP_KEYS:
+            problems.append(
+                src.error(
+                    f"signal '{name}': a key the loop writes itself in the trace "
+                    f"({', '.join(sorted(LOOP_KEYS))}); give the signal another name",
+                    where,
+                )
+            )
+        elif name in by_probe and by_probe[name][1].type != kind:
+            probe, signal = by_probe[name]
+            problems.append(
+                src.error(
+                    f"signal '{name}' is {kind} here but probe {probe.topic} gives it as "
+                    f"{signal.type}: one knowledge key has one type",
+                    where,
+                )
+            )
+    return problems
 
 
 def _node_at(data: Any, path: list[Any]) -> Any:
@@ -185,14 +235,18 @@ def load_manifest(app: str | Path) -> AppManifest:
             )
         return target
 
-    components = dict(data.get("components", {}))
-    for stage, ref in components.items():
-        if not _REF.match(str(ref)):
-            problems.append(
-                src.error(
-                    f"'{ref}' is not module:Class", src.at(["components", stage])
-                )
-            )
+    components: dict[str, str] = {}
+    produces: dict[str, dict[str, str]] = {}
+    for stage, entry in data.get("components", {}).items():
+        # a stage is module:Class, or a mapping naming it and what it produces
+        ref_path = ["components", stage]
+        if isinstance(entry, dict):
+            ref_path.append("component")
+            produces[str(stage)] = {str(k): str(v) for k, v in entry.get("produces", {}).items()}
+            entry = entry["component"]
+        components[str(stage)] = str(entry)
+        if not _REF.match(str(entry)):
+            problems.append(src.error(f"'{entry}' is not module:Class", src.at(ref_path)))
     twin = data.get("twin") or {}
     if "component" in twin and not _REF.match(str(twin["component"])):
         problems.append(
@@ -229,6 +283,7 @@ def load_manifest(app: str | Path) -> AppManifest:
                     )
                 )
         probes.append(Probe(str(probe["topic"]), signals))
+    problems.extend(_derived_signal_problems(src, produces.get("monitor", {}), probes))
     effectors = {
         str(name): Effector(
             str(name),
@@ -255,7 +310,8 @@ def load_manifest(app: str | Path) -> AppManifest:
         folder=folder,
         file=file,
         description=str(data.get("description", "")),
-        components={str(k): str(v) for k, v in components.items()},
+        components=components,
+        produces=produces,
         simulator=managed.get("simulator"),
         simulator_period=managed.get("period", 0.1),
         scenario=plain(managed.get("scenario", {}) or {}),

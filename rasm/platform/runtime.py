@@ -46,6 +46,7 @@ from rasm.platform.distribution import Distribution
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
 from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
+from rasm.platform.signals import check_app
 from rasm.platform.trace import TraceWriter
 from rasm.resources import data_dir
 from rasm.statechart import MonotonicClock, SimulatedClock
@@ -95,7 +96,12 @@ def _remove_sqlite(path: Path) -> None:
 
 
 class Platform:
-    """One application's managing system (and, with ``role='all'``, its managed system)."""
+    """One application's managing system (and, with ``role='all'``, its managed system).
+
+    A property or rule that reads a name no part of the app provides raises
+    :class:`~rasm.errors.SourceErrors` here (:func:`rasm.platform.signals.check_app`);
+    ``check_signals=False`` runs such an app anyway (its properties are then never judged).
+    """
 
     # The attributes read for every record and loop job are slots: compiled code reads a slot
     # without the instance dict lookup. The blocks are set by build(); before it, reading one
@@ -122,6 +128,7 @@ class Platform:
         components: dict[str, Any] | None = None,
         isolate_stages: bool | None = None,
         low_latency: bool = False,
+        check_signals: bool = True,
     ) -> None:
         if role not in ("all", "managing", "managed"):
             raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
@@ -132,6 +139,9 @@ class Platform:
                 f"Platform() takes an app folder, its app.yaml or an AppManifest "
                 f"(rasm.platform.manifest.load_manifest), not {type(manifest).__name__}"
             )
+        if check_signals and role != "managed":
+            # a property or rule reading a name nothing provides: refused before anything runs
+            check_app(manifest)
         if clock not in (None, "simulated", "wall"):
             raise PlatformError(f"unknown clock {clock!r} (simulated or wall)")
         if components is not None:
@@ -378,12 +388,12 @@ class Platform:
                 # the place of the mistake is in the Python file, not in app.yaml
                 where = Location(cause.filename, cause.lineno, cause.offset or 1)
                 raise SourceError(f"{ref}: SyntaxError: {cause.msg}", where) from exc
-            raise SourceError(str(exc), manifest_location(m, ["components", stage])) from exc
+            raise SourceError(str(exc), manifest_location(m, m.component_path(stage))) from exc
         problem = missing_stage_method(stage, component) if stage in STAGES else None
         if problem:
             raise SourceError(
                 f"components.{stage}: {ref}: {problem}, so the {stage} stage would never run it",
-                manifest_location(m, ["components", stage]),
+                manifest_location(m, m.component_path(stage)),
             )
         return component
 

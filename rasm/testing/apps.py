@@ -216,6 +216,7 @@ def run_app(
     scenario: Mapping[str, Any] | None = None,
     components: Mapping[str, Any] | None = None,
     trace: str | Path | None = None,
+    check_signals: bool = True,
     **overrides: Any,
 ) -> Trace:
     """Run ``app`` for ``duration`` simulated seconds and return its adaptation trace.
@@ -224,6 +225,8 @@ def run_app(
       ``app.yaml``); draw them with :func:`rasm.testing.scenarios`.
     * ``components``: stage objects replacing the app's, e.g. ``{"plan": SlowPlanner()}``.
     * ``trace``: also write the trace to this JSONL file.
+    * ``check_signals=False``: run an app whose properties or rules read a name no part of it
+      provides (by default refused like ``rasm run`` refuses it, with SourceErrors).
     * ``overrides``: fields of the manifest to change for this run, e.g. ``stage_budget=0.05``
       or ``period=0.25``.
 
@@ -267,6 +270,7 @@ def run_app(
         trace=trace,
         scenario=dict(scenario) if scenario is not None else None,
         components=dict(components) if components else None,
+        check_signals=check_signals,
     )
     records: list[dict[str, Any]] = []
     last = -math.inf

@@ -3,15 +3,17 @@
 Each check returns :class:`SourceError` values at the line and column of the offending element:
 dangling references, ports with no peer, publisher/subscriber message type mismatches,
 components on no compute unit, compute units whose transports cannot reach a component they must
-talk to, a MAPLE-K loop missing (or repeating, or splitting) a stage, and properties that read
-signals no component produces.
+talk to, a MAPLE-K loop missing (or repeating, or splitting) a stage, and properties or rules
+that read signals no component produces (the shared check of :mod:`rasm.platform.signals`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.platform.signals import closest, reads, unprovided
 from rasm.platform.trace import LOOP_KEYS
 from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel, Check
 
@@ -21,8 +23,9 @@ __all__ = ["PLATFORM_SIGNALS", "check_model", "produced_signals", "property_read
 PLATFORM_SIGNALS = LOOP_KEYS
 
 
-def check_model(model: ArchitectureModel) -> list[SourceError]:
-    """Every cross-check problem of ``model``, in file order."""
+def check_model(model: ArchitectureModel, *, signals: bool = True) -> list[SourceError]:
+    """Every cross-check problem of ``model``, in file order (``signals=False``: but the names
+    its property and rule files read that no component produces)."""
     errors = [
         *_references(model),
         *_signal_clashes(model),
@@ -30,7 +33,7 @@ def check_model(model: ArchitectureModel) -> list[SourceError]:
         *_deployment(model),
         *_reachability(model),
         *_loop(model),
-        *_trustworthiness(model),
+        *_trustworthiness(model, signals=signals),
     ]
     return sorted(errors, key=lambda e: (e.location.line, e.location.col, e.message))
 
@@ -265,31 +268,27 @@ def produced_signals(model: ArchitectureModel) -> dict[str, str]:
 
 def property_reads(check: Check, model: ArchitectureModel) -> tuple[dict[str, Location], list]:
     """The signals a property check reads (name -> first place read) and any problems in it."""
+    spec, problems = _specification(check, model)
+    if spec is None:
+        return {}, problems
+    first: dict[str, Location] = {}
+    for name, where in reads(spec):
+        first.setdefault(name, where)
+    return first, []
+
+
+def _specification(check: Check, model: ArchitectureModel) -> tuple[Any, list[SourceError]]:
+    """A property check's checked specification, or None and the problems in its text."""
     from rasm.spec import load_specification
-    from rasm.spec.ast import Name, Property, children
 
     text, source = _check_text(check, model)
     if text is None:
-        return {}, []
+        return None, []
     try:
-        spec = load_specification(text, source=source)
+        return load_specification(text, source=source), []
     except (SourceError, SourceErrors) as exc:
         errors = exc.errors if isinstance(exc, SourceErrors) else [exc]
-        return {}, [_relocate(check, model, e) for e in errors]
-    reads: dict[str, Location] = {}
-
-    def walk(node) -> None:
-        if isinstance(node, Name) and node.name not in reads:
-            reads[node.name] = node.location
-        for child in children(node):
-            walk(child)
-
-    for prop in spec.properties:
-        if isinstance(prop, Property):
-            walk(prop.formula)
-    for name in spec.signals:
-        reads.setdefault(name, Location(source))
-    return {k: v for k, v in reads.items() if k in spec.signals}, []
+        return None, [_relocate(check, model, e) for e in errors]
 
 
 def _check_text(check: Check, model: ArchitectureModel) -> tuple[str | None, str]:
@@ -327,37 +326,77 @@ def _text_location(check: Check, model: ArchitectureModel, inner: Location) -> L
     return src.code_location(entry, "text", max(inner.line, 1), max(inner.col, 1))
 
 
-def _trustworthiness(model: ArchitectureModel) -> Iterator[SourceError]:
-    produced = set(produced_signals(model)) | PLATFORM_SIGNALS
+def _trustworthiness(model: ArchitectureModel, *, signals: bool) -> Iterator[SourceError]:
+    produced = set(produced_signals(model))
     for check in model.checks:
         if check.kind == "rules":
-            yield from _rules_problems(check, model)
+            rules, problems = _rules(check, model)
+            yield from problems
+            if rules is not None and signals:
+                places = [(n, v.location, "rule variable") for n, v in rules.variables.items()]
+                yield from _unproduced(check, model, places, produced | _plan_fields(model))
             continue
-        reads, problems = property_reads(check, model)
+        spec, problems = _specification(check, model)
         yield from problems
-        for signal, where in sorted(reads.items()):
-            if signal in produced:
-                continue
-            if check.text is not None and where.file == str(model.file):
-                where = _text_location(check, model, where)
-            message = (
-                f"{check.file} reads '{signal}', which no component produces "
-                "(publish it in a message or declare it under a component's produces)"
-            )
-            if where.file == str(model.file):
-                yield _error(model, message, where)
-            else:
-                yield SourceError(message, where)
+        if spec is not None and signals:
+            places = [
+                (name, where, "" if what == "read" else what)
+                for name, where, what in unprovided(spec, produced | PLATFORM_SIGNALS)
+            ]
+            yield from _unproduced(check, model, places, produced | PLATFORM_SIGNALS)
 
 
-def _rules_problems(check: Check, model: ArchitectureModel) -> Iterator[SourceError]:
-    if check.text is None:
-        return
+def _plan_fields(model: ArchitectureModel) -> set[str]:
+    """What a rule may read of a plan: the fields of the messages on the execute stage's ports
+    (a plan becomes those actions) and what the plan stage declares it produces."""
+    fields: set[str] = set()
+    for stage in ("plan", "execute"):
+        component = model.stage(stage)
+        if component is None:
+            continue
+        fields.update(component.produces)
+        for port in component.ports.values():
+            message = model.messages.get(port.message)
+            fields.update(message.fields if message is not None else ())
+    return fields
+
+
+def _unproduced(
+    check: Check,
+    model: ArchitectureModel,
+    places: list[tuple[str, Location, str]],
+    produced: set[str],
+) -> Iterator[SourceError]:
+    """A problem at each place where ``check`` reads (or declares: ``what``) a name that is
+    not ``produced``."""
+    for signal, where, what in places:
+        if signal in produced:
+            continue
+        if check.text is not None and where.file == str(model.file):
+            where = _text_location(check, model, where)
+        verb = f"declares {what}" if what else "reads"
+        suggestion = closest(signal, produced)
+        hint = (
+            f"did you mean '{suggestion}'?"
+            if suggestion is not None
+            else "publish it in a message or declare it under a component's produces"
+        )
+        message = f"{check.file} {verb} '{signal}', which no component produces ({hint})"
+        if where.file == str(model.file):
+            yield _error(model, message, where)
+        else:
+            yield SourceError(message, where)
+
+
+def _rules(check: Check, model: ArchitectureModel) -> tuple[Any, list[SourceError]]:
+    """A rules check's rule set, or None and the problems in its text."""
     from rasm.rules.loader import parse_rules
 
+    text, source = _check_text(check, model)
+    if text is None:
+        return None, []
     try:
-        parse_rules(check.text, source=str(model.file))
+        return parse_rules(text, source=source), []
     except (SourceError, SourceErrors) as exc:
         errors = exc.errors if isinstance(exc, SourceErrors) else [exc]
-        for error in errors:
-            yield _relocate(check, model, error)
+        return None, [_relocate(check, model, e) for e in errors]

@@ -118,11 +118,17 @@ def publications(model: ArchitectureModel) -> list[Publication]:
 def app_config(model: ArchitectureModel) -> dict[str, Any]:
     """The ``app.yaml`` content for ``model`` (embedded default: local bus, simulator)."""
     interface = model.interface
-    components = {
-        stage: f"components:{model.stage(stage).class_name}"  # type: ignore[union-attr]
-        for stage in ("monitor", "analyse", "plan", "legitimate", "execute")
-        if model.stage(stage) is not None
-    }
+    components: dict[str, Any] = {}
+    for stage in ("monitor", "analyse", "plan", "legitimate", "execute"):
+        component = model.stage(stage)
+        if component is None:
+            continue
+        ref = f"components:{component.class_name}"
+        # what the monitor or plan declares it produces: the app's signal check needs it
+        if component.produces and stage in ("monitor", "plan"):
+            components[stage] = {"component": ref, "produces": dict(component.produces)}
+        else:
+            components[stage] = ref
     simulator = interface.get("simulator", {})
     config: dict[str, Any] = {
         "name": model.name,
@@ -215,7 +221,8 @@ def model_from_manifest(manifest: Any) -> ArchitectureModel:
         links.append(Link(effector.topic, f"execute.{port}", (f"managed_system.{port}",)))
     for stage, ref in manifest.components.items():
         ports = monitor_ports if stage == "monitor" else execute_ports if stage == "execute" else {}
-        components[stage] = Component(stage, stage, dict(ports), description=ref)
+        produces = manifest.produces.get(stage, {})
+        components[stage] = Component(stage, stage, dict(ports), dict(produces), description=ref)
     components["managed_system"] = Component(
         "managed_system", "managed", managed_ports, description=manifest.simulator or ""
     )

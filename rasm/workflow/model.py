@@ -254,8 +254,12 @@ def load_model(path: str | Path) -> ArchitectureModel:
     return parse_model(text, file)
 
 
-def lint_model(path: str | Path) -> list[SourceError]:
-    """Every problem in a model (schema and cross-checks) as :class:`SourceError` with positions."""
+def lint_model(path: str | Path, *, signals: bool = True) -> list[SourceError]:
+    """Every problem in a model (schema and cross-checks) as :class:`SourceError` with positions.
+
+    ``signals=False`` leaves out the names its property and rule files read that no component
+    produces (for a model linted with its app, whose manifest's check is the one that runs).
+    """
     from rasm.workflow.checks import check_model
 
     try:
@@ -264,7 +268,7 @@ def lint_model(path: str | Path) -> list[SourceError]:
         return list(exc.errors)
     except SourceError as exc:
         return [exc]
-    return check_model(model)
+    return check_model(model, signals=signals)
 
 
 def _build(src: YamlSource, file: Path) -> ArchitectureModel:

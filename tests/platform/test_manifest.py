@@ -189,8 +189,12 @@ def test_cli_run_names_the_place_of_a_component_that_cannot_be_a_stage(
     monkeypatch.chdir(tmp_path)
     assert main(["run", str(app), "--clock", "simulated", "--duration", "1"]) == 2
     err = capsys.readouterr().err
-    line = next(i for i, t in enumerate(text.splitlines(), 1) if f"plan: {ref}" in t)
-    assert err == f"rasm: {app / 'app.yaml'}:{line}:9: {message}\n"
+    line, col = next(
+        (i, t.index(ref) + 1)
+        for i, t in enumerate(text.splitlines(), 1)
+        if t.strip() == f"component: {ref}"
+    )
+    assert err == f"rasm: {app / 'app.yaml'}:{line}:{col}: {message}\n"
 
 
 def test_platform_refuses_bad_arguments_with_what_to_do(tmp_path):

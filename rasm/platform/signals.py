@@ -1,0 +1,342 @@
+"""The static signal check: every name a property or rule reads is one the app provides.
+
+A property reads signals from the adaptation trace, a rule reads a plan's fields and knowledge.
+A name nothing writes is a mistake nothing else catches: the property waits for it forever and
+is never judged, the rule misses its value and rejects every plan. So ``rasm lint`` and ``rasm
+run`` refuse such an app, at the place of the read, suggesting the closest provided name.
+
+What an app provides (:func:`provided`):
+
+* to properties (the trace): its probes' signals, the loop's own keys, the Monitor's derived
+  signals (``components.monitor.produces``), the Plan's fields (``components.plan.produces``:
+  the ``planned`` record carries them) and, with a twin, ``twin_residual``; inside a property
+  file, ``let`` names and inputs declared with a default need no provider;
+* to rules: knowledge (probe signals, the Monitor's derived signals, the twin's outputs) and
+  plan fields (``components.plan.produces`` and the effectors' ``fields``: the Trustworthiness
+  Manager judges the action's payload over the plan).
+
+Types are checked too: a value of a type the reader cannot take is refused at run time (an
+``int`` input given floats, a ``bool`` event given numbers), so a property would never be judged
+and a rule would reject every plan; that is an error like a missing provider.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from collections.abc import Collection, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rasm.errors import Location, SourceError, SourceErrors, mark, read_utf8
+from rasm.platform.manifest import AppManifest, manifest_location
+from rasm.platform.trace import LOOP_KEYS
+from rasm.resources import data_dir
+
+__all__ = [
+    "LOOP_SIGNAL_TYPES",
+    "Provided",
+    "Provider",
+    "app_problems",
+    "check_app",
+    "closest",
+    "provided",
+    "reads",
+    "unprovided",
+]
+
+#: The type of each key the loop writes in the trace (LOOP_KEYS), as a property reads it.
+LOOP_SIGNAL_TYPES: dict[str, str] = {
+    "time": "float",
+    "stage": "str",
+    "duration": "float",
+    "anomaly": "bool",
+    "planned": "bool",
+    "legitimate": "bool",
+    "rejected": "bool",
+    "trusted": "bool",
+    "executed": "bool",
+    "dropped": "bool",
+    "plan": "str",
+    "broken_rules": "json",
+    "explanation": "str",
+    "drift": "bool",
+    "twin_model_version": "int",
+}
+
+# what the runtime registers in knowledge for a twin (twin_residual also goes in the trace)
+_TWIN_KNOWLEDGE = {"twin_residual": "float", "twin_model": "json"}
+
+# which provided types a reader of each type takes (rasm.spec.monitor.coerce, Variable.contains)
+_PROPERTY_TAKES = {
+    "float": {"float", "int"},
+    "int": {"int"},
+    "bool": {"bool"},
+    "str": {"str"},
+    "any": {"float", "int", "bool", "str"},
+}
+_RULE_TAKES = {
+    "real": {"float", "int"},
+    "int": {"int"},
+    "bool": {"bool"},
+    "enum": {"str"},
+}
+
+
+@dataclass(frozen=True)
+class Provider:
+    """What writes a name: its type and where it is declared, in words."""
+
+    type: str
+    origin: str
+
+
+@dataclass(frozen=True)
+class Provided:
+    """The names an app writes: in the trace (what properties read), in knowledge, and as plan
+    fields (what rules read besides knowledge)."""
+
+    trace: dict[str, Provider] = field(default_factory=dict)
+    knowledge: dict[str, Provider] = field(default_factory=dict)
+    plan: dict[str, Provider] = field(default_factory=dict)
+
+    @property
+    def rules(self) -> dict[str, Provider]:
+        """What a rule may read: plan fields win over knowledge of the same name, as in the
+        Legitimate stage."""
+        return {**self.knowledge, **self.plan}
+
+
+def provided(manifest: AppManifest) -> Provided:
+    """Every name ``manifest``'s app writes, with its type and provider."""
+    knowledge: dict[str, Provider] = {}
+    for probe in manifest.probes:
+        for key, signal in probe.signals.items():
+            knowledge[key] = Provider(signal.type, f"probe {probe.topic}")
+    for key, kind in manifest.produces.get("monitor", {}).items():
+        knowledge.setdefault(key, Provider(kind, "components.monitor.produces"))
+    if manifest.twin:
+        for key, kind in _TWIN_KNOWLEDGE.items():
+            knowledge[key] = Provider(kind, "the digital twin")
+    plan: dict[str, Provider] = {}
+    for key, kind in manifest.produces.get("plan", {}).items():
+        plan[key] = Provider(kind, "components.plan.produces")
+    for effector in manifest.effectors.values():
+        for key, kind in effector.fields.items():
+            plan.setdefault(key, Provider(kind, f"effector {effector.name}'s fields"))
+    # a loop key without a known type ("any") is provided but not type-checked
+    trace = {key: Provider(LOOP_SIGNAL_TYPES.get(key, "any"), "the loop") for key in LOOP_KEYS}
+    # the trace holds knowledge as registered and the planned record the plan's fields
+    trace.update({k: v for k, v in knowledge.items() if k != "twin_model"})
+    for key, provider in plan.items():
+        if provider.origin == "components.plan.produces":
+            trace.setdefault(key, provider)
+    return Provided(trace, knowledge, plan)
+
+
+def closest(name: str, candidates: Collection[str]) -> str | None:
+    """The candidate most like ``name`` (a likely misspelling of it), or None."""
+    found = difflib.get_close_matches(name, sorted(candidates), n=1)
+    return found[0] if found else None
+
+
+def reads(spec: Any) -> list[tuple[str, Location]]:
+    """Every place a property or ``let`` of ``spec`` (a checked Specification) reads a signal,
+    in file order, each place once (a ``let`` used twice is read at its definition once)."""
+    from rasm.spec.ast import Name, children
+
+    places: dict[tuple[str, Location], None] = {}
+    stack = [let.expr for let in reversed(spec.lets)]
+    stack += [prop.formula for prop in reversed(spec.properties)]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Name):
+            places.setdefault((node.name, node.location), None)
+        stack.extend(reversed(children(node)))
+    return sorted(places, key=lambda p: (p[1].line, p[1].col, p[0]))
+
+
+def unprovided(spec: Any, names: Collection[str]) -> list[tuple[str, Location, str]]:
+    """The signals ``spec`` reads that are not in ``names``, as (name, place, what): each read
+    (``what`` is "read") and each declaration never read (``what`` is "input" or "event").
+    An input declared with a default needs no provider."""
+    defaulted = {item.name for item in spec.inputs if item.default is not None}
+    have = set(names) | defaulted
+    found = [(name, where, "read") for name, where in reads(spec) if name not in have]
+    read = {name for name, _ in reads(spec)}
+    for kind, items in (("input", spec.inputs), ("event", spec.events)):
+        found += [
+            (item.name, item.location, kind)
+            for item in items
+            if item.name not in have and item.name not in read
+        ]
+    return sorted(found, key=lambda f: (f[1].line, f[1].col, f[0]))
+
+
+# --------------------------------------------------------------------------- the app check
+
+
+def app_problems(manifest: AppManifest) -> list[SourceError]:
+    """Every name the app's property and rule files read that nothing provides, or provides
+    with a type they cannot take; and veto properties or a mode signal that do not exist.
+    A file that does not parse is reported with its own errors."""
+    have = provided(manifest)
+    problems: list[SourceError] = []
+    names: set[str] = set()
+    for path in manifest.properties:
+        spec = _parsed(path, _load_properties, problems)
+        if spec is not None:
+            names.update(p.name for p in spec.properties)
+            problems += _property_problems(spec, have)
+    for path in manifest.rules:
+        rules = _parsed(path, _load_rules, problems)
+        if rules is not None:
+            problems += _rule_problems(rules, have)
+    problems += _trustworthiness_problems(manifest, have, names)
+    return problems
+
+
+def check_app(manifest: AppManifest) -> None:
+    """Raise :class:`SourceErrors` with :func:`app_problems`, if there are any (``rasm run``'s
+    start-up: an app whose properties could never be judged does not run)."""
+    problems = app_problems(manifest)
+    if problems:
+        raise SourceErrors(problems)
+
+
+def _load_properties(text: str, source: str) -> Any:
+    from rasm.spec import load_specification
+
+    return load_specification(text, source=source)
+
+
+def _load_rules(text: str, source: str) -> Any:
+    from rasm.rules import parse_rules
+
+    return parse_rules(text, source=source)
+
+
+def _parsed(path: Path, load: Any, problems: list[SourceError]) -> Any:
+    source = os.path.normpath(path)  # named as a folder lint names the file
+    try:
+        return load(read_utf8(path), source)
+    except SourceErrors as exc:
+        problems.extend(exc.errors)
+    except SourceError as exc:
+        problems.append(exc)
+    except OSError as exc:
+        problems.append(SourceError(f"cannot read: {exc.strerror}", Location(source)))
+    return None
+
+
+def _error(message: str, where: Location, width: int = 1) -> SourceError:
+    try:
+        text = read_utf8(where.file)
+    except (OSError, SourceError):
+        return SourceError(message, where)
+    return SourceError(message, where, mark(text, where.line, where.col, width))
+
+
+def _property_problems(spec: Any, have: Provided) -> list[SourceError]:
+    problems = []
+    for name, where, what in unprovided(spec, have.trace):
+        problems.append(_error(_not_provided(name, what, have.trace), where, len(name)))
+    declared = {item.name: item.location for item in (*spec.inputs, *spec.events)}
+    first_read = {}
+    for name, where in reads(spec):
+        first_read.setdefault(name, where)
+    for name, kind in spec.signals.items():
+        provider = have.trace.get(name)
+        if provider is None or provider.type == "any" or provider.type in _PROPERTY_TAKES[kind]:
+            continue
+        where = declared.get(name) or first_read.get(name) or Location(spec.source)
+        used = "any value" if kind == "any" else f"a {kind}"
+        problems.append(
+            _error(
+                f"signal '{name}' is read as {used} but {provider.origin} gives it as "
+                f"{provider.type}: every value would be refused and no property reading it "
+                "judged",
+                where,
+                len(name),
+            )
+        )
+    return sorted(problems, key=lambda e: (e.location.line, e.location.col))
+
+
+def _not_provided(name: str, what: str, have: Mapping[str, Provider]) -> str:
+    subject = "signal" if what == "read" else what
+    message = f"{subject} '{name}' is not provided by any part of the app"
+    suggestion = closest(name, have)
+    if suggestion is not None:
+        return f"{message}: did you mean '{suggestion}'?"
+    return (
+        f"{message} (declare it in a probe's signals or under components.monitor.produces; "
+        "a property can read those, the Plan's fields, the twin's and the loop's keys)"
+    )
+
+
+def _rule_problems(rules: Any, have: Provided) -> list[SourceError]:
+    readable = have.rules
+    problems = []
+    for name, variable in rules.variables.items():
+        provider = readable.get(name)
+        where = variable.location
+        if provider is None:
+            message = (
+                f"rule variable '{name}' is neither a plan field nor a signal the app provides"
+            )
+            suggestion = closest(name, readable)
+            if suggestion is not None:
+                message += f": did you mean '{suggestion}'?"
+            elif not have.plan:
+                message += (
+                    "; the app declares no plan fields: list the fields of its plans under "
+                    "components.plan.produces"
+                )
+            problems.append(_error(message, where, len(name)))
+        elif provider.type != "any" and provider.type not in _RULE_TAKES[variable.type]:
+            problems.append(
+                _error(
+                    f"rule variable '{name}' is {variable.type} but {provider.origin} gives it "
+                    f"as {provider.type}: the rules reading it would reject every plan",
+                    where,
+                    len(name),
+                )
+            )
+    return problems
+
+
+def _trustworthiness_problems(
+    manifest: AppManifest, have: Provided, names: set[str]
+) -> Iterator[SourceError]:
+    """A veto property no file defines would never veto; a mode signal nothing writes leaves
+    every effector's modes unknown."""
+    if manifest.veto_properties:
+        names = names | _platform_property_names()
+        for i, name in enumerate(manifest.veto_properties):
+            if name not in names:
+                message = f"veto property '{name}' is not a property of this app"
+                suggestion = closest(name, names)
+                if suggestion is not None:
+                    message += f": did you mean '{suggestion}'?"
+                path = ["trustworthiness", "veto_properties", i]
+                yield SourceError(message, manifest_location(manifest, path))
+    signal = manifest.mode_signal
+    if signal is not None and signal not in have.knowledge:
+        message = f"mode signal '{signal}' is not a signal the app provides"
+        suggestion = closest(signal, have.knowledge)
+        if suggestion is not None:
+            message += f": did you mean '{suggestion}'?"
+        yield SourceError(message, manifest_location(manifest, ["trustworthiness", "mode_signal"]))
+
+
+def _platform_property_names() -> set[str]:
+    """The properties every app runs (the platform's ``properties/*.rv``)."""
+    from rasm.spec import load_specification
+
+    names: set[str] = set()
+    for path in sorted(data_dir("properties").glob("*.rv")):
+        spec = load_specification(read_utf8(path), source=str(path))
+        names.update(p.name for p in spec.properties)
+    return names
