@@ -116,7 +116,7 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
         path = list(error.absolute_path)
         where = ".".join(str(p) for p in path) or "the manifest"
         message = error.message
-        if error.validator == "propertyNames":
+        if "propertyNames" in error.schema_path:
             node = _node_at(src.data, path)
             bad = str(error.instance)
             errors.append(

@@ -193,8 +193,8 @@ def app_problems(manifest: AppManifest) -> list[SourceError]:
         rules = _parsed(path, _load_rules, problems)
         if rules is not None:
             problems += _rule_problems(rules, have)
-    problems += _trustworthiness_problems(manifest, have, names)
-    return problems
+    found = _trustworthiness_problems(manifest, have, names)
+    return problems + sorted(found, key=lambda e: (e.location.line, e.location.col))
 
 
 def check_app(manifest: AppManifest) -> None:
@@ -289,7 +289,7 @@ def _rule_problems(rules: Any, have: Provided) -> list[SourceError]:
             suggestion = closest(name, readable)
             if suggestion is not None:
                 message += f": did you mean '{suggestion}'?"
-            elif not have.plan:
+            if not have.plan:
                 message += (
                     "; the app declares no plan fields: list the fields of its plans under "
                     "components.plan.produces"

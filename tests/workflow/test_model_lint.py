@@ -305,3 +305,21 @@ def test_two_probe_messages_giving_one_signal_two_types(tmp_path: Path) -> None:
         "field 'lid_open' of LidSensor is float but HotboxSensors's is bool: "
         "both reach knowledge as 'lid_open'"
     )
+
+
+def test_rule_variable_nobody_produces_is_reported_inside_the_model(tmp_path: Path) -> None:
+    rules = BASE.index("  rules:\n")
+    text = BASE[:rules] + BASE[rules:].replace("power_limit", "power_limt")
+    line, col, message = one(tmp_path, text)
+    assert (line, col) == position(text, "power_limt")
+    assert message == (
+        "rules/hotbox.yaml declares rule variable 'power_limt', which no component produces "
+        "(did you mean 'power_limit'?)"
+    )
+
+
+def test_a_misspelled_signal_names_the_closest_produced_one(tmp_path: Path) -> None:
+    text = BASE.replace("always (heater_power <= 100.0)", "always (heater_powr <= 100.0)")
+    line, col, message = one(tmp_path, text)
+    assert (line, col) == position(text, "heater_powr")
+    assert message.endswith("which no component produces (did you mean 'heater_power'?)")
