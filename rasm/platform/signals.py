@@ -119,19 +119,21 @@ def provided(manifest: AppManifest) -> Provided:
     if manifest.twin:
         for key, kind in _TWIN_KNOWLEDGE.items():
             knowledge[key] = Provider(kind, "the digital twin")
-    plan: dict[str, Provider] = {}
-    for key, kind in manifest.produces.get("plan", {}).items():
-        plan[key] = Provider(kind, "components.plan.produces")
+    planned = {
+        key: Provider(kind, "components.plan.produces")
+        for key, kind in manifest.produces.get("plan", {}).items()
+    }
+    plan = dict(planned)
     for effector in manifest.effectors.values():
         for key, kind in effector.fields.items():
             plan.setdefault(key, Provider(kind, f"effector {effector.name}'s fields"))
     # a loop key without a known type ("any") is provided but not type-checked
     trace = {key: Provider(LOOP_SIGNAL_TYPES.get(key, "any"), "the loop") for key in LOOP_KEYS}
-    # the trace holds knowledge as registered and the planned record the plan's fields
-    trace.update({k: v for k, v in knowledge.items() if k != "twin_model"})
-    for key, provider in plan.items():
-        if provider.origin == "components.plan.produces":
-            trace.setdefault(key, provider)
+    # the trace holds knowledge as registered (json values never: reading them is a type
+    # error) and the planned record the plan's fields
+    trace.update(knowledge)
+    for key, provider in planned.items():
+        trace.setdefault(key, provider)
     return Provided(trace, knowledge, plan)
 
 
@@ -251,7 +253,7 @@ def _property_problems(spec: Any, have: Provided) -> list[SourceError]:
         if provider is None or provider.type == "any" or provider.type in _PROPERTY_TAKES[kind]:
             continue
         where = declared.get(name) or first_read.get(name) or Location(spec.source)
-        used = "any value" if kind == "any" else f"a {kind}"
+        used = {"int": "an int", "any": "a plain value"}.get(kind, f"a {kind}")
         problems.append(
             _error(
                 f"signal '{name}' is read as {used} but {provider.origin} gives it as "

@@ -218,7 +218,7 @@ def test_a_type_the_reader_cannot_take_is_refused(tmp_path):
     [(_, line, col, message)] = problems(app)
     assert (line, col) == place(text, "input temperature: int")
     assert message.startswith(
-        "signal 'temperature' is read as a int but probe hotbox/sensors gives it as float"
+        "signal 'temperature' is read as an int but probe hotbox/sensors gives it as float"
     )
     app = copy_app(tmp_path / "again")
     rules = app / "rules" / "hotbox.yaml"
@@ -351,7 +351,7 @@ def test_the_manifest_keeps_the_stage_classes_and_what_they_produce():
     assert manifest.produces["plan"] == {"mode": "str", "setpoint": "float", "power_limit": "float"}
     have = provided(manifest)
     assert have.trace["temperature_mean"].origin == "components.monitor.produces"
-    assert have.trace["twin_residual"].type == "float" and "twin_model" not in have.trace
+    assert have.trace["twin_residual"].type == "float" and have.trace["twin_model"].type == "json"
     assert "twin_model" in have.knowledge and have.rules["mode"].type == "str"
 
 
