@@ -2,7 +2,9 @@
 
 Each file is recognised by its content (a YAML mapping with ``statechart``, ``rules``/``variables``
 or an ``app.yaml``) or its suffix (``.rv``); a folder is searched for such files. Every problem is
-one ``file:line:col: message`` line.
+one ``file:line:col: message`` line, reported once however the paths overlap. An app manifest
+also has the property and rule files it names checked against what the app provides
+(:mod:`rasm.platform.signals`).
 """
 
 from __future__ import annotations
