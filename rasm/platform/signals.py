@@ -23,6 +23,7 @@ and a rule would reject every plan; that is an error like a missing provider.
 from __future__ import annotations
 
 import difflib
+import functools
 import os
 from collections.abc import Collection, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -207,12 +208,16 @@ def check_app(manifest: AppManifest) -> None:
         raise SourceErrors(problems)
 
 
+# Every Platform() checks its app: one parse per file text, not one per run (run_app in a
+# property-based test builds hundreds); the parsed files are frozen data
+@functools.lru_cache(maxsize=64)
 def _load_properties(text: str, source: str) -> Any:
     from rasm.spec import load_specification
 
     return load_specification(text, source=source)
 
 
+@functools.lru_cache(maxsize=64)
 def _load_rules(text: str, source: str) -> Any:
     from rasm.rules import parse_rules
 
@@ -333,7 +338,8 @@ def _trustworthiness_problems(
         yield SourceError(message, manifest_location(manifest, ["trustworthiness", "mode_signal"]))
 
 
-def _platform_property_names() -> set[str]:
+@functools.cache
+def _platform_property_names() -> frozenset[str]:
     """The properties every app runs (the platform's ``properties/*.rv``)."""
     from rasm.spec import load_specification
 
@@ -341,4 +347,4 @@ def _platform_property_names() -> set[str]:
     for path in sorted(data_dir("properties").glob("*.rv")):
         spec = load_specification(read_utf8(path), source=str(path))
         names.update(p.name for p in spec.properties)
-    return names
+    return frozenset(names)
