@@ -169,11 +169,13 @@ def lint_paths(paths: Iterable[str]) -> list[str]:
     named: dict[Path, Path] = {}
     for path in _files(paths):
         named.setdefault(path.resolve(), path)
-    files = list(named.values())
-    apps = {p.resolve().parent for p in files if _yaml_kind(p, _read(p)) is _lint_manifest}
+    kinds = {
+        path: _yaml_kind(path, _read(path)) if path.suffix in YAML_SUFFIXES else None
+        for path in named.values()
+    }
+    apps = {path.resolve().parent for path, kind in kinds.items() if kind is _lint_manifest}
     problems: list[str] = []
-    for path in files:
-        kind = _yaml_kind(path, _read(path)) if path.suffix in YAML_SUFFIXES else None
+    for path, kind in kinds.items():
         if kind is _lint_model and path.resolve().parent in apps:
             problems.extend(_lint_model_beside_app(path, _read(path)))
         else:
