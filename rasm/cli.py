@@ -93,8 +93,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
     # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated.
-    # With RASM_UPDATE_KEY (hex) set, HMAC-signed {"spec": …} on rasm/update/properties replace
-    # the properties at run time (the public checker's unsigned `reconfig`, made safe).
+    # With RASM_UPDATE_KEY (hex) set, HMAC-signed {"spec": …} on rasm/update/properties, bound
+    # to the epoch this process announces on rasm/presence/monitor-<pid>, replace the properties
+    # at run time (the public checker's unsigned `reconfig`, made safe).
     import math
     import os
     import signal
@@ -128,12 +129,17 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     except ValueError:
         raise UsageError("RASM_UPDATE_KEY must be the signing key in hexadecimal") from None
     transport.connect()
+    presence = None
     try:
         attachment.start()
         if key:
-            from rasm.comm import UpdateReceiver
+            from rasm.comm import Presence, UpdateReceiver
 
-            UpdateReceiver(transport, key, properties=attachment.replace).start()
+            receiver = UpdateReceiver(transport, key, properties=attachment.replace).start()
+            # senders bind updates to the epoch announced here (a replayed one is refused)
+            presence = Presence(
+                transport, f"monitor-{os.getpid()}", role="monitor", info={"epoch": receiver.epoch}
+            ).start()
         print(
             f"rasm monitor: {len(attachment.monitor.properties)} properties on "
             f"{len(attachment.subscribed_topics)} topic(s) of {args.transport}; "
@@ -148,6 +154,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         summary = attachment.stop()
     finally:
         attachment.stop()
+        if presence is not None:
+            presence.stop()
         transport.close()
     sys.stdout.write(summary.format())
     return EXIT_FAILED if summary.any_violated else EXIT_OK

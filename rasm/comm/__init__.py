@@ -7,7 +7,8 @@ deliver :class:`Message` objects. :class:`CommunicationManager` adds the seed's 
 
 For a distributed loop: :class:`Presence` / :class:`PresenceTracker` (node start-up, heartbeats,
 shutdown, crash via :func:`presence_will`), :func:`sign` / :func:`verify` with
-:class:`UpdateReceiver` and :class:`SignedEffector` (HMAC-signed updates and actions), and
+:class:`UpdateReceiver` and :class:`SignedEffector` (HMAC-signed updates and actions, bound by
+:class:`BoundSigner` and checked by :class:`ReplayGuard` so none can be replayed), and
 :class:`InfluxWriter` (MAPLE-K timing to InfluxDB, :func:`record_to_points`).
 """
 
@@ -17,13 +18,23 @@ from rasm.comm.local import LocalTransport
 from rasm.comm.manager import CommunicationManager, Publisher, Subscriber
 from rasm.comm.message import Message, TransportStats
 from rasm.comm.presence import NodeState, Presence, PresenceTracker, presence_topic, presence_will
-from rasm.comm.signing import SignedEffector, UpdateOutcome, UpdateReceiver, sign, verify
+from rasm.comm.signing import (
+    BoundSigner,
+    ReplayGuard,
+    SignedEffector,
+    UpdateOutcome,
+    UpdateReceiver,
+    new_epoch,
+    sign,
+    verify,
+)
 from rasm.comm.topics import topic_matches, validate_pattern, validate_topic
 from rasm.comm.transport import Subscription, Transport
 from rasm.comm.url import credentials_from_env, open_transport
 from rasm.errors import CommError
 
 __all__ = [
+    "BoundSigner",
     "CommError",
     "CommunicationManager",
     "InfluxWriter",
@@ -36,6 +47,7 @@ __all__ = [
     "PresenceTracker",
     "Publisher",
     "RESERVED_KEYS",
+    "ReplayGuard",
     "SignedEffector",
     "Subscriber",
     "Subscription",
@@ -45,6 +57,7 @@ __all__ = [
     "UpdateReceiver",
     "Will",
     "credentials_from_env",
+    "new_epoch",
     "open_transport",
     "presence_topic",
     "presence_will",

@@ -2,8 +2,10 @@
 
 Every node owns the topic ``rasm/presence/<node>``:
 
-- start-up: ``{"state": "online", "role": …, "period": P, "seq": 0}`` (retained where the
-  transport can retain, so a tracker started later learns of the node at once);
+- start-up: ``{"state": "online", "role": …, "period": P, "seq": 0, **info}`` (retained where
+  the transport can retain, so a tracker started later learns of the node at once); ``info``
+  carries what the node tells others about itself, e.g. its ``app`` and the ``epoch`` that signed
+  actions and updates must be bound to (:mod:`rasm.comm.signing`);
 - every ``period`` seconds a heartbeat, the same payload with a growing ``seq``;
 - a clean shutdown: ``{"state": "offline", "role": …, "reason": "shutdown"}`` (retained);
 - a crash: the broker publishes the node's last will, ``{"state": "offline", "reason":
@@ -44,6 +46,7 @@ _log = logging.getLogger("rasm.comm.presence")
 
 PRESENCE_PREFIX = "rasm/presence"
 STATES = ("online", "offline", "silent")
+_OWN_FIELDS = ("state", "role", "period", "seq", "reason")
 
 
 def presence_topic(node: str) -> str:
@@ -85,25 +88,42 @@ class Presence:
 
     The transport must be connected (and, over MQTT, created with :func:`presence_will` so a
     crash is advertised too). Heartbeats come from a daemon thread; a failed publish (broker
-    away) is logged and the next heartbeat tries again.
+    away) is logged and the next heartbeat tries again. ``info``: more fields of every online
+    message (start-up and heartbeats), e.g. ``{"epoch": gate.epoch}``.
     """
 
     def __init__(
-        self, transport: Transport, node: str, *, role: str | None = None, period: float = 1.0
+        self,
+        transport: Transport,
+        node: str,
+        *,
+        role: str | None = None,
+        period: float = 1.0,
+        info: dict[str, Any] | None = None,
     ) -> None:
         if not isinstance(period, int | float) or isinstance(period, bool) or not period > 0:
             raise CommError(f"presence period must be a positive number of seconds: {period!r}")
+        clash = sorted(set(info or ()) & set(_OWN_FIELDS))
+        if clash:
+            raise CommError(f"presence info must not set the presence's own fields: {clash}")
         self.transport = transport
         self.node = node
         self.role = role
         self.period = float(period)
         self.topic = presence_topic(node)
+        self.info = dict(info or {})
         self.heartbeats = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     def _online(self, seq: int) -> dict[str, Any]:
-        return {"state": "online", "role": self.role, "period": self.period, "seq": seq}
+        return {
+            "state": "online",
+            "role": self.role,
+            "period": self.period,
+            "seq": seq,
+            **self.info,
+        }
 
     def start(self) -> Presence:
         """Announce start-up and start the heartbeats; returns self."""
@@ -227,6 +247,20 @@ class PresenceTracker:
             return {
                 name: NodeState(s.node, s.state, s.role, s.last_seen, s.reason, dict(s.payload))
                 for name, s in self._nodes.items()
+            }
+
+    def epochs(self, *, role: str | None = None, app: str | None = None) -> dict[str, str]:
+        """The announced ``epoch`` of every online node (of ``role`` and ``app`` when given), by
+        name: what a signer binds its messages to (:class:`rasm.comm.BoundSigner`)."""
+        with self._cond:
+            return {
+                name: known.payload["epoch"]
+                for name, known in self._nodes.items()
+                if known.state == "online"
+                and (role is None or known.role == role)
+                and (app is None or known.payload.get("app") == app)
+                and isinstance(known.payload.get("epoch"), str)
+                and 0 < len(known.payload["epoch"]) <= 128
             }
 
     def state(self, node: str) -> str | None:

@@ -5,12 +5,19 @@
   managing side tracks the managed nodes: when the last one goes offline or silent the
   orchestrator's chart gets ``managed_system_lost`` (it stops starting iterations, and the
   Trustworthiness Checker refuses actions), and ``managed_system_back`` when one returns.
+- **Incarnations**: every process draws a random ``epoch`` at start and announces it in its
+  presence message, and a random ``run`` id; a live run's plan ids start with the run id, so
+  they never repeat across runs (a simulated run keeps ``p1``, ``p2``, …: reproducible).
 - **Signed actions**: with ``RASM_ACTION_KEY`` (hex) set, the Trustworthiness Checker signs every
-  action (HMAC-SHA256) and the managed side applies only correctly signed, never replayed ones.
+  action (HMAC-SHA256) bound to the announced epochs of the managed processes, its run and a
+  growing sequence; the managed side applies only correctly signed actions bound to its own
+  epoch and newer than what it applied from that run. Until the managing side has seen a
+  managed process's epoch it sends nothing: the action is refused, with the reason in the
+  trace.
 - **Signed updates**: with ``RASM_UPDATE_KEY`` (hex) set, new rules and properties pushed on
-  ``rasm/update/rules`` and ``rasm/update/properties`` replace the running ones only when signed
-  and, for rules, consistent; every accepted or refused update is logged and answered on
-  ``rasm/update/result``.
+  ``rasm/update/rules`` and ``rasm/update/properties`` replace the running ones only when
+  signed, bound to this process's epoch (as actions are) and, for rules, consistent; every
+  accepted or refused update is logged and answered on ``rasm/update/result``.
 - **Timing**: every trace record (stage timing, adaptation events, verdicts) also goes to InfluxDB
   as line protocol when the manifest names a server (``timing: http://host:8086/db``), to a local
   file otherwise (``.rasm/<app>/timing.lp``, started afresh by a simulated run, appended to by a
@@ -23,12 +30,14 @@ from __future__ import annotations
 
 import logging
 import os
+import secrets
 import time as _time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import PlatformError
+from rasm.comm.signing import BoundSigner, SignedEffector, new_epoch
+from rasm.errors import CommError, PlatformError
 
 __all__ = ["Distribution", "key_from_env"]
 
@@ -62,9 +71,16 @@ class Distribution:
         self.tracker: Any = None
         self.updates: Any = None
         self.timing: Any = None
-        self.gate: Any = None
+        self.gates: list[Any] = []  # one effector gate per effector topic
         self.managed_nodes: dict[str, str] = {}
         self._epoch = 0.0
+        # this process's incarnation (what actions and updates sent to it must be bound to)
+        # and this run of its managing side (the prefix of live plan ids, the signer's run)
+        self.epoch = new_epoch()
+        self.run = secrets.token_hex(8)
+        self.signer = (
+            BoundSigner(self.action_key, run=self.run) if self.action_key is not None else None
+        )
 
     def transport_options(self) -> dict[str, Any]:
         """Options for ``open_transport``: the last will that marks this node offline, and the
@@ -89,7 +105,11 @@ class Distribution:
         from rasm.comm import Presence, PresenceTracker, UpdateReceiver
 
         self.presence = Presence(
-            p.transport, self.node, role=p.role, period=max(p.manifest.period, 0.5)
+            p.transport,
+            self.node,
+            role=p.role,
+            period=max(p.manifest.period, 0.5),
+            info={"app": p.manifest.name, "epoch": self.epoch},
         ).start()
         if p.role in ("all", "managing"):
             p.trace.observers.append(self._publish_record)
@@ -104,6 +124,7 @@ class Distribution:
                     self.update_key,
                     rules=self._apply_rules,
                     properties=self._apply_properties,
+                    epoch=self.epoch,
                 ).start()
 
     def stop(self) -> None:
@@ -152,6 +173,11 @@ class Distribution:
         info = tracker.nodes().get(node) if tracker is not None else None
         if info is None or info.role != "managed":
             return
+        if (
+            node not in self.managed_nodes
+            and info.payload.get("app") != self.platform.manifest.name
+        ):
+            return  # another application's managed system on the same broker
         before = any(s == "online" for s in self.managed_nodes.values())
         self.managed_nodes[node] = state
         after = any(s == "online" for s in self.managed_nodes.values())
@@ -187,18 +213,42 @@ class Distribution:
 
     # ------------------------------------------------------------------ actions
 
-    def sign(self, payload: dict[str, Any]) -> dict[str, Any]:
-        if self.action_key is None:
+    def _managed_epochs(self) -> list[str]:
+        """The epochs of the managed processes an action is for: this process's own in role
+        ``all``, and those of the online managed processes of this app announced so far."""
+        epochs = [self.epoch] if self.platform.role == "all" else []
+        if self.tracker is not None:
+            found = self.tracker.epochs(role="managed", app=self.platform.manifest.name)
+            epochs += sorted(found.values())
+        return epochs
+
+    def seal(self, topic: str, payload: dict[str, Any]) -> dict[str, Any]:
+        """``payload`` as it goes on ``topic``: signed and bound when ``RASM_ACTION_KEY`` is set.
+
+        Raises :class:`CommError` (the checker refuses the action, with this reason) when no
+        managed process has announced its epoch yet: an action bound to nobody is not sent.
+        """
+        if self.signer is None:
             return payload
-        from rasm.comm import sign
+        epochs = self._managed_epochs()
+        if not epochs:
+            raise CommError(
+                "not sent: no managed process has announced its epoch yet, and a signed action "
+                "is bound to the epoch of the process that applies it"
+            )
+        return self.signer.sign(payload, topic=topic, epochs=epochs)
 
-        return sign(payload, self.action_key)
-
-    def effector_gate(self, apply: Callable[[dict[str, Any]], Any]) -> Callable[[dict], Any]:
-        """What the managed side calls with an incoming action payload."""
+    def effector_gate(
+        self, apply: Callable[[dict[str, Any]], Any], topic: str
+    ) -> Callable[[dict], Any]:
+        """What the managed side calls with an action payload received on ``topic``."""
         if self.action_key is None:
             return apply
-        from rasm.comm import SignedEffector
+        gate = SignedEffector(self.action_key, apply, epoch=self.epoch, topic=topic)
+        self.gates.append(gate)
+        return gate.handle
 
-        self.gate = SignedEffector(self.action_key, apply)
-        return self.gate.handle
+    @property
+    def actions_refused(self) -> int:
+        """Actions the effector gates refused (unsigned, bad signature, replayed, unbound)."""
+        return sum(gate.refused for gate in self.gates)

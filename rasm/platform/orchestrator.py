@@ -62,7 +62,7 @@ class AdaptationOrchestrator(Block):
     # plan's check only, and stay in the instance dict).
     __slots__ = (
         "twin", "components", "knowledge", "rules", "register", "emit", "am", "tm", "sm",
-        "stage_budget", "max_actions", "runner", "stats", "ctx", "_plans",
+        "stage_budget", "max_actions", "runner", "stats", "ctx", "_plans", "plan_prefix",
     )
 
     chart_name = "adaptation_orchestrator"
@@ -87,6 +87,7 @@ class AdaptationOrchestrator(Block):
         twin_properties: list[tuple[str, str]] = (),  # type: ignore[assignment]
         twin_horizon: float = 20.0,
         twin_dt: float = 0.5,
+        plan_prefix: str = "",
         **kw: Any,
     ) -> None:
         self.twin = twin
@@ -111,6 +112,7 @@ class AdaptationOrchestrator(Block):
         self.stats = LoopStats()
         self.ctx: StageContext | None = None
         self._plans = 0
+        self.plan_prefix = plan_prefix  # plan ids are f"{plan_prefix}p{n}"
         super().__init__(context={"stage_budget": stage_budget, "max_replans": max_replans}, **kw)
         # the property statecharts of monitors/ watch every step of the loop (docs/statecharts.md)
         for path in platform_monitors():
@@ -204,7 +206,7 @@ class AdaptationOrchestrator(Block):
     def on_enter_planning(self) -> None:
         def done(ctx: StageContext, result: Any) -> str:
             self._plans += 1
-            plan = as_plan(result, f"p{self._plans}")
+            plan = as_plan(result, f"{self.plan_prefix}p{self._plans}")
             if plan is None:
                 self.emit(self.clock.time, {"explanation": "no plan for the anomaly"})
                 return "no_plan"

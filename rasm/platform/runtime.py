@@ -368,6 +368,8 @@ class Platform:
             tm=self.tm,
             sm=self.sm,
             stage_budget=m.stage_budget,
+            # live plan ids never repeat across runs; a simulated run's stay reproducible
+            plan_prefix="" if self.clock_kind == "simulated" else f"{self.dist.run}-",
             max_replans=m.max_replans,
             max_actions=m.max_actions,
             isolate_stages=self.isolate_stages,
@@ -522,7 +524,7 @@ class Platform:
 
     def _send_action(self, effector: Effector, action: Action) -> None:
         payload = {**action.payload, "plan": action.plan, "kind": action.kind}
-        self.cm.publish_message(effector.topic, self.dist.sign(payload))
+        self.cm.publish_message(effector.topic, self.dist.seal(effector.topic, payload))
 
     def _on_probe(self, message: Any) -> None:
         # Delivered on the transport's thread: hand it to the loop thread (digested at the
@@ -537,7 +539,7 @@ class Platform:
         gate = self._effector_gates.get(name)
         if gate is None:  # the gate checks signatures when RASM_ACTION_KEY is set
             gate = self._effector_gates[name] = self.dist.effector_gate(
-                lambda action, name=name: self._apply_action(name, action)
+                lambda action, name=name: self._apply_action(name, action), message.topic
             )
         self.scheduler.submit(lambda: gate(payload))
 
@@ -633,11 +635,11 @@ class Platform:
 
     def _bus_refusals(self) -> dict[str, int]:
         stats = getattr(getattr(self, "transport", None), "stats", None)
-        gate = getattr(getattr(self, "dist", None), "gate", None)
-        updates = getattr(getattr(self, "dist", None), "updates", None)
+        dist = getattr(self, "dist", None)
+        updates = getattr(dist, "updates", None)
         counts = {
             "malformed messages": getattr(stats, "malformed", 0),
-            "actions refused by the effector gate": getattr(gate, "refused", 0),
+            "actions refused by the effector gate": getattr(dist, "actions_refused", 0),
             "updates refused": getattr(updates, "refused", 0),
         }
         return {what: n for what, n in counts.items() if n}

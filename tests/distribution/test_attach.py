@@ -217,7 +217,7 @@ property slow:
 
 
 def test_signed_property_updates_replace_the_monitors(mqtt):
-    from rasm.comm import UpdateReceiver, sign
+    from rasm.comm import BoundSigner, UpdateReceiver
 
     key = b"operator key"
     bus, operator = mqtt(), mqtt()
@@ -226,7 +226,11 @@ def test_signed_property_updates_replace_the_monitors(mqtt):
     operator.subscribe("slow", slow, qos=1)
     operator.subscribe("rasm/update/result", results, qos=1)
     attachment = Attachment(PROPS, bus, qos=1).start()
-    UpdateReceiver(bus, key, properties=attachment.replace).start()
+    receiver = UpdateReceiver(bus, key, properties=attachment.replace).start()
+    signer = BoundSigner(key)
+
+    def sign(payload: dict, key: bytes) -> dict:
+        return signer.sign(payload, topic="rasm/update/properties", epochs=[receiver.epoch])
 
     operator.publish("rasm/update/properties", {"spec": NEW_PROPS}, qos=1)
     assert results.get().payload["reason"] == "unsigned"

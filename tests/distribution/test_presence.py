@@ -190,3 +190,34 @@ def test_on_change_reports_each_change_once_in_order(messages):
     assert {n: s.state for n, s in tracker.nodes().items()} == last
     tracker.stop()
     bus.close()
+
+
+def test_presence_info_reaches_the_tracker_and_epochs_lists_online_nodes():
+    bus = LocalTransport()
+    bus.connect()
+    tracker = PresenceTracker(bus, timeout=3600).start()
+    managed = Presence(bus, "box-managed-1", role="managed", info={"app": "box", "epoch": "e1"})
+    other = Presence(bus, "oven-managed-2", role="managed", info={"app": "oven", "epoch": "e2"})
+    managing = Presence(bus, "box-managing-3", role="managing", info={"app": "box", "epoch": "e3"})
+    for presence in (managed, other, managing):
+        presence.start()
+    bus.publish(presence_topic("liar"), {"state": "online", "role": "managed", "epoch": 42})
+    assert tracker.nodes()["box-managed-1"].payload == {
+        "state": "online",
+        "role": "managed",
+        "period": 1.0,
+        "seq": 0,
+        "app": "box",
+        "epoch": "e1",
+    }
+    assert tracker.epochs(role="managed", app="box") == {"box-managed-1": "e1"}
+    assert tracker.epochs(app="box") == {"box-managed-1": "e1", "box-managing-3": "e3"}
+    assert tracker.epochs(role="managed") == {"box-managed-1": "e1", "oven-managed-2": "e2"}
+    managed.stop()  # offline: its epoch is no longer one to bind to
+    assert tracker.epochs(role="managed", app="box") == {}
+    for presence in (other, managing):
+        presence.stop()
+    tracker.stop()
+    bus.close()
+    with pytest.raises(CommError, match="own fields"):
+        Presence(bus, "n", info={"state": "offline"})

@@ -9,8 +9,16 @@ import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
-from rasm.comm import Message, SignedEffector, UpdateReceiver, sign, verify
-from rasm.comm.signing import SIGNATURE, canonical
+from rasm.comm import (
+    BoundSigner,
+    Message,
+    ReplayGuard,
+    SignedEffector,
+    UpdateReceiver,
+    sign,
+    verify,
+)
+from rasm.comm.signing import SIGNATURE, UPDATE_TOPICS, canonical
 from rasm.errors import CommError
 from rasm.rules import RuleSet
 from rasm.rules.loader import parse_rules
@@ -143,63 +151,106 @@ def _rules_applier(ruleset: RuleSet):
     return apply
 
 
-def test_only_signed_consistent_rule_sets_are_applied_over_mqtt(mqtt):
+def _bound(signer: BoundSigner, receiver, kind: str, payload: dict, **bind) -> dict:
+    """``payload`` signed by ``signer`` for ``receiver`` on the topic of ``kind`` updates."""
+    bind = {"topic": UPDATE_TOPICS[kind][0], "epochs": [receiver.epoch], **bind}
+    return signer.sign(payload, **bind)
+
+
+def test_only_signed_bound_consistent_rule_sets_are_applied_over_mqtt(mqtt):
     ruleset = RuleSet(parse_rules(CONSISTENT, source="initial.yaml"))
     node, operator = mqtt(), mqtt()
     results = Inbox()
     operator.subscribe("rasm/update/result", results, qos=1)
     receiver = UpdateReceiver(node, KEY, rules=_rules_applier(ruleset)).start()
+    signer = BoundSigner(KEY)
 
     def send(payload: dict) -> dict:
         operator.publish("rasm/update/rules", payload, qos=1)
         return results.get().payload
 
     unsigned = send({"rules": OTHER_CONSISTENT})
-    forged = send(sign({"rules": OTHER_CONSISTENT}, b"someone else's key"))
-    tampered = sign({"rules": CONSISTENT}, KEY)
+    forged = send(
+        BoundSigner(b"someone else's key").sign(
+            {"rules": OTHER_CONSISTENT}, topic="rasm/update/rules", epochs=[receiver.epoch]
+        )
+    )
+    tampered = _bound(signer, receiver, "rules", {"rules": CONSISTENT})
     tampered["rules"] = OTHER_CONSISTENT
     tampered = send(tampered)
-    inconsistent = send(sign({"rules": INCONSISTENT}, KEY))
-    assert [r["accepted"] for r in (unsigned, forged, tampered, inconsistent)] == [False] * 4
+    unbound = send(sign({"rules": OTHER_CONSISTENT}, KEY))
+    elsewhere = send(_bound(signer, receiver, "rules", {"rules": OTHER_CONSISTENT}, epochs=["x"]))
+    wrong_topic = send(
+        _bound(signer, receiver, "rules", {"rules": OTHER_CONSISTENT}, topic="rasm/update/x")
+    )
+    inconsistent = send(_bound(signer, receiver, "rules", {"rules": INCONSISTENT}))
+    refusals = (unsigned, forged, tampered, unbound, elsewhere, wrong_topic, inconsistent)
+    assert [r["accepted"] for r in refusals] == [False] * 7
     assert unsigned["reason"] == "unsigned"
     assert forged["reason"] == tampered["reason"] == "bad signature"
+    assert "not bound to a receiver's incarnation" in unbound["reason"]
+    assert "signed for another incarnation" in elsewhere["reason"]
+    assert wrong_topic["reason"] == (
+        "signed for topic 'rasm/update/x', received on 'rasm/update/rules'"
+    )
     assert inconsistent["reason"].startswith("applier refused: rules kept")
     assert "inconsistent" in inconsistent["reason"]
+    # every answer tells the sender the epoch to bind to
+    assert {r["epoch"] for r in refusals} == {receiver.epoch}
     # the rules in force are still the initial ones
     assert ruleset.evaluate({"velocity": 0.15}, {"mode": "dock"}).accepted is False
 
-    accepted = send(sign({"rules": OTHER_CONSISTENT}, KEY))
-    assert accepted["accepted"] is True
+    good = _bound(signer, receiver, "rules", {"rules": OTHER_CONSISTENT})
+    assert send(good)["accepted"] is True
     assert ruleset.evaluate({"velocity": 0.15}, {"mode": "dock"}).accepted is True
+    replayed = send(good)
+    assert replayed["accepted"] is False
+    assert (
+        replayed["reason"] == f"replayed or stale: sequence {signer.seq} of run {signer.run} "
+        f"after {signer.seq}"
+    )
     kinds = [(o.kind, o.accepted) for o in receiver.outcomes]
-    assert kinds == [("rules", False)] * 4 + [("rules", True)]
+    assert kinds == [("rules", False)] * 7 + [("rules", True), ("rules", False)]
+    assert receiver.refused == 8
     receiver.stop()
 
 
-def test_property_updates_and_versions(mqtt):
+def test_an_update_replayed_into_a_restarted_receiver_is_refused(mqtt):
+    """The update a receiver accepted is refused by its next incarnation; a restarted sender
+    (a new run, its sequence back at 1) is heard by both."""
     applied: list[str] = []
     node, operator = mqtt(), mqtt()
     results = Inbox()
     operator.subscribe("rasm/update/result", results, qos=1)
-    UpdateReceiver(
-        node, KEY, properties=lambda text: (applied.append(text) or True, "monitors replaced")
-    ).start()
+
+    def apply(text: str) -> tuple[bool, str]:
+        applied.append(text)
+        return True, "monitors replaced"
 
     def send(payload: dict) -> dict:
         operator.publish("rasm/update/properties", payload, qos=1)
         return results.get().payload
 
-    assert send(sign({"spec": "property p: always x", "version": 2}, KEY))["accepted"]
-    replay = send(sign({"spec": "property p: always y", "version": 2}, KEY))
-    assert replay == {
-        "kind": "properties",
-        "accepted": False,
-        "reason": "replayed or stale: version 2 after 2",
-        "update": replay["update"],
-    }
-    assert not send(sign({"spec": 42}, KEY))["accepted"]
-    assert send(sign({"spec": "property p: always z", "version": 3}, KEY))["accepted"]
-    assert applied == ["property p: always x", "property p: always z"]
+    first = UpdateReceiver(node, KEY, properties=apply).start()
+    sender = BoundSigner(KEY)
+    update = _bound(sender, first, "properties", {"spec": "property p: always x"})
+    assert send(update)["accepted"]
+    assert send(update)["reason"].startswith("replayed or stale: sequence 1")
+    restarted_sender = BoundSigner(KEY)
+    assert send(_bound(restarted_sender, first, "properties", {"spec": "property p: always y"}))[
+        "accepted"
+    ]
+    first.stop()
+
+    second = UpdateReceiver(node, KEY, properties=apply).start()  # the process restarted
+    assert second.epoch != first.epoch
+    refused = send(update)
+    assert refused["accepted"] is False and "another incarnation" in refused["reason"]
+    assert refused["epoch"] == second.epoch
+    assert send(_bound(restarted_sender, second, "properties", {"spec": "property p: always z"}))[
+        "accepted"
+    ]
+    assert applied == ["property p: always x", "property p: always y", "property p: always z"]
 
 
 def test_an_applier_that_raises_is_a_refusal(caplog):
@@ -207,7 +258,8 @@ def test_an_applier_that_raises_is_a_refusal(caplog):
         raise RuntimeError("disk full")
 
     receiver = UpdateReceiver(object(), KEY, rules=broken, reply=False)  # type: ignore[arg-type]
-    outcome = receiver.receive("rules", Message("rasm/update/rules", sign({"rules": "x"}, KEY)))
+    update = _bound(BoundSigner(KEY), receiver, "rules", {"rules": "x"})
+    outcome = receiver.receive("rules", Message("rasm/update/rules", update))
     assert outcome.accepted is False
     assert outcome.reason == "applier failed: RuntimeError: disk full"
     none = receiver.receive("properties", Message("t", sign({"spec": "x"}, KEY)))
@@ -217,9 +269,9 @@ def test_an_applier_that_raises_is_a_refusal(caplog):
 # ----------------------------------------------------------------------- actions
 
 
-def test_the_effector_gate_passes_only_checker_signed_new_actions(mqtt):
+def test_the_effector_gate_passes_only_checker_signed_bound_new_actions(mqtt):
     executed: list[dict] = []
-    gate = SignedEffector(KEY, executed.append)
+    gate = SignedEffector(KEY, executed.append, topic="robot/cmd")
     effector_side, checker = mqtt(), mqtt()
     done = Inbox()
     effector_side.subscribe(
@@ -227,16 +279,105 @@ def test_the_effector_gate_passes_only_checker_signed_new_actions(mqtt):
         lambda m: done((gate.handle(m.payload), m)),
         qos=1,  # type: ignore[arg-type]
     )
-    action = {"plan": "p7", "velocity": 0.1, "seq": 1}
+    signer = BoundSigner(KEY)
+    action = {"plan": "p7", "velocity": 0.1}
+
+    def bound(**bind) -> dict:
+        return signer.sign(action, **{"topic": "robot/cmd", "epochs": [gate.epoch], **bind})
+
+    good = bound()
     for payload in (
         action,  # unsigned
-        sign(action, b"planner key"),  # not the checker's key
-        sign(action, KEY),  # good
-        sign(action, KEY),  # the same signed action again: a replay
-        sign({**action, "seq": 2}, KEY),  # a new one
+        BoundSigner(b"planner key").sign(action, topic="robot/cmd", epochs=[gate.epoch]),
+        sign(action, KEY),  # signed by the checker, but not bound
+        bound(epochs=["an-earlier-incarnation"]),
+        bound(topic="robot/other"),
+        good,
+        good,  # the same action again: a replay
+        bound(),  # a new one
     ):
         checker.publish("robot/cmd", payload, qos=1)
-    outcomes = [ok for ok, _ in done.take(5)]
-    assert outcomes == [False, False, True, False, True]
-    assert executed == [action, {**action, "seq": 2}]
-    assert (gate.accepted, gate.refused, gate.last_refusal) == (2, 3, "replayed")
+    outcomes = [ok for ok, _ in done.take(8)]
+    assert outcomes == [False, False, False, False, False, True, False, True]
+    # the effector sees the action without its signature and binding
+    assert executed == [action, action]
+    assert (gate.accepted, gate.refused) == (2, 6)
+    assert gate.last_refusal == f"replayed or stale: sequence 1 of run {signer.run} after 1"
+
+
+# ----------------------------------------------------------------------- the acceptance rule
+
+EPOCHS = ("e-now", "e-before", "e-other")
+RUNS = ("r1", "r2", "r3")
+messages = st.lists(
+    st.tuples(
+        st.lists(st.sampled_from(EPOCHS), max_size=3),
+        st.sampled_from(RUNS),
+        st.integers(min_value=-2, max_value=12),
+        st.sampled_from(("t", "u")),
+    ),
+    max_size=40,
+)
+
+
+@given(messages)
+def test_the_guard_admits_exactly_the_bound_newer_messages(sequence):
+    """For any sequence of (epochs, run, seq, topic): admitted iff bound to this epoch and
+    topic, seq a positive integer, and above every seq admitted from that run before."""
+    guard = ReplayGuard("e-now")
+    highest: dict[str, int] = {}
+    admitted: list[tuple[str, int]] = []
+    for epochs, run, seq, topic in sequence:
+        binding = {"epochs": epochs, "run": run, "seq": seq, "topic": topic}
+        expected = "e-now" in epochs and topic == "t" and seq >= 1 and seq > highest.get(run, 0)
+        assert (guard.admit(binding, "t") is None) is expected, (binding, highest)
+        if expected:
+            highest[run] = seq
+            admitted.append((run, seq))
+    # never the same (run, seq) twice, and within a run in increasing order
+    assert len(set(admitted)) == len(admitted)
+    for run in RUNS:
+        seqs = [seq for r, seq in admitted if r == run]
+        assert seqs == sorted(seqs)
+
+
+@given(st.lists(st.integers(min_value=0, max_value=9), max_size=30), st.randoms())
+def test_signed_actions_replayed_in_any_order_apply_at_most_once(picks, rng):
+    """A capture of every action two sender runs sent, replayed in any order and any number of
+    times: each applies at most once, and a restarted effector (a new gate) applies none."""
+    runs = [BoundSigner(KEY), BoundSigner(KEY)]
+    applied: list[dict] = []
+    gate = SignedEffector(KEY, applied.append, topic="robot/cmd")
+    sent = [runs[i % 2].sign({"n": i}, topic="robot/cmd", epochs=[gate.epoch]) for i in range(10)]
+    for i in picks:
+        gate.handle(sent[i])
+    capture = sent + [sent[i] for i in picks]
+    rng.shuffle(capture)
+    for payload in capture:
+        gate.handle(payload)
+    numbers = [action["n"] for action in applied]
+    assert len(set(numbers)) == len(numbers)
+    for parity in (0, 1):  # each run's actions applied in the order it sent them
+        mine = [n for n in numbers if n % 2 == parity]
+        assert mine == sorted(mine)
+    restarted = SignedEffector(KEY, applied.append, topic="robot/cmd")
+    assert not any(restarted.handle(payload) for payload in capture)
+    assert restarted.refused == len(capture)
+
+
+def test_a_signer_refuses_to_bind_to_nobody_and_bad_run_ids():
+    signer = BoundSigner(KEY, run="r1")
+    with pytest.raises(CommError, match="no receiver has announced its epoch"):
+        signer.sign({"a": 1}, topic="t", epochs=[])
+    assert signer.seq == 0  # nothing was signed
+    with pytest.raises(CommError, match="run id"):
+        BoundSigner(KEY, run="")
+    guard = ReplayGuard("e")
+    for binding, why in (
+        ({"epochs": "e", "run": "r", "seq": 1, "topic": "t"}, "another incarnation"),
+        ({"epochs": ["e"], "run": 7, "seq": 1, "topic": "t"}, "run id is not valid"),
+        ({"epochs": ["e"], "run": "r", "seq": True, "topic": "t"}, "not a positive integer"),
+        ({"epochs": ["e"], "run": "r", "seq": 1.0, "topic": "t"}, "not a positive integer"),
+        ({"epochs": ["e"], "run": "r", "seq": 0, "topic": "t"}, "not a positive integer"),
+    ):
+        assert why in guard.admit(binding, "t")

@@ -7,7 +7,7 @@ import json
 import signal
 import threading
 
-from rasm.comm import open_transport, sign
+from rasm.comm import BoundSigner, PresenceTracker, open_transport
 from rasm.platform.runtime import Platform
 from rasm.testing.servers import start_mosquitto
 
@@ -78,20 +78,26 @@ def test_signed_rule_updates_and_timing(hotbox, tmp_path, monkeypatch):
     rules_text = (HOTBOX / "rules" / "hotbox.yaml").read_text()
     inconsistent = rules_text + "  - name: never\n    require: power_limit > 150\n"
     tighter = rules_text.replace("power_limit <= 100", "power_limit <= 90")
-    key = bytes.fromhex(UPDATE_KEY)
+    signer = BoundSigner(bytes.fromhex(UPDATE_KEY))
+    # the sender learns the process's epoch from its presence message, as an operator's would
+    tracker = PresenceTracker(admin).start()
 
     def push():
+        epochs = list(tracker.epochs(app="hotbox").values())
+        assert epochs == [platform.dist.epoch]
         admin.publish("rasm/update/rules", {"rules": tighter})  # unsigned
-        admin.publish("rasm/update/rules", sign({"rules": inconsistent}, key))
-        admin.publish("rasm/update/rules", sign({"rules": tighter}, key))
+        for text in (inconsistent, tighter):
+            bound = signer.sign({"rules": text}, topic="rasm/update/rules", epochs=epochs)
+            admin.publish("rasm/update/rules", bound)
 
     platform.on_record.append(
-        lambda t, r: (push(), platform.on_record.clear()) if t > 0.5 else None
+        lambda t, r: (push(), platform.on_record.clear()) if t > 0.5 and tracker.epochs() else None
     )
     stopper = threading.Thread(target=lambda: done.wait(30) and platform.scheduler.stop())
     stopper.start()
     platform.run(30.0)
     stopper.join()
+    tracker.stop()
     admin.close()
     broker.stop()
     assert [r["accepted"] for r in results] == [False, False, True], results
