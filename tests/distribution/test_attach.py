@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -290,3 +291,67 @@ def test_a_whole_trace_on_one_topic(mqtt):
         {"value": True, "time": 6.0},
     ]
     attachment.stop()
+
+
+def test_an_update_replayed_into_a_restarted_monitor_process_is_refused(broker, mqtt, tmp_path):
+    """``rasm monitor`` with RASM_UPDATE_KEY announces the epoch updates must be bound to; the
+    update one process accepted is refused by the next one, which accepts a newly bound one."""
+    from rasm.comm import BoundSigner, PresenceTracker
+
+    key = "d4" * 16
+    props = tmp_path / "props.rv"
+    props.write_text(PROPS)
+    operator = mqtt()
+    results, online = Inbox(), Inbox()
+    operator.subscribe("rasm/update/result", results, qos=1)
+    tracker = PresenceTracker(
+        operator, on_change=lambda node, state: state == "online" and online(node)
+    ).start()
+    signer = BoundSigner(bytes.fromhex(key))
+
+    def monitor() -> tuple[subprocess.Popen, str]:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", broker.url],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "RASM_UPDATE_KEY": key},
+        )
+        assert online.get(timeout=30) == f"monitor-{process.pid}"
+        return process, tracker.epochs(role="monitor")[f"monitor-{process.pid}"]
+
+    def send(update: dict) -> dict:
+        operator.publish("rasm/update/properties", update, qos=1)
+        return results.get().payload
+
+    def stop(process: subprocess.Popen) -> str:
+        process.send_signal(signal.SIGINT)
+        out, _ = process.communicate(timeout=30)
+        return out
+
+    processes = []
+    try:
+        first, epoch = monitor()
+        processes.append(first)
+        update = signer.sign({"spec": NEW_PROPS}, topic="rasm/update/properties", epochs=[epoch])
+        assert send(update)["accepted"] is True
+        assert "slow" in stop(first)
+
+        second, new_epoch = monitor()
+        processes.append(second)
+        assert new_epoch != epoch
+        replayed = send(update)
+        assert replayed["accepted"] is False
+        assert "signed for another incarnation" in replayed["reason"]
+        assert replayed["epoch"] == new_epoch  # the answer says what to bind to instead
+        rebound = signer.sign(
+            {"spec": NEW_PROPS}, topic="rasm/update/properties", epochs=[new_epoch]
+        )
+        assert send(rebound)["accepted"] is True
+        assert "slow" in stop(second)
+    finally:
+        tracker.stop()
+        for process in processes:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
