@@ -81,6 +81,7 @@ class Distribution:
         self.signer = (
             BoundSigner(self.action_key, run=self.run) if self.action_key is not None else None
         )
+        self._unbound_logged = False
 
     def transport_options(self) -> dict[str, Any]:
         """Options for ``open_transport``: the last will that marks this node offline, and the
@@ -232,10 +233,14 @@ class Distribution:
             return payload
         epochs = self._managed_epochs()
         if not epochs:
+            if not self._unbound_logged:  # once per stretch without an epoch: the trace has each
+                _log.warning("no managed process has announced its epoch: actions are not sent")
+                self._unbound_logged = True
             raise CommError(
                 "not sent: no managed process has announced its epoch yet, and a signed action "
                 "is bound to the epoch of the process that applies it"
             )
+        self._unbound_logged = False
         return self.signer.sign(payload, topic=topic, epochs=epochs)
 
     def effector_gate(

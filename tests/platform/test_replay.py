@@ -191,7 +191,7 @@ def test_a_restarted_managing_process_is_obeyed(tmp_path):
 
 
 def test_no_action_is_sent_before_a_managed_process_announced_its_epoch(
-    hotbox, tmp_path, monkeypatch
+    hotbox, tmp_path, monkeypatch, caplog
 ):
     """Fail closed: the checker refuses, with the reason in the trace, an action it cannot bind;
     once a managed process's epoch is announced, the next action is bound to it."""
@@ -231,6 +231,8 @@ def test_no_action_is_sent_before_a_managed_process_announced_its_epoch(
         "signed action is bound to the epoch of the process that applies it"
     )
     assert summary.stats.executed == 1
+    warnings = [r.message for r in caplog.records if "announced its epoch" in r.message]
+    assert warnings == ["no managed process has announced its epoch: actions are not sent"]
     binding = action["binding"]
     assert binding["epochs"] == ["e-x"] and binding["topic"] == "hotbox/heater"
     assert binding["run"] == platform.dist.run and binding["seq"] == 1  # nothing signed before
