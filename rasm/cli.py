@@ -8,10 +8,15 @@ inconsistent or lint errors; 2 bad input or usage, with ``file:line:col: message
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING
 
 from rasm.errors import RasmError, SourceError, SourceErrors, read_utf8
+
+if TYPE_CHECKING:
+    from rasm.platform.runtime import Platform
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -204,6 +209,35 @@ def _read_scenario(text: str) -> dict:
     return data
 
 
+@contextlib.contextmanager
+def _stop_on_signals(platform: Platform) -> Iterator[None]:
+    """SIGTERM and SIGINT stop the run in order (``Platform.request_stop``): knowledge
+    persisted, trace closed, summary printed, the exit code of a normal end. A second one
+    during that stop aborts at once (exit 130). The handlers only set flags: printing from a
+    handler could interrupt a write to the same stream."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield  # only the main thread may handle signals
+        return
+
+    def abort(signum, frame) -> None:
+        raise KeyboardInterrupt
+
+    def stop(signum, frame) -> None:
+        platform.request_stop(signal.Signals(signum).name)
+        for kind in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(kind, abort)
+
+    previous = {kind: signal.signal(kind, stop) for kind in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for kind, handler in previous.items():
+            signal.signal(kind, handler)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     import math
 
@@ -231,19 +265,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     )
     duration = args.duration if args.duration is not None else manifest.duration
     console = Console(stderr=args.trace == "-")  # keep stdout for the trace
-    platform.build()
     dashboard = None
-    if args.dashboard is not None:
-        from rasm.report.dashboard import serve
-
-        dashboard = serve(platform, args.dashboard)  # attaches before the run starts
-        console.print(f"dashboard: {dashboard.url}")
     try:
-        if console.is_terminal and args.role != "managed":
-            with LiveView(platform, console, duration=duration):
+        with _stop_on_signals(platform):
+            platform.build()
+            if args.dashboard is not None:
+                from rasm.report.dashboard import serve
+
+                dashboard = serve(platform, args.dashboard)  # attaches before the run starts
+                console.print(f"dashboard: {dashboard.url}")
+            if console.is_terminal and args.role != "managed":
+                with LiveView(platform, console, duration=duration):
+                    summary = platform.run(duration)
+            else:
                 summary = platform.run(duration)
-        else:
-            summary = platform.run(duration)
     except BaseException:
         if dashboard is not None:
             dashboard.close()

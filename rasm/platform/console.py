@@ -82,8 +82,10 @@ class LiveView:
 
 def print_summary(summary: RunSummary, console: Console) -> None:
     s = summary.stats
+    stopped = f" (stopped by {summary.stopped_by})" if summary.stopped_by else ""
     console.print(
-        f"[bold]{summary.app}[/bold]: {summary.duration:g} s on the {summary.clock} clock, "
+        f"[bold]{summary.app}[/bold]: {summary.duration:g} s on the {summary.clock} clock"
+        f"{stopped}, "
         f"{s.iterations} loop iterations, {summary.records} trace records"
         + (f" -> {summary.trace}" if summary.trace else "")
     )

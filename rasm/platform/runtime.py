@@ -78,6 +78,8 @@ class RunSummary:
     trace: str | None = None
     # loop iterations skipped on the wall clock because the loop was still busy when they fell due
     missed_iterations: int = 0
+    # what ended the run before its duration (e.g. "SIGTERM"), None if it ran to the end
+    stopped_by: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -198,6 +200,7 @@ class Platform:
         self._twin_inputs: frozenset[str] = frozenset()
         self._twin_from_batch = False
         self._effector_gates: dict[str, Any] = {}
+        self.stopped_by: str | None = None  # why the run ended early (request_stop)
 
     # ------------------------------------------------------------------ assembly
 
@@ -613,15 +616,28 @@ class Platform:
                 _log.error("the simulator's reading on %r was not published: %s", topic, exc)
 
     def run(self, duration: float | None = None) -> RunSummary:
-        """Start, run for ``duration`` seconds of the platform's clock, stop, summarise."""
+        """Start, run for ``duration`` seconds of the platform's clock, stop, summarise.
+
+        :meth:`request_stop` ends the run early, in the same order as a normal end.
+        """
         random.seed(self.seed)
         self.start()
         length = duration if duration is not None else self.manifest.duration
         try:
             self.scheduler.run_until(self._started_at + length)
+            ran = min(length, self.clock.time - self._started_at)
         finally:
             self.stop()
-        return self.summary(length)
+        if ran >= length:  # a stop asked for as the run ended anyway changed nothing
+            self.stopped_by = None
+        return self.summary(ran)
+
+    def request_stop(self, reason: str = "a stop request") -> None:
+        """End :meth:`run` after the job in hand: knowledge persisted, trace closed, summary
+        made, as at a normal end. Safe from another thread and from a signal handler (it only
+        sets a flag the loop reads); a request before the run starts makes it end at once."""
+        self.stopped_by = reason
+        self.scheduler.stop()
 
     def stop(self) -> None:
         if self._built:
@@ -682,4 +698,5 @@ class Platform:
             missed_iterations=self.scheduler.missed,
             modes=self.sm.get_status(),
             trace=str(self.trace.path) if self.trace.path else None,
+            stopped_by=self.stopped_by,
         )
