@@ -25,6 +25,7 @@ from sismic.clock import Clock
 from sismic.model import MacroStep, Statechart
 
 from rasm.errors import PlatformError, RasmError
+from rasm.platform.logs import RepeatedLogs
 from rasm.resources import platform_chart
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 
@@ -107,6 +108,9 @@ class Block:
         # delayed events): the platform's scheduler then steps the chart at that time.
         self.on_deadline: Callable[[Block, float], Any] | None = None
         self._armed: float | None = None
+        # failures that recur at every step are logged once, then counted (the platform
+        # gives all its blocks one RepeatedLogs)
+        self.logs = RepeatedLogs()
         self.send(None)  # the initial step: enter `instantiated`
 
     # ------------------------------------------------------------------ hooks
@@ -197,9 +201,8 @@ class Block:
                 # the interpreter rolled the step back and discarded its event (a monitor that
                 # refuses a step, an action that raises): the block stays where it was
                 self.step_failures += 1
-                _log.error(
-                    "%s: step refused and rolled back: %s: %s", self.name, type(exc).__name__, exc
-                )
+                what = f"{self.name}: step refused and rolled back: {type(exc).__name__}: {exc}"
+                self.logs.log(_log, logging.ERROR, what)
                 failure = self.interpreter.last_failure
                 if failure is None or failure.event is None:
                     return steps  # an eventless step failed: only a new event can help

@@ -34,6 +34,9 @@ __all__ = [
     "TrustworthinessManager",
 ]
 
+_telegraf_log = logging.getLogger("rasm.telegraf")
+_tc_log = logging.getLogger("rasm.tc")
+
 _TYPES: dict[str, tuple[type, ...]] = {
     "float": (float, int),
     "int": (int,),
@@ -371,8 +374,15 @@ class Telegraf(Block):
             problem = _check_value(signal, value)
             if problem:
                 self.rejected[problem] += 1
-                logging.getLogger("rasm.telegraf").warning(
-                    "%s: %s=%r rejected: %s", topic, key, value, problem
+                self.logs.log(
+                    _telegraf_log,
+                    logging.WARNING,
+                    f"{topic}: {key} rejected: {problem}",
+                    "%s: %s=%r rejected: %s",
+                    topic,
+                    key,
+                    value,
+                    problem,
                 )
                 continue
             values[key] = float(value) if signal.type == "float" else value
@@ -618,11 +628,12 @@ class TrustworthinessChecker(Block):
                 continue
             try:
                 into(time, record, latest, unusual)
-            except Exception:  # a monitor fault is logged, the record skipped, never fatal
-                self._monitor_failed()
+            except Exception as exc:  # a monitor fault is logged, the record skipped, never fatal
+                self._monitor_failed(exc)
 
-    def _monitor_failed(self) -> None:
-        logging.getLogger("rasm.tc").exception("monitor failed on a record")
+    def _monitor_failed(self, exc: Exception) -> None:
+        what = f"monitor failed on a record: {type(exc).__name__}: {exc}"
+        self.logs.log(_tc_log, logging.ERROR, what, exc_info=exc)
         self.records_refused += 1
 
     def _unusual(self, name: str, value: Any) -> None:
@@ -643,8 +654,8 @@ class TrustworthinessChecker(Block):
         for monitor in monitors:
             try:
                 verdicts = monitor.step(time, record)
-            except Exception:  # a monitor fault is logged and the record skipped, never fatal
-                self._monitor_failed()
+            except Exception as exc:  # a monitor fault is logged and the record skipped
+                self._monitor_failed(exc)
                 continue
             for verdict in verdicts:
                 value = verdict.value

@@ -131,6 +131,10 @@ def print_summary(summary: RunSummary, console: Console) -> None:
         console.print(f"rejected managed-system data: {summary.rejected_data}")
     if summary.bus:
         console.print(f"refused from the bus: {summary.bus}")
+    if summary.repeated_failures:
+        console.print("failures logged in full once, then counted:")
+        for what, count in summary.repeated_failures.items():
+            console.print(Text(f"  {count} × {what}"))
     if summary.missed_iterations:
         console.print(
             f"loop iterations skipped (the loop was still busy when they fell due): "

@@ -147,7 +147,10 @@ class AdaptationOrchestrator(Block):
         self.emit(start, {"stage": stage, "duration": round(duration, 9)})
         if timed_out:
             self.stats.timeouts[stage] += 1
-            _log.warning(
+            self.logs.log(
+                _log,
+                logging.WARNING,
+                f"{stage} stage overran its {self.stage_budget:.3g} s budget",
                 "%s stage overran its %.3g s budget (%.3g s): iteration cancelled",
                 stage,
                 self.stage_budget,
@@ -173,7 +176,16 @@ class AdaptationOrchestrator(Block):
 
     def _fail(self, stage: str, reason: str, tb: str) -> None:
         self.stats.failed_stages[stage] += 1
-        _log.error("%s stage failed: %s%s", stage, reason, f"\n{tb}" if tb else "")
+        # the same failure again (same stage, type and message): counted, not logged in full
+        self.logs.log(
+            _log,
+            logging.ERROR,
+            f"{stage} stage failed: {reason}",
+            "%s stage failed: %s%s",
+            stage,
+            reason,
+            f"\n{tb.rstrip()}" if tb else "",
+        )
         self.emit(self.clock.time, {"explanation": f"{stage} stage failed: {reason}"})
         self.post("stage_failed", stage=stage, reason=reason)
 

@@ -43,6 +43,7 @@ from rasm.platform.components import (
 )
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution
+from rasm.platform.logs import RepeatedLogs
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
 from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
@@ -80,6 +81,8 @@ class RunSummary:
     missed_iterations: int = 0
     # what ended the run before its duration (e.g. "SIGTERM"), None if it ran to the end
     stopped_by: str | None = None
+    # each failure logged more than once (shown once, then counted): how many times in all
+    repeated_failures: dict[str, int] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -201,6 +204,8 @@ class Platform:
         self._twin_from_batch = False
         self._effector_gates: dict[str, Any] = {}
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
+        # every failure the loop logs per iteration or record: once in full, then counted
+        self.logs = RepeatedLogs()
 
     # ------------------------------------------------------------------ assembly
 
@@ -254,6 +259,7 @@ class Platform:
         for block in blocks:
             self.sm.track(block)
             block.on_deadline = self._schedule_block
+            block.logs = self.logs
         self._built = True
 
     def _open_knowledge(self) -> Any:
@@ -450,14 +456,16 @@ class Platform:
             update = twin.observe(time, values)
             residual = None if update is None else float(update.residual)
         except Exception as exc:  # a twin fault is logged; learning goes on with the next record
-            _log.error("digital twin failed to learn: %s: %s", type(exc).__name__, exc)
+            self.logs.log(
+                _log, logging.ERROR, f"digital twin failed to learn: {describe_failure(exc)}"
+            )
             return
         if update is None:
             return
         try:
             self.km.register_knowledge("twin_residual", residual, time)
         except Exception as exc:  # a NaN residual is refused like any bad value
-            _log.warning("knowledge twin_residual=%r refused: %s", residual, exc)
+            self._refused("twin_residual", residual, exc)
             residual = None
         if update.model_changed:
             model = twin.model()
@@ -495,7 +503,7 @@ class Platform:
         else:
             refused = self.km.register_values(values, time, into=batch)
         for key, exc in refused.items():
-            _log.warning("knowledge %s=%r refused: %s", key, values[key], exc)
+            self._refused(key, values[key], exc)
         # the trace record has the scalars stored (a loop, not a comprehension: no function
         # call); the refused ones are taken out after, in the rare batch that has any
         stored: dict[str, Any] = {}
@@ -512,6 +520,19 @@ class Platform:
             self._observe_twin(time, stored, batch)
         if stored:
             self._emit(time, stored)
+
+    def _refused(self, key: str, value: Any, exc: Exception) -> None:
+        """Log a value knowledge refused; the same reason again (whatever the value) is counted."""
+        reason = str(exc).replace(repr(value), "…")
+        self.logs.log(
+            _log,
+            logging.WARNING,
+            f"knowledge {key} refused: {reason}",
+            "knowledge %s=%r refused: %s",
+            key,
+            value,
+            exc,
+        )
 
     def _verdict(self, verdict: Any) -> None:
         """A verdict of the end of the run (the checker hands the live ones to on_verdict)."""
@@ -550,7 +571,8 @@ class Platform:
         self.scheduler.at(due, block.wake)
 
     def _job_failed(self, exc: BaseException) -> None:
-        _log.error("a loop job failed: %s: %s", type(exc).__name__, exc, exc_info=exc)
+        what = f"a loop job failed: {type(exc).__name__}: {exc}"
+        self.logs.log(_log, logging.ERROR, what, exc_info=exc)
 
     # ------------------------------------------------------------------ running
 
@@ -591,8 +613,8 @@ class Platform:
         try:
             self.simulator.apply(effector, action, self.clock.time - self._started_at)
         except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
-            why = describe_failure(exc)
-            _log.error("the simulator's apply(%r) failed: %s", effector, why, exc_info=exc)
+            what = f"the simulator's apply({effector!r}) failed: {describe_failure(exc)}"
+            self.logs.log(_log, logging.ERROR, what, exc_info=exc)
 
     def _step_simulator(self) -> None:
         # the simulated world starts at 0 whatever the managing system's restored timeline
@@ -601,19 +623,22 @@ class Platform:
                 self.scheduler.now() - self._started_at, self.manifest.simulator_period
             )
         except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
-            _log.error("the simulator's step failed: %s", describe_failure(exc), exc_info=exc)
+            what = f"the simulator's step failed: {describe_failure(exc)}"
+            self.logs.log(_log, logging.ERROR, what, exc_info=exc)
             return
         if readings is not None and not isinstance(readings, dict):
-            _log.error(
-                "the simulator's step must return {topic: payload} or None, not %s",
-                type(readings).__name__,
+            what = (
+                "the simulator's step must return {topic: payload} or None, "
+                f"not {type(readings).__name__}"
             )
+            self.logs.log(_log, logging.ERROR, what)
             return
         for topic, payload in (readings or {}).items():
             try:
                 self.cm.publish_message(topic, payload)
             except RasmError as exc:  # a topic or payload the transport refuses
-                _log.error("the simulator's reading on %r was not published: %s", topic, exc)
+                what = f"the simulator's reading on {topic!r} was not published: {exc}"
+                self.logs.log(_log, logging.ERROR, what)
 
     def run(self, duration: float | None = None) -> RunSummary:
         """Start, run for ``duration`` seconds of the platform's clock, stop, summarise.
@@ -640,6 +665,7 @@ class Platform:
         self.scheduler.stop()
 
     def stop(self) -> None:
+        self.logs.flush()  # the counts still unreported, while the log sinks are attached
         if self._built:
             self.dist.stop()
         if self.core is not None and self.core.mode != "terminated":
@@ -699,4 +725,5 @@ class Platform:
             modes=self.sm.get_status(),
             trace=str(self.trace.path) if self.trace.path else None,
             stopped_by=self.stopped_by,
+            repeated_failures=self.logs.totals,
         )

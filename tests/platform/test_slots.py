@@ -78,4 +78,4 @@ def test_a_subclass_keeps_its_own_attributes_and_class_defaults() -> None:
     block.extra = "mine"
     block.own = 1
     assert (block.digested, block.extra, block.own) == (0, "mine", 1)
-    assert vars(block) == {"digested": 0, "extra": "mine", "own": 1}
+    assert vars(block) == {"digested": 0, "extra": "mine", "own": 1, "logs": block.logs}
