@@ -238,6 +238,31 @@ def _stop_on_signals(platform: Platform) -> Iterator[None]:
             signal.signal(kind, handler)
 
 
+_UNITS = {"": 1, "k": 10**3, "m": 10**6, "g": 10**9}
+
+
+def _byte_size(text: str) -> int:
+    """``--trace-rotate``: bytes, or a number with k, M or G (powers of 1000)."""
+    number, unit = text.rstrip("kKmMgG"), text[len(text.rstrip("kKmMgG")) :].lower()
+    try:
+        size = int(float(number) * _UNITS[unit])
+    except (ValueError, KeyError, OverflowError):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a size (e.g. 500k, 64M, 1G)") from None
+    if size <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a size must be positive")
+    return size
+
+
+def _count(text: str) -> int:
+    try:
+        count = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if count < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be 0 or more")
+    return count
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     import math
 
@@ -250,6 +275,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     manifest = load_manifest(args.app)
     if args.duration is not None and not 0 < args.duration < math.inf:  # nan, inf: never ends
         raise UsageError("--duration must be a positive, finite number of seconds")
+    if args.trace_rotate is not None and args.trace in (None, "-"):
+        raise UsageError("--trace-rotate needs --trace FILE (a file to rotate)")
     scenario = None
     if args.scenario is not None:
         scenario = {**manifest.scenario, **_read_scenario(args.scenario)}
@@ -260,6 +287,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         seed=args.seed,
         transport=args.transport,
         trace=args.trace,
+        trace_max_bytes=args.trace_rotate,
+        trace_keep=args.trace_keep,
         role=args.role,
         low_latency=(args.clock or manifest.clock or "wall") == "wall",
     )
@@ -396,6 +425,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="write the adaptation trace (JSONL) here; - for standard output",
     )
+    p.add_argument("--trace-rotate", type=_byte_size, default=None, metavar="SIZE",
+                   help="rotate the trace file at this size (e.g. 64M): trace.1.jsonl, …")
+    p.add_argument("--trace-keep", type=_count, default=4, metavar="N",
+                   help="with --trace-rotate, how many older files to keep (default 4)")
     p.add_argument("--clock", choices=["wall", "simulated"], default=None)
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--role", choices=["all", "managing", "managed"], default="all")

@@ -126,6 +126,8 @@ class Platform:
         seed: int | None = None,
         transport: str | None = None,
         trace: str | Path | None = None,
+        trace_max_bytes: int | None = None,
+        trace_keep: int = 4,
         role: str = "all",
         knowledge: str | None = None,
         state_dir: str | Path | None = None,
@@ -173,7 +175,8 @@ class Platform:
         self.role = role
         self.scheduler = Scheduler(self.clock)
         self.scheduler.on_error = self._job_failed
-        self.trace = TraceWriter(trace)
+        # rotated by size with trace_max_bytes (rasm.platform.trace.TraceWriter)
+        self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
         self.state_dir = Path(state_dir) if state_dir else Path(".rasm") / manifest.name
         self.scenario = manifest.scenario if scenario is None else scenario
         self.transport_url = transport or manifest.transport

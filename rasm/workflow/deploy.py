@@ -126,6 +126,10 @@ def _env_file(config: dict[str, Any], target: Path, python: str) -> str:
         "RASM_PACKAGE_DIR": str(target / "package"),
         "RASM_VENV": str(target / "venv"),
         "RASM_PYTHON": python,
+        # the unit's flight recorder: rasm run --trace, rotated by size (at most 5 x 64 MB)
+        "RASM_TRACE": str(target / "run" / "trace.jsonl"),
+        "RASM_TRACE_ROTATE": "64M",
+        "RASM_TRACE_KEEP": "4",
     }
     lines = [f': "${{{k}:={shlex.quote(str(v))}}}"' for k, v in values.items()]
     lines += [f"export {k}" for k in values]

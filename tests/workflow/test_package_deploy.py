@@ -12,6 +12,7 @@ import json
 import os
 import shutil
 import subprocess
+import time
 import zipfile
 from pathlib import Path
 
@@ -140,6 +141,35 @@ def test_start_and_stop_the_units_nodes(deployed: Path, hotbox_zip: Path) -> Non
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
     assert not (deployed / "run" / "local.pid").exists()
+
+
+def test_a_started_unit_keeps_a_trace_rotated_by_size_and_stops_in_order(deployed: Path) -> None:
+    env = {"RASM_RUN_DURATION": "600", "RASM_TRACE_ROTATE": "3k", "RASM_TRACE_KEEP": "2"}
+    run = deployed / "run"
+    for old in run.glob("trace*.jsonl"):
+        old.unlink()
+    [started] = run_workflow(deployed, "start", env)
+    assert started.ok, started.output
+    try:
+        deadline = time.monotonic() + 120
+        while not (run / "trace.2.jsonl").exists():  # two rotations: ~3 kB a file, ~2 kB/s
+            assert time.monotonic() < deadline, (run / "local.log").read_text()
+            time.sleep(0.1)
+    finally:
+        [stopped] = run_workflow(deployed, "stop", env)
+    assert stopped.ok, stopped.output
+    # stop.sh sent SIGTERM: the run ended in order and printed its summary
+    log = (run / "local.log").read_text()
+    assert "stopped by SIGTERM" in log and "trace records" in log, log
+    files = [run / "trace.2.jsonl", run / "trace.1.jsonl", run / "trace.jsonl"]
+    assert sorted(run.glob("trace*.jsonl")) == sorted(files)  # no more than --trace-keep 2
+    times = []
+    for file in files:
+        text = file.read_text()
+        lines = text.splitlines()
+        assert text.endswith("\n") and (len(text) <= 3000 or len(lines) == 1)
+        times += [json.loads(line)["time"] for line in lines]
+    assert times == sorted(times)  # oldest file first, each record whole, none reordered
 
 
 def test_a_tampered_file_is_refused_naming_it(
