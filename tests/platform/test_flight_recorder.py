@@ -232,3 +232,45 @@ def test_a_second_signal_during_the_stop_aborts_at_once(hotbox):
         signal.raise_signal(signal.SIGINT)  # ... a second aborts
         pytest.fail("the second signal did not abort")
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--trace", "t.jsonl", "--trace-rotate", "0"], "a size must be positive"),
+        (["--trace", "t.jsonl", "--trace-rotate", "64X"], "is not a size"),
+        (["--trace", "t.jsonl", "--trace-rotate", "nan"], "is not a size"),
+        (["--trace", "t.jsonl", "--trace-rotate", "1M", "--trace-keep", "-1"], "0 or more"),
+        (["--trace-rotate", "1M"], "--trace-rotate needs --trace FILE"),
+        (["--trace", "-", "--trace-rotate", "1M"], "--trace-rotate needs --trace FILE"),
+    ],
+)
+def test_a_bad_rotation_is_bad_usage(tmp_path, args, message):
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "run", str(HOTBOX), "--clock", "simulated", *args],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert message in done.stderr and "Traceback" not in done.stderr
+    assert not list(tmp_path.glob("t*.jsonl"))
+
+
+def test_rasm_run_rotates_its_trace_by_size(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "run", str(HOTBOX), "--clock", "simulated",
+         "--duration", "60", "--trace", "t.jsonl", "--trace-rotate", "10k", "--trace-keep", "3"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    files = [tmp_path / name for name in ("t.3.jsonl", "t.2.jsonl", "t.1.jsonl", "t.jsonl")]
+    assert sorted(tmp_path.glob("t*.jsonl")) == sorted(files)
+    records = [record for file in files for record in read_lines(file)]
+    assert all(file.stat().st_size <= 10_000 for file in files)
+    times = [r["time"] for r in records]
+    assert times == sorted(times) and times[-1] == pytest.approx(60, abs=0.5)
