@@ -1,8 +1,9 @@
 """The ``rasm`` command line: a thin face over the Python API.
 
 Each ``_cmd_*`` function parses nothing itself: it receives the parsed arguments, calls the API of
-one sub-package and formats the result. Exit codes (SPEC §3): 0 ok; 1 a property violated, rules
-inconsistent or lint errors; 2 bad input or usage, with ``file:line:col: message`` where one exists.
+one sub-package and formats the result. Exit codes: 0 ok; 1 a property violated, in error or
+not judged, rules inconsistent or lint errors; 2 bad input or usage, with ``file:line:col:
+message`` where one exists.
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    # exit 1 iff some property is violated; inconclusive alone is not a failure (SPEC §6)
+    # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes
     from rasm.spec.check import check_records, format_json, format_text, format_verdicts
     from rasm.spec.loader import load_specification
     from rasm.spec.trace import read_trace
@@ -93,7 +94,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         sys.stdout.write(format_json(report))
     else:
         sys.stdout.write(format_text(report))
-    return EXIT_FAILED if report.violated else EXIT_OK
+    return EXIT_FAILED if report.failed else EXIT_OK
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:

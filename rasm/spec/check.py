@@ -1,9 +1,8 @@
 """Offline checking (``rasm check``): a trace against a property file, and its reports.
 
-Exit status convention (used by the command line): a property is *violated* if its value is
-false at some judged record; *inconclusive* if it is never false but some value depends on
-records after the end of the trace (or no record was ever judged); *satisfied* otherwise.
-Only violations make ``rasm check`` fail (exit 1); inconclusive alone exits 0.
+Each property gets one of the five overall states of :mod:`rasm.spec.outcome` (satisfied,
+violated, inconclusive, not judged, error). ``rasm check`` fails (exit 1) when some property is
+violated, in error or not judged; satisfied and inconclusive alone exit 0.
 """
 
 from __future__ import annotations
@@ -15,6 +14,14 @@ from dataclasses import dataclass, field
 from rasm.spec.ast import Specification
 from rasm.spec.explain import Explanation, explain
 from rasm.spec.monitor import Monitor, PropertyRun
+from rasm.spec.outcome import (
+    ERROR,
+    INCONCLUSIVE,
+    NOT_JUDGED,
+    STATES,
+    VIOLATED,
+    PropertyOutcome,
+)
 from rasm.spec.printer import format_value
 
 __all__ = ["CheckReport", "PropertyReport", "check_records", "format_json", "format_text",
@@ -26,16 +33,61 @@ SUMMARISED = 100  # further violations explained in one line each
 
 @dataclass
 class PropertyReport:
-    """One property over one trace."""
+    """One property over one trace: its verdicts counted in ``outcome``, its violations and
+    errors by record."""
 
     name: str
     location: str
-    verdict: str  # satisfied | violated | inconclusive
-    violations: list[tuple[int, float]]
-    judged: int
-    inconclusive: int
+    outcome: PropertyOutcome
+    violations: list[tuple[int, float]]  # (index, time) of each violation (errors apart)
     run: PropertyRun
     explanations: list[Explanation] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, name: str, location: str, run: PropertyRun, times: Sequence[float]):
+        """The report of one property's run over a trace whose record times are ``times``."""
+        start = run.start or 0
+        errors = run.errors
+        violated = [
+            start + k for k, v in enumerate(run.values) if v is False and start + k not in errors
+        ]
+        outcome = PropertyOutcome(
+            name,
+            judged=len(run.values),
+            violations=len(violated),
+            errors=len(errors),
+            inconclusive=sum(1 for v in run.values if v is None),
+            first_error=errors[min(errors)] if errors else None,
+            missing=tuple(run.missing) if run.start is None else (),
+        )
+        return cls(name, location, outcome, [(i, times[i]) for i in violated], run)
+
+    @property
+    def verdict(self) -> str:
+        """The overall state: satisfied, violated, inconclusive, not judged or error."""
+        return self.outcome.state
+
+    @property
+    def passed(self) -> bool:
+        return self.outcome.passed
+
+    @property
+    def judged(self) -> int:
+        return self.outcome.judged
+
+    @property
+    def inconclusive(self) -> int:
+        return self.outcome.inconclusive
+
+    @property
+    def errors(self) -> dict[int, str]:
+        """Record index -> why the property could not be evaluated there."""
+        return self.run.errors
+
+    @property
+    def missing(self) -> tuple[str, ...]:
+        """The signals that never had a value (when the property was never judged)."""
+        return self.outcome.missing
 
 
 @dataclass
@@ -50,7 +102,12 @@ class CheckReport:
 
     @property
     def violated(self) -> bool:
-        return any(p.verdict == "violated" for p in self.properties)
+        return any(p.verdict == VIOLATED for p in self.properties)
+
+    @property
+    def failed(self) -> list[PropertyReport]:
+        """The properties that do not pass: violated, in error or not judged."""
+        return [p for p in self.properties if not p.passed]
 
 
 def check_records(
@@ -65,19 +122,7 @@ def check_records(
     times = [t for t, _ in records]
     reports = []
     for prop, run in zip(spec.properties, runs, strict=True):
-        start = run.start or 0
-        violations = [(start + k, times[start + k]) for k, v in enumerate(run.values) if v is False]
-        undecided = sum(1 for v in run.values if v is None)
-        if violations:
-            verdict = "violated"
-        elif undecided or not run.values:
-            verdict = "inconclusive"
-        else:
-            verdict = "satisfied"
-        reports.append(
-            PropertyReport(prop.name, str(prop.location), verdict, violations, len(run.values),
-                           undecided, run)
-        )
+        reports.append(PropertyReport.of(prop.name, str(prop.location), run, times))
     if explain_violations:
         limit = EXPLAINED + SUMMARISED
         wanted = {r.name: [i for i, _ in r.violations[:limit]] for r in reports if r.violations}
@@ -91,7 +136,9 @@ def check_records(
 
 
 def format_json(report: CheckReport) -> str:
-    """SPEC §6: one JSON object."""
+    """SPEC §6: one JSON object; ``verdict`` is one of the five states, ``errors`` counts the
+    records where the property could not be evaluated (``first_error`` says why), ``missing``
+    names the signals a property that was never judged waits for."""
     return json.dumps(
         {
             "records": report.records,
@@ -102,6 +149,9 @@ def format_json(report: CheckReport) -> str:
                     "violations": [{"index": i, "time": t} for i, t in p.violations],
                     "judged": p.judged,
                     "inconclusive": p.inconclusive,
+                    "errors": p.outcome.errors,
+                    "first_error": p.outcome.first_error,
+                    "missing": list(p.missing),
                 }
                 for p in report.properties
             ],
@@ -110,15 +160,18 @@ def format_json(report: CheckReport) -> str:
 
 
 def format_verdicts(report: CheckReport) -> str:
-    """SPEC §6: JSONL, one line per judged record and property."""
+    """SPEC §6: JSONL, one line per judged record and property (``error`` on a record where
+    the property could not be evaluated)."""
     lines = []
     for p in report.properties:
         start = p.run.start or 0
+        errors = p.run.errors
         for k, value in enumerate(p.run.values):
             index = start + k
-            lines.append(json.dumps(
-                {"property": p.name, "index": index, "time": report.times[index], "value": value}
-            ))
+            line = {"property": p.name, "index": index, "time": report.times[index], "value": value}
+            if index in errors:
+                line["error"] = errors[index]
+            lines.append(json.dumps(line))
     return "\n".join(lines) + ("\n" if lines else "")
 
 
@@ -146,11 +199,13 @@ def _one_line(e: Explanation) -> str:
 
 
 def format_text(report: CheckReport) -> str:
-    """A human report: each property's verdict; each violation explained (the first few)."""
+    """A human report: each property's state; each violation explained (the first few), each
+    error and each signal a property never saw named."""
     out = [f"{report.source}: {len(report.properties)} properties over {report.records} "
            f"records of {report.trace}"]
     for p in report.properties:
-        if p.verdict == "violated":
+        state = p.verdict
+        if state == VIOLATED:
             first_index, first_time = p.violations[0]
             out.append(
                 f"  {p.name}: VIOLATED at {len(p.violations)} of {p.judged} judged records "
@@ -169,15 +224,42 @@ def format_text(report: CheckReport) -> str:
                 more = ", ".join(f"{i}" for i, _ in p.violations[len(p.explanations):][:20])
                 tail = ", …" if hidden > 20 else ""
                 out.append(f"    … and {hidden} more violations (records {more}{tail})")
-        elif p.verdict == "inconclusive":
-            if p.judged == 0:
-                out.append(f"  {p.name}: inconclusive (no record judged: its signals never "
-                           f"all had a value)  [{p.location}]")
-            else:
-                out.append(f"  {p.name}: inconclusive ({p.inconclusive} of {p.judged} records "
-                           f"depend on records after the end of the trace)  [{p.location}]")
+            if p.errors:
+                out.extend(_errors(p, report.times))
+        elif state == ERROR:
+            out.append(f"  {p.name}: ERROR at {len(p.errors)} of {p.judged} judged records: the "
+                       f"checker could not evaluate it there  [{p.location}]")
+            out.extend(_errors(p, report.times))
+        elif state == NOT_JUDGED:
+            why = (f"no value for {', '.join(p.missing)} in any record" if p.missing
+                   else "no record reached it")
+            out.append(f"  {p.name}: NOT JUDGED: {why}  [{p.location}]")
+        elif state == INCONCLUSIVE:
+            out.append(f"  {p.name}: inconclusive ({p.inconclusive} of {p.judged} records "
+                       f"depend on records after the end of the trace)  [{p.location}]")
         else:
             out.append(f"  {p.name}: satisfied ({p.judged} records judged)")
-    violated = sum(1 for p in report.properties if p.verdict == "violated")
-    out.append(f"{violated} of {len(report.properties)} properties violated")
+    out.append(_tally_line(report))
     return "\n".join(out) + "\n"
+
+
+def _errors(p: PropertyReport, times: Sequence[float]) -> list[str]:
+    """The first records where ``p`` could not be evaluated, and why."""
+    indices = sorted(p.errors)
+    out = [f"    in error at record {i} (time {times[i]:g}): {p.errors[i]}" for i in indices[:5]]
+    if len(indices) > 5:
+        more = ", ".join(str(i) for i in indices[5:25])
+        tail = ", …" if len(indices) > 25 else ""
+        out.append(f"    … and in error at {len(indices) - 5} more records ({more}{tail})")
+    return out
+
+
+def _tally_line(report: CheckReport) -> str:
+    """``1 of 3 properties fail: 2 satisfied, 1 not judged``."""
+    counts = {state: 0 for state in STATES}
+    for p in report.properties:
+        counts[p.verdict] += 1
+    states = ", ".join(f"{n} {state}" for state, n in counts.items() if n)
+    return f"{len(report.failed)} of {len(report.properties)} properties fail" + (
+        f": {states}" if states else ""
+    )

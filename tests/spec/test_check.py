@@ -62,7 +62,7 @@ def test_satisfied_trace_exits_0(props, tmp_path, capsys):
     assert main(["check", props, write(tmp_path, "t.jsonl", GOOD)]) == 0
     out = capsys.readouterr().out
     assert "velocity_limit: satisfied (4 records judged)" in out
-    assert "0 of 2 properties violated" in out
+    assert "0 of 2 properties fail: 2 satisfied" in out
 
 
 def test_violations_exit_1_and_are_explained(props, tmp_path, capsys):
@@ -89,6 +89,9 @@ def test_json_report(props, tmp_path, capsys):
         "violations": [{"index": 1, "time": 1}],
         "judged": 5,
         "inconclusive": 0,
+        "errors": 0,
+        "first_error": None,
+        "missing": [],
     }
     # the anomaly at 5.5 cannot be decided: the trace ends before its window does
     assert second["verdict"] == "violated"
@@ -315,3 +318,118 @@ def test_a_property_that_is_a_literal_is_explained():
     spec = load_specification(HEADER + "property p0: false\n", source="p.rv")
     (prop,) = check_records(spec, [(0, {}), (1, {})]).properties
     assert [e.lines for e in prop.explanations] == [("false failed",), ("false failed",)]
+
+
+# ---------------------------------------------------------------- the five states
+
+MISSPELLED = """\
+input velocity: float
+input velocty: float
+
+property velocity_limit:
+    always (velocity <= 0.5)
+property typo_limit:
+    always (velocty <= 0.5)
+"""
+
+
+def test_a_property_on_a_misspelled_signal_is_not_judged_and_fails_the_check(tmp_path):
+    """The real command, as CI runs it: the property that never saw its signal is named with
+    the signal, and the exit code is 1 although nothing was violated."""
+    import subprocess
+    import sys
+
+    props = tmp_path / "typo.rv"
+    props.write_text(MISSPELLED)
+    trace = write(tmp_path, "t.jsonl", GOOD)
+    run = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "check", str(props), trace],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert f"typo_limit: NOT JUDGED: no value for velocty in any record  [{props}:6:10]" in (
+        run.stdout
+    )
+    assert "1 of 2 properties fail: 1 satisfied, 1 not judged" in run.stdout
+    assert "Traceback" not in run.stderr
+    run = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "check", str(props), trace, "--format", "json"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert run.returncode == 1
+    limit, typo = json.loads(run.stdout)["properties"]
+    assert limit["verdict"] == "satisfied" and limit["missing"] == []
+    assert typo["verdict"] == "not judged" and typo["missing"] == ["velocty"]
+    assert typo["judged"] == 0 and typo["errors"] == 0
+
+
+def test_an_empty_trace_leaves_every_property_not_judged(props, tmp_path, capsys):
+    assert main(["check", props, write(tmp_path, "t.jsonl", []), "--format", "json"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert [p["verdict"] for p in report["properties"]] == ["not judged", "not judged"]
+    assert report["properties"][0]["missing"] == ["velocity"]
+
+
+def _error_report():
+    """A report whose first property could not be evaluated at records 1 and 2 (as a monitor
+    reports an evaluation that raised), and whose second holds."""
+    from rasm.spec.check import CheckReport, PropertyReport
+    from rasm.spec.monitor import PropertyRun
+
+    times = [0.0, 0.5, 1.0, 1.5]
+    why = "OverflowError: the sum of the window overflowed"
+    runs = [
+        PropertyRun("budget", 0, [True, False, False, True], errors={1: why, 2: why}),
+        PropertyRun("limit", 0, [True, True, True, True]),
+    ]
+    reports = [PropertyReport.of(r.name, f"p.rv:{k + 3}:10", r, times) for k, r in enumerate(runs)]
+    return CheckReport("p.rv", "t.jsonl", len(times), reports, times), why
+
+
+def test_a_property_in_error_is_reported_as_error_in_every_format():
+    from rasm.spec.check import format_json, format_text, format_verdicts
+
+    report, why = _error_report()
+    budget, limit = report.properties
+    # an error verdict's value is False, but it is not a violation: the checker could not tell
+    assert budget.verdict == "error" and budget.violations == [] and not budget.passed
+    assert limit.verdict == "satisfied"
+    assert report.failed == [budget] and not report.violated
+    text = format_text(report)
+    assert "budget: ERROR at 2 of 4 judged records" in text
+    assert f"in error at record 1 (time 0.5): {why}" in text
+    assert "1 of 2 properties fail: 1 satisfied, 1 error" in text
+    first = json.loads(format_json(report))["properties"][0]
+    assert first["verdict"] == "error" and first["errors"] == 2 and first["first_error"] == why
+    lines = [json.loads(line) for line in format_verdicts(report).splitlines()]
+    assert lines[1] == {"property": "budget", "index": 1, "time": 0.5, "value": False,
+                        "error": why}
+    assert "error" not in lines[0] and "error" not in lines[4]
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    values=st.lists(st.sampled_from([True, False, None, "error"]), max_size=12),
+    started=st.booleans(),
+)
+def test_the_check_report_state_is_the_outcome_of_its_verdicts(values, started):
+    """Whatever the verdicts, the report's state is PropertyOutcome's, and only satisfied and
+    inconclusive pass."""
+    from rasm.spec.check import PropertyReport
+    from rasm.spec.monitor import PropertyRun
+    from rasm.spec.outcome import PropertyOutcome
+
+    if not started:
+        values = []
+    errors = {k: "boom" for k, v in enumerate(values) if v == "error"}
+    run = PropertyRun(
+        "p", 0 if started else None, [False if v == "error" else v for v in values],
+        errors=errors, missing=() if started else ("x",),
+    )
+    report = PropertyReport.of("p", "p.rv:1:1", run, [float(k) for k in range(len(values))])
+    expected = PropertyOutcome("p", missing=run.missing if not started else ())
+    for k, value in enumerate(run.values):
+        expected.add(value, errors.get(k))
+    assert report.verdict == expected.state
+    assert report.passed == (expected.state in ("satisfied", "inconclusive"))
+    assert len(report.violations) == values.count(False)
