@@ -9,7 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from rasm.spec.ast import Specification
-from rasm.spec.check import CheckReport, check_records, format_text
+from rasm.spec.check import CheckReport, PropertyReport, check_records, format_text
+from rasm.spec.outcome import ERROR, NOT_JUDGED, VIOLATED
 from rasm.spec.trace import parse_trace
 from rasm.testing._props import property_file
 from rasm.testing.failures import is_final_example, save_jsonl
@@ -18,7 +19,8 @@ __all__ = ["PropertyViolation", "assert_properties", "check_trace"]
 
 
 class PropertyViolation(AssertionError):
-    """A property was violated on a trace; ``report`` is the full check report."""
+    """A property was violated, in error or not judged on a trace; ``report`` is the full
+    check report."""
 
     def __init__(self, message: str, report: CheckReport, saved: Path | None) -> None:
         super().__init__(message)
@@ -68,8 +70,8 @@ def assert_properties(
     *,
     only: Iterable[str] | None = None,
 ) -> CheckReport:
-    """Fail (``PropertyViolation``, an ``AssertionError``) if a property of ``props`` is violated
-    on ``trace``; ``only`` restricts the verdict to the named properties.
+    """Fail (``PropertyViolation``, an ``AssertionError``) if a property of ``props`` is violated,
+    in error or not judged on ``trace``; ``only`` restricts the verdict to the named properties.
 
     The message is ``rasm check``'s report, each violation explained. The trace is saved under
     ``.rasm/failures/`` (inside hypothesis: for the reported example only) and the message gives
@@ -88,8 +90,8 @@ def assert_properties(
             f"{file.source} has no property {unknown[0]!r}; its properties: "
             f"{', '.join(sorted(names))}"
         )
-    violated = [p for p in report.properties if p.verdict == "violated" and p.name in wanted]
-    if not violated:
+    failed = [p for p in report.properties if not p.passed and p.name in wanted]
+    if not failed:
         return report
     text = format_text(report)
     saved = None
@@ -97,5 +99,24 @@ def assert_properties(
         saved = save_jsonl(file.stem, records)
         props_arg = file.source if file.source != "<text>" else "PROPS.rv"
         text += f"trace saved: {saved}\nreproduce: rasm check {props_arg} {saved}\n"
-    names_text = ", ".join(p.name for p in violated)
-    raise PropertyViolation(f"violated: {names_text}\n{text}", report, saved)
+    raise PropertyViolation(f"{_headline(failed)}\n{text}", report, saved)
+
+
+def _headline(failed: list[PropertyReport]) -> str:
+    """``violated: a, b; not judged: c (no value for x)``: the failing properties by state."""
+    parts = []
+    for state in (VIOLATED, ERROR, NOT_JUDGED):
+        names = []
+        for p in failed:
+            if p.verdict != state:
+                continue
+            if state == NOT_JUDGED:
+                why = f"no value for {', '.join(p.missing)}" if p.missing else "no record"
+                names.append(f"{p.name} ({why})")
+            elif state == ERROR:
+                names.append(f"{p.name} ({p.outcome.first_error})")
+            else:
+                names.append(p.name)
+        if names:
+            parts.append(f"{state}: {', '.join(names)}")
+    return "; ".join(parts)

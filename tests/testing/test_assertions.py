@@ -138,3 +138,24 @@ def test_assert_properties_says_what_a_trace_is(tmp_path):
         assert_properties(PROPS, [{"time": 0.0, "velocity": 0.1}, 7])
     # one name is a name, not its letters
     assert_properties(PROPS, BAD, only="timely")
+
+
+def test_a_property_on_a_signal_the_trace_never_has_fails_naming_the_signal():
+    props = PROPS + "input velocty: float\nproperty typo: always (velocty <= 0.5)\n"
+    with pytest.raises(PropertyViolation) as caught:
+        assert_properties(props, GOOD)
+    message = str(caught.value)
+    assert message.startswith("not judged: typo (no value for velocty)\n")
+    assert "typo: NOT JUDGED: no value for velocty in any record" in message
+    assert caught.value.report.failed == [caught.value.report.properties[2]]
+    assert_properties(props, GOOD, only=["velocity_limit", "timely"])
+    assert check_trace(props, GOOD).properties[2].missing == ("velocty",)
+
+
+def test_the_headline_names_every_failing_property_by_state():
+    props = PROPS + "property typo: always (velocty <= 0.5)\n"
+    with pytest.raises(PropertyViolation) as caught:
+        assert_properties(props, BAD)
+    assert str(caught.value).startswith(
+        "violated: velocity_limit; not judged: typo (no value for velocty)\n"
+    )
