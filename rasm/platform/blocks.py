@@ -21,6 +21,8 @@ from rasm.knowledge.base import EXACT_CLASS, register_each
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import Effector, Probe, Signal
+from rasm.spec.monitor import Verdict
+from rasm.spec.outcome import PropertyOutcome
 
 __all__ = [
     "AdaptationManager",
@@ -442,8 +444,10 @@ class TrustworthinessManager(Block):
     """Trustworthiness Manager (tm): ``check_trustworthiness`` of an action (seed §6.4.4).
 
     An action is trustworthy when its plan was accepted by the Legitimate stage (the loop hands
-    over the accepted plans), the rules still accept the plan now, and no *veto* property is
-    currently violated according to the Trustworthiness Checker's live monitors.
+    over the accepted plans), the rules still accept the plan now, and the Trustworthiness
+    Checker vouches for every *veto* property: its latest verdict holds. A veto property whose
+    latest verdict is violated, in error or inconclusive, or that has no verdict yet (still in
+    warm-up, or a signal it reads never had a value), vetoes the action: fail closed.
     """
 
     chart_name = "trustworthiness_manager"
@@ -454,13 +458,15 @@ class TrustworthinessManager(Block):
         *,
         rules: list[Any],
         veto_properties: tuple[str, ...],
-        verdicts: Callable[[], dict[str, bool | None]],
+        verdicts: Callable[[], Mapping[str, Verdict]],
         context: Callable[[], dict[str, Any]],
+        waiting_for: Callable[[str], tuple[str, ...]] = lambda name: (),
         **kw: Any,
     ) -> None:
         self.rules = rules
         self.veto_properties = veto_properties
-        self.verdicts = verdicts
+        self.verdicts = verdicts  # the latest verdict of each property
+        self.waiting_for = waiting_for  # the signals a property not judged yet waits for
         self.context_of = context
         self.accepted_plans: dict[str, Plan] = {}
         self._evidence: tuple[Action, Plan | None] | None = None
@@ -501,14 +507,28 @@ class TrustworthinessManager(Block):
                 if not decision.accepted:
                     return False, f"rules do not accept the action: {decision.explanation()}"
         verdicts = self.verdicts()
-        violated = [p for p in self.veto_properties if verdicts.get(p) is False]
-        if violated:
-            return (
-                False,
-                f"veto propert{'y' if len(violated) == 1 else 'ies'} violated: "
-                + ", ".join(violated),
-            )
-        return True, "plan accepted by Legitimate, rules hold, no veto property violated"
+        vetoes = [self._veto(name, verdicts.get(name)) for name in self.veto_properties]
+        vetoes = [why for why in vetoes if why is not None]
+        if vetoes:
+            return False, "; ".join(vetoes)
+        if self.veto_properties:
+            return True, "plan accepted by Legitimate, rules hold, every veto property holds"
+        return True, "plan accepted by Legitimate, rules hold"
+
+    def _veto(self, name: str, verdict: Verdict | None) -> str | None:
+        """Why veto property ``name`` stops the action, or None when it holds."""
+        if verdict is None:
+            waits = self.waiting_for(name)
+            if waits:
+                return f"veto property {name} not judged yet: no value for {', '.join(waits)}"
+            return f"veto property {name} not judged yet: no verdict decided so far"
+        if verdict.error is not None:
+            return f"veto property {name} in error at t={verdict.time:g}: {verdict.error}"
+        if verdict.value is False:
+            return f"veto property {name} violated at t={verdict.time:g}"
+        if verdict.value is None:
+            return f"veto property {name} inconclusive at t={verdict.time:g}"
+        return None
 
 
 class AdaptationManager(Block):
@@ -564,15 +584,11 @@ class TrustworthinessChecker(Block):
 
     The only path to an effector: an action is sent when it is applicable in the managed
     system's current mode (and its effector is known). The online monitors of the app's and the
-    platform's properties run over every record of the loop (:meth:`observe`).
+    platform's properties run over every record of the loop (:meth:`observe`): ``latest`` holds
+    each property's latest verdict, ``outcomes`` counts them all (its state is the property's
+    overall verdict so far). A monitor that raises on a record makes every property it checks
+    ``error`` for that record: the checker cannot vouch for them there, and says so.
     """
-
-    # slots, as Block's (read for every record)
-    __slots__ = (
-        "online", "monitors", "effectors", "send_to_effector", "mode_of", "on_verdict",
-        "observers", "latest", "violations", "inconclusive", "records_refused", "_action",
-        "_outcome",
-    )
 
     chart_name = "trustworthiness_checker"
     short_name = "tc"
@@ -584,8 +600,8 @@ class TrustworthinessChecker(Block):
         effectors: dict[str, Effector],
         send: Callable[[Effector, Action], Any],
         mode_of: Callable[[], str | None],
-        on_verdict: Callable[[Any], Any] | None = None,
-        observers: list[Callable[[Any], Any]] | None = None,
+        on_verdict: Callable[[Verdict], Any] | None = None,
+        observers: list[Callable[[Verdict], Any]] | None = None,
         online: Callable[[], bool] = lambda: True,
         **kw: Any,
     ) -> None:
@@ -596,79 +612,96 @@ class TrustworthinessChecker(Block):
         self.mode_of = mode_of
         self.on_verdict = on_verdict
         # called with every verdict, like on_verdict; the list is the caller's and is read at
-        # each record, so observers may come and go during a run, and none costs no call
-        self.observers: list[Callable[[Any], Any]] = [] if observers is None else observers
-        self.latest: dict[str, bool | None] = {}
-        self.violations: Counter[str] = Counter()
-        self.inconclusive: set[str] = set()  # properties with an inconclusive (None) verdict
-        self.records_refused = 0
+        # each record, so observers may come and go during a run
+        self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
+        self.latest: dict[str, Verdict] = {}
+        self.outcomes: dict[str, PropertyOutcome] = {
+            name: PropertyOutcome(name) for monitor in monitors for name in monitor.properties
+        }
+        self.records = 0
+        self.monitor_failures = 0  # records on which a monitor raised
+        self._failing: dict[Any, int] = {}  # monitor -> records it failed on since it last worked
         self._action: Action | None = None
         self._outcome: tuple[bool, str] = (False, "")
         super().__init__(**kw)
 
-    def observe(self, time: float, record: dict[str, Any]) -> list[Any]:
+    def observe(self, time: float, record: dict[str, Any]) -> list[Verdict]:
         """Feed one loop record to every monitor; returns the verdicts it decided."""
-        return self._observe(self.monitors, time, record)
-
-    def check_record(self, time: float, record: dict[str, Any]) -> None:
-        """:meth:`observe` for the trace writer, which needs no verdicts back: the same
-        bookkeeping, with verdict objects made only when ``on_verdict`` or an observer wants
-        them (otherwise the monitors' ``tally_into`` keeps the values in ``latest`` itself)."""
-        if self.on_verdict is not None or self.observers:
-            self._observe(self.monitors, time, record)
-            return
-        latest, unusual = self.latest, self._unusual
+        index = self.records
+        self.records += 1
+        decided: list[Verdict] = []
         for monitor in self.monitors:
-            try:  # getattr(monitor, "tally_into", None) without the call (free when it is there)
-                into = monitor.tally_into
-            except AttributeError:
-                into = None
-            if into is None:  # a monitor of another kind: its verdicts, kept as observe() does
-                self._observe((monitor,), time, record)
-                continue
-            try:
-                into(time, record, latest, unusual)
-            except Exception as exc:  # a monitor fault is logged, the record skipped, never fatal
-                self._monitor_failed(exc)
-
-    def _monitor_failed(self, exc: Exception) -> None:
-        what = f"monitor failed on a record: {type(exc).__name__}: {exc}"
-        self.logs.log(_tc_log, logging.ERROR, what, exc_info=exc)
-        self.records_refused += 1
-
-    def _unusual(self, name: str, value: Any) -> None:
-        """Count a verdict that is not True: a violation, or inconclusive."""
-        if value is False:
-            self.violations[name] += 1
-        elif value is None:
-            self.inconclusive.add(name)
-
-    def _observe(self, monitors: Any, time: float, record: dict[str, Any]) -> list[Any]:
-        out: list[Any] = []
-        # every record steps every monitor and each decides about one verdict per property:
-        # what is looked up once per record stays out of the per-verdict loop
-        latest = self.latest
-        on_verdict = self.on_verdict
-        observers = self.observers
-        notify = on_verdict is not None or bool(observers)
-        for monitor in monitors:
             try:
                 verdicts = monitor.step(time, record)
-            except Exception as exc:  # a monitor fault is logged and the record skipped
-                self._monitor_failed(exc)
-                continue
+            except Exception as exc:
+                verdicts = self._failed(monitor, index, time, exc)
+            else:
+                if monitor in self._failing:
+                    self._recovered(monitor, time)
             for verdict in verdicts:
-                value = verdict.value
-                latest[verdict.property] = value
-                if value is not True:  # the rare ones: a violation, or inconclusive
-                    self._unusual(verdict.property, value)
-                if notify:
-                    if on_verdict is not None:
-                        on_verdict(verdict)
-                    for observer in observers:
-                        observer(verdict)
-            out += verdicts
-        return out
+                self._take(verdict)
+            decided += verdicts
+        return decided
+
+    def finish(self) -> list[Verdict]:
+        """The end of the run: settle every monitor (``None``: the run ended before a verdict
+        could be decided) and name the signals each property never judged waits for."""
+        decided: list[Verdict] = []
+        for monitor in self.monitors:
+            try:
+                verdicts = monitor.finish()
+            except Exception as exc:
+                verdicts = self._failed(monitor, self.records, self.clock.time, exc)
+            for verdict in verdicts:
+                self._take(verdict)
+            decided += verdicts
+        for name, outcome in self.outcomes.items():
+            if not outcome.judged:
+                outcome.missing = self.missing(name)
+        return decided
+
+    def missing(self, name: str) -> tuple[str, ...]:
+        """The signals property ``name`` waits for (none once it has started, or when its
+        monitor cannot tell)."""
+        for monitor in self.monitors:
+            if name in monitor.properties:
+                waits = getattr(monitor, "missing", None)
+                return tuple(waits(name)) if waits is not None else ()
+        return ()
+
+    def _take(self, verdict: Verdict) -> None:
+        name = verdict.property
+        outcome = self.outcomes.get(name)
+        if outcome is None:  # a monitor of another kind may decide about a name it did not list
+            outcome = self.outcomes[name] = PropertyOutcome(name)
+        outcome.add(verdict.value, verdict.error)
+        self.latest[name] = verdict
+        if self.on_verdict is not None:
+            self.on_verdict(verdict)
+        for observer in self.observers:
+            observer(verdict)
+
+    def _failed(self, monitor: Any, index: int, time: float, exc: Exception) -> list[Verdict]:
+        """Every property of ``monitor`` in error for this record; the first failure of a run
+        of them is logged with its traceback, the rest counted."""
+        self.monitor_failures += 1
+        why = f"the monitor raised {type(exc).__name__}: {exc}"
+        failed = self._failing.get(monitor, 0)
+        self._failing[monitor] = failed + 1
+        if not failed:
+            logging.getLogger("rasm.tc").error(
+                "monitor of %s failed at t=%g: %s; its properties (%s) are in error until it "
+                "works again",
+                _origin(monitor), time, why, ", ".join(monitor.properties), exc_info=exc,
+            )
+        return [Verdict(name, index, time, False, why) for name in monitor.properties]
+
+    def _recovered(self, monitor: Any, time: float) -> None:
+        failed = self._failing.pop(monitor)
+        logging.getLogger("rasm.tc").warning(
+            "monitor of %s works again at t=%g, after failing on %d record(s)",
+            _origin(monitor), time, failed,
+        )
 
     def register_action(self, action: Action | None) -> tuple[bool, str]:
         if self.mode != "initialized" or action is None:
@@ -702,3 +735,9 @@ class TrustworthinessChecker(Block):
             return
         self._outcome = (True, f"sent to {effector.name} on {effector.topic}")
         self.post("action_registered")
+
+
+def _origin(monitor: Any) -> str:
+    """The property file a monitor checks, for a log line."""
+    spec = getattr(monitor, "spec", None)
+    return getattr(spec, "source", None) or type(monitor).__name__

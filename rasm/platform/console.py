@@ -11,12 +11,16 @@ from rich.table import Table
 from rich.text import Text
 
 from rasm.platform.runtime import STAGES, Platform, RunSummary
+from rasm.spec.monitor import Verdict
+from rasm.spec.outcome import PASSING
 
 __all__ = ["LiveView", "print_summary"]
 
 _STYLE = {
     "satisfied": "green",
     "violated": "bold red",
+    "error": "bold red",
+    "not judged": "bold yellow",
     "inconclusive": "yellow",
     "initialized": "green",
     "fault": "bold red",
@@ -72,12 +76,25 @@ class LiveView:
         verdicts = Table(show_header=True, header_style="bold", box=None)
         verdicts.add_column("property")
         verdicts.add_column("now")
-        for name, value in sorted(p.tc.latest.items()):
-            word = {True: "holds", False: "VIOLATED", None: "?"}[value]
-            verdicts.add_row(name, Text(word, style="red" if value is False else "green"))
+        for name in sorted(p.tc.outcomes):
+            word, style = _now(p.tc.latest.get(name))
+            verdicts.add_row(name, Text(word, style=style))
         grid = Table.grid(padding=(0, 4))
         grid.add_row(modes, verdicts)
         return Group(head, grid)
+
+
+def _now(verdict: Verdict | None) -> tuple[str, str]:
+    """A property's latest verdict in a word, and its style: only "holds" is green."""
+    if verdict is None:
+        return "not judged yet", "yellow"
+    if verdict.error is not None:
+        return "ERROR", "bold red"
+    if verdict.value is False:
+        return "VIOLATED", "bold red"
+    if verdict.value is None:
+        return "inconclusive", "yellow"
+    return "holds", "green"
 
 
 def print_summary(summary: RunSummary, console: Console) -> None:
@@ -110,14 +127,33 @@ def print_summary(summary: RunSummary, console: Console) -> None:
     if s.failed_stages or s.timeouts:
         console.print(f"failed stages: {dict(s.failed_stages)}  overruns: {dict(s.timeouts)}")
     verdicts = Table(title="properties", show_header=True, header_style="bold")
-    verdicts.add_column("property")
-    verdicts.add_column("verdict")
+    verdicts.add_column("property", no_wrap=True)
+    verdicts.add_column("verdict", no_wrap=True)
+    verdicts.add_column("judged", justify="right")
     verdicts.add_column("violations", justify="right")
-    for name, verdict in summary.verdicts.items():
+    verdicts.add_column("errors", justify="right")
+    for name, state in summary.verdicts.items():
+        outcome = summary.outcomes.get(name)
         verdicts.add_row(
-            name, Text(verdict, style=_STYLE.get(verdict, "")), str(summary.violations.get(name, 0))
+            name,
+            Text(state, style=_STYLE.get(state, "")),
+            str(outcome.judged) if outcome else "",
+            str(summary.violations.get(name, 0)),
+            str(outcome.errors) if outcome else "",
         )
     console.print(verdicts)
+    failing = [name for name, state in summary.verdicts.items() if state not in PASSING]
+    if failing:
+        # one line each, never wrapped: the signal names and the error are what to act on
+        console.print(
+            f"[bold red]{len(failing)} of {len(summary.verdicts)} properties not satisfied[/]: "
+            + ", ".join(f"{name} ({summary.verdicts[name]})" for name in failing),
+            soft_wrap=True,
+        )
+        for name in failing:
+            outcome = summary.outcomes.get(name)
+            if outcome is not None:
+                console.print(f"  {name}: {outcome.describe()}", soft_wrap=True, markup=False)
     timing = Table(title="stage timing (ms)", show_header=True, header_style="bold")
     timing.add_column("stage")
     for q in ("p50", "p90", "p99"):

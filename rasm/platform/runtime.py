@@ -50,6 +50,7 @@ from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.trace import TraceWriter
 from rasm.resources import data_dir
+from rasm.spec.outcome import PASSING, PropertyOutcome
 from rasm.statechart import MonotonicClock, SimulatedClock
 
 __all__ = ["Platform", "RunSummary", "STAGES"]
@@ -67,7 +68,7 @@ class RunSummary:
     clock: str
     duration: float
     stats: LoopStats
-    verdicts: dict[str, str]
+    verdicts: dict[str, str]  # property -> satisfied | violated | inconclusive | not judged | error
     violations: dict[str, int]
     timing: dict[str, dict[str, float]]
     records: int
@@ -83,10 +84,30 @@ class RunSummary:
     stopped_by: str | None = None
     # each failure logged more than once (shown once, then counted): how many times in all
     repeated_failures: dict[str, int] = field(default_factory=dict)
+    # every property's verdicts counted: the state, the errors, the signals never seen
+    outcomes: dict[str, PropertyOutcome] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
-        return not any(v == "violated" for v in self.verdicts.values())
+        """No property violated, in error or not judged (inconclusive alone passes)."""
+        return all(state in PASSING for state in self.verdicts.values())
+
+    def properties(self) -> list[dict[str, Any]]:
+        """Each property's overall verdict as JSON-able data, in the shape of ``rasm check
+        --format json`` (with counts where ``rasm check`` lists the violations)."""
+        return [
+            {
+                "name": o.name,
+                "verdict": o.state,
+                "violations": o.violations,
+                "judged": o.judged,
+                "inconclusive": o.inconclusive,
+                "errors": o.errors,
+                "first_error": o.first_error,
+                "missing": list(o.missing),
+            }
+            for o in self.outcomes.values()
+        ]
 
 
 def _package_name(manifest: AppManifest) -> str:
@@ -330,6 +351,14 @@ class Platform:
                         f"{defined[name]}: rename one of them"
                     )
                 defined[name] = path
+        for k, name in enumerate(m.veto_properties):
+            if name not in defined:  # it would veto every action, for a reason hard to see
+                known = ", ".join(sorted(defined))
+                raise SourceError(
+                    f"trustworthiness.veto_properties: no property is named {name!r} "
+                    f"(the properties are: {known})",
+                    manifest_location(m, ["trustworthiness", "veto_properties", k]),
+                )
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
@@ -346,6 +375,7 @@ class Platform:
             rules=self.rules,
             veto_properties=m.veto_properties,
             verdicts=lambda: self.tc.latest,
+            waiting_for=lambda name: self.tc.missing(name),
             context=self.kb.snapshot,
             clock=clock,
             depends_on=("sm", "km", "tc"),
@@ -388,7 +418,7 @@ class Platform:
             clock=clock,
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
         )
-        self.trace.observers.append(self.tc.check_record)
+        self.trace.observers.append(self.tc.observe)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
 
     def _stage_component(self, stage: str, ref: str, package: str) -> Any:
@@ -536,13 +566,6 @@ class Platform:
             value,
             exc,
         )
-
-    def _verdict(self, verdict: Any) -> None:
-        """A verdict of the end of the run (the checker hands the live ones to on_verdict)."""
-        if verdict.value is None:
-            self.tc.inconclusive.add(verdict.property)
-        for observer in self.on_verdict:
-            observer(verdict)
 
     def _emit(self, time: float, record: dict[str, Any]) -> None:
         self.trace.emit(time, record)
@@ -694,18 +717,12 @@ class Platform:
         violations: dict[str, int] = {}
         timing: dict[str, dict[str, float]] = {}
         stats = LoopStats()
+        outcomes: dict[str, PropertyOutcome] = {}
         if self.role in ("all", "managing"):
-            for monitor in self.tc.monitors:
-                for verdict in monitor.finish():
-                    self._verdict(verdict)
-                    if verdict.value is False:
-                        self.tc.violations[verdict.property] += 1
-                for name in monitor.properties:
-                    inconclusive = name in self.tc.inconclusive
-                    verdicts[name] = "inconclusive" if inconclusive else "satisfied"
-            for name, count in self.tc.violations.items():
-                verdicts[name] = "violated"
-                violations[name] = count
+            self.tc.finish()  # the verdicts still open go to the observers too
+            outcomes = dict(self.tc.outcomes)
+            verdicts = {name: o.state for name, o in outcomes.items()}
+            violations = {name: o.violations for name, o in outcomes.items() if o.violations}
             timing = {
                 stage: self.sm.percentiles(stage)
                 for stage in STAGES
@@ -729,4 +746,5 @@ class Platform:
             trace=str(self.trace.path) if self.trace.path else None,
             stopped_by=self.stopped_by,
             repeated_failures=self.logs.totals,
+            outcomes=outcomes,
         )

@@ -203,7 +203,7 @@ class _Faulty:
         raise RuntimeError("broken monitor")
 
 
-def test_checker_hands_verdicts_to_the_observers_listed_now_and_survives_a_faulty_monitor():
+def test_checker_hands_verdicts_to_the_observers_listed_now_and_a_faulty_monitor_is_in_error():
     from rasm.spec import compile as compile_properties
 
     monitor = compile_properties("input x: float\nproperty low: always (x < 1)\n")
@@ -218,14 +218,18 @@ def test_checker_hands_verdicts_to_the_observers_listed_now_and_survives_a_fault
         observers=observers,
     )
     first = tc.observe(0.0, {"x": 0.5})
-    assert [(v.property, v.value) for v in first] == [("low", True)]
-    assert tc.records_refused == 1  # the faulty monitor's record is skipped, the others run
+    # the faulty monitor's properties are in error for the record; the others are judged
+    assert [(v.property, v.value) for v in first] == [("faulty", False), ("low", True)]
+    assert "RuntimeError: broken monitor" in first[0].error and first[1].error is None
+    assert tc.monitor_failures == 1
     seen: list = []
     observers.append(seen.append)  # added during the run: called from the next record on
     second = tc.observe(1.0, {"x": 2.0})
     assert seen == second and called == first + second
-    assert tc.latest == {"low": False} and tc.violations == {"low": 1}
-    assert tc.records_refused == 2 and not tc.inconclusive
+    assert {name: v.value for name, v in tc.latest.items()} == {"faulty": False, "low": False}
+    assert tc.outcomes["low"].state == "violated" and tc.outcomes["low"].violations == 1
+    assert tc.outcomes["faulty"].state == "error" and tc.outcomes["faulty"].errors == 2
+    assert tc.monitor_failures == 2
 
 
 def test_platform_verdict_observers_added_while_running_see_the_live_verdicts(hotbox):

@@ -1,0 +1,156 @@
+"""The Trustworthiness Manager fails closed: a veto property the checker cannot vouch for now
+(violated, in error, inconclusive, or not judged yet) vetoes the action, and the explanation says
+which property and why."""
+
+from __future__ import annotations
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rasm.platform.blocks import TrustworthinessChecker, TrustworthinessManager
+from rasm.platform.components import Action, Plan
+from rasm.spec import compile as compile_properties
+from rasm.spec.monitor import Verdict
+
+PROPS = """
+input speed: float
+input battery: float
+property slow: always (speed <= 1.0)
+property charged: always (battery >= 0.2)
+"""
+
+
+class Scripted:
+    """A monitor of another kind: each step does what the script says next (a verdict value for
+    its one property, or ``"raise"``)."""
+
+    properties = ["guard"]
+
+    def __init__(self, script: list) -> None:
+        self.script = list(script)
+        self.index = 0
+
+    def step(self, time, record):
+        what = self.script[self.index]
+        self.index += 1
+        if what == "raise":
+            raise OverflowError("integer division result too large for a float")
+        if what == "nothing":  # nothing decided at this record (a bounded-future warm-up)
+            return []
+        return [Verdict("guard", self.index - 1, time, what)]
+
+    def finish(self):
+        return []
+
+
+def checker_and_manager(monitors, veto):
+    tc = TrustworthinessChecker(
+        monitors=monitors, effectors={}, send=lambda effector, action: None, mode_of=lambda: None
+    )
+    tm = TrustworthinessManager(
+        rules=[],
+        veto_properties=tuple(veto),
+        verdicts=lambda: tc.latest,
+        waiting_for=tc.missing,
+        context=dict,
+    )
+    tm.send("configure")
+    assert tm.mode == "initialized"
+    tm.accepted_plans["p1"] = Plan({"v": 1}, id="p1")
+    return tc, tm
+
+
+ACTION = Action("wheels", {"v": 1}, plan="p1")
+
+
+def test_a_veto_property_not_judged_yet_vetoes_naming_the_signals_it_waits_for():
+    tc, tm = checker_and_manager([compile_properties(PROPS)], ["slow", "charged"])
+    ok, why = tm.check_trustworthiness(ACTION)
+    assert not ok
+    assert "veto property slow not judged yet: no value for speed" in why
+    assert "veto property charged not judged yet: no value for battery" in why
+    tc.observe(0.0, {"speed": 0.5})  # slow starts; charged still waits for its signal
+    ok, why = tm.check_trustworthiness(ACTION)
+    assert not ok and why == "veto property charged not judged yet: no value for battery"
+    tc.observe(0.5, {"battery": 0.9})
+    assert tm.check_trustworthiness(ACTION) == (
+        True, "plan accepted by Legitimate, rules hold, every veto property holds"
+    )
+    tc.observe(1.0, {"speed": 1.5})
+    assert tm.check_trustworthiness(ACTION) == (False, "veto property slow violated at t=1")
+
+
+def test_a_veto_property_in_error_vetoes_and_says_why():
+    tc, tm = checker_and_manager([Scripted([True, "raise", True])], ["guard"])
+    tc.observe(0.0, {})
+    assert tm.check_trustworthiness(ACTION)[0] is True
+    tc.observe(1.0, {})
+    ok, why = tm.check_trustworthiness(ACTION)
+    assert not ok
+    assert why == (
+        "veto property guard in error at t=1: the monitor raised OverflowError: integer "
+        "division result too large for a float"
+    )
+    tc.observe(2.0, {})  # the monitor works again: so does the action
+    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert tc.outcomes["guard"].state == "error"  # the run's verdict remembers
+
+
+def test_a_veto_property_whose_first_verdict_is_not_decided_yet_vetoes():
+    """A bounded-future veto property has started but decides its first verdict only later:
+    until then the checker cannot vouch for it."""
+    tc, tm = checker_and_manager(
+        [compile_properties("event anomaly\nevent executed\n"
+                            "property timely: always (anomaly -> eventually[0, 2s] executed)\n")],
+        ["timely"],
+    )
+    tc.observe(0.0, {"anomaly": True})
+    ok, why = tm.check_trustworthiness(ACTION)
+    assert (ok, why) == (False, "veto property timely not judged yet: no verdict decided so far")
+    tc.observe(1.0, {"executed": True})  # answers the anomaly of record 0: decided true
+    assert tm.check_trustworthiness(ACTION)[0] is True
+    # the latest verdict is the one of the newest record decided, not of the newest record
+    assert tc.latest["timely"].time <= 1.0
+
+
+STEPS = st.lists(st.sampled_from([True, False, None, "raise", "nothing"]), max_size=20)
+
+
+@settings(max_examples=200, deadline=None)
+@given(steps=STEPS)
+def test_an_action_passes_only_while_the_veto_propertys_latest_verdict_holds(steps):
+    """For every sequence of verdicts, errors and silent records: after each record the action
+    is trusted exactly when the latest verdict decided is true and no error; before the first
+    verdict it never is."""
+    tc, tm = checker_and_manager([Scripted(steps)], ["guard"])
+    latest = "none yet"
+    for time, what in enumerate(steps):
+        tc.observe(float(time), {})
+        if what != "nothing":
+            latest = what
+        ok, why = tm.check_trustworthiness(ACTION)
+        assert ok == (latest is True), (steps[: time + 1], why)
+        if not ok:
+            expected = {
+                "none yet": "not judged yet",
+                False: "violated",
+                None: "inconclusive",
+                "raise": "in error",
+            }[latest]
+            assert why.startswith(f"veto property guard {expected}"), why
+
+
+@settings(max_examples=100, deadline=None)
+@given(steps=STEPS)
+def test_the_checker_counts_every_record_a_monitor_failed_on_as_an_error(steps):
+    tc, _ = checker_and_manager([Scripted(steps)], ["guard"])
+    for time, _ in enumerate(steps):
+        tc.observe(float(time), {})
+    outcome = tc.outcomes["guard"]
+    assert outcome.errors == steps.count("raise") == tc.monitor_failures
+    assert outcome.violations == steps.count(False)
+    assert outcome.judged == len(steps) - steps.count("nothing")
+    if "raise" in steps:
+        assert outcome.state in ("violated", "error")
+    if not outcome.judged:
+        assert outcome.state == "not judged"
