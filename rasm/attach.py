@@ -3,7 +3,8 @@
 An :class:`Attachment` subscribes to the topics the properties read, turns every message into
 one record (SPEC §4), steps a compiled monitor (SPEC §6) and publishes each verdict as
 ``{"value": true|false, "time": t}`` on a topic named after the property — the convention of the
-public RoboSAPIENS Trustworthiness Checker, so its dashboards and subscribers work unchanged.
+public RoboSAPIENS Trustworthiness Checker, so its dashboards and subscribers work unchanged. A
+verdict the monitor could not evaluate is ``{"value": false, "time": t, "error": "why"}``.
 
 Where a signal comes from (a :class:`TopicMap`): by default signal ``x`` is read from topic
 ``x``, from the payload's ``value`` field, or, if there is none, from its field ``x``. A
@@ -37,6 +38,7 @@ from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError, Location, RasmError, SourceError
 from rasm.spec import Verdict, load_specification
 from rasm.spec.monitor import Monitor
+from rasm.spec.outcome import PropertyOutcome
 
 __all__ = [
     "Attachment",
@@ -164,23 +166,52 @@ def _find_line(source: str, lines: list[str], key: str) -> Location:
 
 @dataclass
 class MonitorSummary:
-    """What an attachment saw: messages, records stepped, refusals, verdicts per property."""
+    """What an attachment saw: messages, records stepped, refusals, and each property's verdicts
+    counted in ``outcomes`` (whose state is the property's overall verdict)."""
 
     messages: int = 0
     records: int = 0
     malformed: int = 0
     rejected: int = 0
     published: int = 0
-    satisfied: dict[str, int] = field(default_factory=lambda: defaultdict(int))
-    violated: dict[str, int] = field(default_factory=lambda: defaultdict(int))
-    inconclusive: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    outcomes: dict[str, PropertyOutcome] = field(default_factory=dict)
     first_violations: dict[str, float] = field(default_factory=dict)
     properties: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
+    def outcome(self, name: str) -> PropertyOutcome:
+        """Property ``name``'s outcome (a fresh one for a property not seen before)."""
+        if name not in self.outcomes:
+            self.outcomes[name] = PropertyOutcome(name)
+        return self.outcomes[name]
+
+    @property
+    def satisfied(self) -> dict[str, int]:
+        """Property -> how many of its verdicts were true (those with any)."""
+        counts = {
+            name: o.judged - o.violations - o.errors - o.inconclusive
+            for name, o in self.outcomes.items()
+        }
+        return {name: n for name, n in counts.items() if n}
+
+    @property
+    def violated(self) -> dict[str, int]:
+        """Property -> how many of its verdicts were false (those with any)."""
+        return {name: o.violations for name, o in self.outcomes.items() if o.violations}
+
+    @property
+    def errors(self) -> dict[str, int]:
+        """Property -> at how many records it could not be evaluated (those with any)."""
+        return {name: o.errors for name, o in self.outcomes.items() if o.errors}
+
     @property
     def any_violated(self) -> bool:
-        return any(self.violated.values())
+        return bool(self.violated)
+
+    @property
+    def failed(self) -> list[str]:
+        """The properties that do not pass: violated, in error or not judged."""
+        return [name for name in self.properties if not self.outcome(name).passed]
 
     def format(self) -> str:
         """A few lines for a terminal."""
@@ -191,14 +222,18 @@ class MonitorSummary:
         ]
         width = max((len(p) for p in self.properties), default=0)
         for name in self.properties:
-            bad = self.violated.get(name, 0)
-            word = "violated" if bad else "satisfied" if self.satisfied.get(name) else "no verdict"
+            o = self.outcome(name)
+            true = o.judged - o.violations - o.errors - o.inconclusive
             line = (
-                f"  {name:<{width}}  {word:<10} {self.satisfied.get(name, 0)} true, {bad} false, "
-                f"{self.inconclusive.get(name, 0)} inconclusive"
+                f"  {name:<{width}}  {o.state:<12} {true} true, {o.violations} false, "
+                f"{o.inconclusive} inconclusive"
             )
+            if o.errors:
+                line += f", {o.errors} in error (first: {o.first_error})"
             if name in self.first_violations:
                 line += f" (first violation at t={self.first_violations[name]:g})"
+            if o.missing:
+                line += f" (no value for {', '.join(o.missing)})"
             out.append(line)
         return "\n".join(out) + "\n"
 
@@ -295,8 +330,7 @@ class Attachment:
         with self._lock:
             if self._stopped:
                 return False, "properties kept: the monitor is stopped"
-            settled = self.monitor.finish()
-            self._count(settled)
+            settled = self._settle()
             self.spec, self.monitor, self.signals = spec, monitor, signals
             self._by_topic = by_topic
             known = self.summary.properties
@@ -335,7 +369,10 @@ class Attachment:
             ):
                 self._malformed(message, f"'time' must be a finite number, not {stamp!r}")
                 return
-            verdicts = self.monitor.step(float(stamp), record)
+            try:
+                verdicts = self.monitor.step(float(stamp), record)
+            except Exception as exc:  # fail closed: its properties are in error for the record
+                verdicts = self._failed(float(stamp), exc)
             if self.monitor.rejected:
                 reason = self.monitor.rejected[-1].reason
                 self.monitor.rejected.clear()  # counted here: a long run keeps no list
@@ -347,26 +384,43 @@ class Attachment:
             self._count(verdicts)
         self._publish(verdicts)
 
+    def _settle(self) -> list[Verdict]:
+        """Finish the monitor: count the verdicts still open, name the signals each property
+        never judged waits for. Returns the verdicts to publish."""
+        verdicts = self.monitor.finish()
+        self._count(verdicts)
+        for name in self.monitor.properties:
+            outcome = self.summary.outcome(name)
+            if not outcome.judged:
+                outcome.missing = self.monitor.missing(name)
+        return verdicts
+
+    def _failed(self, time: float, exc: Exception) -> list[Verdict]:
+        """Every property of the monitor in error for this record (the first failure is logged
+        with its traceback; the summary counts them all)."""
+        why = f"the monitor raised {type(exc).__name__}: {exc}"
+        if not any(o.errors for o in self.summary.outcomes.values()):
+            _log.error("monitor failed at t=%g: %s", time, why, exc_info=exc)
+        index = self.summary.records
+        return [Verdict(name, index, time, False, why) for name in self.monitor.properties]
+
     def _count(self, verdicts: list[Verdict]) -> None:
         summary = self.summary
         for verdict in verdicts:
-            if verdict.value is True:
-                summary.satisfied[verdict.property] += 1
-            elif verdict.value is False:
-                summary.violated[verdict.property] += 1
+            summary.outcome(verdict.property).add(verdict.value, verdict.error)
+            if verdict.value is False and verdict.error is None:
                 summary.first_violations.setdefault(verdict.property, verdict.time)
-            else:
-                summary.inconclusive[verdict.property] += 1
 
     def _publish(self, verdicts: list[Verdict]) -> None:
         for verdict in verdicts:
             if verdict.value is None:
                 continue
             topic = self.verdict_topic.format(property=verdict.property)
+            payload: dict[str, Any] = {"value": verdict.value, "time": verdict.time}
+            if verdict.error is not None:  # value false: the checker could not vouch for it
+                payload["error"] = verdict.error
             try:
-                self.transport.publish(
-                    topic, {"value": verdict.value, "time": verdict.time}, qos=self.qos
-                )
+                self.transport.publish(topic, payload, qos=self.qos)
                 with self._lock:
                     self.summary.published += 1
             except CommError as exc:
@@ -392,8 +446,7 @@ class Attachment:
                 self.summary.malformed += (
                     self._transport_malformed_count() - self._transport_malformed
                 )
-            verdicts = self.monitor.finish()
-            self._count(verdicts)
+            verdicts = self._settle()
             self.summary.seconds = _time.monotonic() - self._started if self._started else 0.0
         self._publish(verdicts)  # a closed transport: logged, not raised
         return self.summary

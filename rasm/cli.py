@@ -98,7 +98,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
-    # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated.
+    # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated, in
+    # error or never judged.
     # With RASM_UPDATE_KEY (hex) set, HMAC-signed {"spec": …} on rasm/update/properties, bound
     # to the epoch this process announces on rasm/presence/monitor-<pid>, replace the properties
     # at run time (the public checker's unsigned `reconfig`, made safe).
@@ -123,7 +124,9 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
 
     def show(verdict) -> None:
-        if verdict.value is False:
+        if verdict.error is not None:
+            print(f"error {verdict.property} at t={verdict.time:g}: {verdict.error}", flush=True)
+        elif verdict.value is False:
             print(f"violated {verdict.property} at t={verdict.time:g}", flush=True)
 
     attachment = Attachment(
@@ -164,7 +167,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
             presence.stop()
         transport.close()
     sys.stdout.write(summary.format())
-    return EXIT_FAILED if summary.any_violated else EXIT_OK
+    return EXIT_FAILED if summary.failed else EXIT_OK
 
 
 # --------------------------------------------------------------------------- rules

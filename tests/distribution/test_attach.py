@@ -52,7 +52,7 @@ def test_verdicts_are_published_on_topics_named_after_the_properties(mqtt):
     assert summary.violated["velocity_limit"] == 1
     assert summary.first_violations == {"velocity_limit": 2.0}
     assert summary.any_violated
-    assert "velocity_limit     violated   6 true, 1 false" in summary.format()
+    assert "velocity_limit     violated     6 true, 1 false" in summary.format()
 
 
 def test_malformed_and_refused_messages_are_counted_never_fatal(mqtt, broker):
@@ -169,7 +169,7 @@ def test_the_command_runs_until_interrupted_and_summarises(broker, mqtt, tmp_pat
     assert process.returncode == 1, err  # a property was violated
     assert out.splitlines()[0] == "violated velocity_limit at t=2"
     assert "5 message(s), 4 record(s)" in out and "1 refused by the monitor" in out
-    assert "velocity_limit     violated   3 true, 1 false" in out
+    assert "velocity_limit     violated     3 true, 1 false" in out
 
 
 def test_the_command_reports_bad_input(broker, tmp_path):
@@ -355,3 +355,73 @@ def test_an_update_replayed_into_a_restarted_monitor_process_is_refused(broker, 
             if process.poll() is None:
                 process.kill()
                 process.wait()
+
+
+def test_a_property_whose_signal_never_arrives_is_not_judged_and_fails(mqtt, broker, tmp_path):
+    bus, robot = mqtt(), mqtt()
+    limit = Inbox()
+    robot.subscribe("velocity_limit", limit, qos=1)
+    text = PROPS + "property steady:\n    always (heading <= 90)\n"
+    attachment = Attachment(text, bus, qos=1).start()
+    robot.publish("velocity", {"value": 0.3, "time": 1.0}, qos=1)
+    assert limit.get().payload == {"value": True, "time": 1.0}
+    summary = attachment.stop()
+    steady = summary.outcome("steady")
+    assert steady.state == "not judged" and steady.missing == ("heading",)
+    # timely_adaptation reads `adapted`, which is no declared event (no default): never sent
+    assert summary.failed == ["timely_adaptation", "steady"] and not summary.any_violated
+    assert summary.outcome("timely_adaptation").missing == ("adapted",)
+    line = "steady             not judged   0 true, 0 false, 0 inconclusive (no value for heading)"
+    assert line in summary.format()
+    # the command exits 1 for it, as for a violation
+    props = tmp_path / "props.rv"
+    props.write_text(text)
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", broker.url,
+         "--duration", "0.5"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert done.returncode == 1, done.stderr
+    assert "(no value for heading)" in done.stdout
+
+
+OVERFLOW = """
+input x: float
+input y: float
+property budget:
+    always (sum[0, 5s](x) <= 1e300)
+property calm:
+    always (y <= 1)
+"""
+
+
+def test_two_readings_of_1e308_never_give_a_satisfied_budget_and_the_monitor_recovers(mqtt):
+    """Whether the overflowed sum makes the monitor raise (its properties are then in error
+    and published so) or saturates (violated): every record gets a published verdict of every
+    property, never a true one for the overflowed window, and true ones again after it."""
+    bus, robot = mqtt(), mqtt()
+    budget, calm = Inbox(), Inbox()
+    robot.subscribe("budget", budget, qos=1)
+    robot.subscribe("calm", calm, qos=1)
+    attachment = Attachment(OVERFLOW, bus, qos=1).start()
+    sent = [("y", 0.5, 0.0), ("x", 1.0, 0.5), ("x", 1e308, 1.0), ("x", 1e308, 2.0),
+            ("y", 0.5, 2.5), ("x", 1.0, 3.0)] + [("x", 1.0, t) for t in (4.0, 5.0, 6.0, 7.0, 8.0)]
+    for signal_, value, time in sent:
+        robot.publish(signal_, {"value": value, "time": time}, qos=1)
+    judged = sent[1:]  # budget waits for x; calm starts at once
+    budgets = [m.payload for m in budget.take(len(judged))]
+    calms = [m.payload for m in calm.take(len(sent))]
+    summary = attachment.stop()
+    assert [b["time"] for b in budgets] == [t for *_, t in judged]
+    assert [c["time"] for c in calms] == [t for *_, t in sent]
+    by_time = dict(zip([t for *_, t in judged], budgets, strict=True))
+    for time in (2.0, 2.5, 3.0, 6.0):  # both readings in the window: the sum overflows
+        assert by_time[time]["value"] is False, by_time[time]
+        if "error" in by_time[time]:
+            assert "Overflow" in by_time[time]["error"] or "overflow" in by_time[time]["error"]
+    assert by_time[8.0] == {"value": True, "time": 8.0}  # the readings left the window
+    # calm is judged on every record: true, or in error while its file's monitor could not tell
+    assert all(c["value"] is True or "error" in c for c in calms)
+    assert calms[-1] == {"value": True, "time": 8.0}
+    assert summary.outcome("budget").state in ("violated", "error")
+    assert "budget" in summary.failed
