@@ -327,6 +327,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    from collections import Counter
+
     from rasm.report import write_report
 
     # --props FILE.rv (repeatable) and --no-platform-props, where the parser offers them
@@ -338,10 +340,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
         platform_props=getattr(args, "platform_props", True),
     )
     checked = model["properties"]["timelines"]
-    violated = [t["name"] for t in checked if t["verdict"] == "violated"]
+    states = Counter(t["verdict"] for t in checked)
     print(
         f"rasm: {args.output}: {model['records']} records, {len(model['adaptations'])} "
-        f"adaptations, {len(checked)} properties ({len(violated)} violated)",
+        f"adaptations, {len(checked)} properties ("
+        + (", ".join(f"{n} {state}" for state, n in sorted(states.items())) or "none checked")
+        + ")",
         file=sys.stderr,
     )
     for note in model["missing"]:

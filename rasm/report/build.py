@@ -50,11 +50,15 @@ def missing_notes(model: dict[str, Any]) -> list[str]:
     if not props.get("timelines"):
         notes.append("no properties checked: pass property files with --props FILE.rv")
     for timeline in props.get("timelines", []):
-        if timeline["judged"] == 0:
-            reads = ", ".join(timeline["reads"]) or "nothing"
+        if timeline["verdict"] == "not judged":
+            missing = ", ".join(timeline["missing"]) or ", ".join(timeline["reads"]) or "nothing"
             notes.append(
-                f"property {timeline['name']} never judged: the signals it reads ({reads}) "
-                "never all had a value in this trace"
+                f"property {timeline['name']} not judged: no value for {missing} in this trace"
+            )
+        elif timeline["verdict"] == "error":
+            notes.append(
+                f"property {timeline['name']} in error at {timeline['errors']} records: "
+                f"{timeline['first_error']}"
             )
     if model["other_stages"]:
         notes.append(f"stages not drawn (not MAPLE-K): {', '.join(model['other_stages'])}")

@@ -121,7 +121,14 @@ class Dashboard:
         for verdict in verdicts:
             timeline = self.timelines.get(verdict.property)
             if timeline is not None:
-                timeline.add(verdict.time, verdict.value)
+                timeline.add(verdict.time, verdict.value, verdict.error)
+
+    def _name_missing(self) -> None:
+        """The signals each property never judged waits for, as the checker says."""
+        tc = getattr(self.platform, "tc", None)
+        for name, timeline in self.timelines.items():
+            if not timeline.judged and tc is not None:
+                timeline.outcome.missing = tc.missing(name)
 
     def on_record(self, time: float, record: dict[str, Any]) -> None:
         """``platform.on_record`` observer: runs on the loop thread for every trace record."""
@@ -213,6 +220,7 @@ class Dashboard:
         with self._cond:
             self._read_modes()
             self._take_verdicts()  # the end-of-run verdicts (the loop thread is done)
+            self._name_missing()
             self.status = "finished"
             self._version += 1
             self._cond.notify_all()

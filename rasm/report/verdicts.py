@@ -5,8 +5,10 @@ report says what ``rasm check`` says; online (:class:`VerdictTimeline` fed the T
 Checker's verdicts) the dashboard shows what the monitors decided so far.
 
 A timeline is a list of runs ``[from, to, value]`` where value is ``true`` (holds), ``false``
-(violated), ``null`` (inconclusive) or ``"warm-up"`` (not judged yet: a signal it reads has no
-value), plus the violations ``{"time", "index", "explanation", "signals"}``.
+(violated), ``null`` (inconclusive), ``"error"`` (the property could not be evaluated there) or
+``"warm-up"`` (not judged yet: a signal it reads has no value), plus the violations ``{"time",
+"index", "explanation", "signals"}`` and the overall verdict, one of the five states of
+:mod:`rasm.spec.outcome`.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from rasm.spec.ast import Specification
 from rasm.spec.check import check_records
 from rasm.spec.explain import explain
 from rasm.spec.loader import load_specification, signals_of
+from rasm.spec.outcome import PropertyOutcome
 from rasm.spec.trace import read_trace
 
 __all__ = ["EXPLAINED", "VerdictTimeline", "check_trace", "load_properties", "platform_properties"]
@@ -45,25 +48,41 @@ def load_properties(paths: Sequence[str | Path]) -> list[Specification]:
 
 @dataclass
 class VerdictTimeline:
-    """One property's verdicts over time, compressed into runs of equal value."""
+    """One property's verdicts over time, compressed into runs of equal value; ``outcome``
+    counts them (its state is the property's overall verdict so far)."""
 
     name: str
     source: str
     reads: list[str] = field(default_factory=list)
     runs: list[list[Any]] = field(default_factory=list)
     violations: list[dict[str, Any]] = field(default_factory=list)
-    judged: int = 0
-    inconclusive: int = 0
-    verdict: str = "inconclusive"
     max_violations: int | None = None
+    outcome: PropertyOutcome = field(default_factory=lambda: PropertyOutcome(""))
 
-    def add(self, time: float, value: bool | None | str) -> None:
-        """Extend the timeline with the verdict at ``time`` (records in time order)."""
+    def __post_init__(self) -> None:
+        self.outcome.name = self.name
+
+    @property
+    def verdict(self) -> str:
+        """satisfied, violated, inconclusive, not judged or error."""
+        return self.outcome.state
+
+    @property
+    def judged(self) -> int:
+        return self.outcome.judged
+
+    @property
+    def inconclusive(self) -> int:
+        return self.outcome.inconclusive
+
+    def add(self, time: float, value: bool | None | str, error: str | None = None) -> None:
+        """Extend the timeline with the verdict at ``time`` (records in time order): its value,
+        or ``"warm-up"``; ``error`` says why the property could not be evaluated there."""
         if value != "warm-up":
-            self.judged += 1
-            if value is None:
-                self.inconclusive += 1
-            if value is False:
+            self.outcome.add(value, error)
+            if error is not None:
+                value = "error"
+            elif value is False:
                 self.violations.append({"time": time, "index": None})
                 if self.max_violations is not None and len(self.violations) > self.max_violations:
                     del self.violations[0]
@@ -73,14 +92,6 @@ class VerdictTimeline:
             if self.runs:
                 self.runs[-1][1] = time
             self.runs.append([time, time, value])
-        self.verdict = self._verdict()
-
-    def _verdict(self) -> str:
-        if self.violations:
-            return "violated"
-        if self.inconclusive or not self.judged:
-            return "inconclusive"
-        return "satisfied"
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON-able timeline (a copy)."""
@@ -89,10 +100,15 @@ class VerdictTimeline:
             "source": self.source,
             "reads": list(self.reads),
             "runs": [list(run) for run in self.runs],
-            "violations": [dict(v) for v in self.violations],
+            "violations": [dict(v) for v in self.violations],  # the last ones, if bounded
+            "violated": self.outcome.violations,  # how many, all told
             "judged": self.judged,
             "inconclusive": self.inconclusive,
+            "errors": self.outcome.errors,
+            "first_error": self.outcome.first_error,
+            "missing": list(self.outcome.missing),
             "verdict": self.verdict,
+            "describe": self.outcome.describe(),
         }
 
 
@@ -115,9 +131,10 @@ def check_trace(specs: Sequence[Specification], trace: str | Path) -> list[Verdi
             for index in range(min(start, len(times))):
                 timeline.add(times[index], "warm-up")
             for k, value in enumerate(result.run.values):
-                timeline.add(times[start + k], value)
+                timeline.add(times[start + k], value, result.errors.get(start + k))
             if times and timeline.runs:
                 timeline.runs[-1][1] = times[-1]
+            timeline.outcome.missing = result.missing
             timeline.violations = []
             for index, time in result.violations:
                 entry: dict[str, Any] = {"time": time, "index": index}
@@ -126,7 +143,6 @@ def check_trace(specs: Sequence[Specification], trace: str | Path) -> list[Verdi
                     entry["explanation"] = list(found.lines)
                     entry["signals"] = {k: v for k, v in found.signals.items()}
                 timeline.violations.append(entry)
-            timeline.verdict = result.verdict
             out.append(timeline)
     _distinct_names(out)
     return out

@@ -85,7 +85,7 @@ def test_the_missing_parts_are_named(tmp_path: Path, capsys) -> None:
     code, err = _report(capsys, str(trace), "-o", str(tmp_path / "r.html"))
     assert code == 0
     assert "note: no MAPLE-K stage timing" in err and "note: no adaptations" in err
-    assert "stage_order never judged" in err
+    assert "property stage_order not judged: no value for stage in this trace" in err
 
 
 def test_a_trace_that_is_not_utf8_is_placed_at_its_first_bad_byte(tmp_path: Path, capsys) -> None:

@@ -153,3 +153,54 @@ def test_one_slow_iteration_does_not_flatten_the_gantt(page, tmp_path: Path) -> 
     assert "3.500 s took 50.050 ms" in page.page.inner_text("#gantt-note")
     assert "iteration at 3.500 s" in page.page.inner_text("#detail-title")  # the slowest
     assert page.errors == []
+
+
+STATES_PROPS = """
+input velocity: float
+property velocity_limit:
+    always (velocity <= 1.0)
+property fast_enough:
+    always (velocity >= 0.2)
+property typo:
+    always (velocty <= 1.0)
+"""
+
+
+def test_every_state_is_shown_in_words_and_only_satisfied_is_green(page, tmp_path: Path) -> None:
+    """A property that never saw its signal, one in error and one violated: none looks like
+    one that holds."""
+    from rasm.report.build import build_model
+    from rasm.report.page import render_page
+    from rasm.report.verdicts import VerdictTimeline
+
+    trace = tmp_path / "t.jsonl"
+    trace.write_text("".join(
+        json.dumps({"time": t / 2, "velocity": v}) + "\n" for t, v in enumerate([0.5, 0.1, 0.5])
+    ))
+    props = tmp_path / "p.rv"
+    props.write_text(STATES_PROPS)
+    model = build_model(trace, [props], platform_props=False)
+    assert "property typo not judged: no value for velocty in this trace" in model["missing"]
+    # a property the checker could not evaluate at one record (as a monitor reports it)
+    budget = VerdictTimeline("budget", f"{props}:9:10", ["x"])
+    budget.add(0.0, True)
+    budget.add(0.5, False, "the monitor raised OverflowError: the sum overflowed")
+    budget.add(1.0, True)
+    model["properties"]["timelines"].append(budget.to_dict())
+    out = tmp_path / "states.html"
+    out.write_text(render_page(model, title="states"), encoding="utf-8")
+    _open(page, out)
+    cells = page.page.eval_on_selector_all(
+        "#verdict-table tbody tr",
+        "rows => rows.map(r => [r.cells[0].innerText, r.cells[1].innerText,"
+        " getComputedStyle(r.cells[1]).color, r.cells[5].innerText])",
+    )
+    shown = {name: (word, color, why) for name, word, color, why in cells}
+    green = shown["velocity_limit"][1]
+    assert shown["velocity_limit"][0] == "satisfied" and green == "rgb(26, 127, 55)"
+    assert shown["fast_enough"][:1] == ("violated",)
+    assert shown["typo"][0] == "not judged"
+    assert shown["typo"][2] == "not judged: no value for velocty"
+    assert shown["budget"][0] == "error" and "OverflowError" in shown["budget"][2]
+    assert {shown[name][1] for name in ("fast_enough", "typo", "budget")}.isdisjoint({green})
+    assert not page.errors

@@ -7,9 +7,9 @@
   var STAGE_COLORS = {monitor: "#4c78a8", analyse: "#f58518", plan: "#54a24b",
                       legitimate: "#b279a2", execute: "#e45756"};
   var VERDICT_COLORS = {"true": "#59a14f", "false": "#e15759", "null": "#bab0ac",
-                        "warm-up": "#e8e8e8"};
+                        "error": "#7b3294", "warm-up": "#f2c14e"};
   var VERDICT_NAMES = {"true": "holds", "false": "violated", "null": "inconclusive",
-                       "warm-up": "warm-up (not judged)"};
+                       "error": "error (not evaluated)", "warm-up": "not judged yet"};
   var TIMELINES = ["gantt", "verdicts", "signals"];
   var MAX_SIGNALS = 12;
   var MAX_ROWS = 500;
@@ -224,7 +224,7 @@
     }
     var names = props.map(function (p) { return p.name; });
     var data = [];
-    ["true", "false", "null", "warm-up"].forEach(function (key) {
+    ["true", "false", "null", "error", "warm-up"].forEach(function (key) {
       var base = [], x = [], y = [];
       props.forEach(function (p) {
         p.runs.forEach(function (r) {
@@ -255,12 +255,15 @@
       height: Math.max(160, 36 * names.length + 90), legend: {orientation: "h", y: 1.15},
       shapes: markers(m, "verdicts"), margin: {l: 10, r: 20, t: 30, b: 40}});
     $("verdict-table").innerHTML = "<thead><tr><th>property</th><th>verdict</th>" +
-      "<th>violations</th><th>judged records</th><th>reads</th><th>defined at</th></tr></thead>" +
-      "<tbody>" + props.map(function (p) {
+      "<th>violations</th><th>errors</th><th>judged records</th><th>why</th><th>reads</th>" +
+      "<th>defined at</th></tr></thead><tbody>" + props.map(function (p) {
+        /* the state in words; only satisfied is green (a class name has no spaces) */
+        var why = p.verdict === "satisfied" ? "" : (p.describe || "");
         return '<tr data-property="' + esc(p.name) + '"><td>' + esc(p.name) +
-          '</td><td class="verdict-' + p.verdict + '">' + p.verdict + "</td><td>" +
-          p.violations.length + "</td><td>" + p.judged + "</td><td>" + esc(p.reads.join(", ")) +
-          "</td><td>" + esc(p.source) + "</td></tr>";
+          '</td><td class="verdict-' + esc(String(p.verdict).replace(/ /g, "-")) + '">' +
+          esc(p.verdict) + "</td><td>" + p.violated + "</td><td>" + p.errors +
+          "</td><td>" + p.judged + "</td><td>" + esc(why) + "</td><td>" +
+          esc(p.reads.join(", ")) + "</td><td>" + esc(p.source) + "</td></tr>";
       }).join("") + "</tbody>";
     var items = [];
     props.forEach(function (p) {
