@@ -66,6 +66,26 @@ def test_new_without_a_model_writes_a_starter_that_lints_runs_and_passes_its_tes
     assert "2 passed" in done.stdout
 
 
+def test_the_generated_tests_fail_on_a_property_that_is_never_judged(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A property reading a signal nothing sends passes no generated test: it is not judged."""
+    assert main(["new", "plant"]) == 0
+    app = tmp_path / "plant"
+    props = app / "properties" / "plant.rv"
+    props.write_text(props.read_text() + "\nproperty typo:\n    always (levle <= 1.0)\n")
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests",
+         "-k", "every_property"],
+        cwd=app,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "levle" in done.stdout
+
+
 def test_new_from_the_hotbox_model(tmp_path: Path) -> None:
     assert main(["new", "hb", "--from", str(HOTBOX_MODEL)]) == 0
     app = tmp_path / "hb"
