@@ -330,6 +330,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from collections import Counter
 
     from rasm.report import write_report
+    from rasm.spec.check import STATE_ORDER
 
     # --props FILE.rv (repeatable) and --no-platform-props, where the parser offers them
     props = getattr(args, "props", None) or []
@@ -344,7 +345,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
     print(
         f"rasm: {args.output}: {model['records']} records, {len(model['adaptations'])} "
         f"adaptations, {len(checked)} properties ("
-        + (", ".join(f"{n} {state}" for state, n in sorted(states.items())) or "none checked")
+        + (", ".join(f"{states[state]} {state}" for state in STATE_ORDER if states[state])
+           or "none checked")
         + ")",
         file=sys.stderr,
     )

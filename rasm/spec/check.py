@@ -18,7 +18,7 @@ from rasm.spec.outcome import (
     ERROR,
     INCONCLUSIVE,
     NOT_JUDGED,
-    STATES,
+    SATISFIED,
     VIOLATED,
     PropertyOutcome,
 )
@@ -27,6 +27,8 @@ from rasm.spec.printer import format_value
 __all__ = ["CheckReport", "PropertyReport", "check_records", "format_json", "format_text",
            "format_verdicts"]
 
+# the order in which reports count the states: the failing ones first
+STATE_ORDER = (VIOLATED, ERROR, NOT_JUDGED, INCONCLUSIVE, SATISFIED)
 EXPLAINED = 5  # violations explained in full per property in the text report
 SUMMARISED = 100  # further violations explained in one line each
 
@@ -255,8 +257,8 @@ def _errors(p: PropertyReport, times: Sequence[float]) -> list[str]:
 
 
 def _tally_line(report: CheckReport) -> str:
-    """``1 of 3 properties fail: 2 satisfied, 1 not judged``."""
-    counts = {state: 0 for state in STATES}
+    """``1 of 3 properties fail: 1 not judged, 2 satisfied``."""
+    counts = {state: 0 for state in STATE_ORDER}
     for p in report.properties:
         counts[p.verdict] += 1
     states = ", ".join(f"{n} {state}" for state, n in counts.items() if n)

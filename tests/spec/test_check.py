@@ -350,7 +350,7 @@ def test_a_property_on_a_misspelled_signal_is_not_judged_and_fails_the_check(tmp
     assert f"typo_limit: NOT JUDGED: no value for velocty in any record  [{props}:6:10]" in (
         run.stdout
     )
-    assert "1 of 2 properties fail: 1 satisfied, 1 not judged" in run.stdout
+    assert "1 of 2 properties fail: 1 not judged, 1 satisfied" in run.stdout
     assert "Traceback" not in run.stderr
     run = subprocess.run(
         [sys.executable, "-m", "rasm.cli", "check", str(props), trace, "--format", "json"],
@@ -398,7 +398,7 @@ def test_a_property_in_error_is_reported_as_error_in_every_format():
     text = format_text(report)
     assert "budget: ERROR at 2 of 4 judged records" in text
     assert f"in error at record 1 (time 0.5): {why}" in text
-    assert "1 of 2 properties fail: 1 satisfied, 1 error" in text
+    assert "1 of 2 properties fail: 1 error, 1 satisfied" in text
     first = json.loads(format_json(report))["properties"][0]
     assert first["verdict"] == "error" and first["errors"] == 2 and first["first_error"] == why
     lines = [json.loads(line) for line in format_verdicts(report).splitlines()]
