@@ -109,8 +109,26 @@ def test_a_veto_property_whose_first_verdict_is_not_decided_yet_vetoes():
     assert (ok, why) == (False, "veto property timely not judged yet: no verdict decided so far")
     tc.observe(1.0, {"executed": True})  # answers the anomaly of record 0: decided true
     assert tm.check_trustworthiness(ACTION)[0] is True
-    # the latest verdict is the one of the newest record decided, not of the newest record
-    assert tc.latest["timely"].time <= 1.0
+
+
+def test_a_bounded_future_veto_property_vetoes_from_the_decision_of_a_failure_to_its_next_verdict():
+    """What "currently violated" means for a bounded-future veto property: its verdicts are
+    decided out of record order (an anomaly waits for its window to close, the records after it
+    are decided at once), and the latest verdict is the one decided last."""
+    tc, tm = checker_and_manager(
+        [compile_properties("event anomaly\nevent executed\n"
+                            "property timely: always (anomaly -> eventually[0, 2s] executed)\n")],
+        ["timely"],
+    )
+    tc.observe(0.0, {"anomaly": True})  # pending: its window closes at t=2
+    tc.observe(1.0, {})  # no anomaly: true, decided at once
+    assert tm.check_trustworthiness(ACTION)[0] is True  # a pending anomaly does not veto
+    decided = tc.observe(2.5, {})  # record 0's window is over: decided false, after record 2's
+    assert [(v.index, v.value) for v in decided] == [(2, True), (0, False)]
+    assert tm.check_trustworthiness(ACTION) == (False, "veto property timely violated at t=0")
+    tc.observe(3.0, {})  # the next verdict decided lifts the veto
+    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert tc.outcomes["timely"].state == "violated"  # the run's verdict keeps the failure
 
 
 STEPS = st.lists(st.sampled_from([True, False, None, "raise", "nothing"]), max_size=20)
