@@ -614,7 +614,11 @@ class TrustworthinessChecker(Block):
         # called with every verdict, like on_verdict; the list is the caller's and is read at
         # each record, so observers may come and go during a run
         self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
+        # the latest verdict of each property; _decided_on: the step (a record, or the end)
+        # that decided it
         self.latest: dict[str, Verdict] = {}
+        self._decided_on: dict[str, int] = {}
+        self._steps = 0
         self.outcomes: dict[str, PropertyOutcome] = {
             name: PropertyOutcome(name) for monitor in monitors for name in monitor.properties
         }
@@ -629,6 +633,7 @@ class TrustworthinessChecker(Block):
         """Feed one loop record to every monitor; returns the verdicts it decided."""
         index = self.records
         self.records += 1
+        self._steps += 1
         decided: list[Verdict] = []
         for monitor in self.monitors:
             try:
@@ -646,6 +651,7 @@ class TrustworthinessChecker(Block):
     def finish(self) -> list[Verdict]:
         """The end of the run: settle every monitor (``None``: the run ended before a verdict
         could be decided) and name the signals each property never judged waits for."""
+        self._steps += 1
         decided: list[Verdict] = []
         for monitor in self.monitors:
             try:
@@ -675,7 +681,11 @@ class TrustworthinessChecker(Block):
         if outcome is None:  # a monitor of another kind may decide about a name it did not list
             outcome = self.outcomes[name] = PropertyOutcome(name)
         outcome.add(verdict.value, verdict.error)
-        self.latest[name] = verdict
+        # a record may decide several verdicts of a bounded-future property, in no particular
+        # order: the latest is the worst of those the newest deciding record gave
+        if self._decided_on.get(name) != self._steps or _rank(verdict) > _rank(self.latest[name]):
+            self.latest[name] = verdict
+            self._decided_on[name] = self._steps
         if self.on_verdict is not None:
             self.on_verdict(verdict)
         for observer in self.observers:
@@ -735,6 +745,13 @@ class TrustworthinessChecker(Block):
             return
         self._outcome = (True, f"sent to {effector.name} on {effector.topic}")
         self.post("action_registered")
+
+
+def _rank(verdict: Verdict) -> int:
+    """How bad a verdict is for the checker's trust: error, false, inconclusive, true."""
+    if verdict.error is not None:
+        return 3
+    return {False: 2, None: 1, True: 0}[verdict.value]
 
 
 def _origin(monitor: Any) -> str:
