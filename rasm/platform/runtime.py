@@ -351,14 +351,6 @@ class Platform:
                         f"{defined[name]}: rename one of them"
                     )
                 defined[name] = path
-        for k, name in enumerate(m.veto_properties):
-            if name not in defined:  # it would veto every action, for a reason hard to see
-                known = ", ".join(sorted(defined))
-                raise SourceError(
-                    f"trustworthiness.veto_properties: no property is named {name!r} "
-                    f"(the properties are: {known})",
-                    manifest_location(m, ["trustworthiness", "veto_properties", k]),
-                )
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,

@@ -17,7 +17,7 @@ import threading
 import paho.mqtt.publish as paho_publish
 import pytest
 
-from rasm.errors import SourceError
+from rasm.errors import SourceErrors
 from rasm.platform.runtime import Platform
 from rasm.testing import PropertyViolation, assert_properties, run_app
 from rasm.testing.servers import start_mosquitto
@@ -90,17 +90,17 @@ def test_a_veto_property_that_is_never_judged_lets_no_action_through(tmp_path):
 
 def test_a_veto_property_that_names_no_property_is_refused_at_start_up(tmp_path):
     app = write_guarded_app(tmp_path / "app", veto=("slow", "slwo"))
-    with pytest.raises(SourceError) as caught:
+    with pytest.raises(SourceErrors) as caught:
         Platform(app, clock="simulated").build()
     message = str(caught.value)
-    assert "no property is named 'slwo'" in message
+    assert "veto property 'slwo' is not a property of this app" in message
     assert f"{app / 'app.yaml'}:" in message  # placed in the manifest
     run = subprocess.run(
         [sys.executable, "-m", "rasm.cli", "run", str(app), "--clock", "simulated",
          "--duration", "1"],
         capture_output=True, text=True, timeout=120, cwd=tmp_path,
     )
-    assert run.returncode == 2 and "no property is named 'slwo'" in run.stderr
+    assert run.returncode == 2 and "veto property 'slwo' is not a property" in run.stderr
     assert "Traceback" not in run.stderr
 
 
