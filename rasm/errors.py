@@ -60,14 +60,31 @@ class SourceErrors(RasmError):
         self.errors = list(errors)
 
 
+EXCERPT_WIDTH = 100  # characters of a long line shown around the marked column
+
+
 def mark(text: str, line: int, col: int, width: int = 1) -> str | None:
-    """Return the ``line``-th line of ``text`` with a ``^^^`` marker under ``col`` (1-based)."""
+    """Return the ``line``-th line of ``text`` with a ``^^^`` marker under ``col`` (1-based).
+
+    A line longer than :data:`EXCERPT_WIDTH` is cut to that many characters around the column
+    (``...`` where it was cut), and control characters are shown as ``?``: a hostile file
+    cannot fill the terminal or write to it through an error message.
+    """
     lines = text.splitlines()
     if not 1 <= line <= len(lines):
         return None
     source = lines[line - 1]
-    pad = "".join(c if c == "\t" else " " for c in source[: max(col - 1, 0)])
-    return f"    {source}\n    {pad}{'^' * max(width, 1)}"
+    start = max(col - 1, 0)
+    width = max(min(width, EXCERPT_WIDTH // 2), 1)
+    left, right = "", ""
+    if len(source) > EXCERPT_WIDTH:
+        first = max(0, min(start - EXCERPT_WIDTH // 2, len(source) - EXCERPT_WIDTH))
+        left = "..." if first > 0 else ""
+        right = "..." if first + EXCERPT_WIDTH < len(source) else ""
+        source, start = source[first : first + EXCERPT_WIDTH], start - first
+    source = "".join("?" if (ord(c) < 32 and c != "\t") or c == "\x7f" else c for c in source)
+    pad = "".join(c if c == "\t" else " " for c in left + source[:start])
+    return f"    {left}{source}{right}\n    {pad}{'^' * width}"
 
 
 def not_utf8(file: str, exc: UnicodeDecodeError) -> SourceError:

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, RasmError, SourceError, SourceErrors
+from rasm.errors import Location, RasmError, SourceError, SourceErrors, read_utf8
 
 __all__ = ["lint_file", "lint_paths", "LintUsageError"]
 
@@ -121,9 +121,9 @@ def _yaml_kind(path: Path, text: str) -> Callable[[Path, str], list[str]] | None
 def lint_file(path: Path) -> list[str]:
     """Problems in one file, as ``file:line:col: message`` strings."""
     try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        return [_one_line(SourceError("not a UTF-8 text file", Location(str(path), 1, 1)))]
+        text = read_utf8(path)
+    except SourceError as exc:  # not UTF-8: placed at its first bad byte
+        return [_one_line(exc)]
     if path.suffix == ".rv":
         return _lint_properties(path, text)
     kind = _yaml_kind(path, text)

@@ -213,8 +213,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         raise SourceErrors(
             [
                 src.error(
-                    "an app manifest is a mapping (name, components, ...)",
-                    Location(str(file), 1, 1),
+                    "an app manifest is a mapping (name, components, ...)", src.node(src.data)
                 )
             ]
         )

@@ -13,9 +13,8 @@ import math
 from pathlib import Path, PurePath
 from typing import Any
 
-from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
-from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.error import YAMLError
 from ruamel.yaml.scalarstring import (
     DoubleQuotedScalarString,
     FoldedScalarString,
@@ -23,10 +22,11 @@ from ruamel.yaml.scalarstring import (
     SingleQuotedScalarString,
 )
 
-from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.errors import Location, SourceError, SourceErrors, mark, not_utf8
 from rasm.rules.model import TYPES, Rule, Rules, Variable
 from rasm.rules.typing import check_rule_expression
 from rasm.spec import parse_expression
+from rasm.yamlsafe import document_start, yaml_error, yaml_reader
 
 _TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}
 _VARIABLE_KEYS = {"type", "min", "max", "values", "description"}
@@ -48,9 +48,13 @@ def load_rules(path: str | Path) -> Rules:
         raise TypeError(f"load_rules() takes the path of a rules file, not {type(path).__name__}")
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        data = path.read_bytes()
+    except OSError as exc:
         raise SourceError(f"cannot read rules file: {exc}", Location(str(path))) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise not_utf8(str(path), exc) from None
     return parse_rules(text, source=str(path))
 
 
@@ -100,22 +104,17 @@ class _Loader:
     # ------------------------------------------------------------------ reading
 
     def load(self) -> Rules:
-        yaml = YAML(typ="rt")
-        yaml.preserve_quotes = True
         try:
-            data = yaml.load(self.text)
-        except MarkedYAMLError as exc:
-            mark_ = exc.problem_mark or exc.context_mark
-            line0, col0 = (mark_.line, mark_.column) if mark_ is not None else (0, 0)
-            problem = exc.problem or exc.context or "invalid YAML"
-            self.error(f"YAML syntax error: {problem}", line0, col0)
-            self.raise_errors()
+            data = yaml_reader(preserve_quotes=True).load(self.text)
         except YAMLError as exc:
-            self.error(f"YAML syntax error: {exc}", 0, 0)
-            self.raise_errors()
+            raise yaml_error(exc, self.text, self.source) from None
         if not isinstance(data, CommentedMap):
             found = "an empty file" if data is None else f"a {_kind(data)}"
-            self.error(f"a rules file is a mapping with 'variables' and 'rules', not {found}", 0, 0)
+            line, col = document_start(self.text)
+            self.error(
+                f"a rules file is a mapping with 'variables' and 'rules', not {found}",
+                line - 1, col - 1,
+            )
             self.raise_errors()
         for key in data:
             if key not in _TOP_KEYS:

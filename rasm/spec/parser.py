@@ -158,6 +158,22 @@ class _Build(Transformer):
             )
         return value
 
+    def _string(self, token: Token) -> str:
+        """The text a string literal spells (Python's escapes), refused with its position when
+        it holds a NUL character or an escape Python cannot decode."""
+        nul = token.value.find("\0")
+        if nul >= 0:
+            raise self.place.error(
+                "a NUL character cannot be written in a string (write \\x00 to mean one)",
+                token.line,
+                token.column + nul,
+            )
+        try:
+            return python_ast.literal_eval(token.value)
+        except (SyntaxError, ValueError) as exc:
+            problem = getattr(exc, "msg", None) or str(exc)
+            raise self._token_error(f"invalid string literal: {problem}", token) from None
+
     def _no_temporal(self, meta, what: str) -> None:
         if not self.temporal:
             raise self._error(f"temporal operator not allowed here ({what})", meta)
@@ -213,7 +229,7 @@ class _Build(Transformer):
         return (-self._finite_number(token), meta)
 
     def default_string(self, meta, token):
-        return (_string(token.value), meta)
+        return (self._string(token), meta)
 
     def default_true(self, meta):
         return (True, meta)
@@ -332,7 +348,7 @@ class _Build(Transformer):
         return Literal(self._finite_number(token), location=self._loc(meta))
 
     def string(self, meta, token):
-        return Literal(_string(token.value), location=self._loc(meta))
+        return Literal(self._string(token), location=self._loc(meta))
 
     def true(self, meta):
         return Literal(True, location=self._loc(meta))
@@ -371,11 +387,10 @@ class _Build(Transformer):
 def _number(text: str) -> int | float:
     if any(c in text for c in ".eE"):
         return float(text)
-    return int(text)
-
-
-def _string(text: str) -> str:
-    return python_ast.literal_eval(text)
+    digits = text.lstrip("0") or "0"
+    if len(digits) > 309:  # past the largest float; int() of a long text is slow, then refused
+        return math.inf
+    return int(digits)
 
 
 def _excerpt_at(place: _Place, location: Location) -> str | None:
@@ -400,6 +415,10 @@ def _parse(text: str, start: str, place: _Place, temporal: bool):
         if isinstance(inner, RecursionError):
             line, col = _deepest_item(tree)
             raise place.error("expression nested too deeply", line, col) from None
+        if isinstance(inner, ValueError | ArithmeticError):  # a literal Python cannot convert
+            meta = getattr(getattr(exc, "obj", None), "meta", None)
+            line, col = (meta.line, meta.column) if meta and not meta.empty else (1, 1)
+            raise place.error(f"cannot read this: {inner}", line, col) from None
         raise
 
 

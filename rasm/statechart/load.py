@@ -103,7 +103,7 @@ class _Checker:
         if not isinstance(data, dict) or "statechart" not in data:
             self.error(
                 "a statechart file is a mapping with a top-level 'statechart' key",
-                self.src.node(data) if data is not None else Location(self.src.file, 1, 1),
+                self.src.node(data),
             )
             return
         for key in data:

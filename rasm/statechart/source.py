@@ -2,7 +2,9 @@
 
 sismic reads YAML without keeping positions, so its errors cannot say where a problem is. We read
 the same YAML 1.2 with ruamel's round-trip loader, which records them, and turn YAML syntax errors
-into :class:`~rasm.errors.SourceError` instead of letting raw ruamel exceptions escape.
+into :class:`~rasm.errors.SourceError` instead of letting raw ruamel exceptions escape. The
+reader is guarded against hostile documents (too deep, too many aliases, values Python refuses,
+forbidden characters): see :mod:`rasm.yamlsafe`.
 """
 
 from __future__ import annotations
@@ -10,12 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
-from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.error import YAMLError
 from ruamel.yaml.scalarstring import FoldedScalarString, LiteralScalarString
 
 from rasm.errors import Location, SourceError, mark
+from rasm.yamlsafe import document_start, yaml_error, yaml_reader
 
 __all__ = ["YamlSource", "load_yaml", "plain"]
 
@@ -33,11 +35,15 @@ class YamlSource:
         return Location(self.file, line0 + 1, col0 + 1)
 
     def node(self, node: Any) -> Location:
-        """Where a mapping or sequence starts."""
+        """Where a mapping or sequence starts (for anything else: where the document starts)."""
         lc = getattr(node, "lc", None)
         if lc is None or lc.line is None:
-            return Location(self.file)
+            return self.start()
         return self.location(lc.line, lc.col)
+
+    def start(self) -> Location:
+        """Where the document's content starts (see :func:`~rasm.yamlsafe.document_start`)."""
+        return Location(self.file, *document_start(self.text))
 
     def key(self, mapping: Any, key: str) -> Location:
         """Where ``key`` is written in ``mapping``."""
@@ -112,20 +118,10 @@ class YamlSource:
 
 def load_yaml(text: str, file: str) -> YamlSource:
     """Parse YAML 1.2 text, keeping positions; syntax errors become :class:`SourceError`."""
-    yaml = YAML(typ="rt")
     try:
-        data = yaml.load(text)
-    except MarkedYAMLError as exc:
-        mark_ = exc.problem_mark or exc.context_mark
-        problem = exc.problem or exc.context or "invalid YAML"
-        if mark_ is None:
-            raise SourceError(f"YAML syntax error: {problem}", Location(file)) from None
-        location = Location(file, mark_.line + 1, mark_.column + 1)
-        raise SourceError(
-            f"YAML syntax error: {problem}", location, mark(text, location.line, location.col)
-        ) from None
+        data = yaml_reader().load(text)
     except YAMLError as exc:
-        raise SourceError(f"YAML error: {exc}", Location(file)) from None
+        raise yaml_error(exc, text, file) from None
     return YamlSource(data, text, file)
 
 
