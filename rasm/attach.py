@@ -90,6 +90,8 @@ def load_topic_map(
     it does not name. Raises :class:`SourceError` naming the file (and line) of a problem."""
     import yaml
 
+    from rasm.yamlsafe import safe_load, yaml_error
+
     source = str(path)
     if text is None:
         try:
@@ -97,11 +99,9 @@ def load_topic_map(
         except (OSError, UnicodeDecodeError) as exc:
             raise SourceError(f"cannot read the topic map: {exc}", Location(source)) from None
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = Location(source, mark.line + 1, mark.column + 1) if mark else Location(source)
-        raise SourceError(f"not valid YAML: {getattr(exc, 'problem', exc)}", where) from None
+        data = safe_load(text)
+    except yaml.YAMLError as exc:  # syntax, nesting, a forbidden character: at its place
+        raise yaml_error(exc, text, source) from None
     if data is None:
         data = {}
     if not isinstance(data, dict):

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
-from rasm.errors import RasmError, SourceError, SourceErrors, read_utf8
+from rasm.errors import RasmError, SourceErrors, printable, read_utf8
 
 if TYPE_CHECKING:
     from rasm.platform.runtime import Platform
@@ -516,13 +516,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.func(args)
     except SourceErrors as exc:
         for error in exc.errors:
-            print(f"rasm: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except SourceError as exc:
-        print(f"rasm: {exc}", file=sys.stderr)
+            print(f"rasm: {printable(str(error))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except (RasmError, OSError) as exc:
-        print(f"rasm: {exc}", file=sys.stderr)
+        print(f"rasm: {printable(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 130

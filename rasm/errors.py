@@ -87,6 +87,16 @@ def mark(text: str, line: int, col: int, width: int = 1) -> str | None:
     return f"    {left}{source}{right}\n    {pad}{'^' * width}"
 
 
+def printable(text: str) -> str:
+    """``text`` with control characters other than newline and tab escaped (``\\x1b``): a
+    message that quotes a hostile file cannot drive the terminal it is printed on."""
+    if text.isprintable():
+        return text
+    return "".join(
+        c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in text
+    )
+
+
 def not_utf8(file: str, exc: UnicodeDecodeError) -> SourceError:
     """A :class:`SourceError` for a file that is not UTF-8, placed at its first bad byte."""
     data = exc.object[: exc.start]

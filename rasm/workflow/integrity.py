@@ -24,6 +24,7 @@ __all__ = [
     "configured_key",
     "digest",
     "manifest_bytes",
+    "shown",
     "sign",
     "verify_files",
     "verify_signature",
@@ -35,6 +36,11 @@ SIGNATURE = "MANIFEST.json.hmac"
 
 class IntegrityError(RasmError):
     """A package that must not be installed: a changed, missing or extra file, a bad signature."""
+
+
+def shown(name: str) -> str:
+    """An entry name for a message: as it is, or quoted with escapes when it is not printable."""
+    return name if name.isprintable() else repr(name)
 
 
 def digest(data: bytes) -> str:
@@ -84,12 +90,14 @@ def verify_files(manifest: dict[str, Any], contents: dict[str, bytes]) -> None:
     listed: dict[str, str] = manifest.get("files", {})
     for name, expected in sorted(listed.items()):
         if name not in contents:
-            raise IntegrityError(f"{name}: listed in {MANIFEST} but missing from the package")
+            raise IntegrityError(
+                f"{shown(name)}: listed in {MANIFEST} but missing from the package"
+            )
         if digest(contents[name]) != expected:
-            raise IntegrityError(f"{name}: SHA-256 does not match {MANIFEST} (file changed)")
+            raise IntegrityError(f"{shown(name)}: SHA-256 does not match {MANIFEST} (file changed)")
     extra = sorted(set(contents) - set(listed) - {MANIFEST, SIGNATURE})
     if extra:
-        raise IntegrityError(f"{extra[0]}: in the package but not listed in {MANIFEST}")
+        raise IntegrityError(f"{shown(extra[0])}: in the package but not listed in {MANIFEST}")
 
 
 def manifest_bytes(data: dict[str, Any]) -> bytes:

@@ -121,7 +121,7 @@ def test_a_topic_map_moves_signals_and_fields(mqtt, tmp_path):
         ("speed: robot/odom\n", "'speed' is not a signal the properties read", 1),
         ("velocity: robot/#\n", "velocity", 1),
         ("mode: x\nvelocity: {topic: a, unit: m}\n", "write a topic", 2),
-        ("velocity: [a\n", "not valid YAML", 2),
+        ("velocity: [a\n", "YAML syntax error", 2),
         ("- velocity\n", "a topic map is a mapping", 1),
     ],
 )
