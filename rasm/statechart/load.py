@@ -332,6 +332,8 @@ class _Checker:
                         self.src.value(state, "initial"),
                         len(str(state["initial"])),
                     )
+                else:
+                    self.check_initial_history(name, state)
             elif "initial" in state and state.get("type") is None:
                 self.error(
                     f"'initial' is only for a state with 'states' ('{name}' has none)",
@@ -348,6 +350,30 @@ class _Checker:
                     )
         if not any(p.severity == "error" for p in self.problems):
             self.check_reachability()
+
+    def check_initial_history(self, name: str, state: Any) -> None:
+        """A history state as 'initial' restores what its parent last had active; entered
+        before that parent ever had an active child, it has only its 'memory' to go to."""
+        initial = str(state["initial"])
+        child = self.states[initial][0]
+        if str(child.get("type")) not in ("shallow history", "deep history"):
+            return
+        where = self.src.value(state, "initial")
+        if self.states[name][1] is None:
+            self.error(
+                f"the root state's 'initial' is the history state '{initial}': the root is "
+                "entered once, so there is never anything to restore (and without 'memory' "
+                "the first step fails); name the state to start in",
+                where,
+                len(initial),
+            )
+        elif "memory" not in child:
+            self.warning(
+                f"initial state '{initial}' of '{name}' is a history state without "
+                f"'memory': entering '{name}' before any of its children was active fails",
+                where,
+                len(initial),
+            )
 
     def _children(self, name: str | None) -> set[str]:
         if name is None:

@@ -215,3 +215,49 @@ def test_a_date_that_does_not_exist_is_refused_at_it(
     chart.write_text("statechart:\n  name: x\n  description: 2021-02-30\n  root state: {name: r}\n")
     code, out = run_main(capsys, "simulate", chart)
     assert_refused_at(code, out, f"{chart}:3:16", "day is out of range")
+
+
+# ----------------------------------------------------------------------------- history as initial
+
+HISTORY_ROOT = """\
+statechart:
+  name: hist
+  root state:
+    name: root
+    initial: h
+    states:
+      - name: h
+        type: shallow history
+      - name: a
+"""
+
+
+def test_lint_rejects_a_history_state_as_the_roots_initial(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    chart = tmp_path / "c.yaml"
+    chart.write_text(HISTORY_ROOT)
+    code, out = run_main(capsys, "lint", chart)
+    assert code == 1
+    assert out.startswith(f"{chart}:5:14: the root state's 'initial' is the history state 'h'")
+    # what it saves the user from: the chart fails at its first step (now: refused up front)
+    code, out = run_main(capsys, "simulate", chart)
+    assert_refused_at(code, out, f"{chart}:5:14", "name the state to start in")
+
+
+def test_a_nested_initial_history_without_memory_is_a_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    chart = tmp_path / "c.yaml"
+    nested = HISTORY_ROOT.replace("initial: h", "initial: p").replace(
+        "      - name: h\n        type: shallow history\n      - name: a\n",
+        "      - name: p\n        initial: h\n        states:\n"
+        "          - name: h\n            type: deep history\n          - name: a\n",
+    )
+    chart.write_text(nested)
+    code, out = run_main(capsys, "lint", chart)
+    assert code == 1
+    assert f"{chart}:8:18: warning: initial state 'h' of 'p' is a history state without" in out
+    remembers = "type: deep history\n            memory: a"
+    chart.write_text(nested.replace("type: deep history", remembers))
+    assert run_main(capsys, "lint", chart) == (0, "")
