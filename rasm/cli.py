@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
-from rasm.errors import RasmError, SourceErrors, printable, read_utf8
+from rasm.errors import RasmError, SourceErrors, printable, raise_interrupted, read_utf8
 
 if TYPE_CHECKING:
     from rasm.platform.runtime import Platform
@@ -510,8 +510,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    import signal
+    import threading
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        # a Ctrl-C raises Interrupted, which user code cannot raise by accident: a
+        # KeyboardInterrupt raised inside a chart or a stage fails that step or stage only
+        previous = signal.signal(signal.SIGINT, raise_interrupted)
     try:
         return args.func(args)
     except SourceErrors as exc:
@@ -523,6 +531,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

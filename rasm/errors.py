@@ -8,6 +8,7 @@ the form editors and CI logs understand.
 from __future__ import annotations
 
 import os
+import signal
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -113,6 +114,34 @@ def read_utf8(path: str | os.PathLike[str]) -> str:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise not_utf8(str(path), exc) from None
+
+
+class Interrupted(KeyboardInterrupt):
+    """A real Ctrl-C: what the ``rasm`` command's SIGINT handler raises.
+
+    User code (chart code, stage components, a simulator, a twin) may raise ``SystemExit``,
+    ``KeyboardInterrupt`` or any other ``BaseException`` itself; that fails the step or stage
+    like any exception and does not stop rasm. Only an interrupt from outside does (see
+    :func:`is_interrupt`).
+    """
+
+
+def raise_interrupted(signum: int, frame: object) -> None:
+    """A SIGINT handler raising :class:`Interrupted` (installed by the ``rasm`` command)."""
+    raise Interrupted
+
+
+def is_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc``, caught around user code, is a real interrupt that must stop rasm:
+    an :class:`Interrupted`, or a ``KeyboardInterrupt`` while Python's default SIGINT handler is
+    in place (rasm used as a library: a Ctrl-C cannot be told from one user code raised, so it
+    stops). Anything else user code raised is that code's failure."""
+    if isinstance(exc, Interrupted):
+        return True
+    return (
+        isinstance(exc, KeyboardInterrupt)
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
 
 
 class StatechartError(RasmError):

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import PlatformError
+from rasm.errors import PlatformError, is_interrupt
 from rasm.platform.trace import LOOP_KEYS
 
 __all__ = [
@@ -125,7 +125,9 @@ def load_component(
         if exc.name == qualified or (exc.name or "").startswith(package):
             raise PlatformError(f"{ref}: no module {module_name!r} in {folder}") from exc
         raise PlatformError(f"{ref}: importing {module_name} failed: {exc}") from exc
-    except (Exception, SystemExit) as exc:  # sys.exit() at import: an error, not an exit
+    except BaseException as exc:  # sys.exit() at import: an error, not an exit
+        if is_interrupt(exc):
+            raise
         sys.modules.pop(qualified, None)
         raise PlatformError(
             f"{ref}: importing {module_name} failed: {type(exc).__name__}: {exc}"
@@ -135,7 +137,9 @@ def load_component(
         raise PlatformError(f"{ref}: {module_name} has no {class_name!r}")
     try:
         return cls(**(kwargs or {}))
-    except (Exception, SystemExit) as exc:
+    except BaseException as exc:
+        if is_interrupt(exc):
+            raise
         raise PlatformError(f"{ref}: creating {class_name}() failed: {exc}") from exc
 
 

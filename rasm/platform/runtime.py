@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, PlatformError, RasmError, SourceError
+from rasm.errors import Location, PlatformError, RasmError, SourceError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.platform.blocks import (
     AdaptationManager,
@@ -630,7 +630,9 @@ class Platform:
     def _apply_action(self, effector: str, action: dict[str, Any]) -> None:
         try:
             self.simulator.apply(effector, action, self.clock.time - self._started_at)
-        except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
+        except BaseException as exc:  # the simulator is user code: never fatal
+            if is_interrupt(exc):
+                raise
             what = f"the simulator's apply({effector!r}) failed: {describe_failure(exc)}"
             self.logs.log(_log, logging.ERROR, what, exc_info=exc)
 
@@ -640,7 +642,9 @@ class Platform:
             readings = self.simulator.step(
                 self.scheduler.now() - self._started_at, self.manifest.simulator_period
             )
-        except (Exception, SystemExit) as exc:  # the simulator is user code: never fatal
+        except BaseException as exc:  # the simulator is user code: never fatal
+            if is_interrupt(exc):
+                raise
             what = f"the simulator's step failed: {describe_failure(exc)}"
             self.logs.log(_log, logging.ERROR, what, exc_info=exc)
             return

@@ -15,6 +15,8 @@ from collections.abc import Callable
 from time import perf_counter  # a module global: read faster than time.perf_counter each call
 from typing import Any, NamedTuple
 
+from rasm.errors import is_interrupt
+
 __all__ = ["StageOutcome", "StageRunner"]
 
 
@@ -85,7 +87,9 @@ class StageRunner:
             start = perf_counter()
             try:
                 result = job(*args)
-            except (Exception, SystemExit) as exc:  # sys.exit() in a stage fails the stage
+            except BaseException as exc:  # sys.exit(), raise KeyboardInterrupt: fail the stage
+                if is_interrupt(exc):
+                    raise
                 return StageOutcome(
                     False,
                     error=exc,

@@ -32,6 +32,7 @@ from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event, InternalEvent, MetaEvent
 
+from rasm.errors import is_interrupt
 from rasm.statechart import fast
 from rasm.statechart.fast import FastInterpreter, _source_of
 
@@ -147,6 +148,14 @@ def _plain_guard(guard: str) -> tuple | None:
     return None
 
 
+def _escaped(exc: BaseException, doing: str) -> CodeEvaluationError:
+    """What chart code raised that is not an ``Exception`` (``sys.exit()``, ``raise
+    KeyboardInterrupt``) as a failure of the step like any other, so it is rolled back and
+    reported. (A real interrupt is re-raised as is by the caller: it stops the run.)"""
+    what = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    return CodeEvaluationError(f"'{what}' occurred while {doing}")
+
+
 class FastGuardEvaluator(PythonEvaluator):
     """sismic's Python evaluator with guards evaluated in one frame instead of two (guards run at
     every step), exposing only the names a guard uses: the same values, the same errors."""
@@ -207,6 +216,21 @@ class FastGuardEvaluator(PythonEvaluator):
             return bool(eval(code, exposed, self._context))
         except Exception as e:
             raise CodeEvaluationError(f"'{e}' occurred while evaluating '{guard}'") from e
+        except BaseException as e:
+            if is_interrupt(e):
+                raise
+            raise _escaped(e, f"evaluating '{guard}'") from e
+
+    def _evaluate_code(self, code, *, additional_context=None):
+        """sismic's (contract conditions), with :func:`_escaped` for what is not an Exception."""
+        try:
+            return super()._evaluate_code(code, additional_context=additional_context)
+        except Exception:
+            raise
+        except BaseException as e:
+            if is_interrupt(e):
+                raise
+            raise _escaped(e, f"evaluating '{code}'") from e
 
     def _evaluate_plain(self, plain: tuple, transition: Any) -> bool | None:
         """A guard of :func:`_plain_guard`'s forms, read without evaluating it when the names it
@@ -277,6 +301,10 @@ class FastGuardEvaluator(PythonEvaluator):
             return sent_events
         except Exception as e:
             raise CodeEvaluationError(f"'{e}' occurred while executing '{code}'") from e
+        except BaseException as e:
+            if is_interrupt(e):
+                raise
+            raise _escaped(e, f"executing '{code}'") from e
 
 
 fast.PURE_GUARD_EVALUATIONS.add(FastGuardEvaluator.evaluate_guard)

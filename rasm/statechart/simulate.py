@@ -159,7 +159,7 @@ def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> Non
             failure = interp.last_failure
             steps.append(
                 SimulatedStep(
-                    time=interp.time,
+                    time=interp.clock.time,  # when it was tried (the rollback restored the time)
                     event=failure.event.name if failure and failure.event else None,
                     configuration=sorted(interp.configuration),
                     entered=[],
