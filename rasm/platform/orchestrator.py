@@ -19,6 +19,7 @@ from typing import Any
 
 from sismic.clock import SimulatedClock
 
+from rasm.errors import is_interrupt
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.blocks import AdaptationManager, StateManager, TrustworthinessManager
 from rasm.platform.components import (
@@ -289,7 +290,9 @@ class AdaptationOrchestrator(Block):
             worse = worse_than_baseline(
                 self.twin, self._twin_checker, plan.values, context, self.twin_horizon, self.twin_dt
             )
-        except Exception as exc:  # fail closed: a plan the twin cannot judge is not legitimate
+        except BaseException as exc:  # fail closed: a plan the twin cannot judge is not legitimate
+            if is_interrupt(exc):
+                raise
             return [("simulation", f"the twin could not simulate the plan: {exc}")]
         return list(worse.items())
 

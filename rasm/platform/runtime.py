@@ -445,7 +445,9 @@ class Platform:
             if model:
                 try:
                     twin.load(model)
-                except Exception as exc:  # a stale model is relearned, never fatal
+                except BaseException as exc:  # a stale model is relearned, never fatal
+                    if is_interrupt(exc):
+                        raise
                     _log.warning("the twin's stored model was not restored: %s", exc)
             self._twin_inputs = frozenset(twin.inputs)
             # a store read from memory holds, for an input just stored, the value stored: the
@@ -480,7 +482,9 @@ class Platform:
         try:
             update = twin.observe(time, values)
             residual = None if update is None else float(update.residual)
-        except Exception as exc:  # a twin fault is logged; learning goes on with the next record
+        except BaseException as exc:  # a twin fault is logged; learning goes on
+            if is_interrupt(exc):
+                raise
             self.logs.log(
                 _log, logging.ERROR, f"digital twin failed to learn: {describe_failure(exc)}"
             )

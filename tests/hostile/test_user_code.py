@@ -168,3 +168,41 @@ def test_a_monitor_stage_raising_a_base_exception_fails_that_stage_and_the_run_e
     assert exit_code in (0, 1), out  # as a normal end (not 7, not 130)
     assert f"monitor stage failed: {escape.split('(')[0]}" in out
     assert "stage timing" in out  # the summary was printed
+
+
+class ExitingTwin:
+    """A digital twin whose every method calls sys.exit()."""
+
+    inputs = ("temperature",)
+
+    def observe(self, time: float, values: dict) -> None:
+        raise SystemExit("observe")
+
+    def simulate(self, plan: dict, state: dict, horizon: float, dt: float) -> list:
+        raise SystemExit("simulate")
+
+    def model(self) -> dict:
+        return {}
+
+    def load(self, model: dict) -> None:
+        raise SystemExit("load")
+
+
+def test_a_twin_that_exits_fails_closed_and_the_loop_goes_on(tmp_path: Path) -> None:
+    from rasm.platform.manifest import load_manifest
+    from rasm.platform.runtime import Platform
+
+    trace = tmp_path / "trace.jsonl"
+    summary = Platform(
+        load_manifest(ROOT / "examples" / "hotbox"),
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        trace=trace,
+        components={"twin": ExitingTwin()},
+    ).run(30)
+    assert summary.stats.iterations == int(30 / 0.5)
+    text = trace.read_text()
+    # Legitimate cannot judge a plan on a twin that exits: no plan is accepted on its word
+    assert "the twin could not simulate the plan: simulate" in text
+    assert summary.stats.executed == 0
