@@ -16,10 +16,11 @@ import z3
 
 from rasm.errors import Location, SourceError, SourceErrors
 from rasm.rules.model import Rules
-from rasm.rules.mus import check, new_solver
+from rasm.rules.mus import SolverGaveUp, check, new_solver
 from rasm.rules.report import Violation
 from rasm.rules.smt import Encoder
 from rasm.rules.typing import check_rule_expression
+from rasm.rules.verify import Undecided, likely_cause
 from rasm.spec import ast
 from rasm.spec.parser import parse_declarations
 
@@ -85,7 +86,16 @@ def _judge(
         return Violation(prop.name, "", None, skipped="; ".join(e.message for e in exc.errors))
     expression = _show(body)
     violated = z3.Not(encoder.condition(body))
-    if not check(admitted, [violated]):
+    try:
+        holds = not check(admitted, [violated])
+    except SolverGaveUp as exc:  # no verdict is better than a guessed one
+        exprs = [body, *(e for r in rules.rules for e in (r.when, r.require) if e is not None)]
+        raise Undecided(
+            f"z3 could not decide property '{prop.name}' against the rules ({exc.reason}): "
+            f"{likely_cause(exprs, rules.variables)}",
+            prop.location,
+        ) from None
+    if holds:
         return Violation(prop.name, expression, None)
     model = admitted.model()
     return Violation(prop.name, expression, encoder.decode(model, list(rules.variables)))

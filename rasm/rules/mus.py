@@ -28,6 +28,15 @@ from rasm.errors import RulesError
 SOLVER_TIMEOUT_MS = 30_000
 
 
+class SolverGaveUp(RulesError):
+    """z3 answered ``unknown`` (its ``reason``: a time limit, an incomplete theory). The caller
+    names the rules it was deciding; see :func:`rasm.rules.verify.gave_up`."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(f"z3 could not decide the rules ({reason})")
+        self.reason = reason
+
+
 def new_solver() -> z3.Solver:
     """A z3 solver with rasm's time limit per check."""
     solver = z3.Solver()
@@ -49,10 +58,7 @@ def check(solver: z3.Solver, assumptions: Sequence[z3.BoolRef] = ()) -> bool:
         z3.Z3_solver_check_assumptions(solver.ctx.ref(), solver.solver, count, array)
     )
     if answer == z3.unknown:
-        raise RulesError(
-            f"z3 could not decide the rules ({solver.reason_unknown()}); "
-            "nonlinear integer arithmetic (a product of int variables) is the usual cause"
-        )
+        raise SolverGaveUp(solver.reason_unknown())
     return answer == z3.sat
 
 

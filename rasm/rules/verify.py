@@ -21,15 +21,24 @@ on its own: that keeps large, loosely coupled rule sets near linear.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import z3
 
-from rasm.rules.model import Rules, require_rules
-from rasm.rules.mus import ConflictFinder, check, core_ids, new_solver
+from rasm.errors import RulesError, SourceError
+from rasm.rules.model import Rule, Rules, Variable, require_rules
+from rasm.rules.mus import (
+    SOLVER_TIMEOUT_MS,
+    ConflictFinder,
+    SolverGaveUp,
+    check,
+    core_ids,
+    new_solver,
+)
 from rasm.rules.report import Conflict, Report
 from rasm.rules.smt import Encoder, encode_rules
 from rasm.rules.split import components, guard_split, names
+from rasm.spec import ast
 
 #: Solver calls spent making one redundant rule's "implied by" set minimal, at most.
 IMPLIED_BY_BUDGET = 8
@@ -40,7 +49,10 @@ REDUNDANCY_ROUNDS = 6
 
 
 def verify(rules: Rules, *, redundancy: bool = True) -> Report:
-    """Check ``rules`` for dead, unsatisfiable, conflicting and (optionally) redundant rules."""
+    """Check ``rules`` for dead, unsatisfiable, conflicting and (optionally) redundant rules.
+
+    When z3 cannot decide (``unknown``), :class:`~rasm.errors.SourceError` at the rule it was
+    deciding: no report is better than a guessed one."""
     return _Verifier(require_rules(rules, "verify()")).run(redundancy=redundancy)
 
 
@@ -49,17 +61,71 @@ def is_consistent(rules: Rules) -> Report:
     return verify(rules, redundancy=False)
 
 
+def _nonlinear(expr: ast.Expr) -> list[set[str]]:
+    """The variables of each product or quotient of variables in ``expr`` (what makes
+    arithmetic nonlinear: ``x * y``, ``2 / x``; not ``2 * x`` or ``x / 2``)."""
+    found = []
+    if isinstance(expr, ast.Binary) and expr.op in ("*", "/"):
+        left, right = names(expr.left), names(expr.right)
+        if right and (left or expr.op == "/"):
+            found.append(left | right)
+    for child in ast.children(expr):
+        found += _nonlinear(child)
+    return found
+
+
+def likely_cause(exprs: Iterable[ast.Expr], variables: dict[str, Variable]) -> str:
+    """Why z3 may have given up on ``exprs``, in words, from what they compute."""
+    terms = [term for expr in exprs for term in _nonlinear(expr)]
+    kinds = {variables[n].type for term in terms for n in term if n in variables}
+    if "int" in kinds:
+        return ("a product or quotient of int variables (nonlinear integer arithmetic, which no "
+                "solver decides in general) is the likely cause")
+    if terms:
+        return ("products or quotients of variables (nonlinear real arithmetic) can take z3 "
+                f"past its limit of {SOLVER_TIMEOUT_MS / 1000:g} s per question")
+    return f"z3's limit is {SOLVER_TIMEOUT_MS / 1000:g} s per question"
+
+
+class Undecided(SourceError, RulesError):
+    """z3 could not decide a question about the rules: an error in the rules file at the rule
+    it was about (a :class:`~rasm.errors.SourceError`), and a
+    :class:`~rasm.errors.RulesError` for code that catches the rules layer's errors."""
+
+
+def gave_up(exc: SolverGaveUp, rules: Sequence[Rule], everything: Rules) -> Undecided:
+    """The error for z3 answering ``unknown`` about ``rules`` (all of them when empty), placed
+    at the first, with the likely cause read from the rules themselves."""
+    rules = list(rules) or list(everything.rules)
+    if len(rules) == 1:
+        what = f"rule '{rules[0].name}'"
+    else:
+        shown = ", ".join(f"'{r.name}'" for r in rules[:4])
+        what = f"rules {shown}{', ...' if len(rules) > 4 else ''} together"
+    exprs = [e for rule in rules for e in (rule.when, rule.require) if e is not None]
+    cause = likely_cause(exprs, everything.variables)
+    return Undecided(f"z3 could not decide {what} ({exc.reason}): {cause}", rules[0].location)
+
+
 class _Verifier:
     def __init__(self, rules: Rules) -> None:
         self.rules = rules
         self.encoder: Encoder
         self.encoder, self.formulas = encode_rules(rules)
         self.names = rules.names
+        self.deciding: list[int] = []  # the rules z3 is asked about (for when it gives up)
 
     def run(self, *, redundancy: bool) -> Report:
+        try:
+            return self.report(redundancy=redundancy)
+        except SolverGaveUp as exc:
+            raise gave_up(exc, [self.rules.rules[i] for i in self.deciding], self.rules) from None
+
+    def report(self, *, redundancy: bool) -> Report:
         report = Report(source=self.rules.source, rule_count=len(self.rules.rules))
         dead, unsat = set(), set()
         for index, rule in enumerate(self.rules.rules):
+            self.deciding = [index]
             when, require = self.formulas[index]
             solver = self.solver(rule.reads)
             if not check(solver, [when]):
@@ -72,6 +138,7 @@ class _Verifier:
         in_conflict: set[int] = set()
         for group in self.groups():
             candidates = [i for i in group if i not in dead and i not in unsat]
+            self.deciding = candidates
             for conflict in self.conflicts(candidates):
                 report.conflicts.append(conflict[1])
                 in_conflict.update(conflict[0])
@@ -85,6 +152,7 @@ class _Verifier:
             sound = set(range(len(self.names))) - dead - unsat
             for group in self.groups():
                 members = [i for i in group if i in sound]
+                self.deciding = members
                 for index, implied_by in self.redundant(members, in_conflict):
                     report.redundant.append(self.names[index])
                     report.implied_by[self.names[index]] = [self.names[i] for i in implied_by]

@@ -261,3 +261,66 @@ def test_a_nested_initial_history_without_memory_is_a_warning(
     remembers = "type: deep history\n            memory: a"
     chart.write_text(nested.replace("type: deep history", remembers))
     assert run_main(capsys, "lint", chart) == (0, "")
+
+
+# ----------------------------------------------------------------------------- z3 gives up
+
+REAL_NONLINEAR = """\
+variables:
+  x: {type: real}
+  y: {type: real}
+  z: {type: real}
+rules:
+  - name: curved
+    require: x*x*x*y - y*y*z*x + z*z*z*z*x*y > 3
+  - name: linear
+    require: x + y <= 10
+"""
+
+
+@pytest.fixture
+def impatient_z3(monkeypatch: pytest.MonkeyPatch) -> None:
+    """z3 with a 1 ms limit per question: it gives up on nonlinear rules at once."""
+    import rasm.rules.mus
+
+    monkeypatch.setattr(rasm.rules.mus, "SOLVER_TIMEOUT_MS", 1)
+
+
+def test_z3_giving_up_on_real_rules_names_the_rule_and_does_not_blame_ints(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], impatient_z3: None
+) -> None:
+    rules = tmp_path / "r.yaml"
+    rules.write_text(REAL_NONLINEAR)
+    code, out = run_main(capsys, "verify-rules", rules)
+    assert_refused_at(code, out, f"{rules}:{position(REAL_NONLINEAR, 'name: curved')}",
+                      "z3 could not decide rule 'curved'")
+    assert "nonlinear real arithmetic" in out and "int" not in out
+
+
+def test_z3_giving_up_on_int_rules_says_why(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], impatient_z3: None
+) -> None:
+    text = REAL_NONLINEAR.replace("type: real", "type: int")
+    rules = tmp_path / "r.yaml"
+    rules.write_text(text)
+    code, out = run_main(capsys, "verify-rules", rules)
+    assert_refused_at(code, out, f"{rules}:{position(text, 'name: curved')}", "int variables")
+
+
+def test_z3_giving_up_on_a_property_checked_against_the_rules_names_the_property(
+    impatient_z3: None,
+) -> None:
+    from rasm.rules import parse_rules
+    from rasm.rules.against import check_properties
+    from rasm.rules.verify import Undecided
+
+    rules = parse_rules(
+        "variables:\n  a: {type: int}\n  b: {type: int}\n  c: {type: int}\nrules:\n"
+        "  - name: positive\n    require: a > 0 and b > 0 and c > 0\n",
+        source="r.yaml",
+    )
+    props = "property fermat:\n    always (a*a*a + b*b*b != c*c*c)\n"
+    with pytest.raises(Undecided) as caught:
+        check_properties(rules, props, source="p.rv")
+    assert str(caught.value).startswith("p.rv:1:10: z3 could not decide property 'fermat'")
+    assert "int variables" in str(caught.value)
