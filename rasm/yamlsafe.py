@@ -17,7 +17,7 @@ import yaml as pyyaml
 from ruamel.yaml import YAML
 from ruamel.yaml.composer import Composer, ComposerError
 from ruamel.yaml.constructor import RoundTripConstructor
-from ruamel.yaml.error import MarkedYAMLError
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
 from ruamel.yaml.events import AliasEvent
 from ruamel.yaml.reader import ReaderError
 
@@ -78,12 +78,14 @@ class _Guard:
             raise error(None, None, _TOO_DEEP, mark_)
 
 
-def _value_problem(value: Any, exc: Exception) -> str:
-    text = str(value)
+def _value_problem(node: Any, exc: Exception) -> str:
+    if not isinstance(node.value, str):  # a mapping or a list with a tag it cannot have
+        return f"cannot build a {node.tag} from this {node.id}: {exc}"
+    text = node.value
     if "integer string conversion" in str(exc):  # Python's guard against quadratic int()
         return f"integer with {len(text)} digits is too long (at most 4300)"
     shown = text if len(text) <= 40 else text[:37] + "..."
-    return f"cannot read the value {shown!r}: {exc}"
+    return f"cannot read the value {shown!r} ({node.tag}): {exc}"
 
 
 class _GuardedComposer(Composer):
@@ -106,13 +108,15 @@ class _GuardedComposer(Composer):
 
 
 class _GuardedConstructor(RoundTripConstructor):
-    """ruamel's round-trip constructor; a value Python refuses is an error at its node."""
+    """ruamel's round-trip constructor; a value that cannot be built is an error at its node."""
 
     def construct_object(self, node: Any, deep: bool = False) -> Any:
         try:
             return super().construct_object(node, deep=deep)
-        except (ValueError, OverflowError) as exc:  # int(), float(), datetime() of the text
-            raise _Refused(None, None, _value_problem(node.value, exc), node.start_mark) from None
+        except YAMLError:
+            raise
+        except Exception as exc:  # int() of 5000 digits, 2021-02-30, !!set on a scalar, ...
+            raise _Refused(None, None, _value_problem(node, exc), node.start_mark) from None
 
 
 def yaml_reader(*, preserve_quotes: bool = False) -> YAML:
@@ -183,8 +187,10 @@ class _GuardedSafeLoader(pyyaml.SafeLoader):
     def construct_object(self, node: Any, deep: bool = False) -> Any:
         try:
             return super().construct_object(node, deep=deep)
-        except (ValueError, OverflowError) as exc:
-            raise _PyRefused(None, None, _value_problem(node.value, exc), node.start_mark) from None
+        except pyyaml.YAMLError:
+            raise
+        except Exception as exc:  # as in _GuardedConstructor
+            raise _PyRefused(None, None, _value_problem(node, exc), node.start_mark) from None
 
 
 def safe_load(text: str) -> Any:

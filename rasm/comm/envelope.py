@@ -6,7 +6,8 @@ epoch). Receivers get the payload back without those two keys (see :class:`Messa
 names ``uid`` and ``timestamp`` are reserved: a payload using them is refused at publish time.
 
 Allowed values are what JSON represents exactly in every language: objects with string keys,
-arrays, strings, booleans, null, finite floats and integers within 64 bits. Anything else is
+arrays, strings of Unicode text (no lone surrogate such as ``"\\ud800"``, which no UTF-8 text
+can hold), booleans, null, finite floats and integers within 64 bits. Anything else is
 refused when publishing (:class:`CommError`) and counted as malformed when received
 (:class:`MalformedPayload`, never fatal).
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from typing import Any
 
 from rasm.errors import CommError
@@ -25,6 +27,8 @@ RESERVED_KEYS = ("uid", "timestamp")
 MAX_PAYLOAD = 1 << 20  # bytes; robots exchange small records, a megabyte is already suspicious
 _INT_LIMIT = 1 << 63  # integers beyond int64 lose precision in other languages' JSON parsers
 _MAX_DEPTH = 64
+# a JSON escape of a UTF-16 surrogate: only then can a decoded string hold a lone one
+_SURROGATE_ESCAPE = re.compile(rb"\\u[dD][89a-fA-F]")
 
 
 class MalformedPayload(CommError):
@@ -99,7 +103,40 @@ def encode(
     ).encode("ascii")
     if len(data) > max_bytes:
         raise CommError(f"payload is {len(data)} bytes encoded; the limit is {max_bytes}")
+    if _SURROGATE_ESCAPE.search(data) and (bad := _not_text(payload)) is not None:
+        raise CommError(f"payload: {bad!r} is not Unicode text (a lone surrogate)")
     return data
+
+
+def _not_text(value: Any) -> str | None:
+    """The first string (key or value) in ``value`` that is not Unicode text, or None."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item)
+            stack.extend(item.values())
+        elif isinstance(item, list | tuple):
+            stack.extend(item)
+        elif isinstance(item, str):
+            try:
+                item.encode("utf-8")
+            except UnicodeEncodeError:
+                return item
+    return None
+
+
+def _depth(value: Any) -> int:
+    """How deep containers nest in ``value`` (the object itself is level 1)."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        item, level = stack.pop()
+        if isinstance(item, dict):
+            item = list(item.values())
+        if isinstance(item, list):
+            deepest = max(deepest, level)
+            stack.extend((child, level + 1) for child in item)
+    return deepest
 
 
 def _reject_constant(name: str) -> Any:
@@ -150,6 +187,12 @@ def decode(
         raise MalformedPayload(f"not JSON: {exc}") from None
     if not isinstance(obj, dict):
         raise MalformedPayload(f"a JSON {type(obj).__name__}, not an object")
+    if _SURROGATE_ESCAPE.search(data) and (bad := _not_text(obj)) is not None:
+        raise MalformedPayload(f"{bad!r} is not Unicode text (a lone surrogate)")
+    # what is received could be sent on: no deeper than a payload may be (brackets first: a
+    # flat record is not walked)
+    if text.count("[") + text.count("{") > _MAX_DEPTH and _depth(obj) > _MAX_DEPTH:
+        raise MalformedPayload(f"nested deeper than {_MAX_DEPTH} levels")
     uid = obj.pop("uid", None)
     timestamp = obj.pop("timestamp", None)
     return obj, uid, timestamp

@@ -181,6 +181,11 @@ class _Checker:
             location = self.src.code_location(mapping, key, line, col)
             what = {"eval": "expression", "exec": "code"}[mode]
             self.error(f"invalid Python {what} in '{key}': {exc.msg}", location)
+        except (ValueError, MemoryError, RecursionError):  # past the compiler's own limits
+            self.error(
+                f"the Python code in '{key}' is nested too deeply to compile",
+                self.src.value(mapping, key),
+            )
 
     def contracts(self, owner: Any, what: str) -> None:
         items = owner["contract"]

@@ -77,9 +77,15 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
             errors.append(SourceError(message, Location(file, number, col)))
 
         try:
-            record = json.loads(text)
+            record = json.loads(text, parse_int=_bounded_int)
         except json.JSONDecodeError as exc:
             bad(f"not JSON: {exc.msg}", exc.colno)
+            continue
+        except ValueError as exc:  # _bounded_int
+            bad(str(exc))
+            continue
+        except RecursionError:
+            bad(f"nested too deeply (more than about {sys.getrecursionlimit()} levels)")
             continue
         if not isinstance(record, dict):
             bad('an event is a JSON object {"time": t, "event": "name", "data": {...}}')
@@ -115,6 +121,13 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
     if errors:
         raise SourceErrors(errors)
     return events
+
+
+def _bounded_int(text: str) -> int:
+    # int() of a text past 4300 digits is refused by Python (and slow before that)
+    if len(text.lstrip("-")) > 400:
+        raise ValueError(f"integer with {len(text.lstrip('-'))} digits is too long (at most 400)")
+    return int(text)
 
 
 def _finite(time: float) -> bool:
