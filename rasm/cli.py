@@ -197,8 +197,12 @@ def _read_scenario(text: str) -> dict:
     from rasm.statechart.source import load_yaml, plain
 
     path = Path(text)
-    if not text.lstrip().startswith("{") and path.is_file():
-        data = plain(load_yaml(path.read_text(encoding="utf-8"), str(path)).data)
+    try:
+        is_file = not text.lstrip().startswith("{") and path.is_file()
+    except (OSError, ValueError):  # a name too long for a file, a NUL byte: not a file
+        is_file = False
+    if is_file:
+        data = plain(load_yaml(read_utf8(path), str(path)).data)
         where = str(path)
     else:
         try:
@@ -206,6 +210,11 @@ def _read_scenario(text: str) -> dict:
         except json.JSONDecodeError as exc:
             raise SourceError(f"--scenario is not JSON (nor a file): {exc.msg}",
                               Location("--scenario", 1, exc.colno)) from None
+        except (ValueError, RecursionError) as exc:  # deep nesting, a 5000-digit integer
+            problem = "nested too deeply" if isinstance(exc, RecursionError) else (
+                "an integer longer than 4300 digits")
+            raise SourceError(f"--scenario cannot be read: {problem}",
+                              Location("--scenario", 1, 1)) from None
         where = "--scenario"
     if not isinstance(data, dict):
         raise SourceError("a scenario is a mapping, e.g. {\"openings\": [[5, 10]]}",

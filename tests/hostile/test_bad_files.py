@@ -324,3 +324,23 @@ def test_z3_giving_up_on_a_property_checked_against_the_rules_names_the_property
         check_properties(rules, props, source="p.rv")
     assert str(caught.value).startswith("p.rv:1:10: z3 could not decide property 'fermat'")
     assert "int variables" in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "scenario,words",
+    [
+        ("[" * 100_000, "nested too deeply"),  # not a file name: too long for one
+        ('{"a": ' + BIG + "}", "an integer longer than 4300 digits"),
+    ],
+)
+def test_a_hostile_scenario_is_refused(
+    capsys: pytest.CaptureFixture[str], scenario: str, words: str
+) -> None:
+    from .support import ROOT
+
+    code, out = run_main(
+        capsys, "run", ROOT / "examples" / "hotbox", "--clock", "simulated", "--duration", "1",
+        "--scenario", scenario,
+    )
+    assert_refused_at(code, out, "--scenario:1:1", words)
+    assert len(out) < 500  # the argument is not echoed back whole
