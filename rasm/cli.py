@@ -49,7 +49,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     sys.stdout.write(format_steps(steps, args.format))
     failed = [step for step in steps if step.error]
     for step in failed:
-        print(f"rasm: at time {step.time:g}: {step.error}", file=sys.stderr)
+        print(f"rasm: at time {step.time:g}: {printable(step.error or '')}", file=sys.stderr)
     return EXIT_FAILED if failed else EXIT_OK
 
 
@@ -62,7 +62,7 @@ def _cmd_lint(args: argparse.Namespace) -> int:
         print(f"rasm: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     for problem in problems:
-        print(problem, file=sys.stdout)
+        print(printable(problem), file=sys.stdout)
     return EXIT_FAILED if problems else EXIT_OK
 
 

@@ -124,9 +124,10 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
 
 
 def _bounded_int(text: str) -> int:
-    # int() of a text past 4300 digits is refused by Python (and slow before that)
-    if len(text.lstrip("-")) > 400:
-        raise ValueError(f"integer with {len(text.lstrip('-'))} digits is too long (at most 400)")
+    # int() of a text past 4300 digits is refused by Python: say so in the user's terms
+    digits = len(text.lstrip("-"))
+    if digits > 4300:
+        raise ValueError(f"integer with {digits} digits is too long (at most 4300)")
     return int(text)
 
 

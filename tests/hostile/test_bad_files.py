@@ -344,3 +344,14 @@ def test_a_hostile_scenario_is_refused(
     )
     assert_refused_at(code, out, "--scenario:1:1", words)
     assert len(out) < 500  # the argument is not echoed back whole
+
+
+def test_control_characters_from_a_file_reach_the_terminal_escaped(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    chart = tmp_path / "c.yaml"
+    chart.write_text('statechart:\n  name: x\n  "\\e[2J": 1\n  root state:\n    name: r\n')
+    for command in (["lint"], ["simulate"]):
+        code, out = run_main(capsys, command[0], chart)
+        assert code in (1, 2)
+        assert "\x1b" not in out and "unknown key '\\x1b[2J'" in out, out
