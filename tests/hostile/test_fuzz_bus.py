@@ -14,7 +14,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from paho.mqtt.enums import CallbackAPIVersion
 
-from rasm.comm import MalformedPayload, Message, MqttTransport, SignedEffector, sign, verify
+from rasm.comm import (
+    BoundSigner,
+    MalformedPayload,
+    Message,
+    MqttTransport,
+    SignedEffector,
+    verify,
+)
 from rasm.comm.envelope import check_payload, decode, encode
 from rasm.testing.servers import start_mosquitto
 
@@ -80,15 +87,15 @@ def test_the_effector_gate_never_raises_and_passes_only_verified_actions(
     payload: object, signed: bool, tamper: bool
 ) -> None:
     applied: list[dict] = []
-    gate = SignedEffector(KEY, applied.append)
+    gate = SignedEffector(KEY, applied.append, topic="robot/heater")
     if signed and isinstance(payload, dict):
-        try:
-            payload = sign(payload, KEY)
+        try:  # signed and bound to this gate's incarnation, as the checker sends it
+            payload = BoundSigner(KEY).sign(payload, topic="robot/heater", epochs=[gate.epoch])
         except Exception:  # not JSON (NaN, an odd key): such a payload cannot be signed
             signed = False
         if tamper and isinstance(payload, dict):
             payload = {**payload, "mode": "tampered"}
-    genuine = isinstance(payload, dict) and verify(payload, KEY)
+    genuine = isinstance(payload, dict) and verify(payload, KEY) and "binding" in payload
     outcome = gate.handle(payload)
     assert outcome is genuine
     assert len(applied) == int(genuine)
