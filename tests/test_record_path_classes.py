@@ -10,7 +10,6 @@ The platform's record keeps the scalars as ``isinstance`` says, subclasses inclu
 from __future__ import annotations
 
 import math
-from enum import IntEnum
 from typing import Any
 
 from hypothesis import given, settings
@@ -18,7 +17,6 @@ from hypothesis import strategies as st
 
 from rasm.platform.blocks import Telegraf, _check_value
 from rasm.platform.manifest import Probe, Signal
-from rasm.platform.runtime import Platform
 from rasm.testing.apps import trace_line
 
 
@@ -77,65 +75,6 @@ def test_a_trace_line_decides_on_what_says_it_is_a_str_or_a_float_as_before():
     rounded = ClaimsFloat()  # a time rounded to what says it is a float: the fast path too
     time = type("Time", (), {"__round__": lambda self, digits: rounded})()
     assert trace_line(time, {"k": ClaimsNan()}) == {"time": rounded, "k": None}
-
-
-class Level(IntEnum):
-    LOW = 1
-
-
-class Name(str):
-    pass
-
-
-class Reading(float):
-    pass
-
-
-class _Recorder:
-    """What Platform._register uses of the platform: the Knowledge Manager and _emit."""
-
-    twin = None
-    _twin_inputs = frozenset()
-
-    def __init__(self, refuse: set[str]) -> None:
-        self.refuse = refuse
-        self.emitted: list[dict[str, Any]] = []
-        self.km = self
-
-    def register_values(self, values: dict[str, Any], time: float) -> dict[str, Exception]:
-        return {key: ValueError("refused") for key in values if key in self.refuse}
-
-    def _emit(self, time: float, record: dict[str, Any]) -> None:
-        self.emitted.append(record)
-
-
-VALUES = st.one_of(
-    st.floats(allow_nan=True),
-    st.integers(),
-    st.booleans(),
-    st.text(max_size=2),
-    st.none(),
-    st.lists(st.integers(), max_size=2),
-    st.dictionaries(st.text(max_size=1), st.integers(), max_size=1),
-    st.sampled_from([Level.LOW, Name("n"), Reading(2.5), ClaimsFloat(), b"x", 1j]),
-)
-
-
-@settings(max_examples=300, deadline=None, database=None)
-@given(st.dictionaries(st.text("abc", max_size=2), VALUES), st.sets(st.text("abc", max_size=2)))
-def test_the_record_of_a_registration_holds_the_scalars_stored(values, refuse):
-    platform = _Recorder(refuse)
-    Platform._register(platform, values, 1.0)
-    # the straightforward version: a comprehension with isinstance
-    expected = {
-        k: v
-        for k, v in values.items()
-        if k not in refuse and isinstance(v, (int, float, bool, str))
-    }
-    assert len(platform.emitted) == (1 if expected else 0)
-    record = platform.emitted[0] if expected else {}
-    assert list(record) == list(expected)
-    assert all(record[k] is expected[k] for k in expected)
 
 
 # -------------------------------------------------------------------- Telegraf's range test
