@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Union
 
 from rasm.errors import Location
+from rasm.spec.times import nanoseconds
 
 __all__ = [
     "Aggregate",
@@ -134,11 +135,26 @@ class Prev:
 
 @dataclass(frozen=True)
 class Bound:
-    """A time interval ``[low, high]`` in seconds; ``high`` may be ``math.inf``."""
+    """A time interval ``[low, high]`` in seconds; ``high`` may be ``math.inf``.
+
+    ``low_ns`` and ``high_ns`` are the same bounds in exact integer nanoseconds (``high_ns``
+    ``math.inf`` when unbounded): what the monitors compare. The parser takes them from the
+    bound's text; when they are not given, they are those of the decimals the seconds stand
+    for (``0.1`` is 100000000 ns).
+    """
 
     low: float
     high: float
     location: Location = _loc()
+    low_ns: int = field(default=None, kw_only=True)  # type: ignore[assignment]
+    high_ns: int | float = field(default=None, kw_only=True)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        # a frozen dataclass sets its derived fields through object.__setattr__
+        if self.low_ns is None:
+            object.__setattr__(self, "low_ns", _nanoseconds(self.low))
+        if self.high_ns is None:
+            object.__setattr__(self, "high_ns", _nanoseconds(self.high))
 
     def __str__(self) -> str:
         def fmt(x: float) -> str:
@@ -215,6 +231,10 @@ def children(node: Expr) -> tuple[Expr, ...]:
     if isinstance(node, Call):
         return node.args
     return ()
+
+
+def _nanoseconds(seconds: float) -> int | float:
+    return INF if seconds == INF else nanoseconds(seconds)
 
 
 # --------------------------------------------------------------------------- declarations

@@ -6,12 +6,14 @@ witness time, a deque of not-yet-old-enough witnesses). Anything above a future 
 *stream* (``rasm.spec.streams``) whose values come late; the generated code feeds the streams
 their immediate inputs and reads the property's verdicts off the top stream.
 
-The same body is generated several times: in ``step(t, record)`` (verdict objects, one call per
-record), its variants ``tally`` and ``tally_into`` (plain values, for the Trustworthiness
-Checker) and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm
-check``). ``tally_into`` has a second, *quiet* copy for a record that carries none of the
-file's events (most records of a loop): the events' values (false) folded in by
-:mod:`rasm.spec.fold`.
+Windows compare times as exact integer nanoseconds: the generated code turns each record's time
+``t`` (seconds, as given) into ``tn`` (:mod:`rasm.spec.times`); the bounds are nanoseconds from
+the parser.
+
+The same body is generated twice: in ``step(t, record)`` (verdict objects, one call per record)
+and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm check``). Each
+property's code runs in its own ``try``: if it raises, the monitor gives that property error
+verdicts and resets its state (``rasm.spec.monitor``), and the other properties carry on.
 """
 
 from __future__ import annotations
@@ -38,8 +40,7 @@ from rasm.spec.ast import (
     Unary,
     Until,
 )
-from rasm.spec.expr import _ARITH, _COMPARE, HELPERS, _max2, _min2
-from rasm.spec.fold import fold
+from rasm.spec.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
 from rasm.spec.loader import signals_of
 from rasm.spec.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
 from rasm.spec.streams import (
@@ -62,8 +63,11 @@ class Program:
     source: str
     constants: dict[str, object]
     state: dict[str, object]
-    roots: list[Source | None] = field(default_factory=list)  # per property, or None
     reads: list[tuple[str, ...]] = field(default_factory=list)  # warm-up signals per property
+    # per property: the names of its constants and closure variables, which a reset renews
+    owned: list[list[str]] = field(default_factory=list)
+    # per property with a stream root: its deque of the (index, time) owed a verdict online
+    owed: list[str | None] = field(default_factory=list)
 
 
 def normalise(node: Expr) -> Expr:
@@ -99,8 +103,9 @@ def _fields(node) -> dict:
     return {name: getattr(node, name) for name in node.__dataclass_fields__}
 
 
-def _number(x: float) -> str:
-    return "INF" if x == INF else repr(float(x))
+def _number(x: int | float) -> str:
+    """A bound (integer nanoseconds, or inf) as source."""
+    return "INF" if x == INF else repr(x)
 
 
 class _Generator:
@@ -115,10 +120,14 @@ class _Generator:
         self.finish_lines: list = []
         self.root: Expr | None = None  # the property's formula being compiled
         self.root_number = 0
+        self.owned: list[list[str]] = []  # per property: its constants and closure variables
+        # the root's deque of the records it owes a verdict (online): made by the root when it
+        # gives early verdicts (inline_pointwise), else by generate()
+        self.owed: str | None = None
         # inline future windows by their Source (kept alive here, so never confused with a
         # later one): (index of their first line, pending deque, upper bound), for the parent
         # that may keep the records it decides out of them (online_skip)
-        self.windows: dict[Source, tuple[int, str, float]] = {}
+        self.windows: dict[Source, tuple[int, str, int]] = {}
         self.prevs: dict[tuple[int, str], str] = {}  # (property, operand) -> its prev's value
 
     def fresh(self, prefix: str) -> str:
@@ -128,11 +137,14 @@ class _Generator:
     def constant(self, prefix: str, value: object) -> str:
         name = self.fresh(prefix)
         self.constants[name] = value
+        self.owned[self.root_number].append(name)
         return name
 
-    def variable(self, prefix: str, initial: object) -> str:
+    def variable(self, prefix: str, initial: object, *, owned: bool = True) -> str:
         name = self.fresh(prefix)
         self.state[name] = initial
+        if owned:
+            self.owned[self.root_number].append(name)
         return name
 
     # ----------------------------------------------------------------- nodes
@@ -146,16 +158,16 @@ class _Generator:
             return "imm", "t"
         if isinstance(node, Future):  # only eventually, after normalise()
             (kind, value) = self.emit(node.operand)
+            a, b = node.bound.low_ns, node.bound.high_ns
             if kind == "imm":
-                return self.inline_future(node.bound.low, node.bound.high, None, value)
-            core = EventuallyCore(node.bound.low, node.bound.high)
-            return self.stream(TemporalStream, [(kind, value)], core)
+                return self.inline_future(a, b, None, value)
+            return self.stream(TemporalStream, [(kind, value)], EventuallyCore(a, b))
         if isinstance(node, Until):
             left, right = self.emit(node.left), self.emit(node.right)
+            a, b = node.bound.low_ns, node.bound.high_ns
             if left[0] == right[0] == "imm":
-                return self.inline_future(node.bound.low, node.bound.high, left[1], right[1])
-            core = UntilCore(node.bound.low, node.bound.high)
-            return self.stream(TemporalStream, [left, right], core)
+                return self.inline_future(a, b, left[1], right[1])
+            return self.stream(TemporalStream, [left, right], UntilCore(a, b))
         parts = [self.emit(c) for c in _operands(node)]
         streams = [k for k, (kind, _) in enumerate(parts) if kind == "stream"]
         if len(streams) == 1 and isinstance(node, (Not, Unary, Binary, Call)):
@@ -168,7 +180,7 @@ class _Generator:
         if isinstance(node, Unary):
             return "imm", f"(-{values[0]})"
         if isinstance(node, Binary):
-            return "imm", _binary(node.op, values[0], values[1])
+            return "imm", _binary(node.op, values[0], values[1], self.integers(node))
         if isinstance(node, Call):
             return "imm", f"{_call(node.func)}({', '.join(values)})"
         if isinstance(node, Prev):
@@ -181,16 +193,17 @@ class _Generator:
                 self.lines += [f"{out} = {held}", f"{held} = {values[0]}"]
                 self.prevs[key] = out
             return "imm", self.prevs[key]
+        a, b = node.bound.low_ns, node.bound.high_ns
         if isinstance(node, Past):  # once, after normalise()
-            return "imm", self.once(node.bound.low, node.bound.high, values[0])
+            return "imm", self.once(a, b, values[0])
         if isinstance(node, Since):
-            return "imm", self.since(node.bound.low, node.bound.high, values[0], values[1])
+            return "imm", self.since(a, b, values[0], values[1])
         if isinstance(node, Aggregate):
-            if node.op == "count" and node.bound.low == 0:
-                return "imm", self.count_window(node.bound.high, values[0])
-            core = self.constant("w", WindowCore(node.op, node.bound.low, node.bound.high))
+            if node.op == "count" and a == 0:
+                return "imm", self.count_window(b, values[0])
+            core = self.constant("w", WindowCore(node.op, a, b))
             out = self.fresh("v")
-            self.lines.append(f"{out} = {core}.push(t, {values[0]})")
+            self.lines.append(f"{out} = {core}.push(tn, {values[0]})")
             return "imm", out
         raise TypeError(f"cannot compile {node!r}")
 
@@ -198,7 +211,11 @@ class _Generator:
         # prev(φ) at a property's first record: a boolean is false, anything else undefined
         return False if self.types.check(node) == "bool" else math.nan
 
-    def once(self, a: float, b: float, value: str) -> str:
+    def integers(self, node: Binary) -> bool:
+        """Both operands are ints: plain Python arithmetic is exact and cannot raise."""
+        return self.types.check(node.left) == "int" and self.types.check(node.right) == "int"
+
+    def once(self, a: int, b: int | float, value: str) -> str:
         if a == 0 and b == INF:  # once, unbounded: a flag
             seen = self.variable("f", False)
             self.lines.append(f"if {value}: {seen} = True")
@@ -206,18 +223,18 @@ class _Generator:
         last = self.variable("l", None)
         out = self.fresh("v")
         if a == 0:
-            self.lines.append(f"if {value}: {last} = t")
+            self.lines.append(f"if {value}: {last} = tn")
         else:
             pending = self.constant("q", deque())
             self.lines += [
-                f"if {value}: {pending}.append(t)",
-                f"while {pending} and t - {pending}[0] >= {_number(a)}: "
+                f"if {value}: {pending}.append(tn)",
+                f"while {pending} and tn - {pending}[0] >= {_number(a)}: "
                 f"{last} = {pending}.popleft()",
             ]
         self.lines.append(f"{out} = {self.within(last, b)}")
         return out
 
-    def count_window(self, b: float, value: str) -> str:
+    def count_window(self, b: int | float, value: str) -> str:
         """``count[0,b](value)`` of a two-valued operand, written into the step function.
 
         The same count as :class:`WindowCore`'s (the records whose value is true, from ``t - b``
@@ -230,35 +247,35 @@ class _Generator:
         times = self.constant("q", deque())
         out = self.fresh("v")
         self.lines += [
-            f"if {value}: {times}.append(t)",
-            f"while {times} and t - {times}[0] > {_number(b)}: {times}.popleft()",
+            f"if {value}: {times}.append(tn)",
+            f"while {times} and tn - {times}[0] > {_number(b)}: {times}.popleft()",
             f"{out} = len({times})",
         ]
         return out
 
-    def since(self, a: float, b: float, left: str, right: str) -> str:
+    def since(self, a: int, b: int | float, left: str, right: str) -> str:
         last = self.variable("l", None)
         out = self.fresh("v")
         if a == 0:
-            self.lines += [f"if not {left}: {last} = None", f"if {right}: {last} = t"]
+            self.lines += [f"if not {left}: {last} = None", f"if {right}: {last} = tn"]
         else:
             pending = self.constant("q", deque())
             self.lines += [
                 f"if not {left}:",
                 f"    {last} = None",
                 f"    {pending}.clear()",
-                f"if {right}: {pending}.append(t)",
-                f"while {pending} and t - {pending}[0] >= {_number(a)}: "
+                f"if {right}: {pending}.append(tn)",
+                f"while {pending} and tn - {pending}[0] >= {_number(a)}: "
                 f"{last} = {pending}.popleft()",
             ]
         self.lines.append(f"{out} = {self.within(last, b)}")
         return out
 
     @staticmethod
-    def within(last: str, b: float) -> str:
+    def within(last: str, b: int | float) -> str:
         if b == INF:
             return f"{last} is not None"
-        return f"{last} is not None and t - {last} <= {_number(b)}"
+        return f"{last} is not None and tn - {last} <= {_number(b)}"
 
     # ----------------------------------------------------------------- streams
     def stream_of(self, node: Expr, parts):
@@ -274,13 +291,13 @@ class _Generator:
             return self.stream(PointwiseStream, parts, kleene_function(node.func, plain))
         if isinstance(node, Prev):
             return self.stream(PrevStream, parts, self.undefined(node.operand))
+        a, b = node.bound.low_ns, node.bound.high_ns
         if isinstance(node, Past):
-            return self.stream(TemporalStream, parts, OnceCore(node.bound.low, node.bound.high))
+            return self.stream(TemporalStream, parts, OnceCore(a, b))
         if isinstance(node, Since):
-            core = SinceCore(node.bound.low, node.bound.high)
-            return self.stream(TemporalStream, parts, core)
+            return self.stream(TemporalStream, parts, SinceCore(a, b))
         if isinstance(node, Aggregate):
-            return self.stream(AggregateStream, parts, node.op, node.bound.low, node.bound.high)
+            return self.stream(AggregateStream, parts, node.op, a, b)
         raise TypeError(f"cannot compile {node!r}")
 
     def stream(self, cls, parts, *args):
@@ -288,12 +305,12 @@ class _Generator:
         stream = cls(inputs, *args)
         name = self.constant("s", stream)
         immediate = [value for kind, value in parts if kind == "imm"]
-        self.lines.append(f"{name}.step(i, t{''.join(', ' + v for v in immediate)})")
+        self.lines.append(f"{name}.step(i, t, tn{''.join(', ' + v for v in immediate)})")
         self.finish_lines.append(f"{name}.finish()")
         return "stream", stream
 
     # ----------------------------------------------------------------- inline streams
-    def inline_future(self, a: float, b: float, left: str | None, right: str):
+    def inline_future(self, a: int, b: int, left: str | None, right: str):
         """``eventually[a,b] right`` (left None) or ``left until[a,b] right``, both immediate.
 
         Same algorithm as :class:`EventuallyCore`/:class:`UntilCore`, written into the step
@@ -303,34 +320,34 @@ class _Generator:
         out = self.constant("o", source.out)
         pending = self.constant("w", deque())
         lines = [
-            f"{pending}.append((i, t))",
-            f"while t - {pending}[0][1] > {_number(b)}:",
-            f"    _j, _tj = {pending}.popleft()",
-            f"    {out}.append((_j, _tj, False))",
+            f"{pending}.append((i, t, tn))",
+            f"while tn - {pending}[0][2] > {_number(b)}:",
+            f"    _j, _tj, _tn = {pending}.popleft()",
+            f"    {out}.append((_j, _tj, _tn, False))",
             f"if {right}:",
         ]
         if a == 0:
             lines += [f"    while {pending}:"]
         else:
-            lines += [f"    while {pending} and t - {pending}[0][1] >= {_number(a)}:"]
+            lines += [f"    while {pending} and tn - {pending}[0][2] >= {_number(a)}:"]
         lines += [
-            f"        _j, _tj = {pending}.popleft()",
-            f"        {out}.append((_j, _tj, True))",
+            f"        _j, _tj, _tn = {pending}.popleft()",
+            f"        {out}.append((_j, _tj, _tn, True))",
         ]
         if left is not None:
             lines += [
                 f"if not {left}:",
                 f"    while {pending}:",
-                f"        _j, _tj = {pending}.popleft()",
-                f"        {out}.append((_j, _tj, False))",
+                f"        _j, _tj, _tn = {pending}.popleft()",
+                f"        {out}.append((_j, _tj, _tn, False))",
             ]
         self.windows[source] = (len(self.lines), pending, b)
         self.lines += lines
         # at the end of the trace the still-open windows are inconclusive
         self.finish_lines += [
             f"while {pending}:",
-            f"    _j, _tj = {pending}.popleft()",
-            f"    {out}.append((_j, _tj, None))",
+            f"    _j, _tj, _tn = {pending}.popleft()",
+            f"    {out}.append((_j, _tj, _tn, None))",
         ]
         return "stream", source
 
@@ -364,17 +381,23 @@ class _Generator:
             else:
                 names.append(f"_w[{k}]")
                 k += 1
-        drain = [f"while {child}:", f"    _j, _tj, _v = {child}.popleft()"]
+        drain = [f"while {child}:", f"    _j, _tj, _tn, _v = {child}.popleft()"]
         if held is not None:
             drain.append(f"    _w = {held}.popleft()")
-        if decides is not None and node is self.root:
+        if early is not None:
             # online, the immediate side alone may decide the verdict (a false trigger of
-            # "trigger -> eventually …"): say it now, and skip it when the stream catches up
+            # "trigger -> eventually …"): say it now, and skip it when the stream catches up;
+            # any other record is owed a verdict by the stream
             test, value = decides
-            self.lines.append(("EARLY", f"if {test.format(w=immediate[0])}:"))
-            self.lines.append(("EMIT", self.root_number, "i", "t", value, "    ", "EARLY"))
-            drain.append(("EARLY", f"    if {test.format(w='_w')}: continue"))
-        drain.append(f"    {out}.append((_j, _tj, {_kleene(node, names, position)}))")
+            self.owed = self.constant("owed", deque())
+            self.lines += [
+                ("ONLINE", f"if {early}:", None),
+                ("EMIT", self.root_number, "i", "t", value, "    ", True),
+                ("ONLINE", "else:", None),
+                ("ONLINE", f"    {self.owed}.append((i, t))", None),
+            ]
+            drain.append(("ONLINE", f"    if {test.format(w='_w')}: continue", None))
+        drain.append(f"    {out}.append((_j, _tj, _tn, {_kleene(node, names, position)}))")
         self.lines += drain
         self.finish_lines += drain
         return "stream", source
@@ -396,7 +419,7 @@ class _Generator:
         append = self.lines[start]
         self.lines[start] = ("ONLINE", f"if not ({early}): {append}", append)
         # the window may now be empty: the current record is not always in it
-        self.lines[start + 1] = f"while {pending} and t - {pending}[0][1] > {_number(b)}:"
+        self.lines[start + 1] = f"while {pending} and tn - {pending}[0][2] > {_number(b)}:"
         return True
 
 
@@ -448,15 +471,18 @@ def _operands(node: Expr) -> list[Expr]:
     return []
 
 
-def _binary(op: str, left: str, right: str) -> str:
+def _binary(op: str, left: str, right: str, integers: bool = False) -> str:
+    """Source of ``left op right``; ``integers``: both operands are ints (exact arithmetic)."""
     if op == "and":
         return f"({left} and {right})"
     if op == "or":
         return f"({left} or {right})"
     if op == "->":
         return f"((not {left}) or {right})"
-    if op == "/":
-        return f"_div({left}, {right})"
+    if op in _ARITH_NAMES and (op == "/" or not integers):
+        # IEEE-754 without exceptions (rasm.spec.expr): an int too large for a float meeting
+        # a float gives ±inf, x / 0 is undefined
+        return f"{_ARITH_NAMES[op]}({left}, {right})"
     if op == "!=":
         if left.isidentifier() and right.isidentifier():
             # _ne's body inline: two variables are cheap to read twice, a call is not
@@ -477,35 +503,40 @@ def signal_variable(name: str) -> str:
 # --------------------------------------------------------------------------- whole programs
 
 UNSET = type("Unset", (), {"__repr__": lambda self: "<unset>"})()
-# the locals of tally_into whose values fold() may follow: verdicts, temporaries, the odd list
-_FOLDED_LOCALS = r"_last\d+|v\d+|odd"
 
 
-def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) -> Program:
+def generate(
+    spec: Specification, reads: list[tuple[str, ...]] | None = None, *, hook: bool = False
+) -> Program:
     """Generate the step and run functions' source for every property of ``spec``.
 
     ``reads`` overrides, per property, the signals whose first values end its warm-up (by
     default: those it reads); explanations use it to evaluate sub-formulas in context.
+    ``hook``: each property's code starts with a call ``FAULT_HOOK(property, index)`` (a test's
+    way to make a property raise; see :class:`rasm.spec.monitor.Monitor`).
 
-    The source defines ``factory()`` returning ``(step, tally, tally_into, run, finish_step,
-    finish_run)`` (``tally``: ``step`` giving ``(property, value)`` pairs, not verdicts;
-    ``tally_into(t, rec, latest, unusual)``: ``tally`` keeping the pairs itself, see
-    :meth:`rasm.spec.monitor.Monitor.tally_into`); it
-    reads the names in ``Program.constants`` plus ``STATE`` (initial values),
-    ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``NUMERIC``, ``SCALAR``, ``UNSET``,
-    ``REJECT_STEP``, ``REJECT_INTO`` and ``REJECT_RUN``, which the monitor provides.
+    The source defines ``factory()`` returning ``(step, run, finish_step, finish_run, held,
+    resets)``: ``held()`` tells which held signals have had a value, ``resets[k]()`` puts
+    property k's closure variables back to their initial values (its constants are renewed by
+    the caller, from a fresh :func:`generate`). It reads the names in ``Program.constants`` plus
+    ``STATE`` (initial values), ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``UNSET``,
+    ``NUMERIC``, ``SCALAR``, ``COERCE``, ``BAD``, ``NANOSECONDS``, ``SECONDS``, ``FAST_TIME``,
+    ``REJECT_STEP``, ``REJECT_RUN``,
+    ``FAULT``, ``FAULT_RUN``, ``RECOVERING``, ``RECOVER`` and ``RECOVER_RUN``, which the monitor
+    provides.
     """
     gen = _Generator(spec)
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     events = {item.name for item in spec.events}
     blocks: list[list] = []
     finishes: list[list] = []
-    every: list[bool] = []  # per property: a value on every record, never UNSET
-    program = Program("", gen.constants, gen.state)
+    program = Program("", gen.constants, gen.state, owned=gen.owned)
     for number, prop in enumerate(spec.properties):
         gen.lines, gen.finish_lines = [], []
         gen.root = normalise(prop.formula)
         gen.root_number = number
+        gen.owned.append([])
+        gen.owed = None
         kind, value = gen.emit(gen.root)
         if reads is None:
             needed = signals_of(prop.formula)
@@ -513,100 +544,102 @@ def generate(spec: Specification, reads: list[tuple[str, ...]] | None = None) ->
             needed = reads[number]
         warm = tuple(name for name in needed if name not in events and name not in defaults)
         program.reads.append(warm)
-        # past-only, judged from the first record, and reading only signals that always have
-        # a value (``reads`` may leave out some the formula reads)
-        every.append(kind == "imm" and not warm and reads is None)
-        program.roots.append(value if kind == "stream" else None)
         body: list = list(gen.lines)
         finish: list = list(gen.finish_lines)
         if kind == "imm":
-            body.append(("EMIT", number, "i", "t", value))
+            body.append(("EMIT", number, "i", "t", value, "", False))
         else:
             root = gen.constant("r", value.out)
-            drain = [f"while {root}:", f"    _j, _tj, _v = {root}.popleft()"]
-            drain.append(("EMIT", number, "_j", "_tj", "_v", "    "))
+            if gen.owed is None:
+                gen.owed = gen.constant("owed", deque())
+                body.insert(0, ("ONLINE", f"{gen.owed}.append((i, t))", None))
+            # a verdict given, the record is no longer owed (in this order: a verdict that
+            # fails to be made leaves its record owed)
+            drain = [
+                f"while {root}:",
+                f"    _j, _tj, _tn, _v = {root}.popleft()",
+                ("EMIT", number, "_j", "_tj", "_v", "    ", False),
+                ("ONLINE", f"    {gen.owed}.popleft()", None),
+            ]
             body += drain
             finish += drain
+        program.owed.append(gen.owed if kind == "stream" else None)
+        if hook:
+            body.insert(0, f"FAULT_HOOK(NAME_{number}, i)")
+        guarded = _guarded(body, number, finishing=False)
         if warm:
-            started = gen.variable("started", False)
+            started = gen.variable("started", False, owned=False)
             ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in warm)
             block: list = [f"if not {started} and {ready}:", f"    {started} = True"]
             block.append(f"    STARTS[{number}] = i")
             block.append(f"if {started}:")
-            block += [_indent(line) for line in body]
+            block += [_indent(line) for line in guarded]
         else:
             started = "i >= 0"
-            block = [("FIRST", f"if i == 0: STARTS[{number}] = 0"), *body]
+            block = [f"if i == 0: STARTS[{number}] = 0", *guarded]
         blocks.append(block)
         if kind == "stream":
-            finishes.append([f"if {started}:", *(_indent(line) for line in finish)])
-    program.source = _assemble(spec, gen, blocks, finishes, defaults, events, every)
+            finishes.append(
+                [f"if {started}:", *(_indent(line) for line in _guarded(finish, number, True))]
+            )
+    program.source = _assemble(spec, gen, blocks, finishes, events)
     return program
 
 
-def _indent(line):
-    if isinstance(line, tuple) and line[0] == "EARLY":
-        return ("EARLY", "    " + line[1])
-    if isinstance(line, tuple) and line[0] == "ONLINE":
-        return ("ONLINE", "    " + line[1], "    " + line[2])
-    if isinstance(line, tuple):
-        return (*line[:5], (line[5] if len(line) > 5 else "") + "    ", *line[6:])
-    return "    " + line
+def _guarded(body: list, number: int, finishing: bool) -> list:
+    """``body`` in a ``try`` whose failure is property ``number``'s fault, not the file's."""
+    return ["try:", *(_indent(line) for line in body), "except Exception as _exc:",
+            ("FAULT", number, "    ", finishing)]
+
+
+def _indent(line, pad: str = "    "):
+    if isinstance(line, str):
+        return pad + line
+    if line[0] == "ONLINE":
+        _, online, offline = line
+        return ("ONLINE", pad + online, None if offline is None else pad + offline)
+    if line[0] == "EMIT":
+        kind, number, index, time, value, indent, online_only = line
+        return (kind, number, index, time, value, pad + indent, online_only)
+    kind, number, indent, finishing = line  # FAULT
+    return (kind, number, pad + indent, finishing)
 
 
 def _render(line, mode: str) -> str | None:
-    """A generated line for ``mode`` (step, tally, into, quiet or run); None where the line is
-    online-only (or, for ``quiet``, only for the first record).
+    """A generated line for ``mode`` (step or run); None where the line is online-only.
 
-    ``tally`` is ``step`` with each verdict as a plain ``(property, value)`` pair: what the
-    Trustworthiness Checker keeps of a verdict when nobody asked for the verdicts themselves.
-    ``into`` (``tally_into``; ``quiet``: its quiet path) holds each property's latest value of
-    the record in ``_last<n>`` and the values that are not True, in order, in ``odd`` (a list
-    made for the first such value): it hands them over once the whole record is decided, so a
-    record that fails half way hands over nothing, as with ``tally``.
+    Line kinds: a string (both modes); ``("ONLINE", step_text, run_text)`` (``run_text`` None:
+    step only); ``("EMIT", property, index, time, value, indent, online_only)`` (a verdict:
+    a Verdict object online, a plain value in ``run``); ``("FAULT", property, indent,
+    finishing)`` (the handler of a property's exception).
     """
-    online = mode != "run"
+    online = mode == "step"
     if isinstance(line, str):
         return line
-    if line[0] == "FIRST":  # the quiet path of tally_into never sees the first record
-        return None if mode == "quiet" else line[1]
-    if line[0] == "EARLY":  # early verdicts exist online only: run() keeps record order
-        return line[1] if online else None
-    if line[0] == "ONLINE":  # the online functions' version of a line, and run()'s
+    if line[0] == "ONLINE":
         return line[1] if online else line[2]
-    _, number, index, time, value, *rest = line
-    if "EARLY" in rest and not online:
-        return None
-    pad = rest[0] if rest else ""
-    if mode == "step":
-        return f"{pad}out.append(Verdict(NAME_{number}, {index}, {time}, {value}))"
-    if mode == "tally":
-        return f"{pad}out.append((NAME_{number}, {value}))"
-    if mode in ("into", "quiet"):
-        last = f"_last{number}"
-        if value == "True":  # an early verdict: nothing unusual to note
-            return f"{pad}{last} = True"
-        # the list is made for the first unusual value only: most records have none
-        return (
-            f"{pad}{last} = {value}\n"
-            f"{pad}if {last} is not True:\n"
-            f"{pad}    if odd is None: odd = []\n"
-            f"{pad}    odd.append((NAME_{number}, {last}))"
-        )
-    return f"{pad}values_{number}({value})"
+    if line[0] == "EMIT":
+        _, number, index, time, value, pad, online_only = line
+        if online:
+            return f"{pad}out.append(Verdict(NAME_{number}, {index}, {time}, {value}))"
+        return None if online_only else f"{pad}values_{number}({value})"
+    _, number, pad, finishing = line
+    if online:
+        if finishing:
+            return f"{pad}FAULT({number}, None, None, None, _exc, out)"
+        return f"{pad}FAULT({number}, i, t, tn, _exc, out)"
+    return f"{pad}FAULT_RUN({number}, i, {'None' if finishing else 'tn'}, _exc)"
 
 
-def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) -> str:
+def _assemble(spec, gen: _Generator, blocks, finishes, events) -> str:
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure
     used = _used(spec)
+    defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     for name in used:
         if name not in events:
             gen.state[signal_variable(name)] = defaults.get(name, UNSET)
-    absent = [name for name in used if name in events]  # from a quiet record
-    if absent:
-        gen.state["dict_after_first"] = None  # see into_function
-    cells = sorted(gen.state) + ["i", "last_t"]
+    cells = sorted(gen.state) + ["i", "last_tn"]
     update = _update_lines(spec, used, events)
     properties = [line for block in blocks for line in block]
 
@@ -618,97 +651,29 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
                 continue
             if reject:
                 text = text.replace("REJECT(", reject + "(")
-            lines += text.split("\n") if "\n" in text else [text]
+            lines.append(text)
         return lines
 
-    def function(header: str, mode: str) -> list[str]:
-        lines = [header, "    nonlocal " + ", ".join(cells)]
-        if mode == "run":
-            lines.append("    for t, rec in records:")
-            indent = "        "
-            reject = "REJECT_RUN"
-        else:
-            lines.append("    out = []")
-            indent = "    "
-            reject = "REJECT_STEP"
-        # one past-only property: its verdict is the body's last statement, so the step
-        # function can return a one-element list directly (cheaper than append + return)
-        single = (
-            mode in ("step", "tally")
-            and len(blocks) == 1
-            and isinstance(properties[-1], tuple)
-            and properties[-1][0] == "EMIT"
-            and properties[-1][2] == "i"
-        )
-        if single:
-            lines.pop()  # no "out = []"
-        body = rendered([*update, "i += 1", *properties[:-1]], mode, reject)
-        last = rendered(properties[-1:], mode, reject)
-        if single:
-            last = [text.replace("out.append(", "return [", 1)[:-1] + "]" for text in last]
-        lines += [indent + text for text in body + last]
-        if mode == "run":
-            lines.append("    return None")
-        else:
-            lines.append("    return []" if single else "    return out")
-        return lines
+    step = ["def step(t, rec):", "    nonlocal " + ", ".join(cells), "    out = []"]
+    step += ["    " + text for text in rendered([*update, "i += 1", *properties], "step",
+                                                "REJECT_STEP")]
+    # a property recovering from a fault: its verdicts that depend on records from before
+    # its reset are errors (rasm.spec.recovery)
+    step += ["    if RECOVERING: return RECOVER(i, tn, out)", "    return out"]
 
-    def into_function() -> list[str]:
-        """``tally_into``; with a quiet path for records that carry none of the events."""
-        kept = [f"_last{number}" for number in range(len(blocks))]
-
-        def decide(mode: str) -> list[str]:
-            # UNSET: no value for the property yet (one line each: fold() drops those a quiet
-            # record surely sets)
-            lines = [
-                "odd = None",
-                *(f"{kept[n]} = UNSET" for n in range(len(kept)) if not every[n]),
-            ]
-            lines += rendered(properties, mode)
-            for number, last in enumerate(kept):
-                handover = f"latest[NAME_{number}] = {last}"
-                lines.append(handover if every[number] else f"if {last} is not UNSET: {handover}")
-            return lines + [
-                "if odd is not None:",
-                "    for _name, _value in odd:",
-                "        unusual(_name, _value)",
-                "return None",
-            ]
-
-        lines = ["def tally_into(t, rec, latest, unusual):", "    nonlocal " + ", ".join(cells)]
-        general = rendered([*update, "i += 1"], "into", "REJECT_INTO")
-        if absent:
-            # such a record reads each absent event as false: the same code with those values
-            # folded in (rasm.spec.fold) decides the same, without reading or testing them
-            if len(absent) > 5:
-                gen.constants["QUIET"] = frozenset(absent)
-                none = "QUIET.isdisjoint(rec)"  # one set lookup per key of the record
-            else:  # a few dict lookups cost less than iterating over the record's keys
-                none = " and ".join(f"{name!r} not in rec" for name in absent)
-            known = tuple((signal_variable(name), False) for name in absent)
-            quiet = [
-                *rendered(_update_lines(spec, used, events, absent), "into", "REJECT_INTO"),
-                "i += 1",
-                *fold("\n".join(decide("quiet")), known, _FOLDED_LOCALS).splitlines(),
-            ]
-            # dict_after_first is None until the general code accepted a record: the quiet
-            # path never sees the first record (and leaves out what only that one does)
-            lines.append(f"    if rec.__class__ is dict_after_first and {none}:")
-            lines += ["        " + text for text in quiet]
-            general.append("dict_after_first = dict")
-        return lines + ["    " + text for text in [*general, *decide("into")]]
+    run = ["def run(records):", "    nonlocal " + ", ".join(cells), "    for t, rec in records:"]
+    run += ["        " + text for text in rendered([*update, "i += 1", *properties], "run",
+                                                   "REJECT_RUN")]
+    run += ["        if RECOVERING: RECOVER_RUN(i, tn)", "    return None"]
 
     factory = ["def factory():"]
     for name in sorted(gen.state):
         factory.append(f"    {name} = STATE[{name!r}]")
-    factory += ["    i = -1", "    last_t = -INF"]
+    factory += ["    i = -1", "    last_tn = -INF"]
     for number in range(len(blocks)):
         factory.append(f"    values_{number} = VALUES[{number}].append")
         factory.append(f"    NAME_{number} = NAMES[{number}]")
-    factory += ["    " + line for line in function("def step(t, rec):", "step")]
-    factory += ["    " + line for line in function("def tally(t, rec):", "tally")]
-    factory += ["    " + line for line in into_function()]
-    factory += ["    " + line for line in function("def run(records):", "run")]
+    factory += ["    " + line for line in step + run]
     for mode in ("step", "run"):
         factory += [
             f"    def finish_{mode}():",
@@ -723,7 +688,16 @@ def _assemble(spec, gen: _Generator, blocks, finishes, defaults, events, every) 
     factory.append("    def held():")
     pairs = ", ".join(f"{name!r}: {signal_variable(name)} is not UNSET" for name in held)
     factory.append("        return {" + pairs + "}")
-    factory.append("    return step, tally, tally_into, run, finish_step, finish_run, held")
+    # each property's closure variables back to their initial values
+    for number, owned in enumerate(gen.owned):
+        variables = [name for name in owned if name in gen.state]
+        factory.append(f"    def reset_{number}():")
+        if variables:
+            factory.append("        nonlocal " + ", ".join(variables))
+        factory += [f"        {name} = STATE[{name!r}]" for name in variables]
+        factory.append("        return None")
+    resets = "".join(f"reset_{number}, " for number in range(len(gen.owned)))
+    factory.append(f"    return step, run, finish_step, finish_run, held, ({resets})")
     return "\n".join(factory) + "\n"
 
 
@@ -736,27 +710,30 @@ def _used(spec: Specification) -> list[str]:
     return list(used)
 
 
-def _update_lines(spec: Specification, used: list[str], events: set[str], absent=()) -> list[str]:
+def _update_lines(spec: Specification, used: list[str], events: set[str]) -> list[str]:
     """Validate a record's time and the ``used`` signals' values, then update the held signals
     (all or nothing).
 
-    The events in ``absent`` are left out: the caller knows the record does not carry them.
-
-    The fast tests look at exact classes; anything else (a numpy float, an int subclass) takes
-    the slow path through COERCE, which converts what it can and refuses the rest.
+    The time ``t`` (seconds, as given) becomes ``tn``, exact integer nanoseconds
+    (:mod:`rasm.spec.times`): at once for an int and for a float below FAST_TIME, through
+    NANOSECONDS for anything else (then ``t``, which the ``time`` expression reads and verdicts
+    carry, becomes an int or a float through SECONDS). The values' fast tests look at exact
+    classes; anything else (a numpy float, an int subclass) takes the slow path through COERCE,
+    which converts what it can and refuses the rest.
     """
     checks = [
-        "if t.__class__ not in NUMERIC:",
-        "    _t = COERCE(t, 'float')",
-        "    if _t is BAD: return REJECT(i + 1, t, rec, None, 'time')",
-        "    t = _t",
-        # t is an int or a float now; one test for both a nan and a time going back: neither
-        # is >= last_t
-        "if not t >= last_t: return REJECT(i + 1, t, rec, None, 'time' if t != t else 'backwards')",
+        "if t.__class__ is float and -FAST_TIME < t < FAST_TIME:",
+        "    tn = round(t * 1e9)",
+        "elif t.__class__ is int:",
+        "    tn = t * 1000000000",
+        "else:",
+        "    tn = NANOSECONDS(t)",
+        "    if tn is None: return REJECT(i + 1, t, rec, None, 'time')",
+        "    t = SECONDS(t)",
+        "if tn < last_tn: return REJECT(i + 1, t, rec, None, 'backwards')",
     ]
     assigns = []
-    names = [name for name in used if name not in absent]
-    for name in names:
+    for name in used:
         kind = spec.signals[name]
         var = signal_variable(name)
         tmp = f"n_{name}"
@@ -780,7 +757,7 @@ def _update_lines(spec: Specification, used: list[str], events: set[str], absent
             f"if {tmp} is BAD: return REJECT(i + 1, t, rec, {name!r}, {kind!r})",
         ]
         checks.append(f"{tmp} = rec.get({name!r}, UNSET)")
-        if name == names[-1]:  # the last check: nothing can refuse the record after it
+        if name == used[-1]:  # the last check: nothing can refuse the record after it
             checks += [f"if {tmp} is not UNSET:", f"    if {check}:"]
             checks += ["        " + line for line in coerce] + [f"    {var} = {tmp}"]
         else:
@@ -793,4 +770,4 @@ def _update_lines(spec: Specification, used: list[str], events: set[str], absent
         "except (AttributeError, TypeError):",
         "    return REJECT(i + 1, t, rec, None, 'record')",
     ]
-    return guarded + assigns + ["last_t = t"]
+    return guarded + assigns + ["last_tn = tn"]

@@ -36,6 +36,7 @@ from rasm.spec.ast import (
 from rasm.spec.loader import signals_of
 from rasm.spec.monitor import Monitor
 from rasm.spec.printer import format_value, unparse
+from rasm.spec.times import nanoseconds
 
 __all__ = ["Explanation", "explain"]
 
@@ -96,6 +97,7 @@ class _Explainer:
     def __init__(self, tables: _Tables, times: Sequence[float], start: int) -> None:
         self.tables = tables
         self.times = times
+        self.ns = [nanoseconds(t) for t in times]  # exact: what the windows compare
         self.start = start
         self.lines: list[str] = []
 
@@ -114,45 +116,18 @@ class _Explainer:
 
     def past_window(self, node, i: int) -> range:
         """The records j <= i with a <= t_i - t_j <= b, newest first (found by bisection)."""
-        a, b = node.bound.low, node.bound.high
-        t = self.times
-
-        def inside(j: int) -> bool:
-            return a <= t[i] - t[j] <= b
-
-        low = max(bisect_left(t, t[i] - b, self.start, i + 1) - 1, self.start)
-        high = min(bisect_right(t, t[i] - a, self.start, i + 1), i)
-        # the bisection is on t_i - b, not on the difference the semantics compares (they round
-        # differently): settle both edges exactly, in either direction
-        while low > self.start and inside(low - 1):
-            low -= 1
-        while low <= high and not inside(low):
-            low += 1
-        while high < i and inside(high + 1):
-            high += 1
-        while high >= low and not inside(high):
-            high -= 1
+        a, b = node.bound.low_ns, node.bound.high_ns
+        ns = self.ns
+        low = bisect_left(ns, ns[i] - b, self.start, i + 1)
+        high = bisect_right(ns, ns[i] - a, self.start, i + 1) - 1
         return range(high, low - 1, -1)
 
     def future_window(self, node, i: int) -> range:
         """The records j >= i with a <= t_j - t_i <= b, oldest first."""
-        a, b = node.bound.low, node.bound.high
-        t = self.times
-        last = len(t) - 1
-
-        def inside(j: int) -> bool:
-            return a <= t[j] - t[i] <= b
-
-        low = max(bisect_left(t, t[i] + a, i) - 1, i)
-        high = min(bisect_right(t, t[i] + b, i), last)
-        while low > i and inside(low - 1):  # settle both edges exactly (see past_window)
-            low -= 1
-        while low <= high and not inside(low):
-            low += 1
-        while high < last and inside(high + 1):
-            high += 1
-        while high >= low and not inside(high):
-            high -= 1
+        a, b = node.bound.low_ns, node.bound.high_ns
+        ns = self.ns
+        low = bisect_left(ns, ns[i] + a, i)
+        high = bisect_right(ns, ns[i] + b, i) - 1
         return range(low, high + 1)
 
     def leaves(self, node: Expr, i: int, depth: int) -> None:

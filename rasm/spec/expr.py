@@ -1,16 +1,21 @@
 """Evaluating the non-temporal expression sub-language (shared with legitimacy rules).
 
-Undefined values: ``x / 0``, and arithmetic on an undefined value, give *undefined*, represented
-as ``float("nan")``. Every comparison with an undefined operand is **false** (also ``!=``), so a
-rule or property built on it fails rather than crashing the caller. Division by zero therefore
-never raises. Values of the wrong type in ``env`` (e.g. a string where a number is needed) raise
+Arithmetic follows IEEE-754 binary64 and never raises: a result beyond the largest float is
+±inf (also when an int too large for a float meets a float: the exact result is rounded), and
+undefined results (``x / 0``, ``inf - inf``, arithmetic on an undefined value) are *undefined*,
+represented as ``float("nan")``. Every comparison with an undefined operand is **false** (also
+``!=``), so a rule or property built on it fails rather than crashing the caller. Values of
+the wrong type in ``env`` (e.g. a string where a number is needed) raise
 :class:`~rasm.errors.SpecError` naming the expression's location.
 """
 
 from __future__ import annotations
 
 import math
+import operator
+import sys
 from collections.abc import Callable, Mapping
+from fractions import Fraction
 
 from rasm.errors import SpecError
 from rasm.spec.ast import Binary, Call, Expr, Literal, Name, Not, Unary
@@ -18,6 +23,28 @@ from rasm.spec.ast import Binary, Call, Expr, Literal, Name, Not, Unary
 __all__ = ["NAN", "compile_expression", "evaluate", "python_source", "HELPERS"]
 
 NAN = math.nan
+INF = math.inf
+
+
+def _add(a, b):
+    try:
+        return a + b
+    except OverflowError:  # an int too large for a float, with a float
+        return _overflowed(operator.add, a, b)
+
+
+def _sub(a, b):
+    try:
+        return a - b
+    except OverflowError:
+        return _overflowed(operator.sub, a, b)
+
+
+def _mul(a, b):
+    try:
+        return a * b
+    except OverflowError:
+        return _overflowed(operator.mul, a, b)
 
 
 def _div(a, b):
@@ -25,8 +52,34 @@ def _div(a, b):
         return a / b
     except ZeroDivisionError:
         return NAN
-    except OverflowError:  # int / int too large for a float
+    except OverflowError:  # an int too large for a float, or an int quotient beyond the largest
+        return NAN if b == 0 else _overflowed(operator.truediv, a, b)
+
+
+def _overflowed(op, a, b) -> float:
+    """``op(a, b)`` when Python raised OverflowError (an int too large for a float): what
+    IEEE-754 gives, the exact result rounded to the nearest float, ±inf beyond the largest.
+    An infinite or undefined float operand decides the result as any finite number would."""
+    if a != a or b != b:
         return NAN
+    if _infinite(a) or _infinite(b):
+        return op(_as_float(a), _as_float(b))
+    exact = op(Fraction(a), Fraction(b))
+    try:
+        return float(exact)
+    except OverflowError:
+        return INF if exact > 0 else -INF
+
+
+def _infinite(value) -> bool:
+    return isinstance(value, float) and math.isinf(value)
+
+
+def _as_float(value) -> float:
+    try:
+        return float(value)
+    except OverflowError:  # a huge int: the largest float of its sign stands in for it
+        return sys.float_info.max if value > 0 else -sys.float_info.max
 
 
 def _ne(a, b) -> bool:
@@ -46,14 +99,13 @@ def _max2(a, b):
     return a if a >= b else b
 
 
-HELPERS: dict[str, object] = {"_div": _div, "_ne": _ne, "_min2": _min2, "_max2": _max2, "NAN": NAN}
-
-_ARITH = {
-    "+": lambda a, b: a + b,
-    "-": lambda a, b: a - b,
-    "*": lambda a, b: a * b,
-    "/": _div,
+HELPERS: dict[str, object] = {
+    "_add": _add, "_sub": _sub, "_mul": _mul, "_div": _div,
+    "_ne": _ne, "_min2": _min2, "_max2": _max2, "NAN": NAN,
 }
+
+_ARITH = {"+": _add, "-": _sub, "*": _mul, "/": _div}
+_ARITH_NAMES = {"+": "_add", "-": "_sub", "*": "_mul", "/": "_div"}
 _COMPARE = {
     "==": lambda a, b: a == b,
     "!=": _ne,
@@ -127,8 +179,8 @@ def python_source(node: Expr, name: Callable[[str], str]) -> str:
             return f"({left} or {right})"
         if op == "->":
             return f"((not {left}) or {right})"
-        if op == "/":
-            return f"_div({left}, {right})"
+        if op in _ARITH_NAMES:
+            return f"{_ARITH_NAMES[op]}({left}, {right})"
         if op == "!=":
             return f"_ne({left}, {right})"
         return f"({left} {op} {right})"

@@ -1,8 +1,9 @@
-"""The online monitor of SPEC §6: ``compile(text)``, ``Monitor.step``, ``Monitor.finish``."""
+"""The online monitor: ``compile(text)``, ``Monitor.step``, ``Monitor.finish``, ``Monitor.run``."""
 
 from __future__ import annotations
 
 import builtins
+import copy
 import functools
 import numbers
 from collections.abc import Callable, Iterable, Mapping
@@ -14,6 +15,8 @@ from rasm.errors import SpecError
 from rasm.spec.ast import Specification
 from rasm.spec.codegen import UNSET, generate
 from rasm.spec.loader import load_specification
+from rasm.spec.recovery import Recovery
+from rasm.spec.times import FAST, nanoseconds
 
 __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile"]
 
@@ -93,6 +96,8 @@ def describe_rejection(time, record, signal: str | None, kind: str) -> str:
     if kind == "record":
         return f"a record must map signal names to values, not {type(record).__name__}"
     if kind == "time":
+        if isinstance(time, numbers.Real) and not isinstance(time, bool):
+            return f"'time' must be finite, not {time!r}"
         return f"'time' must be a number, not {time!r}"
     if kind == "backwards":
         return f"time {time!r} goes back in time"
@@ -118,15 +123,40 @@ class Monitor:
     ``None`` where the trace ended too early to decide. A bad record (a time going back, a value
     of the wrong type) is refused, counted in ``rejected`` and changes nothing; ``step`` then
     returns no verdicts.
+
+    Each property is evaluated on its own: if evaluating one raises (a safety net: arithmetic
+    and aggregates never raise, :mod:`rasm.spec.expr`), its verdict for that record, and for
+    every earlier record still waiting in its future windows, is an error (``value`` False,
+    ``error`` saying why), its state is reset, and the other properties carry on untouched. Its
+    verdicts that depend on records from before the reset are errors too, until they no longer
+    do (:mod:`rasm.spec.recovery`); after that they are exact again. Every record gets exactly
+    one verdict per started property either way.
+
+    ``fault_hook(property, index)``, if given, is called before each property is evaluated at
+    each record; whatever it raises is that property's fault there. It is for tests of the
+    isolation above (the monitor is generated with the extra call; none otherwise).
     """
 
-    def __init__(self, spec: Specification, *, reads: list[tuple[str, ...]] | None = None) -> None:
+    def __init__(
+        self,
+        spec: Specification,
+        *,
+        reads: list[tuple[str, ...]] | None = None,
+        fault_hook: Callable[[str, int], object] | None = None,
+    ) -> None:
         self.spec = spec
         self.names = [p.name for p in spec.properties]
-        self.program = generate(spec, reads)
+        self._reads = reads
+        self._hook = fault_hook is not None
+        self.program = generate(spec, reads, hook=self._hook)
         self.starts: list[int | None] = [None] * len(self.names)
         self.rejected: list[Rejection] = []
         self._values: list[list] = [[] for _ in self.names]
+        self._errors: list[dict[int, str]] = [{} for _ in self.names]
+        # properties recovering from a fault, by number; offline, every reset of each
+        self._recovering: dict[int, Recovery] = {}
+        self._resets_run: list[list[Recovery]] = [[] for _ in self.names]
+        self._pristine: dict[int, dict[str, object]] = {}
         self._finished = False
         namespace = dict(self.program.constants)
         namespace.update(
@@ -136,30 +166,35 @@ class Monitor:
             STARTS=self.starts,
             VALUES=self._values,
             REJECT_STEP=self._reject_step,
-            REJECT_INTO=self._reject_into,
             REJECT_RUN=self._reject_run,
             NUMERIC=NUMERIC,
             SCALAR=SCALAR,
             UNSET=UNSET,
             COERCE=coerce,
             BAD=BAD,
+            NANOSECONDS=nanoseconds,
+            SECONDS=_seconds,
+            FAST_TIME=FAST,
+            FAULT=self._fault,
+            FAULT_RUN=self._fault_run,
+            RECOVERING=self._recovering,
+            RECOVER=self._recover,
+            RECOVER_RUN=self._recover_run,
+            FAULT_HOOK=fault_hook,
         )
+        self._namespace = namespace
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)
-        functions = namespace["factory"]()
         (
             self._step,
-            self._tally,
-            self._tally_into,
             self._run,
             self._finish,
             self._finish_run,
             self._held,
-        ) = functions
-        # the generated functions themselves, not methods around them: one call less per record
+            self._resets,
+        ) = namespace["factory"]()
+        # the generated function itself, not a method around it: one call less per record
         self.step = self._step
-        self.tally = self._tally
-        self.tally_into = self._tally_into
 
     # ----------------------------------------------------------------- online
     @property
@@ -174,13 +209,6 @@ class Monitor:
         """
         return self._step(time, values)
 
-    def tally(self, time: float, values: Mapping[str, object]) -> list[tuple[str, bool | None]]:
-        """:meth:`step` giving each verdict as a ``(property, value)`` pair: for a caller that
-        keeps only those (cheaper than verdicts). Feeds the same monitor: use one or the other
-        per record. (Each monitor replaces this method by its generated tally function.)
-        """
-        return self._tally(time, values)
-
     def tally_into(
         self,
         time: float,
@@ -188,15 +216,14 @@ class Monitor:
         latest: dict[str, bool | None],
         unusual: Callable[[str, bool | None], object],
     ) -> None:
-        """:meth:`tally` keeping the pairs itself: ``latest[property] = value`` for each, then
-        ``unusual(property, value)`` for each value that is not True, in :meth:`tally`'s order.
-        Nothing is handed over for a refused record, nor for one whose evaluation raised (the
-        exception propagates, as from :meth:`tally`). For a caller that keeps only the latest
-        value of each property and looks closer at the rest (the Trustworthiness Checker):
-        no pair is made for the common True verdict. (Each monitor replaces this method by its
-        generated function.)
-        """
-        return self._tally_into(time, values, latest, unusual)
+        """:meth:`step`, keeping ``latest[property] = value`` for each verdict and calling
+        ``unusual(property, value)`` for each value that is not True (an error verdict's value
+        is False). Nothing for a refused record. For the Trustworthiness Checker until it calls
+        :meth:`step` itself."""
+        for verdict in self.step(time, values):
+            latest[verdict.property] = verdict.value
+            if verdict.value is not True:
+                unusual(verdict.property, verdict.value)
 
     def missing(self, name: str) -> tuple[str, ...]:
         """The signals property ``name`` waits for: those it reads that have had no value yet
@@ -214,9 +241,6 @@ class Monitor:
         self.rejected.append(Rejection(index, time, describe_rejection(time, record, signal, kind)))
         return []
 
-    def _reject_into(self, index, time, record, signal, kind) -> None:
-        self._reject_step(index, time, record, signal, kind)
-
     def _reject_run(self, index, time, record, signal, kind):
         raise SpecError(f"record {index}: {describe_rejection(time, record, signal, kind)}")
 
@@ -225,26 +249,129 @@ class Monitor:
         if self._finished:
             return []
         self._finished = True
-        self.step = self.tally = self.tally_into = self._refuse
-        return self._finish()
+        self.step = self.tally_into = self._refuse
+        out = self._finish()
+        for k, recovery in self._recovering.items():
+            self._taint(k, recovery, out)
+        return out
+
+    # ----------------------------------------------------------------- faults
+    def _fault(self, k: int, index: int | None, time, ns: int | None, exc: Exception,
+               out: list[Verdict]) -> None:
+        """Property ``k`` raised at record ``index`` (None: while finishing): an error verdict
+        for every record it owes one, then (at a record) a fresh state for it."""
+        name = self.names[k]
+        why = _why(exc, index)
+        recovery = self._recovering.pop(k, None)
+        if recovery is not None:  # what it decided at this record before it raised
+            self._taint(k, recovery, out)
+        owed_name = self.program.owed[k]
+        owed = list(self._namespace[owed_name]) if owed_name is not None else []
+        if index is not None and all(j != index for j, _ in owed) and not any(
+            v.property == name and v.index == index for v in out
+        ):
+            owed.append((index, time))
+        out.extend(Verdict(name, j, tj, False, why) for j, tj in owed)
+        if index is not None:
+            self._reset(k)
+            self._recovering[k] = Recovery(self.spec.properties[k].formula, index, ns, why)
+
+    def _recover(self, index: int, ns: int, out: list[Verdict]) -> list[Verdict]:
+        """After each record while a property recovers (online): its verdicts that depend on
+        records from before its reset become errors."""
+        for k, recovery in list(self._recovering.items()):
+            recovery.note(index, ns)
+            self._taint(k, recovery, out)
+            if recovery.over:
+                del self._recovering[k]
+        return out
+
+    def _taint(self, k: int, recovery: Recovery, out: list[Verdict]) -> None:
+        name = self.names[k]
+        for position, verdict in enumerate(out):
+            if verdict.property == name and verdict.error is None and recovery.tainted(
+                verdict.index
+            ):
+                out[position] = verdict._replace(value=False, error=recovery.why)
+                recovery.given += 1
+
+    def _fault_run(self, k: int, index: int, ns: int | None, exc: Exception) -> None:
+        """:meth:`_fault` offline: values are in record order, so the property owes a value to
+        every record from its last one to ``index``; ``ns`` None: while finishing."""
+        values, errors, start = self._values[k], self._errors[k], self.starts[k]
+        why = _why(exc, index if ns is not None else None)
+        recovery = self._recovering.pop(k, None)
+        if recovery is not None:
+            recovery.until = index
+        for j in range(start + len(values), index + 1):
+            values.append(False)
+            errors[j] = why
+        if ns is not None:
+            self._reset(k)
+            recovery = Recovery(self.spec.properties[k].formula, index, ns, why)
+            self._recovering[k] = recovery
+            self._resets_run[k].append(recovery)
+
+    def _recover_run(self, index: int, ns: int) -> None:
+        for k, recovery in list(self._recovering.items()):
+            recovery.note(index, ns)
+            if recovery.exact_from is not None:  # its tainted records are known
+                del self._recovering[k]
+
+    def _reset(self, k: int) -> None:
+        """Property ``k``'s state as before the first record: fresh constants (deques, streams),
+        closure variables back to their initial values. Whether it has started stays."""
+        if k not in self._pristine:
+            fresh = generate(self.spec, self._reads, hook=self._hook)
+            owned = self.program.owned[k]
+            self._pristine[k] = {n: fresh.constants[n] for n in owned if n in fresh.constants}
+        # copied together, the objects keep their links to one another (a stream's inputs)
+        renewed = copy.deepcopy(self._pristine[k])
+        self._namespace.update(renewed)
+        self.program.constants.update(renewed)
+        self._resets[k]()
 
     # ----------------------------------------------------------------- offline
     def run(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> list[PropertyRun]:
         """Check a whole trace of ``(time, values)`` pairs; faster than ``step`` per record.
 
         A bad record raises :class:`SpecError` (read traces with :mod:`rasm.spec.trace` to get
-        line numbers). Returns each property's verdicts, in record order.
+        line numbers). Returns each property's verdicts, in record order; where a property
+        could not be evaluated, its value is False and ``errors`` says why.
         """
         if self._finished:
             raise SpecError("this monitor has finished; compile a new one for a new trace")
         self._run(records)
         self._finished = True
-        self.step = self.tally = self.tally_into = self._refuse
+        self.step = self.tally_into = self._refuse
         self._finish_run()
+        for k, resets in enumerate(self._resets_run):
+            values, errors, start = self._values[k], self._errors[k], self.starts[k]
+            for recovery in resets:
+                for j in range(recovery.reset + 1, start + len(values)):
+                    if recovery.tainted(j) and j not in errors:
+                        values[j - start] = False
+                        errors[j] = recovery.why
         return [
-            PropertyRun(name, self.starts[k], self._values[k], missing=self.missing(name))
+            PropertyRun(
+                name,
+                self.starts[k],
+                self._values[k],
+                dict(sorted(self._errors[k].items())),
+                missing=self.missing(name),
+            )
             for k, name in enumerate(self.names)
         ]
+
+
+def _why(exc: Exception, index: int | None) -> str:
+    where = f"at record {index}" if index is not None else "at the end of the trace"
+    return f"evaluating the property raised {type(exc).__name__} {where}: {exc}"
+
+
+def _seconds(time) -> int | float:
+    """A record time that is neither an int nor a float, as one (what ``time`` reads)."""
+    return int(time) if isinstance(time, numbers.Integral) else float(time)
 
 
 @functools.lru_cache(maxsize=128)

@@ -39,6 +39,7 @@ from rasm.spec.ast import (
     Unary,
     Until,
 )
+from rasm.spec.times import bound_nanoseconds
 
 __all__ = ["parse_declarations", "parse_expression"]
 
@@ -303,15 +304,17 @@ class _Build(Transformer):
 
     # ----------------------------------------------------------------- bounds
     def bound(self, meta, low, high):
+        # each end is (seconds, exact nanoseconds), from duration() or infinity()
+        (low, low_ns), (high, high_ns) = low, high
         location = self._loc(meta)
         if low == INF:
             raise self._error("the lower bound of a window cannot be inf", meta)
-        if high < low:
+        if high_ns < low_ns:
             raise self._error(
                 f"empty window [{low:g}, {high:g}]: the upper bound is smaller than the lower",
                 meta,
             )
-        return Bound(low, high, location=location)
+        return Bound(low, high, location=location, low_ns=low_ns, high_ns=high_ns)
 
     def duration(self, meta, number, unit):
         scale = 1.0
@@ -322,14 +325,22 @@ class _Build(Transformer):
                 )
             scale = UNITS[unit.value]
         value = self._finite_number(number)
+        # the monitors compare exact nanoseconds, taken from the text (0.1 is 100000000 ns)
+        ns = bound_nanoseconds(number.value, unit.value if unit is not None else None)
+        if ns is None:
+            raise self._token_error(
+                f"window bound {number.value}{unit.value if unit is not None else ''} is finer "
+                "than a nanosecond, the resolution of record times",
+                number,
+            )
         # ms divides (exact decimal rounding: 3ms == 0.003) rather than multiplying by 1e-3
-        return value / 1000 if scale == 1e-3 else value * scale
+        return (value / 1000 if scale == 1e-3 else value * scale), ns
 
     def negative_duration(self, meta, number, unit):
         raise self._error("a window bound cannot be negative", meta)
 
     def infinity(self, meta):
-        return INF
+        return INF, INF
 
     # ----------------------------------------------------------------- arithmetic
     def compare(self, meta, left, op, right):

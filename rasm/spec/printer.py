@@ -46,15 +46,17 @@ def _level(node: Expr) -> int:
 
 
 def _bound(bound: Bound, default_unbounded: bool = True) -> str:
-    if default_unbounded and bound.low == 0 and bound.high == INF:
+    if default_unbounded and bound.low_ns == 0 and bound.high_ns == INF:
         return ""
-    return f"[{_seconds(bound.low)}, {_seconds(bound.high)}]"
+    return f"[{_seconds(bound.low_ns)}, {_seconds(bound.high_ns)}]"
 
 
-def _seconds(x: float) -> str:
-    if x == INF:
+def _seconds(ns: int | float) -> str:
+    """Exact nanoseconds as the shortest decimal number of seconds: 1500000000 is 1.5."""
+    if ns == INF:
         return "inf"
-    return f"{x:g}"
+    whole, fraction = divmod(ns, 10**9)
+    return f"{whole}.{fraction:09d}".rstrip("0").rstrip(".")
 
 
 def format_value(value: object) -> str:

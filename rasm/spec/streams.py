@@ -1,7 +1,8 @@
 """Sub-formulas whose values arrive late: anything above a future operator.
 
-A stream node's values are ``(index, time, value)`` triples appended to ``out`` in index order,
-as soon as they are decided. Its inputs are other streams (read from their ``out``) or
+A stream node's values are ``(index, time, ns, value)`` tuples (``ns``: the record's time in
+exact integer nanoseconds, what windows compare) appended to ``out`` in index order, as soon as
+they are decided. Its inputs are other streams (read from their ``out``) or
 *immediate* values, which the generated code passes to :meth:`Stream.step` at each record.
 Values are three-valued (``None``: inconclusive) because streams are where inconclusive values
 appear when an offline trace ends.
@@ -25,7 +26,7 @@ __all__ = [
 
 
 class Source:
-    """Anything with an ``out`` deque of decided ``(index, time, value)`` triples."""
+    """Anything with an ``out`` deque of decided ``(index, time, ns, value)`` tuples."""
 
     __slots__ = ("out",)
 
@@ -43,9 +44,9 @@ class Stream:
         self.buffers = [s.out if s is not None else deque() for s in inputs]
         self.immediate = [self.buffers[k] for k, s in enumerate(inputs) if s is None]
 
-    def step(self, i: int, t: float, *values) -> None:
+    def step(self, i: int, t, ns: int, *values) -> None:
         for buffer, value in zip(self.immediate, values, strict=True):
-            buffer.append((i, t, value))
+            buffer.append((i, t, ns, value))
         self.drain()
 
     def drain(self) -> None:
@@ -53,14 +54,15 @@ class Stream:
         if len(buffers) == 1:
             only = buffers[0]
             while only:
-                i, t, v = only.popleft()
-                self.consume(i, t, (v,))
+                i, t, ns, v = only.popleft()
+                self.consume(i, t, ns, (v,))
             return
         while all(buffers):
             items = [b.popleft() for b in buffers]
-            self.consume(items[0][0], items[0][1], tuple(item[2] for item in items))
+            i, t, ns, _ = items[0]
+            self.consume(i, t, ns, tuple(item[3] for item in items))
 
-    def consume(self, i: int, t: float, values: tuple) -> None:
+    def consume(self, i: int, t, ns: int, values: tuple) -> None:
         raise NotImplementedError
 
     def finish(self) -> None:
@@ -77,8 +79,8 @@ class PointwiseStream(Stream):
         super().__init__(inputs)
         self.function = function
 
-    def consume(self, i, t, values) -> None:
-        self.out.append((i, t, self.function(*values)))
+    def consume(self, i, t, ns, values) -> None:
+        self.out.append((i, t, ns, self.function(*values)))
 
 
 class PrevStream(Stream):
@@ -90,8 +92,8 @@ class PrevStream(Stream):
         super().__init__(inputs)
         self.previous = undefined
 
-    def consume(self, i, t, values) -> None:
-        self.out.append((i, t, self.previous))
+    def consume(self, i, t, ns, values) -> None:
+        self.out.append((i, t, ns, self.previous))
         self.previous = values[0]
 
 
@@ -110,22 +112,22 @@ class TemporalStream(Stream):
         self.out = self.kleene.out
         self.waiting: deque | None = deque() if self.kleene.future else None
 
-    def step(self, i: int, t: float, *values) -> None:
+    def step(self, i: int, t, ns: int, *values) -> None:
         waiting = self.waiting
         if waiting is None:
-            Stream.step(self, i, t, *values)
+            Stream.step(self, i, t, ns, *values)
             return
-        waiting.append((i, t))
-        Stream.step(self, i, t, *values)
+        waiting.append((i, ns))
+        Stream.step(self, i, t, ns, *values)
         if waiting:
             self.kleene.close(waiting[0][1])
 
-    def consume(self, i, t, values) -> None:
+    def consume(self, i, t, ns, values) -> None:
         waiting = self.waiting
         if waiting is not None:
             while waiting and waiting[0][0] <= i:
                 waiting.popleft()
-        self.kleene.push(i, t, *values)
+        self.kleene.push(i, t, ns, *values)
 
     def finish(self) -> None:
         self.drain()
@@ -137,12 +139,12 @@ class AggregateStream(Stream):
 
     __slots__ = ("core",)
 
-    def __init__(self, inputs, op: str, a: float, b: float) -> None:
+    def __init__(self, inputs, op: str, a: int, b: int | float) -> None:
         super().__init__(inputs)
         self.core = WindowCore(op, a, b)
 
-    def consume(self, i, t, values) -> None:
-        self.out.append((i, t, self.core.push(t, values[0])))
+    def consume(self, i, t, ns, values) -> None:
+        self.out.append((i, t, ns, self.core.push(ns, values[0])))
 
 
 # --------------------------------------------------------------------------- Kleene logic

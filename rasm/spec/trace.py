@@ -3,16 +3,22 @@
 Every malformed record is reported with its line (and the column of the offending key): not a
 JSON object, no numeric ``time``, a time going back, a value of the wrong type for a signal
 the properties read. Blank lines are skipped; the others are records 0, 1, 2, …
+
+A time is a JSON number of seconds. Where its float loses digits (epoch seconds with nine
+decimals), it is read again from the line's text as a :class:`~rasm.spec.times.Seconds`: a
+float that carries the exact nanoseconds the monitors compare.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from rasm.errors import Location, SourceError, SourceErrors, read_utf8
+from rasm.spec.times import FAST, Seconds, nanoseconds
 
 __all__ = ["read_trace", "parse_trace", "MAX_REPORTED"]
 
@@ -39,6 +45,22 @@ def _accepts(kind: str, value: object) -> bool:
     return cls in (int, float, str, bool)
 
 
+_TIME_TEXT = re.compile(r'"time"\s*:\s*(-?[0-9][0-9.eE+-]*)')
+
+
+def _exact_time(line: str, time: float) -> float:
+    """``time``, a float too large for its decimals to survive, read again from ``line``."""
+    # JSON keeps the last of repeated keys; a "time" key of a nested object reads differently
+    for text in reversed(_TIME_TEXT.findall(line)):
+        try:
+            exact = Seconds(text)
+        except ValueError:
+            continue
+        if exact == time:
+            return exact
+    return time
+
+
 def _column(line: str, key: str) -> int:
     position = line.find(json.dumps(key))
     return position + 1 if position >= 0 else 1
@@ -61,6 +83,7 @@ def parse_trace(
     errors: list[SourceError] = []
     hidden = 0
     last_time = -math.inf
+    last_ns = -math.inf  # compared exactly, as the monitors do
 
     def fail(message: str, number: int, col: int = 1) -> None:
         nonlocal hidden
@@ -90,7 +113,10 @@ def parse_trace(
         if time.__class__ is float and math.isinf(time):
             fail(f"'time' must be finite, not {json.dumps(time)}", number, _column(line, "time"))
             continue
-        if time < last_time:
+        if time.__class__ is float and not -FAST < time < FAST:
+            time = _exact_time(line, time)
+        ns = nanoseconds(time)
+        if ns < last_ns:
             fail(
                 f"time {time} goes back in time (the previous record has {last_time})",
                 number,
@@ -109,7 +135,7 @@ def parse_trace(
                 bad = True
         if bad:
             continue
-        last_time = time
+        last_time, last_ns = time, ns
         records.append((time, record))
     if errors:
         if hidden:

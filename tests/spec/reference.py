@@ -2,11 +2,19 @@
 
 Values are three-valued: True, False, None (inconclusive: depends on records after the end).
 Numbers may be ``nan`` (undefined: prev at the first record, an empty window, x / 0).
+
+Times are exact: a record's time and a window's bounds are the decimals they were written as
+(a float stands for its shortest decimal, ``repr``), held as :class:`fractions.Fraction`, so
+``0.3 - 0.1`` is exactly ``0.2`` here. Arithmetic follows IEEE-754 binary64 without ever
+raising: the exact result rounded to a float, ±inf beyond the largest one.
 """
 
 from __future__ import annotations
 
 import math
+import operator
+import sys
+from decimal import Decimal
 from fractions import Fraction
 
 from rasm.spec.ast import (
@@ -29,6 +37,69 @@ from rasm.spec.loader import signals_of
 from rasm.spec.types import TypeScope
 
 NAN = math.nan
+INF = math.inf
+
+
+def exact_seconds(time) -> Fraction:
+    """A record time as the exact number of seconds it stands for."""
+    if isinstance(time, float):
+        return Fraction(repr(time))
+    if isinstance(time, (int, Decimal, Fraction)):
+        return Fraction(time)
+    raise TypeError(time)
+
+
+def exact_bound(seconds: float):
+    return seconds if seconds == INF else Fraction(repr(float(seconds)))
+
+
+def to_float(exact: Fraction) -> float:
+    """The float nearest ``exact``; ±inf beyond the largest float."""
+    try:
+        return float(exact)
+    except OverflowError:
+        return INF if exact > 0 else -INF
+
+
+OPERATORS = {"+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
+
+
+def arithmetic(op: str, a, b):
+    """``a op b`` by IEEE-754 rules on the exact operands; two ints stay an exact int."""
+    if op == "/":
+        if b == 0 or a != a or b != b:
+            return NAN
+    elif isinstance(a, int) and isinstance(b, int):
+        return OPERATORS[op](a, b)
+    if a != a or b != b:
+        return NAN
+    infinite = [v for v in (a, b) if isinstance(v, float) and math.isinf(v)]
+    if infinite:
+        # an infinite operand decides as any finite number of the other's sign would
+        big = sys.float_info.max
+        x, y = (v if isinstance(v, float) else math.copysign(big, v) if v else 0.0
+                for v in (a, b))
+        return OPERATORS[op](x, y)
+    return to_float(OPERATORS[op](Fraction(a), Fraction(b)))
+
+
+def ieee_sum(values) -> float:
+    """The exact sum of ``values`` (floats and ints, ±inf allowed, no nan) rounded to a float."""
+    infinities = {v for v in values if isinstance(v, float) and math.isinf(v)}
+    if len(infinities) == 2:
+        return NAN
+    if infinities:
+        return infinities.pop()
+    return to_float(sum((Fraction(v) for v in values), Fraction(0)))
+
+
+def ieee_avg(values) -> float:
+    infinities = {v for v in values if isinstance(v, float) and math.isinf(v)}
+    if len(infinities) == 2:
+        return NAN
+    if infinities:
+        return infinities.pop()
+    return to_float(sum((Fraction(v) for v in values), Fraction(0)) / len(values))
 
 
 def held_values(spec: Specification, records):
@@ -82,7 +153,8 @@ def k_all(values):
 class Reference:
     def __init__(self, spec: Specification, records) -> None:
         self.spec = spec
-        self.times = [t for t, _ in records]
+        self.times = [t for t, _ in records]  # what ``time`` reads
+        self.exact = [exact_seconds(t) for t, _ in records]  # what windows compare
         self.env = held_values(spec, records)
         self.n = len(records)
         self.types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
@@ -110,13 +182,14 @@ class Reference:
         return self.memo[key]
 
     def _value(self, node, i):  # noqa: C901
-        t = self.times
+        t = self.exact
         if isinstance(node, Literal):
             return node.value
         if isinstance(node, Name):
             return self.env[i][node.name]
         if isinstance(node, Time):
-            return t[i]
+            time = self.times[i]
+            return time if isinstance(time, int) else float(time)
         if isinstance(node, Not):
             return k_not(self.value(node.operand, i))
         if isinstance(node, Unary):
@@ -133,9 +206,7 @@ class Reference:
             if a is None or b is None:
                 return None
             if node.op in ("+", "-", "*", "/"):
-                if node.op == "/":
-                    return NAN if b == 0 else a / b
-                return {"+": a + b, "-": a - b, "*": a * b}[node.op]
+                return arithmetic(node.op, a, b)
             if a != a or b != b:  # undefined: every comparison is false
                 return False
             return {
@@ -153,7 +224,7 @@ class Reference:
             if i == self.start:
                 return False if self.types.check(node.operand) == "bool" else NAN
             return self.value(node.operand, i - 1)
-        a, b = (node.bound.low, node.bound.high) if hasattr(node, "bound") else (0, 0)
+        a, b = exact_bound(node.bound.low), exact_bound(node.bound.high)
         past = range(self.start, i + 1)
         future = range(i, self.n)
         if isinstance(node, Past):
@@ -198,11 +269,11 @@ class Reference:
             if any(v != v for v in window):
                 return NAN
             if node.op == "sum":
-                return float(sum(Fraction(v) for v in window)) if window else 0
+                return ieee_sum(window) if window else 0
             if not window:
                 return NAN
             if node.op == "avg":
-                return float(sum(Fraction(v) for v in window) / len(window))
+                return ieee_avg(window)
             return min(window) if node.op == "min" else max(window)
         raise TypeError(node)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from decimal import Decimal
+
 from hypothesis import strategies as st
 
 HEADER = """
@@ -16,8 +18,21 @@ LOWS = [0, 0.5, 1, 2]
 WIDTHS = [0, 0.5, 1, 3]
 
 
+# decimal traces: records on a grid of 0.1 s or 0.01 s, bounds on the same grid
+UNITS = [Decimal("0.1"), Decimal("0.01")]
+OFFSETS = [Decimal("0"), Decimal("0.3"), Decimal("1700000000"), Decimal("1699999999.97")]
+
+
 @st.composite
-def bounds(draw, past: bool) -> str:
+def bounds(draw, past: bool, unit: Decimal | None = None) -> str:
+    """``[low, high]`` in seconds; with ``unit``, multiples of it (landing on record gaps),
+    written in seconds or milliseconds."""
+    if unit is not None:
+        low = unit * draw(st.integers(0, 5))
+        if past and draw(st.integers(0, 6)) == 0:
+            return f"[{_seconds(low, draw)}, inf]"
+        high = low + unit * draw(st.sampled_from([0, 1, 2, 3, 5]))
+        return f"[{_seconds(low, draw)}, {_seconds(high, draw)}]"
     low = draw(st.sampled_from(LOWS))
     if past and draw(st.integers(0, 4)) == 0:
         return f"[{low}, inf]"
@@ -25,7 +40,13 @@ def bounds(draw, past: bool) -> str:
     return f"[{low}, {high}]"
 
 
-def numeric_atoms(draw) -> str:
+def _seconds(value: Decimal, draw) -> str:
+    if draw(st.booleans()):
+        return f"{(value * 1000).normalize():f}ms"
+    return f"{value.normalize():f}"
+
+
+def numeric_atoms(draw, unit: Decimal | None = None) -> str:
     c = draw(st.sampled_from(["0", "0.5", "1", "2"]))
     op = draw(st.sampled_from([">", "<=", "==", "!=", "<", ">="]))
     choice = draw(st.integers(0, 9))
@@ -41,10 +62,11 @@ def numeric_atoms(draw) -> str:
         return f"x / y {op} {c}"
     if choice == 5:
         k = draw(st.integers(0, 3))
-        return f"count{draw(bounds(True))}({draw(formulas(1, future=False))}) >= {k}"
+        inner = draw(formulas(1, future=False, unit=unit))
+        return f"count{draw(bounds(True, unit))}({inner}) >= {k}"
     if choice == 6:
         agg = draw(st.sampled_from(["sum", "avg", "min", "max"]))
-        return f"{agg}{draw(bounds(True))}(x) {op} {c}"
+        return f"{agg}{draw(bounds(True, unit))}(x) {op} {c}"
     if choice == 7:
         return f"abs(x - y) {op} {c}"
     if choice == 8:
@@ -53,15 +75,16 @@ def numeric_atoms(draw) -> str:
 
 
 @st.composite
-def formulas(draw, depth: int = 3, future: bool = True) -> str:
+def formulas(draw, depth: int = 3, future: bool = True, unit: Decimal | None = None) -> str:
+    """A random formula; with ``unit``, its bounds are multiples of ``unit`` seconds."""
     if depth <= 0 or draw(st.integers(0, 3)) == 0:
         kind = draw(st.integers(0, 6 if future else 5))
         if kind == 6:
             # past and pointwise operators above a future one: values that come late
-            inner = f"eventually{draw(bounds(False))} {draw(st.sampled_from(['p', 'q']))}"
+            inner = f"eventually{draw(bounds(False, unit))} {draw(st.sampled_from(['p', 'q']))}"
             k = draw(st.integers(0, 2))
             return draw(st.sampled_from([
-                f"count{draw(bounds(True))}({inner}) >= {k}",
+                f"count{draw(bounds(True, unit))}({inner}) >= {k}",
                 f"prev({inner})",
                 "not prev(always[0, 1] r)",
                 f"max[0, 2](x + count[0, 1]({inner})) > 1",
@@ -70,8 +93,8 @@ def formulas(draw, depth: int = 3, future: bool = True) -> str:
             return draw(st.sampled_from(["p", "q", "r", "true", "false", "prev(p)"]))
         if kind <= 2:
             return draw(st.sampled_from(["p", "q", "r"]))
-        return numeric_atoms(draw)
-    sub = formulas(depth - 1, future)
+        return numeric_atoms(draw, unit)
+    sub = formulas(depth - 1, future, unit)
     ops = ["not", "once", "historically", "and", "or", "->", "since"]
     if future:
         ops += ["eventually", "always", "until"]
@@ -79,16 +102,16 @@ def formulas(draw, depth: int = 3, future: bool = True) -> str:
     if op == "not":
         return f"not ({draw(sub)})"
     if op in ("once", "historically"):
-        bound = draw(st.one_of(st.just(""), bounds(True)))
+        bound = draw(st.one_of(st.just(""), bounds(True, unit)))
         return f"{op}{bound} ({draw(sub)})"
     if op in ("eventually", "always"):
-        return f"{op}{draw(bounds(False))} ({draw(sub)})"
+        return f"{op}{draw(bounds(False, unit))} ({draw(sub)})"
     if op in ("and", "or", "->"):
         return f"({draw(sub)}) {op} ({draw(sub)})"
     if op == "since":
-        bound = draw(st.one_of(st.just(""), bounds(True)))
+        bound = draw(st.one_of(st.just(""), bounds(True, unit)))
         return f"({draw(sub)}) since{bound} ({draw(sub)})"
-    return f"({draw(sub)}) until{draw(bounds(False))} ({draw(sub)})"
+    return f"({draw(sub)}) until{draw(bounds(False, unit))} ({draw(sub)})"
 
 
 @st.composite
@@ -97,14 +120,33 @@ def traces(draw, max_size: int = 25):
     t = draw(st.sampled_from([0, 0.5, 3]))
     records = []
     for _ in range(n):
-        rec = {}
-        for name in ("p", "q", "r"):
-            if draw(st.integers(0, 2)) > 0:
-                rec[name] = draw(st.booleans())
-        if draw(st.integers(0, 2)) > 0:
-            rec["x"] = draw(st.sampled_from([-1.0, 0, 0.5, 1.5, 2.25, 0.1]))
-        if draw(st.integers(0, 2)) > 0:
-            rec["y"] = draw(st.sampled_from([0, 1, 2]))
-        records.append((t, rec))
+        records.append((t, _record(draw)))
         t = t + draw(st.sampled_from([0, 0.5, 1, 1, 1.5]))
     return records
+
+
+@st.composite
+def decimal_traces(draw, unit: Decimal, max_size: int = 25, exact: bool = False):
+    """Records on a grid of ``unit`` seconds from an offset (0, or epoch-like), with equal
+    times and irregular gaps; each time is the float of its decimal (``exact``: the Decimal
+    itself)."""
+    n = draw(st.integers(1, max_size))
+    t = draw(st.sampled_from(OFFSETS))
+    records = []
+    for _ in range(n):
+        rec = _record(draw)
+        records.append((t if exact else float(t), rec))
+        t += unit * draw(st.sampled_from([0, 1, 1, 1, 2, 3, 7]))
+    return records
+
+
+def _record(draw) -> dict:
+    rec = {}
+    for name in ("p", "q", "r"):
+        if draw(st.integers(0, 2)) > 0:
+            rec[name] = draw(st.booleans())
+    if draw(st.integers(0, 2)) > 0:
+        rec["x"] = draw(st.sampled_from([-1.0, 0, 0.5, 1.5, 2.25, 0.1]))
+    if draw(st.integers(0, 2)) > 0:
+        rec["y"] = draw(st.sampled_from([0, 1, 2]))
+    return rec

@@ -21,7 +21,8 @@ def online(text: str, records):
             assert v.index not in got[v.property], "a verdict was given twice"
             got[v.property][v.index] = v.value
             emitted_at[(v.property, v.index)] = k
-            assert v.time == records[v.index][0]
+            given = records[v.index][0]  # seconds: a Decimal or a Fraction comes as a float
+            assert v.time == (given if isinstance(given, (int, float)) else float(given))
             assert v.value in (True, False)
     for v in monitor.finish():
         assert v.index not in got[v.property]
