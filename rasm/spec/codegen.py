@@ -51,6 +51,7 @@ from rasm.spec.streams import (
     TemporalStream,
     kleene_function,
 )
+from rasm.spec.times import FAST
 from rasm.spec.types import TypeScope
 
 __all__ = ["Program", "generate"]
@@ -520,8 +521,8 @@ def generate(
     property k's closure variables back to their initial values (its constants are renewed by
     the caller, from a fresh :func:`generate`). It reads the names in ``Program.constants`` plus
     ``STATE`` (initial values), ``Verdict``, ``NAMES``, ``STARTS``, ``VALUES``, ``UNSET``,
-    ``NUMERIC``, ``SCALAR``, ``COERCE``, ``BAD``, ``NANOSECONDS``, ``SECONDS``, ``FAST_TIME``,
-    ``REJECT_STEP``, ``REJECT_RUN``,
+    ``NUMERIC``, ``SCALAR``, ``COERCE``, ``BAD``, ``NANOSECONDS``, ``SECONDS``, ``REJECT_STEP``,
+    ``REJECT_RUN``,
     ``FAULT``, ``FAULT_RUN``, ``RECOVERING``, ``RECOVER`` and ``RECOVER_RUN``, which the monitor
     provides.
     """
@@ -715,14 +716,14 @@ def _update_lines(spec: Specification, used: list[str], events: set[str]) -> lis
     (all or nothing).
 
     The time ``t`` (seconds, as given) becomes ``tn``, exact integer nanoseconds
-    (:mod:`rasm.spec.times`): at once for an int and for a float below FAST_TIME, through
+    (:mod:`rasm.spec.times`): at once for an int and for a float below FAST, through
     NANOSECONDS for anything else (then ``t``, which the ``time`` expression reads and verdicts
     carry, becomes an int or a float through SECONDS). The values' fast tests look at exact
     classes; anything else (a numpy float, an int subclass) takes the slow path through COERCE,
     which converts what it can and refuses the rest.
     """
     checks = [
-        "if t.__class__ is float and -FAST_TIME < t < FAST_TIME:",
+        f"if t.__class__ is float and {-FAST!r} < t < {FAST!r}:",
         "    tn = round(t * 1e9)",
         "elif t.__class__ is int:",
         "    tn = t * 1000000000",

@@ -16,7 +16,7 @@ from rasm.spec.ast import Specification
 from rasm.spec.codegen import UNSET, generate
 from rasm.spec.loader import load_specification
 from rasm.spec.recovery import Recovery
-from rasm.spec.times import FAST, nanoseconds
+from rasm.spec.times import nanoseconds
 
 __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile"]
 
@@ -174,7 +174,6 @@ class Monitor:
             BAD=BAD,
             NANOSECONDS=nanoseconds,
             SECONDS=_seconds,
-            FAST_TIME=FAST,
             FAULT=self._fault,
             FAULT_RUN=self._fault_run,
             RECOVERING=self._recovering,
