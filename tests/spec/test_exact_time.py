@@ -1,4 +1,4 @@
-"""Exact time: window edges decided exactly on decimal timestamps (SPEC §4, §5).
+"""Exact time: window edges decided exactly on decimal timestamps.
 
 ``0.3 - 0.1`` is ``0.19999999999999998`` in binary floating point; a monitor comparing float
 differences misjudges every record that sits exactly on a window bound, and every 10 Hz or 100 Hz
