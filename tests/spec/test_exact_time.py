@@ -20,12 +20,13 @@ from hypothesis import strategies as st
 
 from rasm.errors import SourceError, SourceErrors
 from rasm.spec import compile, load_specification
-from rasm.spec.ast import children
+from rasm.spec.ast import Future, Until, children
 from rasm.spec.times import Seconds, nanoseconds
 from rasm.spec.trace import parse_trace
 
-from .strategies import UNITS, decimal_traces, formulas
-from .test_semantics import assert_agrees_with_reference
+from .reference import exact_seconds
+from .strategies import HEADER, UNITS, decimal_traces, formulas
+from .test_semantics import assert_agrees_with_reference, online
 
 
 @settings(max_examples=300, deadline=None)
@@ -150,3 +151,27 @@ def test_a_float_time_stands_for_its_shortest_decimal(ns, digits):
     assert nanoseconds(float(EPOCH + Fraction(exact, 10**9))) == round(
         Fraction(repr(float(EPOCH + Fraction(exact, 10**9)))) * 10**9
     )
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.data())
+def test_online_verdicts_on_decimal_times_come_no_later_than_the_horizon(data):
+    # a verdict for record i comes no later than the first record with time > ti + b, exactly
+    unit = data.draw(st.sampled_from(UNITS))
+    formula = data.draw(formulas(3, unit=unit))
+    records = data.draw(decimal_traces(unit))
+    text = HEADER + f"property p0: {formula}\n"
+    b = exact_horizon(load_specification(text).properties[0].formula)
+    _, emitted_at = online(text, records)
+    times = [exact_seconds(t) for t, _ in records]
+    for (_, index), at in emitted_at.items():
+        late = next((k for k, t in enumerate(times) if t > times[index] + b), None)
+        assert late is None or at <= late, (formula, index, at, late)
+
+
+def exact_horizon(node) -> Fraction:
+    """How far into the future a formula looks, exactly: the sum of nested future bounds."""
+    below = max((exact_horizon(c) for c in children(node)), default=Fraction(0))
+    if isinstance(node, (Future, Until)):
+        return Fraction(node.bound.high_ns, 10**9) + below
+    return below
