@@ -21,8 +21,9 @@ from hypothesis import strategies as st
 from rasm.errors import SourceError, SourceErrors
 from rasm.spec import compile, load_specification
 from rasm.spec.ast import Future, Until, children
+from rasm.spec.check import check_records
 from rasm.spec.times import Seconds, nanoseconds
-from rasm.spec.trace import parse_trace
+from rasm.spec.trace import parse_trace, read_trace
 
 from .reference import exact_seconds
 from .strategies import HEADER, UNITS, decimal_traces, formulas
@@ -175,3 +176,18 @@ def exact_horizon(node) -> Fraction:
     if isinstance(node, (Future, Until)):
         return Fraction(node.bound.high_ns, 10**9) + below
     return below
+
+
+def test_rasm_check_judges_a_10hz_trace_exactly(tmp_path):
+    # every record of a 10 Hz trace sits on the 200 ms bound of the one two steps before it
+    trace = tmp_path / "t.jsonl"
+    trace.write_text("".join(
+        json.dumps({"time": round(0.1 * k, 1), "beat": k % 2 == 0}) + "\n" for k in range(50)
+    ))
+    spec = load_specification(
+        "event beat\nproperty steady: always (beat -> once[200ms, 200ms] beat)\n", source="p.rv"
+    )
+    records = read_trace(trace, spec.signals)
+    (report,) = check_records(spec, records).properties
+    assert report.violations == [(0, 0.0)]  # record 0 has no record 200 ms before it
+    assert report.judged == 50
