@@ -190,10 +190,10 @@ def _cmd_verify_rules(args: argparse.Namespace) -> int:
 
 def _read_scenario(text: str) -> dict:
     """``--scenario``: JSON text, or a JSON/YAML file."""
-    import json
     from pathlib import Path
 
     from rasm.errors import Location, SourceError
+    from rasm.jsontext import JsonProblem, parse_json
     from rasm.statechart.source import load_yaml, plain
 
     path = Path(text)
@@ -206,15 +206,10 @@ def _read_scenario(text: str) -> dict:
         where = str(path)
     else:
         try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise SourceError(f"--scenario is not JSON (nor a file): {exc.msg}",
-                              Location("--scenario", 1, exc.colno)) from None
-        except (ValueError, RecursionError) as exc:  # deep nesting, a 5000-digit integer
-            problem = "nested too deeply" if isinstance(exc, RecursionError) else (
-                "an integer longer than 4300 digits")
-            raise SourceError(f"--scenario cannot be read: {problem}",
-                              Location("--scenario", 1, 1)) from None
+            data = parse_json(text)
+        except JsonProblem as exc:
+            raise SourceError(f"--scenario (not a file): {exc.message}",
+                              Location("--scenario", 1, exc.column)) from None
         where = "--scenario"
     if not isinstance(data, dict):
         raise SourceError("a scenario is a mapping, e.g. {\"openings\": [[5, 10]]}",

@@ -208,22 +208,6 @@ class Monitor:
         """
         return self._step(time, values)
 
-    def tally_into(
-        self,
-        time: float,
-        values: Mapping[str, object],
-        latest: dict[str, bool | None],
-        unusual: Callable[[str, bool | None], object],
-    ) -> None:
-        """:meth:`step`, keeping ``latest[property] = value`` for each verdict and calling
-        ``unusual(property, value)`` for each value that is not True (an error verdict's value
-        is False). Nothing for a refused record. For the Trustworthiness Checker until it calls
-        :meth:`step` itself."""
-        for verdict in self.step(time, values):
-            latest[verdict.property] = verdict.value
-            if verdict.value is not True:
-                unusual(verdict.property, verdict.value)
-
     def missing(self, name: str) -> tuple[str, ...]:
         """The signals property ``name`` waits for: those it reads that have had no value yet
         (empty once it has started)."""
@@ -248,7 +232,7 @@ class Monitor:
         if self._finished:
             return []
         self._finished = True
-        self.step = self.tally_into = self._refuse
+        self.step = self._refuse
         out = self._finish()
         for k, recovery in self._recovering.items():
             self._taint(k, recovery, out)
@@ -342,7 +326,7 @@ class Monitor:
             raise SpecError("this monitor has finished; compile a new one for a new trace")
         self._run(records)
         self._finished = True
-        self.step = self.tally_into = self._refuse
+        self.step = self._refuse
         self._finish_run()
         for k, resets in enumerate(self._resets_run):
             values, errors, start = self._values[k], self._errors[k], self.starts[k]

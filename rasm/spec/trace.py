@@ -18,6 +18,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from rasm.errors import Location, SourceError, SourceErrors, read_utf8
+from rasm.jsontext import JsonProblem, parse_json
 from rasm.spec.times import FAST, Seconds, nanoseconds
 
 __all__ = ["read_trace", "parse_trace", "MAX_REPORTED"]
@@ -96,9 +97,9 @@ def parse_trace(
         if not line.strip():
             continue
         try:
-            record = json.loads(line.rstrip("\r\n"))
-        except json.JSONDecodeError as exc:
-            fail(f"not valid JSON: {exc.msg}", number, exc.colno)
+            record = parse_json(line.rstrip("\r\n"))
+        except JsonProblem as exc:
+            fail(exc.message, number, exc.column)
             continue
         if not isinstance(record, dict):
             fail(f"a record must be a JSON object, not {type(record).__name__}", number)

@@ -355,3 +355,21 @@ def test_control_characters_from_a_file_reach_the_terminal_escaped(
         code, out = run_main(capsys, command[0], chart)
         assert code in (1, 2)
         assert "\x1b" not in out and "unknown key '\\x1b[2J'" in out, out
+
+
+@pytest.mark.parametrize(
+    "line,words",
+    [
+        ('{"time": ' + BIG + ', "x": 1}', "an integer longer than 4300 digits"),
+        ('{"time": 0, "x": ' + "[" * 5000 + "]" * 5000 + "}", "nested too deeply"),
+    ],
+)
+def test_a_hostile_trace_line_is_refused_at_its_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, line: str, words: str
+) -> None:
+    props = tmp_path / "p.rv"
+    props.write_text("input x: float\nproperty p: always (avg[0, 5s](x) < 3)\n")
+    trace = tmp_path / "t.jsonl"
+    trace.write_text('{"time": 0, "x": 1}\n' + line + "\n")
+    code, out = run_main(capsys, "check", props, trace)
+    assert_refused_at(code, out, f"{trace}:2:1", words)
