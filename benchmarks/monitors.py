@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import monitors_timescales as timescales  # noqa: E402
 
-from rasm.spec import compile  # noqa: E402
+from rasm.properties import compile_properties  # noqa: E402
 
 BASIC = [
     # (name, rasm, reelay, rtamt); signals x (float), a, b (bool)
@@ -68,16 +68,16 @@ def measure_case(header: str, formula: str, pattern: str | None, trace: list[dic
 
     Interleaving (run, step, reelay, run, step, reelay, …) makes a load spike on a shared
     machine hit every tool alike, so the ratios stay meaningful. Building the monitors
-    (``compile``, ~5-10 ms; reelay's constructor) is not timed.
+    (``compile_properties``, ~5-10 ms; reelay's constructor) is not timed.
     """
     text = header + f"property p: {formula}\n"
     records = [(r["time"], {k: v for k, v in r.items() if k != "time"}) for r in trace]
     plain = [{k: v for k, v in r.items() if k != "time"} for r in trace]
     rates: dict[str, list[float]] = {"run": [], "step": [], "reelay": []}
     for _ in range(repeat):
-        batch = compile(text)
+        batch = compile_properties(text)
         rates["run"].append(timed(lambda m=batch: m.run(records), len(records)))
-        online = compile(text)
+        online = compile_properties(text)
 
         def step(monitor=online):
             feed = monitor.step
@@ -145,7 +145,7 @@ def flatness(name: str, bounds: list[int], trace: list[dict], repeat: int) -> li
     best = [0.0] * len(bounds)
     for _ in range(repeat):
         for k, text in enumerate(texts):
-            monitor = compile(text)
+            monitor = compile_properties(text)
             start = time.perf_counter()
             monitor.run(records)
             best[k] = max(best[k], len(records) / (time.perf_counter() - start))

@@ -3,6 +3,71 @@
 The RoboSAPIENS Adaptive Platform's MAPLE-K loop (Monitor, Analyse, Plan, Legitimate, Execute over
 Knowledge), its building blocks driven by YAML statecharts executed with sismic, a temporal
 property language checked online, and z3-checked legitimacy rules.
+
+``import rasm`` is the front door: the names an application is written with. ::
+
+    import rasm
+
+    class Analyse:
+        def analyse(self, ctx: rasm.StageContext) -> rasm.Anomaly | None:
+            ...
+
+    summary = rasm.Platform("examples/hotbox", clock="simulated", seed=1).run(duration=60)
+
+The names are loaded on first use, so ``import rasm`` (and every ``rasm`` command) stays cheap.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
 __version__ = "0.1.0"
+
+# public name -> the module that defines it
+_PUBLIC = {
+    "Platform": "rasm.platform.runtime",
+    "RunSummary": "rasm.platform.runtime",
+    "Anomaly": "rasm.platform.components",
+    "Plan": "rasm.platform.components",
+    "Action": "rasm.platform.components",
+    "StageContext": "rasm.platform.components",
+    "load_manifest": "rasm.platform.manifest",
+    "compile_properties": "rasm.properties",
+    "RasmError": "rasm.errors",
+    "SourceError": "rasm.errors",
+}
+
+__all__ = [
+    "Action",
+    "Anomaly",
+    "Plan",
+    "Platform",
+    "RasmError",
+    "RunSummary",
+    "SourceError",
+    "StageContext",
+    "__version__",
+    "compile_properties",
+    "load_manifest",
+]
+
+if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
+    from rasm.errors import RasmError, SourceError
+    from rasm.platform.components import Action, Anomaly, Plan, StageContext
+    from rasm.platform.manifest import load_manifest
+    from rasm.platform.runtime import Platform, RunSummary
+    from rasm.properties import compile_properties
+
+
+def __getattr__(name: str) -> object:
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rasm' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # later reads find it directly
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -36,9 +36,9 @@ from rasm.comm.message import Message
 from rasm.comm.topics import validate_pattern, validate_topic
 from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError, Location, RasmError, SourceError
-from rasm.spec import Verdict, load_specification
-from rasm.spec.monitor import Monitor
-from rasm.spec.outcome import PropertyOutcome
+from rasm.properties import Verdict, load_specification
+from rasm.properties.monitor import Monitor
+from rasm.properties.outcome import PropertyOutcome
 
 __all__ = [
     "Attachment",

@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
+import rasm
 from rasm.errors import RasmError, SourceErrors, printable, raise_interrupted, read_utf8
 
 if TYPE_CHECKING:
@@ -79,9 +80,9 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes
-    from rasm.spec.check import check_records, format_json, format_text, format_verdicts
-    from rasm.spec.loader import load_specification
-    from rasm.spec.trace import read_trace
+    from rasm.properties.check import check_records, format_json, format_text, format_verdicts
+    from rasm.properties.loader import load_specification
+    from rasm.properties.trace import read_trace
 
     text = read_utf8(args.props)
     spec = load_specification(text, source=args.props)
@@ -110,7 +111,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
     from rasm.attach import Attachment, load_topic_map
     from rasm.comm import credentials_from_env, open_transport
-    from rasm.spec import load_specification
+    from rasm.properties import load_specification
 
     duration = getattr(args, "duration", None)
     if duration is not None and not 0 < duration < math.inf:
@@ -333,8 +334,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from collections import Counter
 
+    from rasm.properties.check import STATE_ORDER
     from rasm.report import write_report
-    from rasm.spec.check import STATE_ORDER
 
     # --props FILE.rv (repeatable) and --no-platform-props, where the parser offers them
     props = getattr(args, "props", None) or []
@@ -423,6 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rasm",
         description="rasm: trustworthy self-adaptive robots (MAPLE-K), statechart-first.",
     )
+    parser.add_argument("--version", action="version", version=f"rasm {rasm.__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def command(name: str, func: Callable[[argparse.Namespace], int], help: str):

@@ -46,9 +46,9 @@ def _lint_statechart(path: Path, text: str) -> list[str]:
 
 def _lint_properties(path: Path, text: str) -> list[str]:
     try:
-        from rasm.spec import compile as compile_properties
+        from rasm.properties import compile_properties
     except ImportError:  # pragma: no cover - the property language ships with rasm
-        return [f"{path}: cannot lint property files: rasm.spec is not available"]
+        return [f"{path}: cannot lint property files: rasm.properties is not available"]
     try:
         compile_properties(text, source=str(path))
     except (SourceError, SourceErrors) as exc:

@@ -21,8 +21,8 @@ from rasm.knowledge.base import EXACT_CLASS, register_each
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import Effector, Probe, Signal
-from rasm.spec.monitor import Verdict
-from rasm.spec.outcome import PropertyOutcome
+from rasm.properties.monitor import Verdict
+from rasm.properties.outcome import PropertyOutcome
 
 __all__ = [
     "AdaptationManager",

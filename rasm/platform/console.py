@@ -11,8 +11,8 @@ from rich.table import Table
 from rich.text import Text
 
 from rasm.platform.runtime import STAGES, Platform, RunSummary
-from rasm.spec.monitor import Verdict
-from rasm.spec.outcome import PASSING
+from rasm.properties.monitor import Verdict
+from rasm.properties.outcome import PASSING
 
 __all__ = ["LiveView", "print_summary"]
 

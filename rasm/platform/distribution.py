@@ -203,7 +203,7 @@ class Distribution:
         return bool(result.accepted), result.reason
 
     def _apply_properties(self, text: str) -> tuple[bool, str]:
-        from rasm.spec import compile as compile_properties
+        from rasm.properties import compile_properties
 
         try:
             monitor = compile_properties(text, source="rasm/update/properties")

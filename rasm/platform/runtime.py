@@ -49,8 +49,8 @@ from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.trace import TraceWriter
+from rasm.properties.outcome import PASSING, PropertyOutcome
 from rasm.resources import data_dir
-from rasm.spec.outcome import PASSING, PropertyOutcome
 from rasm.statechart import MonotonicClock, SimulatedClock
 
 __all__ = ["Platform", "RunSummary", "STAGES"]
@@ -318,8 +318,8 @@ class Platform:
         return storage
 
     def _managing_blocks(self, storage: Any) -> list[Any]:
+        from rasm.properties import compile_properties
         from rasm.rules import RuleSet
-        from rasm.spec import compile as compile_properties
 
         m, clock = self.manifest, self.clock
         self.km = KnowledgeManager(

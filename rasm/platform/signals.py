@@ -69,7 +69,8 @@ LOOP_SIGNAL_TYPES: dict[str, str] = {
 # what the runtime registers in knowledge for a twin (twin_residual also goes in the trace)
 _TWIN_KNOWLEDGE = {"twin_residual": "float", "twin_model": "json"}
 
-# which provided types a reader of each type takes (rasm.spec.monitor.coerce, Variable.contains)
+# which provided types a reader of each type takes
+# (rasm.properties.monitor.coerce, Variable.contains)
 _PROPERTY_TAKES = {
     "float": {"float", "int"},
     "int": {"int"},
@@ -147,7 +148,7 @@ def closest(name: str, candidates: Collection[str]) -> str | None:
 def reads(spec: Any) -> list[tuple[str, Location]]:
     """Every place a property or ``let`` of ``spec`` (a checked Specification) reads a signal,
     in file order, each place once (a ``let`` used twice is read at its definition once)."""
-    from rasm.spec.ast import Name, children
+    from rasm.properties.ast import Name, children
 
     places: dict[tuple[str, Location], None] = {}
     stack = [let.expr for let in reversed(spec.lets)]
@@ -212,7 +213,7 @@ def check_app(manifest: AppManifest) -> None:
 # property-based test builds hundreds); the parsed files are frozen data
 @functools.lru_cache(maxsize=64)
 def _load_properties(text: str, source: str) -> Any:
-    from rasm.spec import load_specification
+    from rasm.properties import load_specification
 
     return load_specification(text, source=source)
 
@@ -341,7 +342,7 @@ def _trustworthiness_problems(
 @functools.cache
 def _platform_property_names() -> frozenset[str]:
     """The properties every app runs (the platform's ``properties/*.rv``)."""
-    from rasm.spec import load_specification
+    from rasm.properties import load_specification
 
     names: set[str] = set()
     for path in sorted(data_dir("properties").glob("*.rv")):

@@ -29,10 +29,10 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from rasm.errors import PlatformError
+from rasm.properties.loader import signals_of
 from rasm.report.model import TraceModel
 from rasm.report.page import plotly_js, render_page
 from rasm.report.verdicts import VerdictTimeline
-from rasm.spec.loader import signals_of
 
 __all__ = ["Dashboard", "HOST", "serve"]
 

@@ -8,7 +8,7 @@ A timeline is a list of runs ``[from, to, value]`` where value is ``true`` (hold
 (violated), ``null`` (inconclusive), ``"error"`` (the property could not be evaluated there) or
 ``"warm-up"`` (not judged yet: a signal it reads has no value), plus the violations ``{"time",
 "index", "explanation", "signals"}`` and the overall verdict, one of the five states of
-:mod:`rasm.spec.outcome`.
+:mod:`rasm.properties.outcome`.
 """
 
 from __future__ import annotations
@@ -19,13 +19,13 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import read_utf8
+from rasm.properties.ast import Specification
+from rasm.properties.check import check_records
+from rasm.properties.explain import explain
+from rasm.properties.loader import load_specification, signals_of
+from rasm.properties.outcome import PropertyOutcome
+from rasm.properties.trace import read_trace
 from rasm.resources import data_dir
-from rasm.spec.ast import Specification
-from rasm.spec.check import check_records
-from rasm.spec.explain import explain
-from rasm.spec.loader import load_specification, signals_of
-from rasm.spec.outcome import PropertyOutcome
-from rasm.spec.trace import read_trace
 
 __all__ = ["EXPLAINED", "VerdictTimeline", "check_trace", "load_properties", "platform_properties"]
 

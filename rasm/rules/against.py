@@ -15,14 +15,14 @@ from typing import Any
 import z3
 
 from rasm.errors import Location, SourceError, SourceErrors
+from rasm.properties import ast
+from rasm.properties.parser import parse_declarations
 from rasm.rules.model import Rules
 from rasm.rules.mus import SolverGaveUp, check, new_solver
 from rasm.rules.report import Violation
 from rasm.rules.smt import Encoder
 from rasm.rules.typing import check_rule_expression
 from rasm.rules.verify import Undecided, likely_cause
-from rasm.spec import ast
-from rasm.spec.parser import parse_declarations
 
 _TEMPORAL = (ast.Time, ast.Prev, ast.Past, ast.Future, ast.Since, ast.Until, ast.Aggregate)
 

@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import RasmError, RulesError
+from rasm.properties import compile_expression
 from rasm.rules.loader import load_rules, parse_rules
 from rasm.rules.model import Rules, Variable, require_rules
 from rasm.rules.report import Report
 from rasm.rules.verify import is_consistent
-from rasm.spec import compile_expression
 
 
 @dataclass(frozen=True)
@@ -123,8 +123,8 @@ def _missing_or_bad(checks: tuple[_Check, ...], env: Mapping[str, Any]) -> str |
 
 
 def _names(expr: Any) -> set[str]:
-    from rasm.spec import Name
-    from rasm.spec.ast import children
+    from rasm.properties import Name
+    from rasm.properties.ast import children
 
     if expr is None:
         return set()

@@ -23,9 +23,9 @@ from ruamel.yaml.scalarstring import (
 )
 
 from rasm.errors import Location, SourceError, SourceErrors, mark, not_utf8
+from rasm.properties import parse_expression
 from rasm.rules.model import TYPES, Rule, Rules, Variable
 from rasm.rules.typing import check_rule_expression
-from rasm.spec import parse_expression
 from rasm.yamlsafe import document_start, yaml_error, yaml_reader
 
 _TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}

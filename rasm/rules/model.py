@@ -64,8 +64,8 @@ class Rule:
     """One legitimacy rule: whenever ``when`` holds, ``require`` must hold.
 
     ``when`` is ``None`` when the file leaves it out (it then always holds). The expressions are
-    the property language's AST (:mod:`rasm.spec.ast`); ``when_text``/``require_text`` keep the
-    source text for reports.
+    the property language's AST (:mod:`rasm.properties.ast`); ``when_text``/``require_text``
+    keep the source text for reports.
     """
 
     name: str

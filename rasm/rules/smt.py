@@ -19,8 +19,8 @@ from typing import Any
 
 import z3
 
+from rasm.properties import ast
 from rasm.rules.model import Rule, Rules, Variable
-from rasm.spec import ast
 
 
 class Encoder:

@@ -23,8 +23,8 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
+from rasm.properties import ast, evaluate
 from rasm.rules.model import Rule, Variable
-from rasm.spec import ast, evaluate
 
 #: At most this many guard contexts are enumerated; beyond, the search runs uncut.
 MAX_CONTEXTS = 1024

@@ -1,6 +1,6 @@
 """Static checks of a rule expression against the declared variables.
 
-The expression language is shared with the property files (:mod:`rasm.spec`); rules use its
+The expression language is shared with the property files (:mod:`rasm.properties`); rules use its
 non-temporal part over four types: ``real`` and ``int`` (numbers; ``int`` mixes into ``real``),
 ``bool``, and ``enum`` values, which are written as strings (``mode == "dock"``). This module
 finds unknown variables, enum values outside a declaration, arithmetic or ordering on enums and
@@ -12,8 +12,8 @@ from __future__ import annotations
 import difflib
 
 from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.properties import ast
 from rasm.rules.model import Variable
-from rasm.spec import ast
 
 _NUMERIC = ("int", "real")
 

@@ -26,6 +26,7 @@ from collections.abc import Iterable, Sequence
 import z3
 
 from rasm.errors import RulesError, SourceError
+from rasm.properties import ast
 from rasm.rules.model import Rule, Rules, Variable, require_rules
 from rasm.rules.mus import (
     SOLVER_TIMEOUT_MS,
@@ -38,7 +39,6 @@ from rasm.rules.mus import (
 from rasm.rules.report import Conflict, Report
 from rasm.rules.smt import Encoder, encode_rules
 from rasm.rules.split import components, guard_split, names
-from rasm.spec import ast
 
 #: Solver calls spent making one redundant rule's "implied by" set minimal, at most.
 IMPLIED_BY_BUDGET = 8

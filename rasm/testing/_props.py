@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from rasm.spec.ast import Specification
-from rasm.spec.loader import load_specification
+from rasm.properties.ast import Specification
+from rasm.properties.loader import load_specification
 
 __all__ = ["PropertyFile", "property_file"]
 

@@ -202,7 +202,7 @@ class Trace(Sequence[dict[str, Any]]):
         return path
 
     def check(self, props: Any):
-        """Check a property file on this trace: a :class:`rasm.spec.check.CheckReport`."""
+        """Check a property file on this trace: a :class:`rasm.properties.check.CheckReport`."""
         from rasm.testing.assertions import check_trace
 
         return check_trace(props, self)

@@ -8,10 +8,10 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from rasm.spec.ast import Specification
-from rasm.spec.check import CheckReport, PropertyReport, check_records, format_text
-from rasm.spec.outcome import ERROR, NOT_JUDGED, VIOLATED
-from rasm.spec.trace import parse_trace
+from rasm.properties.ast import Specification
+from rasm.properties.check import CheckReport, PropertyReport, check_records, format_text
+from rasm.properties.outcome import ERROR, NOT_JUDGED, VIOLATED
+from rasm.properties.trace import parse_trace
 from rasm.testing._props import property_file
 from rasm.testing.failures import is_final_example, save_jsonl
 

@@ -32,7 +32,7 @@ from typing import Any
 
 from hypothesis import strategies as st
 
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     COMPARISONS,
     INF,
     Aggregate,

@@ -6,7 +6,7 @@ from collections.abc import Iterable, Mapping
 from math import inf
 from typing import Any
 
-from rasm.spec import Monitor, load_specification
+from rasm.properties import Monitor, load_specification
 
 __all__ = ["PredictionChecker", "predicted_violations", "worse_than_baseline"]
 

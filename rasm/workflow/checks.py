@@ -279,7 +279,7 @@ def property_reads(check: Check, model: ArchitectureModel) -> tuple[dict[str, Lo
 
 def _specification(check: Check, model: ArchitectureModel) -> tuple[Any, list[SourceError]]:
     """A property check's checked specification, or None and the problems in its text."""
-    from rasm.spec import load_specification
+    from rasm.properties import load_specification
 
     text, source = _check_text(check, model)
     if text is None:

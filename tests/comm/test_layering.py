@@ -7,7 +7,7 @@ from pathlib import Path
 
 import rasm.comm
 
-FORBIDDEN = ("rasm.platform", "rasm.knowledge", "rasm.spec")
+FORBIDDEN = ("rasm.platform", "rasm.knowledge", "rasm.properties")
 
 
 def test_comm_imports_no_higher_layer():

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from rasm.comm import InfluxWriter, record_to_points, verdict_to_point
 from rasm.comm.influx import escape_key, field_value, query
 from rasm.errors import CommError
-from rasm.spec import compile as compile_spec
+from rasm.properties import compile_properties
 
 _databases = itertools.count()
 
@@ -85,7 +85,7 @@ def test_names_are_escaped_and_cleaned():
 
 def test_stage_verdict_and_adaptation_points_are_queried_back(influx):
     db = _db()
-    monitor = compile_spec("property fast: always (duration <= 0.01)")
+    monitor = compile_properties("property fast: always (duration <= 0.01)")
     with InfluxWriter(influx.url, db) as writer:
         records = [
             (1.0, {"stage": "monitor", "duration": 0.002}),

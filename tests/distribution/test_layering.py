@@ -9,11 +9,11 @@ import rasm
 
 ROOT = Path(rasm.__file__).parent
 RULES = {
-    "knowledge/redis.py": ("rasm.spec", "rasm.platform", "rasm.comm"),
-    "knowledge/url.py": ("rasm.spec", "rasm.platform"),
-    "comm/influx.py": ("rasm.spec", "rasm.platform", "rasm.knowledge"),
-    "comm/signing.py": ("rasm.spec", "rasm.platform", "rasm.knowledge"),
-    "comm/presence.py": ("rasm.spec", "rasm.platform", "rasm.knowledge"),
+    "knowledge/redis.py": ("rasm.properties", "rasm.platform", "rasm.comm"),
+    "knowledge/url.py": ("rasm.properties", "rasm.platform"),
+    "comm/influx.py": ("rasm.properties", "rasm.platform", "rasm.knowledge"),
+    "comm/signing.py": ("rasm.properties", "rasm.platform", "rasm.knowledge"),
+    "comm/presence.py": ("rasm.properties", "rasm.platform", "rasm.knowledge"),
     "attach.py": ("rasm.platform", "rasm.knowledge"),
 }
 

@@ -204,7 +204,7 @@ class _Faulty:
 
 
 def test_checker_hands_verdicts_to_the_observers_listed_now_and_a_faulty_monitor_is_in_error():
-    from rasm.spec import compile as compile_properties
+    from rasm.properties import compile_properties
 
     monitor = compile_properties("input x: float\nproperty low: always (x < 1)\n")
     observers: list = []

@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 from rasm.platform.blocks import TrustworthinessChecker, TrustworthinessManager
 from rasm.platform.components import Action, Plan
-from rasm.spec import compile as compile_properties
-from rasm.spec.monitor import Verdict
+from rasm.properties import compile_properties
+from rasm.properties.monitor import Verdict
 
 PROPS = """
 input speed: float

@@ -9,9 +9,9 @@ from pathlib import Path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rasm.properties.outcome import PropertyOutcome
 from rasm.report.dashboard import serve
 from rasm.report.verdicts import VerdictTimeline
-from rasm.spec.outcome import PropertyOutcome
 from tests.platform.guarded import write_guarded_app
 
 VALUES = st.lists(st.sampled_from([True, False, None, "error"]), max_size=15)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, field
 
+from rasm.properties import evaluate
 from rasm.rules.model import Rules
-from rasm.spec import evaluate
 
 
 def points(rules: Rules) -> list[dict]:

@@ -7,9 +7,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rasm.errors import RulesError
+from rasm.properties import parse_expression
 from rasm.rules import parse_rules, verify
 from rasm.rules.against import check_properties
-from rasm.spec import parse_expression
 
 from .brute import Oracle, points, truth
 from .gen import conditions, rules_files

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from hypothesis import HealthCheck, given, settings
 
+from rasm.properties import evaluate
 from rasm.rules import parse_rules, verify
 from rasm.rules.split import guard_split
-from rasm.spec import evaluate
 
 from .brute import Oracle, truth
 from .gen import guarded_rules_files, rules_files

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import Phase, find, given, settings
 from hypothesis import strategies as st
 
-from rasm.spec import compile
-from rasm.spec.trace import parse_trace
+from rasm.properties import compile_properties
+from rasm.properties.trace import parse_trace
 from rasm.testing import signal_domains, traces
 
 PROPS = """
@@ -70,8 +70,8 @@ def test_comment_ranges_types_events_and_times_are_respected(data):
     # max_gap defaults to 1.5 times the largest bound (2 s)
     check_declarations(trace, ranges={"velocity": (0, 1.5), "stops": (0, 10)}, max_gap=3.0)
     # every record is one `rasm check` accepts, and the monitor refuses none
-    parse_trace([json.dumps(r) for r in trace], compile(PROPS).spec.signals)
-    monitor = compile(PROPS)
+    parse_trace([json.dumps(r) for r in trace], compile_properties(PROPS).spec.signals)
+    monitor = compile_properties(PROPS)
     for record in trace:
         values = dict(record)
         monitor.step(values.pop("time"), values)
@@ -120,7 +120,7 @@ def test_traces_accept_a_path(tmp_path):
 
 
 def holds(text, trace):
-    monitor = compile(text)
+    monitor = compile_properties(text)
     verdicts = []
     for record in trace:
         values = dict(record)

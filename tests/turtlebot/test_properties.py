@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rasm.spec import compile
+from rasm.properties import compile_properties
 
 from .conftest import APP
 
@@ -12,7 +12,7 @@ BASE = {"velocity": 0.2, "yaw_rate": 0.0}
 
 def violated(records):
     """The properties false at some record of ``records`` (``(time, values)`` pairs)."""
-    monitor = compile(PROPERTIES, source="turtlebot.rv")
+    monitor = compile_properties(PROPERTIES, source="turtlebot.rv")
     runs = monitor.run(
         [(t, {**BASE, **r}) if i == 0 else (t, r) for i, (t, r) in enumerate(records)]
     )

@@ -9,7 +9,7 @@ Each *core* implements one operator over two-valued inputs arriving in record or
   ``until``'s left side) arrives. ``flush(default)`` settles the still-open ones at the end of
   a trace.
 
-Times are compared as exact integer nanoseconds (``ns``; see :mod:`rasm.spec.times`), and so
+Times are compared as exact integer nanoseconds (``ns``; see :mod:`rasm.properties.times`), and so
 are the bounds ``a`` and ``b`` (``b`` may be ``math.inf``); ``time`` is the record's time as
 given, handed back with its verdict. Windows are never re-scanned: each record enters and leaves
 a deque once; a window's "last witness" is a time stamp, ``min``/``max`` use monotonic deques

@@ -1,7 +1,7 @@
 """Operators the generator writes into the step function itself, against the reference evaluator.
 
 ``count[0, b]`` of a two-valued operand keeps only the times of its true records (a counter when
-``b`` is unbounded) instead of a :class:`~rasm.spec.operators.WindowCore` call per record.
+``b`` is unbounded) instead of a :class:`~rasm.properties.operators.WindowCore` call per record.
 
 ``trigger -> eventually[a, b] …`` (and ``w and F``, ``w or F``, until): online, a record whose
 verdict the trigger alone decides opens no window.
@@ -16,8 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.errors import SourceError
-from rasm.spec import compile
-from rasm.spec.loader import load_specification
+from rasm.properties import compile_properties
+from rasm.properties.loader import load_specification
 
 from .reference import reference_verdicts
 from .strategies import HEADER, bounds, formulas, traces
@@ -40,7 +40,7 @@ def test_count_from_now_agrees_with_the_reference(bound, operand, test, records)
 
 
 def test_count_from_now_is_written_inline():
-    monitor = compile(HEADER + "property p0: count[0, 2](p) <= 1\n")
+    monitor = compile_properties(HEADER + "property p0: count[0, 2](p) <= 1\n")
     assert ".push(" not in monitor.program.source
 
 
@@ -73,7 +73,7 @@ def test_records_the_trigger_decides_open_no_window_and_verdicts_stay_the_same(f
 
 
 def test_a_false_trigger_opens_no_window_online():
-    monitor = compile(HEADER + "property p0: p -> eventually[0, 5] q\n")
+    monitor = compile_properties(HEADER + "property p0: p -> eventually[0, 5] q\n")
     for k in range(100):
         assert [v.value for v in monitor.step(float(k), {"p": False})] == [True]
     pending = [v for k, v in monitor.program.constants.items() if k.startswith("w")]
@@ -83,7 +83,7 @@ def test_a_false_trigger_opens_no_window_online():
 def test_monitors_compiled_from_the_same_text_share_no_state():
     # the parsed file and the code object are reused; every monitor has its own state
     text = HEADER + "property p0: p -> eventually[0, 2] q\nproperty p1: count[0, 5](p) <= 1\n"
-    first, second = compile(text), compile(text)
+    first, second = compile_properties(text), compile_properties(text)
     assert first.program.source == second.program.source
     assert [v.value for v in first.step(0.0, {"p": True})] == [True]  # p1; p0 waits for q
     assert [v.value for v in first.step(1.0, {"p": True})] == [False]
@@ -95,4 +95,4 @@ def test_monitors_compiled_from_the_same_text_share_no_state():
 def test_a_file_that_does_not_load_fails_every_time():
     for _ in range(2):
         with pytest.raises(SourceError):
-            compile(HEADER + "property p0: p ->\n")
+            compile_properties(HEADER + "property p0: p ->\n")

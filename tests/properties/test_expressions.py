@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.errors import SourceError, SpecError
-from rasm.spec import (
+from rasm.properties import (
     Binary,
     Call,
     Literal,
@@ -21,7 +21,7 @@ from rasm.spec import (
     infer_types,
     parse_expression,
 )
-from rasm.spec.printer import unparse
+from rasm.properties.printer import unparse
 
 
 def test_tree_shape_and_precedence():

@@ -19,11 +19,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.errors import SourceError, SourceErrors
-from rasm.spec import compile, load_specification
-from rasm.spec.ast import Future, Until, children
-from rasm.spec.check import check_records
-from rasm.spec.times import Seconds, nanoseconds
-from rasm.spec.trace import parse_trace, read_trace
+from rasm.properties import compile_properties, load_specification
+from rasm.properties.ast import Future, Until, children
+from rasm.properties.check import check_records
+from rasm.properties.times import Seconds, nanoseconds
+from rasm.properties.trace import parse_trace, read_trace
 
 from .reference import exact_seconds
 from .strategies import HEADER, UNITS, decimal_traces, formulas
@@ -52,9 +52,9 @@ def test_a_window_edge_on_a_decimal_gap_is_inside_the_window():
     # 0.3 - 0.1 is 0.2 exactly: the record at 0.1 is in the window [200ms, 400ms] of 0.3
     records = [(0.1, {"p": True}), (0.3, {"p": False})]
     text = "event p\nproperty w: once[200ms, 400ms] p\n"
-    online = compile(text)
+    online = compile_properties(text)
     assert [v.value for t, rec in records for v in online.step(t, rec)] == [False, True]
-    (run,) = compile(text).run(records)
+    (run,) = compile_properties(text).run(records)
     assert run.values == [False, True]
 
 
@@ -110,8 +110,8 @@ def test_epoch_times_with_nine_decimals_are_read_exactly_from_the_trace():
     ]
     assert json.dumps(records[0][0]) == "1700000000.1"  # still seconds, a JSON number
     text = "event p\nproperty w: once[200ms, 200ms] p\n"
-    assert compile(text).run(records)[0].values == [False, True, False]
-    online = compile(text)
+    assert compile_properties(text).run(records)[0].values == [False, True, False]
+    online = compile_properties(text)
     assert [v.value for t, rec in records for v in online.step(t, rec)] == [False, True, False]
 
 
@@ -119,7 +119,7 @@ def test_a_time_that_goes_back_by_a_nanosecond_is_refused():
     lines = ['{"time": 1700000000.300000002}', '{"time": 1700000000.300000001}']
     with pytest.raises(SourceErrors, match="goes back in time"):
         parse_trace(lines, source="t.jsonl")
-    monitor = compile("event p\nproperty w: once p\n")
+    monitor = compile_properties("event p\nproperty w: once p\n")
     assert monitor.step(Decimal("1700000000.300000002"), {})[0].time == 1700000000.3
     assert monitor.step(Decimal("1700000000.300000001"), {}) == []
     assert monitor.rejected[0].reason.endswith("goes back in time")
@@ -127,14 +127,14 @@ def test_a_time_that_goes_back_by_a_nanosecond_is_refused():
 
 @pytest.mark.parametrize("time", [math.inf, -math.inf, math.nan])
 def test_a_time_that_is_not_finite_is_refused(time):
-    monitor = compile("event p\nproperty w: once p\n")
+    monitor = compile_properties("event p\nproperty w: once p\n")
     assert monitor.step(time, {}) == []
     assert monitor.rejected[0].reason == f"'time' must be finite, not {time!r}"
 
 
 def test_the_time_expression_and_verdicts_read_seconds():
     # ``time`` is a number of seconds like any other (binary64 arithmetic), an int or a float
-    monitor = compile("property late: time >= 0.3\n")
+    monitor = compile_properties("property late: time >= 0.3\n")
     got = [monitor.step(t, {})[0] for t in (0.1, 0.3, Decimal("0.35"), Fraction(1, 2), 1)]
     assert [v.value for v in got] == [False, True, True, True, True]
     assert [v.time for v in got] == [0.1, 0.3, 0.35, 0.5, 1]

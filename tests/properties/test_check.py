@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 from rasm.cli import main
 from rasm.errors import SourceErrors
-from rasm.spec.printer import unparse
-from rasm.spec.trace import parse_trace
+from rasm.properties.printer import unparse
+from rasm.properties.trace import parse_trace
 
 from .strategies import HEADER, formulas, traces
 
@@ -183,7 +183,7 @@ def test_missing_files_exit_2(props, tmp_path, capsys):
 def test_shipped_platform_properties_load():
     from pathlib import Path
 
-    from rasm.spec import load_specification
+    from rasm.properties import load_specification
 
     folder = Path(__file__).resolve().parents[2] / "properties"
     files = sorted(folder.glob("*.rv"))
@@ -255,13 +255,13 @@ def test_a_broken_file_is_reported_by_its_first_problems():
 @settings(max_examples=60, deadline=None)
 @given(formulas(3), traces())
 def test_every_violation_is_explained(formula, records):
-    from rasm.spec import load_specification
-    from rasm.spec.check import check_records, format_text
+    from rasm.properties import load_specification
+    from rasm.properties.check import check_records, format_text
 
     spec = load_specification(HEADER + f"property p0: {formula}\n", source="p.rv")
     report = check_records(spec, records)
     (prop,) = report.properties
-    from rasm.spec.check import EXPLAINED, SUMMARISED
+    from rasm.properties.check import EXPLAINED, SUMMARISED
 
     assert len(prop.explanations) == min(len(prop.violations), EXPLAINED + SUMMARISED)
     for explanation, (index, _) in zip(prop.explanations, prop.violations, strict=False):
@@ -282,8 +282,8 @@ def test_every_violation_is_explained(formula, records):
 def test_explanation_windows_are_the_semantic_ones(steps, low, width, data):
     # the explainer finds windows by bisection; they must be exactly §5's windows, on the
     # decimals the times stand for (0.3 - 0.1 is 0.2)
-    from rasm.spec.ast import Bound, Name, Past
-    from rasm.spec.explain import _Explainer
+    from rasm.properties.ast import Bound, Name, Past
+    from rasm.properties.explain import _Explainer
 
     exact = list(itertools.accumulate(Decimal(step) for step in steps))
     high = Decimal(low) + Decimal(width)  # Decimal("inf") when unbounded
@@ -315,8 +315,8 @@ def test_files_that_are_not_utf8_are_placed_at_their_first_bad_byte(tmp_path, ca
 def test_a_property_that_is_a_literal_is_explained():
     # found by test_every_violation_is_explained: the explanation looked up the property's own
     # table, which was never made for a literal
-    from rasm.spec import load_specification
-    from rasm.spec.check import check_records
+    from rasm.properties import load_specification
+    from rasm.properties.check import check_records
 
     spec = load_specification(HEADER + "property p0: false\n", source="p.rv")
     (prop,) = check_records(spec, [(0, {}), (1, {})]).properties
@@ -376,8 +376,8 @@ def test_an_empty_trace_leaves_every_property_not_judged(props, tmp_path, capsys
 def _error_report():
     """A report whose first property could not be evaluated at records 1 and 2 (as a monitor
     reports an evaluation that raised), and whose second holds."""
-    from rasm.spec.check import CheckReport, PropertyReport
-    from rasm.spec.monitor import PropertyRun
+    from rasm.properties.check import CheckReport, PropertyReport
+    from rasm.properties.monitor import PropertyRun
 
     times = [0.0, 0.5, 1.0, 1.5]
     why = "OverflowError: the sum of the window overflowed"
@@ -390,7 +390,7 @@ def _error_report():
 
 
 def test_a_property_in_error_is_reported_as_error_in_every_format():
-    from rasm.spec.check import format_json, format_text, format_verdicts
+    from rasm.properties.check import format_json, format_text, format_verdicts
 
     report, why = _error_report()
     budget, limit = report.properties
@@ -418,9 +418,9 @@ def test_a_property_in_error_is_reported_as_error_in_every_format():
 def test_the_check_report_state_is_the_outcome_of_its_verdicts(values, started):
     """Whatever the verdicts, the report's state is PropertyOutcome's, and only satisfied and
     inconclusive pass."""
-    from rasm.spec.check import PropertyReport
-    from rasm.spec.monitor import PropertyRun
-    from rasm.spec.outcome import PropertyOutcome
+    from rasm.properties.check import PropertyReport
+    from rasm.properties.monitor import PropertyRun
+    from rasm.properties.outcome import PropertyOutcome
 
     if not started:
         values = []

@@ -17,7 +17,7 @@ import sys
 from decimal import Decimal
 from fractions import Fraction
 
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     Aggregate,
     Binary,
     Call,
@@ -33,8 +33,8 @@ from rasm.spec.ast import (
     Unary,
     Until,
 )
-from rasm.spec.loader import signals_of
-from rasm.spec.types import TypeScope
+from rasm.properties.loader import signals_of
+from rasm.properties.types import TypeScope
 
 NAN = math.nan
 INF = math.inf

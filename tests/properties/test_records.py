@@ -13,8 +13,8 @@ from collections import OrderedDict
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.spec import compile
-from rasm.spec.loader import load_specification
+from rasm.properties import compile_properties
+from rasm.properties.loader import load_specification
 
 from .reference import reference_verdicts
 from .strategies import HEADER, formulas
@@ -102,7 +102,7 @@ def test_a_refused_record_changes_nothing(formulas_, trace):
     """Whatever a refused record holds (good values next to the bad one), the monitor goes on
     as if it had never come."""
     text = _spec(formulas_)
-    full, without = compile(text), compile(text)
+    full, without = compile_properties(text), compile_properties(text)
     for time, rec in trace:
         refused = len(full.rejected)
         got = full.step(time, rec)
@@ -124,10 +124,10 @@ def test_huge_and_infinite_values_are_judged_never_in_error(formulas_, trace):
     trace = [(t, rec) for k, (t, rec) in enumerate(trace) if all(t >= s for s, _ in trace[:k])]
     text = _spec(formulas_)
     expected = reference_verdicts(load_specification(text), trace)
-    verdicts = stepped(compile(text), trace)
+    verdicts = stepped(compile_properties(text), trace)
     assert all(v.error is None for v in verdicts)
     assert {name: {v.index: v.value for v in verdicts if v.property == name}
             for name in expected} == expected
-    runs = compile(text).run(trace)
+    runs = compile_properties(text).run(trace)
     assert all(not run.errors for run in runs)
     assert {run.name: dict(enumerate(run.values, run.start or 0)) for run in runs} == expected

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Union
 
 from rasm.errors import Location
-from rasm.spec.times import nanoseconds
+from rasm.properties.times import nanoseconds
 
 __all__ = [
     "Aggregate",

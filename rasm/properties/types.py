@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from rasm.errors import Location, SourceError
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     ARITHMETIC,
     Aggregate,
     Binary,

@@ -13,7 +13,7 @@ from bisect import bisect_left, bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     COMPARISONS,
     Aggregate,
     Binary,
@@ -33,10 +33,10 @@ from rasm.spec.ast import (
     Until,
     children,
 )
-from rasm.spec.loader import signals_of
-from rasm.spec.monitor import Monitor
-from rasm.spec.printer import format_value, unparse
-from rasm.spec.times import nanoseconds
+from rasm.properties.loader import signals_of
+from rasm.properties.monitor import Monitor
+from rasm.properties.printer import format_value, unparse
+from rasm.properties.times import nanoseconds
 
 __all__ = ["Explanation", "explain"]
 

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.spec import compile
+from rasm.properties import compile_properties
 
 reelay = pytest.importorskip("reelay")
 rtamt = pytest.importorskip("rtamt")
@@ -110,7 +110,7 @@ bits = st.lists(st.tuples(st.booleans(), st.booleans(), st.booleans()), min_size
 
 
 def rasm_values(formula: str, rows) -> list:
-    monitor = compile(HEADER + f"property x: {formula}\n")
+    monitor = compile_properties(HEADER + f"property x: {formula}\n")
     records = [(k, dict(zip(PROPS, row, strict=True))) for k, row in enumerate(rows)]
     (run,) = monitor.run(records)
     assert run.start == 0
@@ -149,7 +149,7 @@ def test_bounded_future_formulas_agree_with_rtamt(node, rows):
 def test_timescales_patterns_agree_with_reelay(name, low, high, body):
     pattern = timescales.pattern(name, low, high, body=body)
     trace = timescales.trace(1500, seed=low * 100 + high)
-    monitor = compile(timescales.RASM_HEADER + f"property x: {pattern.rasm}\n")
+    monitor = compile_properties(timescales.RASM_HEADER + f"property x: {pattern.rasm}\n")
     (run,) = monitor.run([(r["time"], {k: v for k, v in r.items() if k != "time"})
                           for r in trace])
     peer = reelay.discrete_timed_monitor(pattern=pattern.reelay, condense=False)
@@ -164,7 +164,7 @@ def test_timescales_rtamt_forms_agree(name):
     # the rtamt spelling (no open bounds) means the same as rasm's on a shared trace
     pattern = timescales.pattern(name, 2, 6, body=True)
     trace = timescales.trace(200, seed=7)
-    monitor = compile(timescales.RASM_HEADER + f"property x: {pattern.rasm}\n")
+    monitor = compile_properties(timescales.RASM_HEADER + f"property x: {pattern.rasm}\n")
     (run,) = monitor.run([(r["time"], {k: v for k, v in r.items() if k != "time"})
                           for r in trace])
     spec = rtamt.StlDiscreteTimeSpecification()

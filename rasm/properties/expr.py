@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping
 from fractions import Fraction
 
 from rasm.errors import SpecError
-from rasm.spec.ast import Binary, Call, Expr, Literal, Name, Not, Unary
+from rasm.properties.ast import Binary, Call, Expr, Literal, Name, Not, Unary
 
 __all__ = ["NAN", "compile_expression", "evaluate", "python_source", "HELPERS"]
 

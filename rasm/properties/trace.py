@@ -5,7 +5,7 @@ JSON object, no numeric ``time``, a time going back, a value of the wrong type f
 the properties read. Blank lines are skipped; the others are records 0, 1, 2, …
 
 A time is a JSON number of seconds. Where its float loses digits (epoch seconds with nine
-decimals), it is read again from the line's text as a :class:`~rasm.spec.times.Seconds`: a
+decimals), it is read again from the line's text as a :class:`~rasm.properties.times.Seconds`: a
 float that carries the exact nanoseconds the monitors compare.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 from rasm.errors import Location, SourceError, SourceErrors, read_utf8
 from rasm.jsontext import JsonProblem, parse_json
-from rasm.spec.times import FAST, Seconds, nanoseconds
+from rasm.properties.times import FAST, Seconds, nanoseconds
 
 __all__ = ["read_trace", "parse_trace", "MAX_REPORTED"]
 

@@ -5,15 +5,15 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.spec import compile
-from rasm.spec.loader import load_specification
+from rasm.properties import compile_properties
+from rasm.properties.loader import load_specification
 
 from .reference import reference_verdicts
 from .strategies import HEADER, formulas, traces
 
 
 def online(text: str, records):
-    monitor = compile(text)
+    monitor = compile_properties(text)
     got: dict[str, dict[int, object]] = {name: {} for name in monitor.properties}
     emitted_at: dict[tuple[str, int], int] = {}
     for k, (t, rec) in enumerate(records):
@@ -31,7 +31,7 @@ def online(text: str, records):
 
 
 def offline(text: str, records):
-    monitor = compile(text)
+    monitor = compile_properties(text)
     runs = monitor.run(records)
     return {
         run.name: {run.start + k: v for k, v in enumerate(run.values)} if run.values else {}
@@ -78,7 +78,7 @@ def test_several_properties_in_one_file(formulas_, records):
 
 def horizon(node) -> float:
     """How far into the future a formula looks: the sum of nested future upper bounds."""
-    from rasm.spec.ast import Future, Until, children
+    from rasm.properties.ast import Future, Until, children
 
     below = max((horizon(c) for c in children(node)), default=0.0)
     if isinstance(node, (Future, Until)):

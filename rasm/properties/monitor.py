@@ -1,8 +1,7 @@
-"""The online monitor: ``compile(text)``, ``Monitor.step``, ``Monitor.finish``, ``Monitor.run``."""
+"""The online monitor: ``compile_properties(text)``, ``Monitor.step``, ``.finish``, ``.run``."""
 
 from __future__ import annotations
 
-import builtins
 import copy
 import functools
 import numbers
@@ -12,13 +11,13 @@ from types import CodeType
 from typing import NamedTuple
 
 from rasm.errors import SpecError
-from rasm.spec.ast import Specification
-from rasm.spec.codegen import UNSET, generate
-from rasm.spec.loader import load_specification
-from rasm.spec.recovery import Recovery
-from rasm.spec.times import nanoseconds
+from rasm.properties.ast import Specification
+from rasm.properties.codegen import UNSET, generate
+from rasm.properties.loader import load_specification
+from rasm.properties.recovery import Recovery
+from rasm.properties.times import nanoseconds
 
-__all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile"]
+__all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties"]
 
 NUMERIC = frozenset((int, float))
 SCALAR = frozenset((int, float, str, bool))
@@ -125,11 +124,11 @@ class Monitor:
     returns no verdicts.
 
     Each property is evaluated on its own: if evaluating one raises (a safety net: arithmetic
-    and aggregates never raise, :mod:`rasm.spec.expr`), its verdict for that record, and for
+    and aggregates never raise, :mod:`rasm.properties.expr`), its verdict for that record, and for
     every earlier record still waiting in its future windows, is an error (``value`` False,
     ``error`` saying why), its state is reset, and the other properties carry on untouched. Its
     verdicts that depend on records from before the reset are errors too, until they no longer
-    do (:mod:`rasm.spec.recovery`); after that they are exact again. Every record gets exactly
+    do (:mod:`rasm.properties.recovery`); after that they are exact again. Every record gets exactly
     one verdict per started property either way.
 
     ``fault_hook(property, index)``, if given, is called before each property is evaluated at
@@ -318,7 +317,7 @@ class Monitor:
     def run(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> list[PropertyRun]:
         """Check a whole trace of ``(time, values)`` pairs; faster than ``step`` per record.
 
-        A bad record raises :class:`SpecError` (read traces with :mod:`rasm.spec.trace` to get
+        A bad record raises :class:`SpecError` (read traces with :mod:`rasm.properties.trace` to get
         line numbers). Returns each property's verdicts, in record order; where a property
         could not be evaluated, its value is False and ``errors`` says why.
         """
@@ -361,7 +360,7 @@ def _seconds(time) -> int | float:
 def compile_source(source: str, origin: str) -> CodeType:
     """The code object of a generated monitor (cached: a code object is immutable, and every
     run of an application compiles the same property files again)."""
-    return builtins.compile(source, f"<rasm monitor for {origin}>", "exec")
+    return compile(source, f"<rasm monitor for {origin}>", "exec")
 
 
 @functools.lru_cache(maxsize=128)
@@ -371,7 +370,7 @@ def _specification(text: str, source: str) -> Specification:
     return load_specification(text, source=source)
 
 
-def compile(text: str, *, source: str = "<text>") -> Monitor:  # noqa: A001 - SPEC §6 name
+def compile_properties(text: str, *, source: str = "<text>") -> Monitor:
     """Parse, check and compile a property file into a fresh :class:`Monitor`."""
     if type(text) is str and type(source) is str:
         return Monitor(_specification(text, source))

@@ -1,4 +1,4 @@
-"""From a property file to a checked :class:`~rasm.spec.ast.Specification`.
+"""From a property file to a checked :class:`~rasm.properties.ast.Specification`.
 
 Resolves ``let`` names (each use stands for the definition above it), strips the outermost
 unbounded ``always`` of each property, rejects any other unbounded ``always``, and type-checks
@@ -11,7 +11,7 @@ from dataclasses import replace
 from pathlib import PurePath
 
 from rasm.errors import SourceError, mark
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     INF,
     Aggregate,
     Binary,
@@ -32,8 +32,8 @@ from rasm.spec.ast import (
     Until,
     children,
 )
-from rasm.spec.parser import parse_declarations
-from rasm.spec.types import TypeScope
+from rasm.properties.parser import parse_declarations
+from rasm.properties.types import TypeScope
 
 __all__ = ["load_specification", "signals_of"]
 
@@ -46,7 +46,8 @@ def load_specification(text: str, *, source: str = "<text>") -> Specification:
     """Parse and check a property file; raises :class:`SourceError` at the first problem."""
     if not isinstance(text, str):
         hint = (
-            f" (for a file: compile(Path({str(text)!r}).read_text(), source={str(text)!r}))"
+            f" (for a file: compile_properties(Path({str(text)!r}).read_text(),"
+            f" source={str(text)!r}))"
             if isinstance(text, PurePath)
             else " (decode it first: text.decode('utf-8'))"
             if isinstance(text, bytes | bytearray)

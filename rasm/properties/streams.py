@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from rasm.spec.operators import Kleene, WindowCore
+from rasm.properties.operators import Kleene, WindowCore
 
 __all__ = [
     "AggregateStream",

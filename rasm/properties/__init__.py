@@ -1,13 +1,13 @@
-"""rasm.spec: the temporal property language (SPEC §5, §6).
+"""rasm.properties: the temporal property language (SPEC §5, §6).
 
-``compile(text)`` turns a property file into an incremental :class:`Monitor`;
+``compile_properties(text)`` turns a property file into an incremental :class:`Monitor`;
 ``load_specification`` gives the checked syntax tree.
 
 ``parse_expression``, ``infer_types``, ``evaluate`` and ``compile_expression`` form the
 non-temporal expression sub-language that the legitimacy rules share.
 """
 
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     Aggregate,
     Binary,
     Bound,
@@ -24,11 +24,11 @@ from rasm.spec.ast import (
     Unary,
     Until,
 )
-from rasm.spec.expr import compile_expression, evaluate
-from rasm.spec.loader import load_specification
-from rasm.spec.monitor import Monitor, PropertyRun, Rejection, Verdict, compile
-from rasm.spec.parser import parse_expression
-from rasm.spec.types import Typing, infer_types
+from rasm.properties.expr import compile_expression, evaluate
+from rasm.properties.loader import load_specification
+from rasm.properties.monitor import Monitor, PropertyRun, Rejection, Verdict, compile_properties
+from rasm.properties.parser import parse_expression
+from rasm.properties.types import Typing, infer_types
 
 __all__ = [
     "Aggregate",
@@ -51,7 +51,7 @@ __all__ = [
     "Unary",
     "Until",
     "Verdict",
-    "compile",
+    "compile_properties",
     "compile_expression",
     "evaluate",
     "infer_types",

@@ -3,17 +3,17 @@
 Sub-formulas that only look at the past are *immediate*: their value at record i is known at
 record i, and they become straight-line code with their state in closure variables (a last
 witness time, a deque of not-yet-old-enough witnesses). Anything above a future operator is a
-*stream* (``rasm.spec.streams``) whose values come late; the generated code feeds the streams
+*stream* (``rasm.properties.streams``) whose values come late; the generated code feeds the streams
 their immediate inputs and reads the property's verdicts off the top stream.
 
 Windows compare times as exact integer nanoseconds: the generated code turns each record's time
-``t`` (seconds, as given) into ``tn`` (:mod:`rasm.spec.times`); the bounds are nanoseconds from
-the parser.
+``t`` (seconds, as given) into ``tn`` (:mod:`rasm.properties.times`); the bounds are
+nanoseconds from the parser.
 
 The same body is generated twice: in ``step(t, record)`` (verdict objects, one call per record)
 and in ``run(records)`` (a loop over a whole trace, plain lists of values: ``rasm check``). Each
 property's code runs in its own ``try``: if it raises, the monitor gives that property error
-verdicts and resets its state (``rasm.spec.monitor``), and the other properties carry on.
+verdicts and resets its state (``rasm.properties.monitor``), and the other properties carry on.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     INF,
     Aggregate,
     Binary,
@@ -40,10 +40,10 @@ from rasm.spec.ast import (
     Unary,
     Until,
 )
-from rasm.spec.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
-from rasm.spec.loader import signals_of
-from rasm.spec.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
-from rasm.spec.streams import (
+from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
+from rasm.properties.loader import signals_of
+from rasm.properties.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
+from rasm.properties.streams import (
     AggregateStream,
     PointwiseStream,
     PrevStream,
@@ -51,8 +51,8 @@ from rasm.spec.streams import (
     TemporalStream,
     kleene_function,
 )
-from rasm.spec.times import FAST
-from rasm.spec.types import TypeScope
+from rasm.properties.times import FAST
+from rasm.properties.types import TypeScope
 
 __all__ = ["Program", "generate"]
 
@@ -481,7 +481,7 @@ def _binary(op: str, left: str, right: str, integers: bool = False) -> str:
     if op == "->":
         return f"((not {left}) or {right})"
     if op in _ARITH_NAMES and (op == "/" or not integers):
-        # IEEE-754 without exceptions (rasm.spec.expr): an int too large for a float meeting
+        # IEEE-754 without exceptions (rasm.properties.expr): an int too large for a float meeting
         # a float gives ±inf, x / 0 is undefined
         return f"{_ARITH_NAMES[op]}({left}, {right})"
     if op == "!=":
@@ -514,7 +514,7 @@ def generate(
     ``reads`` overrides, per property, the signals whose first values end its warm-up (by
     default: those it reads); explanations use it to evaluate sub-formulas in context.
     ``hook``: each property's code starts with a call ``FAULT_HOOK(property, index)`` (a test's
-    way to make a property raise; see :class:`rasm.spec.monitor.Monitor`).
+    way to make a property raise; see :class:`rasm.properties.monitor.Monitor`).
 
     The source defines ``factory()`` returning ``(step, run, finish_step, finish_run, held,
     resets)``: ``held()`` tells which held signals have had a value, ``resets[k]()`` puts
@@ -659,7 +659,7 @@ def _assemble(spec, gen: _Generator, blocks, finishes, events) -> str:
     step += ["    " + text for text in rendered([*update, "i += 1", *properties], "step",
                                                 "REJECT_STEP")]
     # a property recovering from a fault: its verdicts that depend on records from before
-    # its reset are errors (rasm.spec.recovery)
+    # its reset are errors (rasm.properties.recovery)
     step += ["    if RECOVERING: return RECOVER(i, tn, out)", "    return out"]
 
     run = ["def run(records):", "    nonlocal " + ", ".join(cells), "    for t, rec in records:"]
@@ -716,7 +716,7 @@ def _update_lines(spec: Specification, used: list[str], events: set[str]) -> lis
     (all or nothing).
 
     The time ``t`` (seconds, as given) becomes ``tn``, exact integer nanoseconds
-    (:mod:`rasm.spec.times`): at once for an int and for a float below FAST, through
+    (:mod:`rasm.properties.times`): at once for an int and for a float below FAST, through
     NANOSECONDS for anything else (then ``t``, which the ``time`` expression reads and verdicts
     carry, becomes an int or a float through SECONDS). The values' fast tests look at exact
     classes; anything else (a numpy float, an int subclass) takes the slow path through COERCE,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rasm.errors import SourceError
-from rasm.spec import compile, load_specification
+from rasm.properties import compile_properties, load_specification
 
 CASES = [
     # (text, line, col, words in the message)
@@ -75,7 +75,7 @@ def test_error_is_located(text, line, col, words):
 
 def test_compile_raises_the_same_errors():
     with pytest.raises(SourceError, match="needs a bound"):
-        compile("property p: eventually x", source="f.rv")
+        compile_properties("property p: eventually x", source="f.rv")
 
 
 def test_nested_unbounded_always_inside_property_is_rejected_but_outermost_is_fine():
@@ -99,7 +99,7 @@ def test_cli_check_with_a_too_large_number_exits_2(tmp_path, capsys):
 
 def test_the_deepest_formula_allowed_compiles_and_runs():
     text = "input x: float\nproperty p: " + " and ".join(f"x > {i}" for i in range(149))
-    monitor = compile(text, source="deep.rv")
+    monitor = compile_properties(text, source="deep.rv")
     assert [v.value for v in monitor.step(0, {"x": 200})] == [True]
     assert [v.value for v in monitor.step(1, {"x": 100})] == [False]
 
@@ -109,13 +109,13 @@ def test_compile_of_something_other_than_text_says_what_to_pass(tmp_path):
     # attribute 'char_pos'")
     path = tmp_path / "p.rv"
     with pytest.raises(TypeError) as caught:
-        compile(path)
+        compile_properties(path)
     assert str(caught.value) == (
         "a property specification is the text of a .rv file, not PosixPath "
-        f"(for a file: compile(Path({str(path)!r}).read_text(), source={str(path)!r}))"
+        f"(for a file: compile_properties(Path({str(path)!r}).read_text(), source={str(path)!r}))"
     )
     with pytest.raises(TypeError, match=r"not bytes \(decode it first: text\.decode\('utf-8'\)\)$"):
-        compile(b"property p: always true")
+        compile_properties(b"property p: always true")
     with pytest.raises(
         TypeError, match=r"^a property specification is the text of a \.rv file, not NoneType$"
     ):

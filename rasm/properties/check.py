@@ -1,6 +1,6 @@
 """Offline checking (``rasm check``): a trace against a property file, and its reports.
 
-Each property gets one of the five overall states of :mod:`rasm.spec.outcome` (satisfied,
+Each property gets one of the five overall states of :mod:`rasm.properties.outcome` (satisfied,
 violated, inconclusive, not judged, error). ``rasm check`` fails (exit 1) when some property is
 violated, in error or not judged; satisfied and inconclusive alone exit 0.
 """
@@ -11,10 +11,10 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from rasm.spec.ast import Specification
-from rasm.spec.explain import Explanation, explain
-from rasm.spec.monitor import Monitor, PropertyRun
-from rasm.spec.outcome import (
+from rasm.properties.ast import Specification
+from rasm.properties.explain import Explanation, explain
+from rasm.properties.monitor import Monitor, PropertyRun
+from rasm.properties.outcome import (
     ERROR,
     INCONCLUSIVE,
     NOT_JUDGED,
@@ -22,7 +22,7 @@ from rasm.spec.outcome import (
     VIOLATED,
     PropertyOutcome,
 )
-from rasm.spec.printer import format_value
+from rasm.properties.printer import format_value
 
 __all__ = ["CheckReport", "PropertyReport", "check_records", "format_json", "format_text",
            "format_verdicts"]

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from bisect import bisect_left
 
-from rasm.spec.ast import INF, Aggregate, Expr, Past, Prev, Since, children
+from rasm.properties.ast import INF, Aggregate, Expr, Past, Prev, Since, children
 
 __all__ = ["Recovery"]
 

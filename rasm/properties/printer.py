@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     INF,
     Aggregate,
     Binary,

@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 
 from rasm.errors import SpecError
-from rasm.spec import Verdict, compile
+from rasm.properties import Verdict, compile_properties
 
 
 def test_step_returns_the_verdicts_of_this_record():
-    mon = compile("input v: float\nproperty limit: always (v <= 0.5)\n")
+    mon = compile_properties("input v: float\nproperty limit: always (v <= 0.5)\n")
     assert mon.step(0.0, {"v": 0.1}) == [Verdict("limit", 0, 0.0, True)]
     (verdict,) = mon.step(1.0, {"v": 0.9})
     assert (verdict.property, verdict.index) == ("limit", 1)
@@ -19,7 +19,7 @@ def test_step_returns_the_verdicts_of_this_record():
 
 
 def test_warm_up_and_defaults():
-    mon = compile(
+    mon = compile_properties(
         "input v: float\ninput mode: str = \"idle\"\n"
         "property p: v < 1 or mode == \"stop\"\nproperty q: mode == \"idle\"\n"
     )
@@ -30,13 +30,13 @@ def test_warm_up_and_defaults():
 
 
 def test_events_are_true_only_where_set():
-    mon = compile("event bump\nproperty calm: not bump\n")
+    mon = compile_properties("event bump\nproperty calm: not bump\n")
     values = [mon.step(t, rec)[0].value for t, rec in enumerate([{}, {"bump": True}, {}])]
     assert values == [True, False, True]
 
 
 def test_future_verdicts_come_no_later_than_the_window_end_and_finish_is_inconclusive():
-    mon = compile("event a\nevent b\nproperty p: a -> eventually[0, 2] b\n")
+    mon = compile_properties("event a\nevent b\nproperty p: a -> eventually[0, 2] b\n")
     assert mon.step(0, {"a": True}) == []
     # no trigger: decided at once
     assert mon.step(1, {}) == [Verdict("p", 1, 1, True)]
@@ -51,7 +51,7 @@ def test_future_verdicts_come_no_later_than_the_window_end_and_finish_is_inconcl
 
 
 def test_nested_future_verdicts_come_by_the_sum_of_the_bounds():
-    mon = compile("event a\nproperty p: eventually[0, 1] always[0, 1] a\n")
+    mon = compile_properties("event a\nproperty p: eventually[0, 1] always[0, 1] a\n")
     decided_at = {}
     for t in range(8):
         for v in mon.step(t, {"a": t >= 3}):
@@ -61,7 +61,7 @@ def test_nested_future_verdicts_come_by_the_sum_of_the_bounds():
 
 
 def test_bad_records_are_counted_and_change_nothing():
-    mon = compile("input v: float\nevent e\nproperty p: v < 1 and not e\n")
+    mon = compile_properties("input v: float\nevent e\nproperty p: v < 1 and not e\n")
     assert mon.step(1, {"v": 0.5})[0].value is True
     assert mon.step(2, {"v": "fast"}) == []
     assert mon.step(0.5, {"v": 3}) == []  # back in time
@@ -76,17 +76,17 @@ def test_bad_records_are_counted_and_change_nothing():
 
 
 def test_run_raises_on_bad_record_and_finished_monitor_refuses_more():
-    mon = compile("input v: float\nproperty p: v < 1\n")
+    mon = compile_properties("input v: float\nproperty p: v < 1\n")
     with pytest.raises(SpecError, match="record 1: 'v' must be a number"):
         mon.run([(0, {"v": 1}), (1, {"v": None})])
-    mon = compile("input v: float\nproperty p: v < 1\n")
+    mon = compile_properties("input v: float\nproperty p: v < 1\n")
     mon.finish()
     with pytest.raises(SpecError, match="finished"):
         mon.step(0, {"v": 1})
 
 
 def test_prev_and_time_and_aggregates():
-    mon = compile(
+    mon = compile_properties(
         "input v: float\n"
         "property rising: prev(v) < v\n"
         "property late: time >= 2\n"
@@ -104,7 +104,9 @@ def test_prev_and_time_and_aggregates():
 
 
 def test_time_units():
-    mon = compile("event a\nproperty p: once[0, 1500ms] a\nproperty q: once[0, 0.01min] a\n")
+    mon = compile_properties(
+        "event a\nproperty p: once[0, 1500ms] a\nproperty q: once[0, 0.01min] a\n"
+    )
     out = [mon.step(t, {"a": t == 0}) for t in (0, 1.0, 1.2, 1.6)]
     assert [row[0].value for row in out] == [True, True, True, False]
     assert [row[1].value for row in out] == [True, False, False, False]
@@ -113,12 +115,12 @@ def test_time_units():
 @pytest.mark.parametrize("bound", [10, 100, 1000])
 def test_memory_is_bounded_by_the_window(bound):
     # a pending queue never holds more records than the window can reach
-    mon = compile(f"event a\nevent b\nproperty p: a -> eventually[0, {bound}] b\n")
+    mon = compile_properties(f"event a\nevent b\nproperty p: a -> eventually[0, {bound}] b\n")
     (pending,) = [v for k, v in mon.program.constants.items() if k.startswith("w")]
     for t in range(3 * bound):
         mon.step(t, {"a": True})
         assert len(pending) <= bound + 1
-    mon = compile(f"event a\nproperty p: historically (once[{bound}, {2 * bound}] a)\n")
+    mon = compile_properties(f"event a\nproperty p: historically (once[{bound}, {2 * bound}] a)\n")
     (waiting,) = [v for k, v in mon.program.constants.items() if k.startswith("q")]
     for t in range(3 * bound):
         mon.step(t, {"a": True})
@@ -134,7 +136,7 @@ def test_numeric_subclasses_are_accepted_and_non_records_refused():
     class Count(int):
         pass
 
-    mon = compile("input x: float\ninput n: int\nproperty p: x < 1 and n >= 0\n")
+    mon = compile_properties("input x: float\ninput n: int\nproperty p: x < 1 and n >= 0\n")
     assert mon.step(Stamp(0), {"x": Fraction(1, 2), "n": Count(2)}) == [Verdict("p", 0, 0.0, True)]
     assert mon.step(1, [("x", 1)]) == []
     assert mon.step("2", {}) == []
@@ -153,7 +155,7 @@ def test_a_prev_shared_within_a_property_is_not_shared_across_properties(order):
     # later, has its own: at its first record prev(p) is still undefined (false)
     formulas = {"a": "prev(p) and (prev(p) or p)", "b": "(x > 0) and prev(p)"}
     text = "event p\ninput x: float\n" + "".join(f"property {n}: {formulas[n]}\n" for n in order)
-    mon = compile(text)
+    mon = compile_properties(text)
     records = [(0, {"p": True}), (1, {"x": 1.0, "p": True}), (2, {"x": 1.0})]
     got = {(v.property, v.index): v.value for t, rec in records for v in mon.step(t, rec)}
     assert got == {("a", 0): False, ("a", 1): True, ("a", 2): True, ("b", 1): False, ("b", 2): True}

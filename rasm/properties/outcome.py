@@ -48,7 +48,7 @@ class PropertyOutcome:
     missing: tuple[str, ...] = field(default_factory=tuple)  # never had a value (not judged)
 
     def add(self, value: bool | None, error: str | None = None) -> None:
-        """Count one verdict (a :class:`~rasm.spec.monitor.Verdict`'s ``value`` and ``error``)."""
+        """Count one verdict (a :class:`~rasm.properties.monitor.Verdict`'s value and error)."""
         self.judged += 1
         if error is not None:
             self.errors += 1

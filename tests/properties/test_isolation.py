@@ -15,9 +15,9 @@ import math
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.spec import compile
-from rasm.spec.loader import load_specification
-from rasm.spec.monitor import Monitor
+from rasm.properties import compile_properties
+from rasm.properties.loader import load_specification
+from rasm.properties.monitor import Monitor
 
 from .reference import reference_verdicts
 from .strategies import HEADER, formulas, traces
@@ -49,14 +49,14 @@ def test_two_readings_of_1e308_overflow_a_sum_to_inf_and_every_property_goes_on(
     )
     records = [(0.0, {"v": 1.0}), (1.0, {"v": 1e308}), (2.0, {"v": 1e308})]
     records += [(float(t), {"v": 1.0}) for t in range(3, 12)]
-    verdicts = stepped(compile(text), records)
+    verdicts = stepped(compile_properties(text), records)
     assert all(v.error is None for v in verdicts)
     bounded = table(verdicts, "bounded")
     veto = table(verdicts, "veto")
     # the exact sum of 1e308 and 1e308 is beyond the largest float: inf, as 1e308 + 1e308 is
     assert [bounded[i][0] for i in range(12)] == [True, False] + [False] * 6 + [True] * 4
     assert [veto[i][0] for i in range(12)] == [True, False, False] + [True] * 9
-    runs = {run.name: run for run in compile(text).run(records)}
+    runs = {run.name: run for run in compile_properties(text).run(records)}
     assert runs["bounded"].values == [bounded[i][0] for i in range(12)]
     assert not runs["bounded"].errors and not runs["veto"].errors
 
@@ -65,7 +65,7 @@ def test_infinity_under_avg_and_both_infinities_make_it_undefined():
     text = "input v: float\nproperty mean: avg[0, 2](v) < 100\nproperty high: avg[0, 2](v) > 0\n"
     records = [(0, {"v": 1.0}), (1, {"v": math.inf}), (2, {"v": -math.inf}), (3, {"v": 1.0}),
                (4, {"v": 1.0}), (5, {"v": 1.0})]
-    verdicts = stepped(compile(text), records)
+    verdicts = stepped(compile_properties(text), records)
     assert all(v.error is None for v in verdicts)
     # inf in the window: avg is inf; +inf and -inf: undefined, every comparison false
     assert [table(verdicts, "mean")[i][0] for i in range(6)] == [
@@ -86,7 +86,8 @@ def test_a_400_digit_int_under_avg_and_in_float_arithmetic():
         "property ratio: n / 3 > 1e300\n"
         "property exact: n - 1 < n\n"
     )
-    verdicts = stepped(compile(text), [(0, {"n": huge}), (1, {"n": -huge}), (10, {"n": 1})])
+    records = [(0, {"n": huge}), (1, {"n": -huge}), (10, {"n": 1})]
+    verdicts = stepped(compile_properties(text), records)
     assert all(v.error is None for v in verdicts)
     values = {(v.property, v.index): v.value for v in verdicts}
     for name in ("mean", "total", "half", "ratio"):
@@ -118,14 +119,14 @@ RECORDS = [(t, {"p": t % 3 == 0, "q": t % 4 == 1}) for t in range(14)]
 
 
 def test_a_faulty_property_does_not_change_the_others_verdicts():
-    clean = stepped(compile(TEXT), RECORDS)
+    clean = stepped(compile_properties(TEXT), RECORDS)
     verdicts = stepped(faulty(TEXT, {("window", 5), ("response", 5)}), RECORDS)
     for name in ("ever", "calm"):
         assert table(verdicts, name) == table(clean, name)
 
 
 def test_the_failing_record_and_the_records_it_owes_are_errors_then_it_recovers():
-    clean = {name: table(stepped(compile(TEXT), RECORDS), name)
+    clean = {name: table(stepped(compile_properties(TEXT), RECORDS), name)
              for name in ("window", "response")}
     verdicts = stepped(faulty(TEXT, {("window", 5), ("response", 5)}), RECORDS)
     window = table(verdicts, "window")
@@ -156,14 +157,14 @@ def test_a_property_that_raises_at_every_record_is_an_error_at_every_record():
     calm = table(verdicts, "calm")
     assert sorted(calm) == list(range(14))
     assert all(value is False and error for value, error in calm.values())
-    assert table(verdicts, "window") == table(stepped(compile(TEXT), RECORDS), "window")
+    assert table(verdicts, "window") == table(stepped(compile_properties(TEXT), RECORDS), "window")
 
 
 def test_offline_run_counts_the_errors_per_record():
     runs = {run.name: run for run in faulty(TEXT, {("window", 5)}).run(RECORDS)}
     assert sorted(runs["window"].errors) == [5, 6, 7]
     assert [runs["window"].values[i] for i in (5, 6, 7)] == [False, False, False]
-    clean = {run.name: run for run in compile(TEXT).run(RECORDS)}
+    clean = {run.name: run for run in compile_properties(TEXT).run(RECORDS)}
     assert runs["calm"] == clean["calm"] and runs["response"] == clean["response"]
     # offline, values come in record order: the records still waiting behind record 3's
     # window (even those its trigger alone decides, which online are given at once) are errors
@@ -176,7 +177,7 @@ def test_a_fault_while_finishing_makes_the_open_records_errors():
     # the generated code makes its verdicts through the name ``Verdict`` of its namespace:
     # replaced by one that raises, the end of the trace fails half way through a property
     text = "event p\nevent q\nproperty response: p -> eventually[0, 5] q\nproperty calm: not q\n"
-    monitor = compile(text)
+    monitor = compile_properties(text)
     records = [(0, {"p": True}), (1, {"p": True}), (2, {})]
     verdicts = [v for t, rec in records for v in monitor.step(t, rec)]
     assert [(v.property, v.index) for v in verdicts if v.property == "response"] == [

@@ -16,7 +16,7 @@ from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
 from rasm.errors import Location, SourceError, mark
-from rasm.spec.ast import (
+from rasm.properties.ast import (
     INF,
     Aggregate,
     Binary,
@@ -39,7 +39,7 @@ from rasm.spec.ast import (
     Unary,
     Until,
 )
-from rasm.spec.times import bound_nanoseconds
+from rasm.properties.times import bound_nanoseconds
 
 __all__ = ["parse_declarations", "parse_expression"]
 
@@ -123,7 +123,7 @@ def _syntax_error(exc: UnexpectedInput, place: _Place, start: str) -> SourceErro
 
 @v_args(meta=True, inline=True)
 class _Build(Transformer):
-    """Turns lark's tree into ``rasm.spec.ast`` nodes; one method per grammar rule."""
+    """Turns lark's tree into ``rasm.properties.ast`` nodes; one method per grammar rule."""
 
     def __init__(self, place: _Place, temporal: bool) -> None:
         super().__init__()

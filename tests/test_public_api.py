@@ -1,0 +1,53 @@
+"""The public face: ``import rasm`` gives the names an application is written with."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import rasm
+
+PUBLIC = {
+    "Action",
+    "Anomaly",
+    "Plan",
+    "Platform",
+    "RasmError",
+    "RunSummary",
+    "SourceError",
+    "StageContext",
+    "__version__",
+    "compile_properties",
+    "load_manifest",
+}
+
+
+def test_import_rasm_gives_the_application_names() -> None:
+    assert set(rasm.__all__) == PUBLIC
+    for name in PUBLIC:
+        assert getattr(rasm, name) is not None, name
+    assert issubclass(rasm.SourceError, rasm.RasmError)
+    assert rasm.Plan({"mode": "boost"})["mode"] == "boost"
+
+
+def test_an_unknown_name_is_an_attribute_error() -> None:
+    try:
+        rasm.Nothing  # noqa: B018
+    except AttributeError as exc:
+        assert "Nothing" in str(exc)
+    else:
+        raise AssertionError("rasm.Nothing should not exist")
+
+
+def test_import_rasm_loads_no_platform_until_asked() -> None:
+    code = "import sys, rasm; print('rasm.platform.runtime' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_rasm_version_prints_the_package_version() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "--version"], capture_output=True, text=True
+    )
+    assert out.returncode == 0
+    assert out.stdout.strip() == f"rasm {rasm.__version__}"
