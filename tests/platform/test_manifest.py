@@ -128,7 +128,7 @@ def test_cli_run_on_a_folder_without_manifest(tmp_path, capsys):
 def test_cli_run_bad_scenario_exits_2_with_the_place(tmp_path, capsys):
     assert main(["run", str(HOTBOX), "--clock", "simulated", "--scenario", '{"openings": ']) == 2
     err = capsys.readouterr().err
-    assert "--scenario:1:" in err and "not JSON" in err and "Traceback" not in err
+    assert "--scenario:1:" in err and "not valid JSON" in err and "Traceback" not in err
     bad = tmp_path / "scenario.yaml"
     bad.write_text("- not\n- a mapping\n")
     assert main(["run", str(HOTBOX), "--clock", "simulated", "--scenario", str(bad)]) == 2
