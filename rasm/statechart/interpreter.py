@@ -26,21 +26,19 @@ from dataclasses import dataclass
 from types import CodeType
 from typing import Any
 
-from sismic.code import Evaluator, PythonEvaluator
+from sismic.code import PythonEvaluator
 from sismic.exceptions import CodeEvaluationError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event, InternalEvent, MetaEvent
 
 from rasm.errors import is_interrupt
-from rasm.statechart import fast
-from rasm.statechart.fast import FastInterpreter, _source_of
+from rasm.statechart.fast import FastInterpreter
 
 __all__ = [
     "AtomicStepMixin", "DeadlineEvaluator", "FastGuardEvaluator", "Interpreter", "StepFailure",
 ]
 
-_STOCK_TIME = SismicInterpreter.time  # the property
 _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
 _IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
 _LATER = object()  # a snapshot's context, to be saved before the step's first code runs
@@ -76,11 +74,6 @@ class StepFailure:
     time: float
     event: Event | None
     exception: BaseException
-
-
-def _time_of(interp: SismicInterpreter) -> float:
-    """``interp.time``: sismic's property returns ``_time``, read directly."""
-    return interp._time if getattr(type(interp), "time", None) is _STOCK_TIME else interp.time
 
 
 def _waited(since: float, now: float, seconds: float, deadlines: list[float] | None) -> bool:
@@ -198,8 +191,8 @@ class FastGuardEvaluator(PythonEvaluator):
             exposed = {}
         else:  # what it uses of active, time, after, idle, event (a timer: `after` alone)
             interp = self._interpreter
-            source = _source_of(transition)
-            now = _time_of(interp)
+            source = transition.source
+            now = interp.time
             deadlines = self.deadlines
             exposed = {}
             if "active" in wanted:
@@ -256,10 +249,10 @@ class FastGuardEvaluator(PythonEvaluator):
                 return None
         interp = self._interpreter
         since = interp._entry_time if timer == "after" else interp._idle_time
-        source = _source_of(transition)
+        source = transition.source
         if source not in since:
             return None
-        return _waited(since[source], _time_of(interp), seconds, self.deadlines)
+        return _waited(since[source], interp.time, seconds, self.deadlines)
 
     def _execute_code(self, code, *, additional_context=None):
         """sismic's ``_execute_code`` (actions, entry and exit code, the preamble), exposing only
@@ -307,9 +300,6 @@ class FastGuardEvaluator(PythonEvaluator):
             raise _escaped(e, f"executing '{code}'") from e
 
 
-fast.PURE_GUARD_EVALUATIONS.add(FastGuardEvaluator.evaluate_guard)
-
-
 class DeadlineEvaluator(FastGuardEvaluator):
     """:class:`FastGuardEvaluator` that also records when ``after()``/``idle()`` guards turn true.
 
@@ -355,24 +345,14 @@ class AtomicStepMixin:
         the evaluator calls it before running any code. Also used on bound property
         interpreters, which may be stock sismic's."""
         evaluator = self._evaluator
-        try:
-            tables = self._tables
-        except AttributeError:  # a stock interpreter (a bound property): anything may change
-            tables = None
-        context = None
-        if tables is None or tables.has_code or not self._skip_noop_actions or (
-            type(evaluator).execute_action is not Evaluator.execute_action
-        ):
-            context = (
-                _LATER
-                if context_later and getattr(evaluator, "before_code", None) == self._save_context
-                else AtomicStepMixin._context_copy(self)
-            )
+        context = (
+            _LATER
+            if context_later and getattr(evaluator, "before_code", None) == self._save_context
+            else AtomicStepMixin._context_copy(self)
+        )
         return [
-            self._memory.copy() if tables is None or tables.history_children else None,
-            self._configuration.copy(), self._entry_time.copy(), self._idle_time.copy(), context,
-            dict(getattr(evaluator, "_memory", {}))
-            if tables is None or self._contracts_possible else None,
+            self._memory.copy(), self._configuration.copy(), self._entry_time.copy(),
+            self._idle_time.copy(), context, dict(getattr(evaluator, "_memory", {})),
         ]
 
     def _context_copy(self) -> dict:
@@ -397,13 +377,12 @@ class AtomicStepMixin:
             AtomicStepMixin._restore(interp, snap)
 
     def _restore_state(self, inner: list) -> None:
-        memory, self._configuration, self._entry_time, self._idle_time, context, evaluated = inner
-        if memory is not None:
-            self._memory = memory
-        if context is not None and context is not _LATER:  # _LATER: no code ran
+        (self._memory, self._configuration, self._entry_time, self._idle_time, context,
+         evaluated) = inner
+        if context is not _LATER:  # _LATER: no code ran
             self._evaluator._context.clear()
             self._evaluator._context.update(context)
-        if evaluated is not None and hasattr(self._evaluator, "_memory"):
+        if hasattr(self._evaluator, "_memory"):
             self._evaluator._memory = evaluated
 
     def _apply_step(self, step):
@@ -415,11 +394,9 @@ class AtomicStepMixin:
 
     _lazy_snapshot: list | tuple | None = ()  # () = not in a lazily snapshotted step
     # What bound property interpreters looked like before their first change in this step, by
-    # id: (full snapshots, states before a replay, times before a skipped meta-event); each
-    # property is in at most one of them, the broadest taken. One attribute, set only in steps of
-    # an interpreter with property listeners: every attribute an instance gains after __init__
-    # slows down all of its attribute reads.
-    _property_records: tuple[dict, dict, dict] | None = None
+    # id: (full snapshots, times before a skipped meta-event); each property is in at most one of
+    # them, the broadest taken. Set only in steps of an interpreter with property listeners.
+    _property_records: tuple[dict, dict] | None = None
 
     def _before_property_change(self, interp: Any) -> None:
         # Called by a bound PropertyListener before it feeds its interpreter a meta-event; most
@@ -434,38 +411,17 @@ class AtomicStepMixin:
         records = self._property_records
         key = id(interp)
         if records is not None:
-            full, states, times = records
-            if key not in full and key not in states and key not in times:
+            full, times = records
+            if key not in full and key not in times:
                 times[key] = (interp, interp._time)
-
-    def _before_property_state_change(self, interp: Any) -> None:
-        # A replayed effect only exits and enters states (fast._replay): its
-        # configuration, entry and idle times and time are all there is to save (restored after
-        # a full snapshot taken later in the step, before the time saved alone earlier).
-        records = self._property_records
-        key = id(interp)
-        if records is not None and key not in records[0] and key not in records[1]:
-            records[1][key] = (
-                interp, interp._configuration.copy(), interp._entry_time.copy(),
-                interp._idle_time.copy(), interp._time,
-            )
-
-    _listener_split: tuple = ((), [], [])
 
     def _split_listeners(self, listeners: list) -> tuple[list, list, bool]:
         """Property listeners, ordinary ones, and whether a property must be snapshotted up
         front (its listener does not say when it changes its interpreter, as stock's)."""
-        key = tuple(listeners)
-        cached = self._listener_split
-        if cached[0] != key:
-            properties = [li for li in key if isinstance(li, PropertyStatechartListener)]
-            ordinary = [li for li in key if not isinstance(li, PropertyStatechartListener)]
-            cached = self._listener_split = (key, properties, ordinary)
-        eager = False
-        for listener in cached[1]:
-            if getattr(listener, "before_change", None) is None:
-                eager = True
-        return cached[1], cached[2], eager
+        properties = [li for li in listeners if isinstance(li, PropertyStatechartListener)]
+        ordinary = [li for li in listeners if not isinstance(li, PropertyStatechartListener)]
+        eager = any(getattr(li, "before_change", None) is None for li in properties)
+        return properties, ordinary, eager
 
     def execute_once(self):
         deadlines = getattr(self._evaluator, "deadlines", None)
@@ -488,7 +444,7 @@ class AtomicStepMixin:
         else:
             self._lazy_snapshot = None
             if properties:
-                self._property_records = ({}, {}, {})
+                self._property_records = ({}, {})
         deferred: list[Any] = []
         if ordinary:
             # Hold meta-events for ordinary listeners until the step has succeeded.
@@ -506,12 +462,9 @@ class AtomicStepMixin:
                 if self._lazy_snapshot:
                     self._restore_state(self._lazy_snapshot)
                 # newest first: each older record then puts back what it covers
-                snapshots, states, times = self._property_records or ({}, {}, {})
+                snapshots, times = self._property_records or ({}, {})
                 for interp, snap in snapshots.values():
                     AtomicStepMixin._restore(interp, snap)
-                for interp, conf, entry, idle, before in states.values():
-                    interp._configuration, interp._entry_time, interp._idle_time = conf, entry, idle
-                    interp._time = before
                 for interp, before in times.values():
                     interp._time = before
             (self._initialized, self._time, self._sent_events, self._internal_queue,
@@ -546,8 +499,6 @@ class AtomicStepMixin:
             listener.before_change = self._before_property_change
         if hasattr(listener, "before_time_change"):
             listener.before_time_change = self._before_property_time_change
-        if hasattr(listener, "before_state_change"):
-            listener.before_state_change = self._before_property_state_change
         return listener
 
 
@@ -558,10 +509,6 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
     :class:`DeadlineEvaluator` so that :meth:`next_deadline` knows the timers.
     """
 
-    # AtomicStepMixin's per-step records, written at every step: slots (see FastInterpreter's),
-    # found before the mixin's class defaults, so set in __init__.
-    __slots__ = ("_lazy_snapshot", "_property_records", "_listener_split")
-
     def __init__(
         self,
         statechart,
@@ -571,9 +518,6 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
         clock=None,
         ignore_contract: bool = False,
     ) -> None:
-        self._lazy_snapshot = AtomicStepMixin._lazy_snapshot
-        self._property_records = AtomicStepMixin._property_records
-        self._listener_split = AtomicStepMixin._listener_split
         super().__init__(
             statechart,
             evaluator_klass=evaluator_klass,

@@ -1,4 +1,4 @@
-"""Static guard predicates (rasm.statechart.meta_guards) agree with evaluating the guard."""
+"""Static guard predicates (rasm.statechart.fast.meta_guards) agree with evaluating the guard."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from sismic.model import Event, MetaEvent
 
-from rasm.statechart.meta_guards import DISCRIMINANT, MISSING, NO_EVENT, guard_predicate
+from rasm.statechart.fast.meta_guards import DISCRIMINANT, MISSING, NO_EVENT, guard_predicate
 
 VALUES = ["s1", "s2", "idle", "a", "b", "", "s"]
 CONSTANTS = ["'s1'", "'a'", "('s1', 's2')", "['a', 'idle']", "{'s2', 'b'}", "'s1s2'", "NAMES",

@@ -41,8 +41,6 @@ MISSING: Any = object()
 
 
 class _NoEvent:
-    __slots__ = ()
-
     def __repr__(self) -> str:
         return "NO_EVENT"
 
