@@ -27,7 +27,7 @@ from types import CodeType
 from typing import Any
 
 from sismic.code import PythonEvaluator
-from sismic.exceptions import CodeEvaluationError
+from sismic.exceptions import CodeEvaluationError, ContractError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event, InternalEvent, MetaEvent
@@ -453,6 +453,10 @@ class AtomicStepMixin:
             step = super().execute_once()
         except Exception as exc:
             self._listeners = listeners
+            if isinstance(exc, ContractError) and exc.context is not None:
+                # sismic's error holds the live context: keep what it was at the failure, which
+                # the rollback below is about to undo
+                exc._context = dict(exc.context)
             consumed = _consumed_from(light, self._internal_queue, self._external_queue)
             if eager:
                 AtomicStepMixin._restore_state(self, inner)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 from sismic.clock import SimulatedClock
-from sismic.exceptions import CodeEvaluationError, PropertyStatechartError
+from sismic.exceptions import CodeEvaluationError, InvariantError, PropertyStatechartError
 from sismic.interpreter import Interpreter as StockInterpreter
 
 from rasm.statechart import Interpreter, load_statechart
@@ -290,3 +290,34 @@ def test_a_delayed_event_that_fails_its_step_is_discarded():
     assert interp.configuration == ["root", "a"]
     assert interp._internal_queue == []
     assert interp.execute_once() is None  # nothing left to fail on
+
+
+BOUNDED = """
+statechart:
+  name: bounded
+  preamble: x = 0
+  root state:
+    name: root
+    initial: a
+    states:
+      - name: a
+        contract:
+          - always: x < 5
+        transitions:
+          - target: a
+            event: jump
+            action: x = 5
+"""
+
+
+def test_a_contract_error_shows_the_context_at_the_failure_not_the_restored_one():
+    # The step is rolled back (x is 0 again), but the error says what broke the invariant.
+    for klass in (StockInterpreter, Interpreter):
+        interp = klass(load_statechart(text=BOUNDED))
+        interp.execute()
+        interp.queue("jump")
+        with pytest.raises(InvariantError) as failure:
+            interp.execute()
+        assert failure.value.context["x"] == 5
+        assert " - x = 5" in str(failure.value).splitlines()
+    assert interp.context["x"] == 0  # rasm's step was rolled back
