@@ -1,7 +1,9 @@
-"""Statechart execution speed: stock sismic against rasm's FastInterpreter.
+"""Statechart execution speed: stock sismic against rasm's FastInterpreter and the platform's.
 
-Runs both interpreters on the same charts and the same event sequences, in one process, and prints
-events per second for each case with the ratio rasm/stock. The last line is ``min_ratio=X.XX``.
+Runs the interpreters on the same charts and the same event sequences, in one process, interleaved
+(median of several runs), and prints events per second for each case with the ratios to stock
+sismic. The last lines are ``platform_min_ratio=X.XX`` (``rasm.statechart.Interpreter``) and
+``min_ratio=X.XX`` (``rasm.statechart.fast.FastInterpreter``).
 
 Cases (see docs/performance-statecharts.md for the figures):
 
@@ -12,11 +14,7 @@ Cases (see docs/performance-statecharts.md for the figures):
 - ``orchestrator``: the platform's MAPLE-K orchestrator
   (``statecharts/adaptation_orchestrator.yaml``) through full loop iterations, if that chart exists;
 - ``orchestrator+monitors``: the same with the three property statecharts of ``monitors/`` bound,
-  as the platform runs it;
-- ``hotbox``: the whole simulated Hotbox (``rasm.testing.run_app``, every block and its chart, the
-  twin, the online monitors), in MAPLE-K loop iterations per CPU second; printed after the table as
-  ``hotbox_iterations_per_s=N`` (target 5,000), after ``hotbox_records_per_s=N`` (the sensor
-  records digested per CPU second in the same runs: five per iteration).
+  as the platform runs it.
 
 Run: ``.venv/bin/python benchmarks/statecharts.py [--quick]``.
 """
@@ -37,12 +35,8 @@ from sismic.model import Statechart
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from rasm.statechart import Interpreter as PlatformInterpreter  # noqa: E402
 from rasm.statechart.fast import FastInterpreter  # noqa: E402
-
-try:  # the platform's interpreter: FastInterpreter plus the atomic-step layer
-    from rasm.statechart import Interpreter as PlatformInterpreter  # noqa: E402
-except ImportError:  # pragma: no cover - that layer is optional for this benchmark
-    PlatformInterpreter = None
 
 FLAT = """
 statechart:
@@ -149,7 +143,7 @@ def case(
 
         return make
 
-    platform = None if PlatformInterpreter is None else factory(PlatformInterpreter, False)
+    platform = factory(PlatformInterpreter, own_property_class=False)
     return factory(Interpreter), factory(FastInterpreter), platform, events, dt
 
 
@@ -169,22 +163,6 @@ def orchestrator_case(n_iterations: int, monitors: bool = False):
     loop = ["tick", "monitored", "anomaly", "planned", "accepted", "executed"]
     events = setup + loop * n_iterations
     return case(chart, events, props)
-
-
-def hotbox_per_second(duration: float, repeats: int) -> tuple[float, float]:
-    """Best MAPLE-K iterations, and sensor records, per CPU second of the simulated Hotbox over
-    ``repeats`` runs."""
-    from rasm.testing import run_app
-
-    best = (0.0, 0.0)
-    for seed in range(repeats):
-        start = time.process_time()
-        trace = run_app(ROOT / "examples" / "hotbox", seed=seed, duration=duration)
-        spent = time.process_time() - start
-        iterations = sum(1 for record in trace if record.get("stage") == "monitor")
-        records = sum(1 for record in trace if "temperature" in record)
-        best = max(best, (iterations / spent, records / spent))
-    return best
 
 
 def measure(factories, events, dt, repeats: int) -> list[float]:
@@ -222,28 +200,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         cases["orchestrator"] = orch
         cases["orchestrator+monitors"] = orchestrator_case(n // 24, monitors=True)
 
-    # "rasm" is the fast path (FastInterpreter); "platform" adds the integrator's atomic-step
-    # layer (rasm.statechart.Interpreter), shown for information.
+    # "rasm" is the fast path (FastInterpreter); "platform" adds the atomic-step layer and the
+    # deadline-recording evaluator (rasm.statechart.Interpreter), what the platform runs.
     ratios, platform_ratios = [], []
     header = f"{'case':<24}{'stock ev/s':>12}{'rasm ev/s':>12}{'ratio':>8}"
-    if PlatformInterpreter is not None:
-        header += f"{'platform ev/s':>15}{'ratio':>8}"
-    print(header)
+    print(header + f"{'platform ev/s':>15}{'ratio':>8}")
     for name, (stock, rasm, platform, events, dt) in cases.items():
-        factories = [stock, rasm] + ([platform] if platform is not None else [])
-        speeds = measure(factories, events, dt, repeats)
-        s, r = speeds[0], speeds[1]
+        s, r, p = measure([stock, rasm, platform], events, dt, repeats)
         ratios.append(r / s)
-        line = f"{name:<24}{s:>12,.0f}{r:>12,.0f}{r / s:>8.2f}"
-        if platform is not None:
-            platform_ratios.append(speeds[2] / s)
-            line += f"{speeds[2]:>15,.0f}{speeds[2] / s:>8.2f}"
-        print(line)
-    hotbox, records = hotbox_per_second(200.0 if args.quick else 1000.0, repeats)
-    print(f"hotbox_records_per_s={records:,.0f}")
-    print(f"hotbox_iterations_per_s={hotbox:,.0f}")
-    if platform_ratios:
-        print(f"platform_min_ratio={min(platform_ratios):.2f}")
+        platform_ratios.append(p / s)
+        print(f"{name:<24}{s:>12,.0f}{r:>12,.0f}{r / s:>8.2f}{p:>15,.0f}{p / s:>8.2f}")
+    print(f"platform_min_ratio={min(platform_ratios):.2f}")
     print(f"min_ratio={min(ratios):.2f}")
     return 0
 

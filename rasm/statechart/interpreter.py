@@ -350,9 +350,12 @@ class AtomicStepMixin:
             if context_later and getattr(evaluator, "before_code", None) == self._save_context
             else AtomicStepMixin._context_copy(self)
         )
+        # a fast interpreter's tables say whether the chart has history states or contracts
+        tables = getattr(self, "_tables", None)
         return [
-            self._memory.copy(), self._configuration.copy(), self._entry_time.copy(),
-            self._idle_time.copy(), context, dict(getattr(evaluator, "_memory", {})),
+            self._memory.copy() if tables is None or tables.history_children else None,
+            self._configuration.copy(), self._entry_time.copy(), self._idle_time.copy(), context,
+            dict(getattr(evaluator, "_memory", {})) if tables is None or tables.contracts else None,
         ]
 
     def _context_copy(self) -> dict:
@@ -377,12 +380,13 @@ class AtomicStepMixin:
             AtomicStepMixin._restore(interp, snap)
 
     def _restore_state(self, inner: list) -> None:
-        (self._memory, self._configuration, self._entry_time, self._idle_time, context,
-         evaluated) = inner
+        memory, self._configuration, self._entry_time, self._idle_time, context, evaluated = inner
+        if memory is not None:
+            self._memory = memory
         if context is not _LATER:  # _LATER: no code ran
             self._evaluator._context.clear()
             self._evaluator._context.update(context)
-        if hasattr(self._evaluator, "_memory"):
+        if evaluated is not None and hasattr(self._evaluator, "_memory"):
             self._evaluator._memory = evaluated
 
     def _apply_step(self, step):

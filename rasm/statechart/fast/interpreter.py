@@ -236,7 +236,7 @@ class FastInterpreter(Interpreter):
         else:
             macro_step = None
 
-        if not self._ignore_contract:
+        if self._tables.contracts and not self._ignore_contract:
             for name in self._sorted_configuration():
                 state = self._tables.state[name]
                 if getattr(state, "invariants", None):
@@ -317,6 +317,22 @@ class FastInterpreter(Interpreter):
         return None
 
     # ---- transition selection -------------------------------------------------------------
+
+    def _compute_steps(self) -> list[MicroStep]:
+        """Stock ``_compute_steps``, looking for transitions only where some could be selected."""
+        if not self._initialized:
+            self._initialized = True
+            return [MicroStep(entered_states=[self._statechart.root])]  # type: ignore[list-item]
+        event = self._select_event()
+        if event is None and not self._tables.eventless:
+            return []  # no event and no eventless transition: nothing to select
+        transitions = self._select_transitions(event, states=self._configuration)
+        if not transitions:
+            # no event, no step; or an empty step, so that the event is consumed
+            return [] if event is None else [MicroStep(event=event)]
+        transitions = self._sort_transitions(transitions)
+        event = None if transitions[0].event is None else event
+        return self._create_steps(event, transitions)
 
     def _select_transitions(
         self,
@@ -437,29 +453,30 @@ class FastInterpreter(Interpreter):
         # what was active before the step, for history memory (only charts with history)
         active_configuration = set(self._configuration) if tables.history_children else set()
         # contracts are checked where sismic's evaluator would find something to check
-        contracts = not self._ignore_contract
+        contracts = tables.contracts and not self._ignore_contract
         sent_events: list[Event] = []
 
         for state in exited_states:
+            name = state.name
             sent_events.extend(self._evaluator.execute_on_exit(state))
-            for child, deep in tables.history_children.get(state.name, ()):
+            for child, deep in tables.history_children.get(name, ()):
                 # Stock's asserts, spelt out: pytest rewrites the asserts of plugin packages
                 # (rasm is one), which would change the exception's message.
                 if deep:
-                    active = active_configuration.intersection(tables.descendants[state.name])
+                    active = active_configuration.intersection(tables.descendants[name])
                     if __debug__ and not len(active) >= 1:
                         raise AssertionError
                 else:
-                    active = active_configuration.intersection(tables.children[state.name])
+                    active = active_configuration.intersection(tables.children[name])
                     if __debug__ and not len(active) == 1:
                         raise AssertionError
                 self._memory[child] = list(active)
-            self._configuration.remove(state.name)
+            self._configuration.remove(name)
             self._conf_version += 1
             if contracts and getattr(state, "postconditions", None):
                 self._evaluate_contract_conditions(state, "postconditions", step)
             if self._listeners:
-                self._notify("state exited", state.name, state=state.name)
+                self._notify("state exited", name, state=name)
 
         transition = step.transition
         if transition:
@@ -485,21 +502,19 @@ class FastInterpreter(Interpreter):
             if contracts and _declares_any(state):
                 self._evaluate_contract_conditions(state, "preconditions", step)
             sent_events.extend(self._evaluator.execute_on_entry(state))
-            self._configuration.add(state.name)
+            name = state.name
+            self._configuration.add(name)
             self._conf_version += 1
-            self._entry_time[state.name] = self._time
-            self._idle_time[state.name] = self._time
+            self._entry_time[name] = self._time
+            self._idle_time[name] = self._time
             if self._listeners:
-                self._notify("state entered", state.name, state=state.name)
+                self._notify("state entered", name, state=name)
 
         for event in sent_events:
             self._raise_event(event)  # type: ignore[arg-type]
             self._sent_events.append(event)
 
-        return MicroStep(
-            event=step.event,
-            transition=step.transition,
-            entered_states=step.entered_states,
-            exited_states=step.exited_states,
-            sent_events=sent_events,
-        )
+        # stock returns a copy of the step with the events sent; the step, made for this call
+        # by _create_steps or _create_stabilization_step, is that copy
+        step.sent_events = sent_events
+        return step

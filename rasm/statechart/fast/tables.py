@@ -9,15 +9,17 @@ interpreter's run-time state (configuration, memory, queues, context) is never k
 The tables reproduce sismic's own algorithms (same orders, same tie-breaks), so that the fast
 interpreter takes exactly the same decisions as the stock one.
 
-What the tables depend on is the chart's structure: its states and their tree, its transitions
-and their source, target, event and priority. :meth:`ChartTables.check` finds out, at every step,
-whether the chart was edited since (see :class:`ChartEditedError`). Everything else (guards,
-actions, entry and exit code, initial states, history memory, contracts) is read from the chart
-when it is used.
+What the tables depend on is the chart's structure (its states and their tree, its transitions
+and their source, target, event and priority) and whether it declares contracts at all.
+:meth:`ChartTables.check` finds out, at every step, whether the chart was edited since (see
+:class:`ChartEditedError`). Everything else (guards, actions, entry and exit code, initial
+states, history memory, the conditions of a chart with contracts) is read from the chart when it
+is used.
 """
 
 from __future__ import annotations
 
+import operator
 import weakref
 from collections import defaultdict
 from typing import Any
@@ -66,9 +68,9 @@ class ChartEditedError(StatechartError):
         self.what = what
 
 
-def _transition_key(transition: Transition) -> tuple[Any, ...]:
-    """What the tables take from a transition."""
-    return (transition.source, transition.target, transition.event, transition.priority)
+#: What the tables take from a transition (a subclass's own ``source`` and ``target`` derive from
+#: these): an edit of the transition changes it.
+_transition_key = operator.attrgetter("_source", "_target", "event", "priority")
 
 
 class ChartTables:
@@ -85,6 +87,13 @@ class ChartTables:
         self._transitions = list(statechart._transitions)
         # Transitions are keyed by identity here: the tables hold them, so no id is reused.
         self._keys = {id(t): _transition_key(t) for t in self._transitions}
+        # A chart without any condition needs no contract evaluation at all.
+        self._contract_lists = [
+            getattr(obj, kind, None)
+            for obj in (*self._states.values(), *self._transitions)
+            for kind in ("preconditions", "postconditions", "invariants")
+        ]
+        self.contracts = any(self._contract_lists)
 
         self.root = statechart.root
         names = statechart.states
@@ -131,7 +140,7 @@ class ChartTables:
                 self.check_transition(statechart, transition)
         except ChartEditedError:
             return False
-        return True
+        return self.contracts or not any(self._contract_lists)
 
     # ---- states ---------------------------------------------------------------------------
 
