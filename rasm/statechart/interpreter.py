@@ -18,7 +18,6 @@ Two things stock sismic lacks and the platform needs (NOTES.md):
 
 from __future__ import annotations
 
-import ast
 import copy
 import functools
 import math
@@ -107,40 +106,6 @@ def _names_used(code: CodeType) -> frozenset[str]:
     return frozenset(names)
 
 
-_PLAIN_TRUTH = frozenset({bool, int, float, str, type(None)})
-_PLAIN_NUMBERS = frozenset({int, float})
-
-
-def _plain_guard(guard: str) -> tuple | None:
-    """The guard's form when it is one of the commonest, read without evaluating it (see
-    FastGuardEvaluator._evaluate_plain): ``after(X)`` or ``idle(X)``, X a name or an int or float
-    literal (``("timer", "after" or "idle", name or None, literal)``), or ``NAME`` or ``not NAME``
-    (``("flag", name, negated)``); None for anything else."""
-    try:
-        tree = ast.parse(guard.strip(), mode="eval").body
-    except SyntaxError:
-        return None
-    if (
-        isinstance(tree, ast.Call)
-        and isinstance(tree.func, ast.Name)
-        and tree.func.id in ("after", "idle")
-        and len(tree.args) == 1
-        and not tree.keywords
-    ):
-        arg = tree.args[0]
-        if isinstance(arg, ast.Name):
-            return ("timer", tree.func.id, arg.id, None)
-        if isinstance(arg, ast.Constant) and type(arg.value) in _PLAIN_NUMBERS:
-            return ("timer", tree.func.id, None, arg.value)
-        return None
-    negated = isinstance(tree, ast.UnaryOp) and isinstance(tree.op, ast.Not)
-    if negated:
-        tree = tree.operand
-    if isinstance(tree, ast.Name):
-        return ("flag", tree.id, negated)
-    return None
-
-
 def _escaped(exc: BaseException, doing: str) -> CodeEvaluationError:
     """What chart code raised that is not an ``Exception`` (``sys.exit()``, ``raise
     KeyboardInterrupt``) as a failure of the step like any other, so it is rolled back and
@@ -160,19 +125,19 @@ class FastGuardEvaluator(PythonEvaluator):
 
     def __init__(self, interpreter=None, *, initial_context=None) -> None:
         super().__init__(interpreter, initial_context=initial_context)
-        # guard -> (code, names kind, the exposed names it uses, its plain form or None)
-        self._guard_codes: dict[str, tuple[CodeType, int, frozenset[str], tuple | None]] = {}
+        # guard -> (code, names kind, the exposed names it uses)
+        self._guard_codes: dict[str, tuple[CodeType, int, frozenset[str]]] = {}
         # action code -> (compiled, the exposed names it uses)
         self._action_codes: dict[str, tuple[CodeType, frozenset[str]]] = {}
 
-    def _compile_guard(self, guard: str) -> tuple[CodeType, int, frozenset[str], tuple | None]:
+    def _compile_guard(self, guard: str) -> tuple[CodeType, int, frozenset[str]]:
         code = self._evaluable_code.get(guard)
         if code is None:
             code = self._evaluable_code.setdefault(guard, compile(guard, "<string>", "eval"))
         names = _names_used(code)
         wanted = _EXPOSED if names & _INTROSPECTION else names & _EXPOSED
         kind = _ALL if wanted - _EVENT_ONLY else _EVENT if wanted else _NOTHING
-        found = self._guard_codes[guard] = (code, kind, wanted, _plain_guard(guard))
+        found = self._guard_codes[guard] = (code, kind, wanted)
         return found
 
     def evaluate_guard(self, transition, event=None) -> bool:
@@ -180,11 +145,7 @@ class FastGuardEvaluator(PythonEvaluator):
         if guard is None:
             return True
         found = self._guard_codes.get(guard)
-        code, kind, wanted, plain = self._compile_guard(guard) if found is None else found
-        if plain is not None:
-            decided = self._evaluate_plain(plain, transition)
-            if decided is not None:
-                return decided
+        code, kind, wanted = self._compile_guard(guard) if found is None else found
         if kind == _EVENT:  # the usual guard of a property statechart
             exposed: dict[str, Any] = {"event": event}
         elif kind == _NOTHING:
@@ -224,35 +185,6 @@ class FastGuardEvaluator(PythonEvaluator):
             if is_interrupt(e):
                 raise
             raise _escaped(e, f"evaluating '{code}'") from e
-
-    def _evaluate_plain(self, plain: tuple, transition: Any) -> bool | None:
-        """A guard of :func:`_plain_guard`'s forms, read without evaluating it when the names it
-        reads are the context's and hold plain values (what evaluating it would do with them);
-        None otherwise (it is evaluated)."""
-        context = self._context
-        if plain[0] == "flag":
-            _, name, negate = plain
-            if name not in context:
-                return None
-            value = context[name]
-            if type(value) not in _PLAIN_TRUTH:  # bool() of anything else may run code
-                return None
-            return not value if negate else bool(value)
-        _, timer, name, seconds = plain
-        if timer in context:  # the context's own after() or idle()
-            return None
-        if name is not None:
-            if name not in context:
-                return None
-            seconds = context[name]
-            if type(seconds) not in _PLAIN_NUMBERS:
-                return None
-        interp = self._interpreter
-        since = interp._entry_time if timer == "after" else interp._idle_time
-        source = transition.source
-        if source not in since:
-            return None
-        return _waited(since[source], interp.time, seconds, self.deadlines)
 
     def _execute_code(self, code, *, additional_context=None):
         """sismic's ``_execute_code`` (actions, entry and exit code, the preamble), exposing only
