@@ -1,6 +1,6 @@
 """Executing a chart: sismic's semantics, with atomic steps and a known next deadline.
 
-Two things stock sismic lacks and the platform needs (NOTES.md):
+Two things stock sismic lacks and the platform needs:
 
 * **Atomic steps.** An exception inside a step (an action, a guard, a contract, a property
   statechart) leaves sismic half-applied: old state exited, new one not entered, event consumed.
@@ -39,7 +39,6 @@ __all__ = [
 ]
 
 _IMMUTABLE = (int, float, complex, str, bytes, bool, type(None), frozenset)
-_IMMUTABLE_TYPES = frozenset(_IMMUTABLE)
 _LATER = object()  # a snapshot's context, to be saved before the step's first code runs
 
 
@@ -291,11 +290,7 @@ class AtomicStepMixin:
         ]
 
     def _context_copy(self) -> dict:
-        context = self._evaluator._context.copy()
-        for key, value in context.items():
-            if type(value) not in _IMMUTABLE_TYPES:
-                context[key] = _copy_value(value)
-        return context
+        return {key: _copy_value(value) for key, value in self._evaluator._context.items()}
 
     def _save_context(self) -> None:
         # FastGuardEvaluator.before_code: the first code of a step is about to run
@@ -430,9 +425,8 @@ class AtomicStepMixin:
         # Property statecharts run on the fast path without a rollback layer of their own: this
         # interpreter's snapshot covers them, and restores them when one of its steps fails.
         if interpreter_klass is None:
-            mro = type(self).__mro__
             interpreter_klass = functools.partial(
-                mro[mro.index(AtomicStepMixin) + 1], evaluator_klass=FastGuardEvaluator
+                FastInterpreter, evaluator_klass=FastGuardEvaluator
             )
         listener = super().bind_property_statechart(statechart, interpreter_klass=interpreter_klass)
         if hasattr(listener, "before_change"):
