@@ -11,10 +11,14 @@ interpreter takes exactly the same decisions as the stock one.
 
 What the tables depend on is the chart's structure (its states and their tree, its transitions
 and their source, target, event and priority) and whether it declares contracts at all.
-:meth:`ChartTables.check` finds out, at every step, whether the chart was edited since (see
+:meth:`ChartTables.check` finds out, at every step, whether the structure was edited since (see
 :class:`ChartEditedError`). Everything else (guards, actions, entry and exit code, initial
 states, history memory, the conditions of a chart with contracts) is read from the chart when it
-is used.
+is used. Two kinds of edit escape a running interpreter: a transition changed in place (rotated,
+its event or priority assigned) is caught only when a step selects it, so a change that would make
+it selectable goes unseen; and a condition added to a chart that had none is not evaluated.
+Comparing every transition and condition list at every step would cost more than the step
+itself; an interpreter built after the edit sees it.
 """
 
 from __future__ import annotations
@@ -119,7 +123,7 @@ class ChartTables:
 
         Run at every step, so it only compares the chart's containers with their copies (a few
         pointer comparisons). A transition whose source, target, event or priority is changed in
-        place is caught when the step considers it (:meth:`check_transition`).
+        place is caught when a step selects it (:meth:`check_transition`).
         """
         if statechart._transitions != self._transitions:
             raise ChartEditedError(statechart, "a transition was added or removed")
