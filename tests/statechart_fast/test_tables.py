@@ -9,6 +9,7 @@ from collections.abc import Callable
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from sismic.exceptions import ContractError
 from sismic.interpreter import Interpreter
 from sismic.io import import_from_yaml
 from sismic.model import BasicState, Statechart, Transition
@@ -130,3 +131,22 @@ def test_removing_any_transition_is_caught_and_the_edited_chart_runs_as_stock(
     with pytest.raises(ChartEditedError):
         interp.execute_once()
     assert harness.run(FastInterpreter, chart, script) == harness.run(Interpreter, chart, script)
+
+
+@pytest.mark.parametrize("klass", [Interpreter, FastInterpreter, PlatformInterpreter])
+@pytest.mark.parametrize(
+    ("kind", "state"),
+    # `n` leaves a for b: a's postconditions, b's preconditions and invariants are checked
+    [("postconditions", "a"), ("preconditions", "b"), ("invariants", "b")],
+)
+def test_a_condition_added_to_a_chart_without_contracts_is_evaluated(klass, kind, state):
+    # what sismic's own contract tests do: append a condition to a loaded chart
+    chart = import_from_yaml(CYCLE)
+    interp = klass(chart)
+    interp.execute()
+    getattr(chart.state_for(state), kind).append("False")
+    interp.queue("n")
+    with pytest.raises(ContractError) as raised:
+        interp.execute()
+    assert raised.value.condition == "False"
+    assert isinstance(raised.value.obj, BasicState) and raised.value.obj.name == state

@@ -120,6 +120,7 @@ class FastInterpreter(Interpreter):
         self._tables = ft.tables_for(statechart)
         self._conf_version = 0  # bumped at each change of _configuration made by a step
         self._sorted_conf: tuple[set[str], int, int, list[str]] | None = None
+        self._in_execute = False  # within execute(), whose steps are checked for edits at once
         super().__init__(
             statechart,
             evaluator_klass=evaluator_klass,
@@ -133,6 +134,7 @@ class FastInterpreter(Interpreter):
         state = self.__dict__.copy()
         del state["_tables"]
         state["_sorted_conf"] = None
+        state["_in_execute"] = False
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -202,10 +204,21 @@ class FastInterpreter(Interpreter):
 
     # ---- macro step -----------------------------------------------------------------------
 
+    def execute(self, max_steps: int = -1) -> list[MacroStep]:
+        """Stock ``execute``. The chart is checked for edits once, before its first step: nothing
+        outside the interpreter runs between its steps."""
+        self._tables.check(self._statechart)
+        self._in_execute = True
+        try:
+            return super().execute(max_steps)
+        finally:
+            self._in_execute = False
+
     def execute_once(self) -> MacroStep | None:
         """Stock ``execute_once``, with meta-events raised only to listeners and invariants
         checked only where there are some."""
-        self._tables.check(self._statechart)
+        if not self._in_execute:
+            self._tables.check(self._statechart)
         self._time = self.clock.time
         self._sent_events.clear()
         # (each meta-event is raised only if someone listens: building it is most of the cost)

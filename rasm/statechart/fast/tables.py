@@ -9,16 +9,16 @@ interpreter's run-time state (configuration, memory, queues, context) is never k
 The tables reproduce sismic's own algorithms (same orders, same tie-breaks), so that the fast
 interpreter takes exactly the same decisions as the stock one.
 
-What the tables depend on is the chart's structure (its states and their tree, its transitions
-and their source, target, event and priority) and whether it declares contracts at all.
-:meth:`ChartTables.check` finds out, at every step, whether the structure was edited since (see
-:class:`ChartEditedError`). Everything else (guards, actions, entry and exit code, initial
-states, history memory, the conditions of a chart with contracts) is read from the chart when it
-is used. Two kinds of edit escape a running interpreter: a transition changed in place (rotated,
-its event or priority assigned) is caught only when a step selects it, so a change that would make
-it selectable goes unseen; and a condition added to a chart that had none is not evaluated.
-Comparing every transition and condition list at every step would cost more than the step
-itself; an interpreter built after the edit sees it.
+What the tables depend on is the chart's structure: its states and their tree, its transitions
+and their source, target, event and priority. Before each step, :meth:`ChartTables.check` finds
+out whether it was edited since (see :class:`ChartEditedError`). Everything else (guards, actions,
+entry and exit code, initial states, history memory, contracts) is read from the chart when it is
+used; a chart without any contract is spared contract evaluation until a condition is added.
+
+One kind of edit can escape a running interpreter: a transition changed in place (rotated, its
+event or priority assigned) is caught only when a step selects it, so a change that would make it
+selectable goes unseen (comparing every transition before every step would cost more than the
+step itself); an interpreter built after the edit sees it.
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ class ChartTables:
         self._transitions = list(statechart._transitions)
         # Transitions are keyed by identity here: the tables hold them, so no id is reused.
         self._keys = {id(t): _transition_key(t) for t in self._transitions}
-        # A chart without any condition needs no contract evaluation at all.
+        # A chart without any condition needs no contract evaluation, until one is added.
         self._contract_lists = [
             getattr(obj, kind, None)
             for obj in (*self._states.values(), *self._transitions)
@@ -119,7 +119,8 @@ class ChartTables:
 
     def check(self, statechart: Statechart) -> None:
         """Raise :class:`ChartEditedError` if ``statechart`` was edited since the tables were
-        built: a state added, removed, renamed or moved, a transition added or removed.
+        built: a state added, removed, renamed or moved, a transition added or removed. A
+        condition added to a chart that had no contract turns contract evaluation on.
 
         Run at every step, so it only compares the chart's containers with their copies (a few
         pointer comparisons). A transition whose source, target, event or priority is changed in
@@ -129,6 +130,8 @@ class ChartTables:
             raise ChartEditedError(statechart, "a transition was added or removed")
         if statechart._states != self._states or statechart._parent != self._parent:
             raise ChartEditedError(statechart, "a state was added, removed, renamed or moved")
+        if not self.contracts and any(self._contract_lists):
+            self.contracts = True  # conditions were added: evaluated from this step on
 
     def check_transition(self, statechart: Statechart, transition: Transition) -> None:
         """Raise :class:`ChartEditedError` if ``transition`` changed since the tables were built
@@ -144,7 +147,7 @@ class ChartTables:
                 self.check_transition(statechart, transition)
         except ChartEditedError:
             return False
-        return self.contracts or not any(self._contract_lists)
+        return True
 
     # ---- states ---------------------------------------------------------------------------
 
