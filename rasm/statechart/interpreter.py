@@ -247,6 +247,8 @@ class AtomicStepMixin:
     """Makes ``execute_once`` all-or-nothing; see the module docstring."""
 
     last_failure: StepFailure | None = None
+    #: Whether the evaluator calls :meth:`_save_context` before it runs code (its before_code).
+    _code_announced = False
 
     def _property_interpreters(self) -> list[Any]:
         return [
@@ -278,7 +280,7 @@ class AtomicStepMixin:
         evaluator = self._evaluator
         context = (
             _LATER
-            if context_later and getattr(evaluator, "before_code", None) == self._save_context
+            if context_later and self._code_announced
             else AtomicStepMixin._context_copy(self)
         )
         # a fast interpreter's tables say whether the chart has history states or contracts
@@ -463,6 +465,7 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
         if type(evaluator)._execute_code is FastGuardEvaluator._execute_code:
             # the context is saved when a step first runs code, not at its first micro step
             evaluator.before_code = self._save_context
+            self._code_announced = True
 
     def next_deadline(self) -> float | None:
         """The earliest time at which a step could do something without a new external event.
