@@ -10,7 +10,8 @@ bookkeeping is cheaper:
   simultaneous transitions;
 - transitions are looked up in an index by event name, already in stock selection order, instead
   of scanning every transition of the chart at each step;
-- contracts are evaluated only for the states and transitions that declare conditions;
+- contracts are evaluated only for the states and transitions that declare conditions, and not
+  at all in a chart without any;
 - the sorted configuration is kept until the configuration changes;
 - meta-events are built only when someone listens, and a bound property statechart is executed
   only for the meta-events it could react to (:class:`~rasm.statechart.fast.PropertyListener`).
@@ -20,7 +21,9 @@ Attributes keep the names, types and meaning of stock sismic (``_configuration``
 configuration is kept for one ``_configuration`` set, and a counter of the changes made to it.
 
 The chart must not be edited while it runs: the tables describe it as it was when the interpreter
-was built. Every step checks that it was not (:class:`~rasm.statechart.fast.ChartEditedError`).
+was built. Each call to :meth:`~FastInterpreter.execute` or
+:meth:`~FastInterpreter.execute_once` checks that it was not
+(:class:`~rasm.statechart.fast.ChartEditedError`).
 """
 
 from __future__ import annotations
