@@ -184,7 +184,7 @@ ORCHESTRATOR_EVENTS = [
 def test_the_orchestrator_with_its_monitors_runs_as_stock(script):
     # The platform's own setting: the MAPLE-K orchestrator with the three monitors/ property
     # statecharts, driven in any order, timers firing or not.
-    from tests.statechart_fast.test_fast import CHARTS, MONITORS
+    from tests.statechart_fast.test_listener import CHARTS, MONITORS
 
     orchestrator = import_from_yaml(filepath=str(CHARTS / "adaptation_orchestrator.yaml"))
     monitors = [import_from_yaml(filepath=str(p)) for p in sorted(MONITORS.glob("*.yaml"))]
