@@ -10,15 +10,16 @@ The tables reproduce sismic's own algorithms (same orders, same tie-breaks), so 
 interpreter takes exactly the same decisions as the stock one.
 
 What the tables depend on is the chart's structure: its states and their tree, its transitions
-and their source, target, event and priority. Before each step, :meth:`ChartTables.check` finds
-out whether it was edited since (see :class:`ChartEditedError`). Everything else (guards, actions,
-entry and exit code, initial states, history memory, contracts) is read from the chart when it is
-used; a chart without any contract is spared contract evaluation until a condition is added.
+and their source, target, event and priority. Each time the interpreter is asked to step,
+:meth:`ChartTables.check` finds out whether it was edited since (see :class:`ChartEditedError`).
+Everything else (guards, actions, entry and exit code, initial states, history memory, contracts)
+is read from the chart when it is used; a chart without any contract is spared contract
+evaluation until a condition is added.
 
 One kind of edit can escape a running interpreter: a transition changed in place (rotated, its
 event or priority assigned) is caught only when a step selects it, so a change that would make it
-selectable goes unseen (comparing every transition before every step would cost more than the
-step itself); an interpreter built after the edit sees it.
+selectable goes unseen (comparing every transition each time would cost more than a step); an
+interpreter built after the edit sees it.
 """
 
 from __future__ import annotations
