@@ -248,7 +248,7 @@ class FastInterpreter(Interpreter):
             for step in computed_steps:
                 executed_steps.append(self._apply_step(step))
                 executed_steps.extend(self._stabilize())
-            macro_step: MacroStep | None = MacroStep(time=self._time, steps=executed_steps)
+            macro_step: MacroStep | None = MacroStep(self._time, executed_steps)
         else:
             macro_step = None
 
@@ -342,7 +342,7 @@ class FastInterpreter(Interpreter):
         event = self._select_event()
         if event is None and not self._tables.eventless:
             return []  # no event and no eventless transition: nothing to select
-        transitions = self._select_transitions(event, states=self._configuration)
+        transitions = self._select_transitions(event, self._configuration)
         if not transitions:
             # no event, no step; or an empty step, so that the event is consumed
             return [] if event is None else [MicroStep(event=event)]
@@ -412,14 +412,8 @@ class FastInterpreter(Interpreter):
                 steps.append(MicroStep(event=event, transition=transition))
                 continue
             exits, entered = self._tables.steps_for(transition)
-            steps.append(
-                MicroStep(
-                    event=event,
-                    transition=transition,
-                    entered_states=list(entered),
-                    exited_states=[s for s in exits if s in self._configuration],
-                )
-            )
+            exited = [s for s in exits if s in self._configuration]
+            steps.append(MicroStep(event, transition, list(entered), exited))
         return steps
 
     # ---- stabilisation --------------------------------------------------------------------
