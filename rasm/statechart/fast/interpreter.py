@@ -77,6 +77,11 @@ def _declares_any(obj: Any) -> bool:
     )
 
 
+def _queue_order(item: tuple[float, Event]) -> tuple[float, bool]:
+    """Where a queued (time, event) goes: by time, internal events before external ones."""
+    return item[0], not isinstance(item[1], InternalEvent)
+
+
 def _scan(
     entries: tuple,
     event: Event | None,
@@ -290,11 +295,7 @@ class FastInterpreter(Interpreter):
         internal = isinstance(event, InternalEvent)
         queue: list = self._internal_queue if internal else self._external_queue
         time = self._time + delay
-        position = bisect.bisect_right(
-            queue,
-            (time, not internal),
-            key=lambda item: (item[0], not isinstance(item[1], InternalEvent)),
-        )
+        position = bisect.bisect_right(queue, (time, not internal), key=_queue_order)
         queue.insert(position, (time, event))
 
     def _raise_event(self, event: InternalEvent | MetaEvent) -> None:
