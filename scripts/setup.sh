@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Create .venv and install rasm into it (editable; with the test extras when asked: setup.sh test).
+# Create .venv and install rasm into it (editable; with the test extras, ROS 2's included, when
+# asked: setup.sh test).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -8,7 +9,7 @@ if [ ! -x .venv/bin/python ]; then
     .venv/bin/pip install -q --upgrade pip
 fi
 if [ "${1:-}" = "test" ]; then
-    .venv/bin/pip install -q -e '.[test]'
+    .venv/bin/pip install -q -e '.[test,ros2]'
 else
     .venv/bin/pip install -q -e .
 fi

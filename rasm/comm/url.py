@@ -1,4 +1,5 @@
-"""Transport URLs: ``local``, ``mqtt://host:port`` and ``mqtts://host:port``."""
+"""Transport URLs: ``local``, ``mqtt://host:port``, ``mqtts://host:port``, and ROS 2's
+``zenoh://host:port[?domain=N]`` and ``dds://[?domain=N]``."""
 
 from __future__ import annotations
 
@@ -12,7 +13,10 @@ from rasm.errors import CommError
 
 __all__ = ["open_transport", "parse_mqtt_url", "credentials_from_env", "ACCEPTED_FORMS"]
 
-ACCEPTED_FORMS = "'local', 'mqtt://HOST:PORT' or 'mqtts://HOST:PORT' (TLS)"
+ACCEPTED_FORMS = (
+    "'local', 'mqtt://HOST:PORT', 'mqtts://HOST:PORT' (TLS), 'zenoh://HOST:PORT[?domain=N]' "
+    "or 'dds://[?domain=N]' (ROS 2)"
+)
 _DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
 
 
@@ -49,13 +53,27 @@ def open_transport(url: str, **options: Any) -> Transport:
     """A new, not yet connected transport for ``url``.
 
     ``local`` gives a :class:`~rasm.comm.local.LocalTransport`; ``mqtt://host:port`` (or
-    ``mqtts://``) an :class:`~rasm.comm.mqtt.MqttTransport`; ``options`` go to its constructor.
+    ``mqtts://``) an :class:`~rasm.comm.mqtt.MqttTransport`; ``zenoh://host:port`` a
+    :class:`~rasm.ros2.zenoh.ZenohTransport` and ``dds://`` a
+    :class:`~rasm.ros2.dds.DdsTransport` (ROS 2); ``options`` go to its constructor.
     Anything else raises :class:`CommError` naming the URL and the accepted forms.
     """
     if isinstance(url, str) and url.strip() == "local":
         from rasm.comm.local import LocalTransport
 
         return LocalTransport(**options)
+    scheme = urlsplit(url.strip()).scheme if isinstance(url, str) else ""
+    if scheme in ("zenoh", "dds"):
+        # imported lazily: only ROS 2 users need Zenoh, Cyclone DDS and the type store
+        try:
+            from rasm.ros2.dds import DdsTransport
+            from rasm.ros2.zenoh import ZenohTransport
+        except ImportError as exc:
+            raise CommError(
+                f"{scheme}:// needs rasm's ROS 2 support, which is not installed ({exc}); "
+                "install it with: pip install 'rasm[ros2]'"
+            ) from None
+        return (ZenohTransport if scheme == "zenoh" else DdsTransport)(url, **options)
     parse_mqtt_url(url)  # raises with the accepted forms
     from rasm.comm.mqtt import MqttTransport  # imported lazily: paho is not needed for 'local'
 
@@ -67,7 +85,7 @@ def credentials_from_env(url: str, environ: Mapping[str, str] | None = None) -> 
     ``RASM_MQTT_PASSWORD`` (what ``rasm run`` and ``rasm monitor`` use: credentials never go in
     the URL, which ends up in logs); empty for ``local`` or when neither is set."""
     env = os.environ if environ is None else environ
-    if not isinstance(url, str) or url.strip() == "local":
+    if not isinstance(url, str) or urlsplit(url.strip()).scheme not in _DEFAULT_PORTS:
         return {}
     found = {}
     if env.get("RASM_MQTT_USERNAME"):

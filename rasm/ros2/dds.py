@@ -1,0 +1,296 @@
+"""ROS 2 over DDS with Cyclone DDS, named as ROS 2's DDS middlewares name things.
+
+- A topic ``/odom`` is the DDS topic ``rt/odom``; its type is ``nav_msgs::msg::dds_::Odometry_``,
+  a final struct with the message's fields (built from the type store), in XCDR1 (plain CDR).
+- Endpoints carry ``typehash=RIHS01_...;`` in their USER_DATA, as ROS 2 (Iron and later) does;
+  samples from a publisher that announces another hash are rejected as ``wrong_hash``.
+- A publisher of another type on one of our topics never matches (DDS matches by type name);
+  discovery still sees it, and it is counted once as ``type_conflict`` (or ``unknown_type``).
+- QoS: reliability, durability, history and depth map to the DDS policies of the same names.
+
+The network is configured the standard Cyclone way, by ``CYCLONEDDS_URI`` (or ``config=``).
+On loopback only, for tests::
+
+    <CycloneDDS><Domain id="any"><General><Interfaces>
+      <NetworkInterface address="127.0.0.1"/></Interfaces>
+      <AllowMulticast>false</AllowMulticast></General>
+      <Discovery><Peers><Peer address="127.0.0.1"/></Peers>
+      <ParticipantIndex>auto</ParticipantIndex></Discovery></Domain></CycloneDDS>
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from cyclonedds._clayer import ddspy_take, ddspy_write  # raw CDR in and out (see _wire_send)
+from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication
+from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
+from cyclonedds.domain import Domain, DomainParticipant
+from cyclonedds.idl import IdlStruct, make_idl_struct
+from cyclonedds.idl import types as idl
+from cyclonedds.pub import DataWriter
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+from rosbags.typesys.base import normalize_fieldname
+
+from rasm.errors import CommError
+from rasm.ros2.qos import QosProfile
+from rasm.ros2.transport import RosTopic, RosTransport, check_domain
+from rasm.ros2.types import PLACEHOLDER_FIELD, FieldType, TypeStore, ros_type_name
+
+__all__ = ["DdsTransport", "parse_dds_url", "dds_topic_name", "idl_struct"]
+
+_log = logging.getLogger("rasm.ros2.dds")
+
+ACCEPTED_FORM = "'dds://' or 'dds://?domain=N'"
+_ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
+_TAKE_BATCH = 64
+_TYPEHASH = re.compile(rb"typehash=([^;]*);")
+
+_PRIMITIVES: dict[str, Any] = {
+    "bool": bool, "byte": idl.byte, "char": idl.uint8, "uint8": idl.uint8, "int8": idl.int8,
+    "uint16": idl.uint16, "int16": idl.int16, "uint32": idl.uint32, "int32": idl.int32,
+    "uint64": idl.uint64, "int64": idl.int64, "float32": idl.float32, "float64": idl.float64,
+}
+# the IDL classes built so far, by type name and hash (a hash names one definition)
+_IDL_CLASSES: dict[tuple[str, str], type[IdlStruct]] = {}
+
+
+def parse_dds_url(url: str) -> int | None:
+    """The domain of a ``dds://`` URL (None if it names none); :class:`CommError` otherwise."""
+    def bad(why: str) -> CommError:
+        return CommError(f"bad transport URL {url!r}: {why}; expected {ACCEPTED_FORM}")
+
+    parts = urlsplit(url.strip()) if isinstance(url, str) else None
+    if parts is None or parts.scheme != "dds":
+        raise bad("not a dds:// URL")
+    if parts.netloc or parts.path not in ("", "/") or parts.fragment:
+        raise bad("a DDS domain has no host, path or fragment (the network is set by "
+                  "CYCLONEDDS_URI)")
+    query = parse_qs(parts.query, keep_blank_values=True)
+    if set(query) - {"domain"} or any(len(v) != 1 for v in query.values()):
+        raise bad("the only query parameter is domain=N, given once")
+    return check_domain(query["domain"][0], f"domain= in {url!r}") if "domain" in query else None
+
+
+def dds_topic_name(topic: str) -> str:
+    """The DDS topic of a ROS topic: ``/odom`` -> ``rt/odom``."""
+    return "rt" + topic
+
+
+def idl_struct(store: TypeStore, typename: str) -> type[IdlStruct]:
+    """Cyclone's Python type for a message type, named ``pkg::msg::dds_::Name_``."""
+    codec = store.codec(typename)
+    key = (codec.typename, codec.type_hash)
+    if key not in _IDL_CLASSES:
+        fields = {
+            normalize_fieldname(name): _idl_type(store, ftype)
+            for name, ftype in store.fields(codec.typename).items()
+        } or {PLACEHOLDER_FIELD: idl.uint8}
+        _IDL_CLASSES[key] = make_idl_struct(
+            codec.typename.replace("/", "_"), codec.dds_name, fields
+        )
+    return _IDL_CLASSES[key]
+
+
+def _idl_type(store: TypeStore, ftype: FieldType) -> Any:
+    if ftype.is_message:
+        element = idl_struct(store, ftype.base)
+    elif ftype.base == "string":
+        element = idl.bounded_str[ftype.string_bound] if ftype.string_bound else str
+    else:
+        element = _PRIMITIVES[ftype.base]
+    if ftype.array == "fixed":
+        return idl.array[element, ftype.length]
+    if ftype.array == "sequence":
+        return idl.sequence[element, ftype.length] if ftype.length else idl.sequence[element]
+    return element
+
+
+def _qos(profile: QosProfile, type_hash: str) -> Qos:
+    return Qos(
+        Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100))
+        if profile.reliability == "reliable" else Policy.Reliability.BestEffort,
+        Policy.Durability.TransientLocal
+        if profile.durability == "transient_local" else Policy.Durability.Volatile,
+        Policy.History.KeepAll if profile.keeps_all else Policy.History.KeepLast(profile.depth),
+        Policy.DataRepresentation(use_cdrv0_representation=True),  # plain CDR, as ROS 2
+        Policy.Userdata(f"typehash={type_hash};".encode()),
+    )
+
+
+class DdsTransport(RosTransport):
+    """ROS 2 topics over Cyclone DDS (see the module docstring).
+
+    ``url`` is ``dds://`` or ``dds://?domain=N``. ``config`` is a Cyclone XML configuration
+    (or a ``file://`` URL of one) for this domain; without it Cyclone reads ``CYCLONEDDS_URI``.
+    The other keywords are :class:`~rasm.ros2.transport.RosTransport`'s.
+    """
+
+    def __init__(
+        self, url: str = "dds://", *, config: str | None = None, domain: int | None = None,
+        **options: Any,
+    ) -> None:
+        url_domain = parse_dds_url(url)
+        if url_domain is not None and domain is not None and url_domain != domain:
+            raise CommError(f"{url}: domain={domain} contradicts the URL's domain")
+        super().__init__(domain=url_domain if url_domain is not None else domain, **options)
+        self.url = url
+        self.config = config
+        self._domain: Domain | None = None
+        self._participant: DomainParticipant | None = None
+        self._dds_topics: dict[str, Topic] = {}
+        self._writers: dict[str, DataWriter] = {}
+        self._readers: dict[str, DataReader] = {}
+        self._publications: dict[int, str | None] = {}  # handle -> why rejected (None: fine)
+        self._foreign: set[Any] = set()  # publications of another type already counted
+        self._discovery: BuiltinDataReader | None = None
+
+    # -- the wire -------------------------------------------------------------------------------
+    def _open_wire(self) -> None:
+        try:
+            if self.config is not None:
+                self._domain = Domain(self.domain, self.config)
+            self._participant = DomainParticipant(self.domain)
+            self._discovery = BuiltinDataReader(
+                self._participant, BuiltinTopicDcpsPublication,
+                listener=Listener(on_data_available=self._on_publications),
+            )
+        except DDSException as exc:
+            self._delete_all()
+            raise CommError(
+                f"could not join DDS domain {self.domain}: {exc} (check CYCLONEDDS_URI)"
+            ) from None
+
+    def _close_wire(self) -> None:
+        self._delete_all()
+
+    def _delete_all(self) -> None:
+        # Cyclone deletes an entity when its Python object is collected; delete the participant
+        # (and with it every reader, writer and topic) now, so that peers see us leave at once.
+        entities = [self._participant, self._domain]
+        self._readers.clear()
+        self._writers.clear()
+        self._dds_topics.clear()
+        self._discovery = self._participant = self._domain = None
+        for entity in entities:
+            if entity is not None:
+                entity.__del__()
+
+    def _dds_topic(self, topic: RosTopic) -> Topic:
+        found = self._dds_topics.get(topic.name)
+        if found is None:
+            found = self._dds_topics[topic.name] = Topic(
+                self._participant, dds_topic_name(topic.name),
+                idl_struct(self.store, topic.typename),
+            )
+        return found
+
+    def _wire_publisher(self, topic: RosTopic) -> DataWriter:
+        writer = self._writers.get(topic.name)
+        if writer is None:
+            writer = self._writers[topic.name] = DataWriter(
+                self._participant, self._dds_topic(topic),
+                qos=_qos(topic.qos, topic.codec.type_hash),
+            )
+        return writer
+
+    def _wire_send(self, topic: RosTopic, data: bytes) -> None:
+        writer = self._writers.get(topic.name) or self._wire_publisher(topic)
+        # Cyclone's typed write() would re-encode a Python object; the codec's CDR goes as is,
+        # padded to a multiple of 4 bytes as Cyclone's own serializer pads it.
+        padded = data + b"\0" * (-len(data) % 4)
+        result = ddspy_write(writer._ref, padded)
+        if result < 0:
+            raise CommError(f"{self.url}: could not publish on {topic.name} (DDS error {result})")
+
+    def _wire_subscribe(self, topic: RosTopic) -> None:
+        if topic.name in self._readers:
+            return
+        self._readers[topic.name] = DataReader(
+            self._participant, self._dds_topic(topic),
+            qos=_qos(topic.qos, topic.codec.type_hash),
+            listener=Listener(on_data_available=lambda reader: self._on_data(topic, reader)),
+        )
+
+    def _wire_unsubscribe(self, topic: RosTopic) -> None:
+        reader = self._readers.pop(topic.name, None)
+        if reader is not None:
+            reader.__del__()  # as in _delete_all: stop receiving now, not at collection
+
+    # -- receiving (on Cyclone's threads: never raise) ------------------------------------------
+    def _on_data(self, topic: RosTopic, reader: DataReader) -> None:
+        try:
+            while True:
+                samples = ddspy_take(reader._ref, _ANY_SAMPLE, _TAKE_BATCH)
+                if isinstance(samples, int) or not samples:
+                    return
+                for data, info in samples:
+                    if not info.valid_data:
+                        continue  # a writer left or disposed: no message
+                    why = self._publication_check(topic, reader, info.publication_handle)
+                    if why is None:
+                        self._received(topic, data, None, info.source_timestamp / 1e9)
+                    else:
+                        self._reject(topic.name, "wrong_hash", why)
+        except Exception:
+            _log.exception("error receiving a message on %s", topic.name)
+
+    def _publication_check(self, topic: RosTopic, reader: DataReader, handle: int) -> str | None:
+        """None if samples of publication ``handle`` may be delivered, else why not."""
+        if handle in self._publications:
+            return self._publications[handle]
+        why = None
+        try:
+            endpoint = reader.get_matched_publication_data(handle)
+        except DDSException:
+            endpoint = None
+        if endpoint is not None:
+            qos = endpoint.qos
+            userdata = qos[Policy.Userdata] if qos is not None and Policy.Userdata in qos else None
+            found = _TYPEHASH.search(userdata.data) if userdata is not None else None
+            announced = found.group(1).decode("ascii", "replace") if found else None
+            if announced and announced != topic.codec.type_hash:
+                why = (
+                    f"its publisher announces type hash {announced[:80]}, not "
+                    f"{topic.codec.type_hash} ({topic.typename} in this type store, "
+                    f"{self.store.distro}); the definitions differ"
+                )
+        if len(self._publications) > 10_000:
+            self._publications.clear()  # bounded memory; verdicts are cheap to recompute
+        self._publications[handle] = why
+        return why
+
+    def _on_publications(self, reader: BuiltinDataReader) -> None:
+        """Count publishers of another type on our topics (DDS never matches them)."""
+        try:
+            for endpoint in reader.take(_TAKE_BATCH):
+                if not getattr(endpoint.sample_info, "valid_data", True):
+                    continue
+                name = endpoint.topic_name
+                topic = self._topics.get(name[2:]) if name.startswith("rt/") else None
+                if topic is None or name[2:] not in self._readers:
+                    continue
+                if endpoint.type_name == topic.codec.dds_name or endpoint.key in self._foreign:
+                    continue
+                self._foreign.add(endpoint.key)
+                ros_name = ros_type_name(endpoint.type_name)
+                if ros_name is None or ros_name not in self.store:
+                    self._reject(
+                        topic.name, "unknown_type",
+                        f"a publisher of the unknown type {endpoint.type_name[:80]!r} "
+                        f"(declared type: {topic.typename}) is never matched",
+                    )
+                else:
+                    self._reject(
+                        topic.name, "type_conflict",
+                        f"a publisher of {ros_name} (declared type: {topic.typename}) is "
+                        "never matched",
+                    )
+        except Exception:
+            _log.exception("error reading DDS discovery data")

@@ -1,0 +1,351 @@
+"""ROS 2 over Zenoh, as rmw_zenoh speaks it (the format of current ROS 2 releases).
+
+- A topic is the key expression ``<domain>/<topic without its leading slash>/<DDS type
+  name>/<RIHS01 type hash>``, e.g. ``0/chatter/std_msgs::msg::dds_::String_/RIHS01_df66...``.
+- The payload is the message's CDR, with its 4-byte header.
+- Each message carries a 33-byte attachment: sequence number (int64), source time stamp (int64,
+  ns since the epoch) and the publisher's GID (a length byte, 16, then 16 bytes), little
+  endian: what ``zenoh.ext.z_serialize`` makes of ``(Int64, Int64, bytes)``.
+- The graph is made of liveliness tokens, ``@ros2_lv/<domain>/<session id>/<node id>/<entity
+  id>/<NN|MP|MS>/<enclave>/<namespace>/<node>[/<topic>/<type>/<hash>/<qos>]`` with ``/`` in
+  names written ``%``: one for rasm's node and one per publisher and subscription, so
+  ``ros2 node list`` and ``ros2 topic list`` on the Zenoh network see them.
+
+The session is a Zenoh peer that connects to ``HOST:PORT`` (rmw_zenoh's router listens on
+7447) with multicast scouting off, as rmw_zenoh's sessions are; gossip scouting through the
+router finds the other peers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import logging
+import struct
+import time
+from collections.abc import Sequence
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+import zenoh
+import zenoh.ext
+
+from rasm.errors import CommError
+from rasm.ros2.transport import RosTopic, RosTransport, check_domain
+from rasm.ros2.types import ros_type_name
+
+__all__ = ["ZenohTransport", "parse_zenoh_url", "topic_key", "liveliness_key", "attachment"]
+
+_log = logging.getLogger("rasm.ros2.zenoh")
+
+ACCEPTED_FORM = "'zenoh://HOST:PORT' or 'zenoh://HOST:PORT?domain=N'"
+DEFAULT_PORT = 7447  # where rmw_zenoh's router listens
+
+_ATTACHMENT = struct.Struct("<qqB16s")  # sequence number, source time (ns), GID length, GID
+_GID_SIZE = 16
+
+# rmw_zenoh writes each QoS policy into the token only where it differs from its defaults:
+# reliable, volatile, keep last 42 (its default depth), infinite deadline, lifespan and lease.
+_RELIABILITY = {"reliable": "", "best_effort": "2"}
+_DURABILITY = {"volatile": "", "transient_local": "1"}
+_HISTORY = {"keep_last": "", "keep_all": "2"}
+_DEFAULT_DEPTH = 42
+
+
+def parse_zenoh_url(url: str) -> tuple[str, int, int | None]:
+    """``(host, port, domain or None)`` of a ``zenoh://`` URL; :class:`CommError` otherwise."""
+    def bad(why: str) -> CommError:
+        return CommError(f"bad transport URL {url!r}: {why}; expected {ACCEPTED_FORM}")
+
+    parts = urlsplit(url.strip()) if isinstance(url, str) else None
+    if parts is None or parts.scheme != "zenoh":
+        raise bad("not a zenoh:// URL")
+    if parts.username is not None or parts.password is not None:
+        raise bad("credentials do not belong in the URL")
+    if parts.path not in ("", "/") or parts.fragment:
+        raise bad("a Zenoh URL has no path or fragment")
+    try:
+        port = parts.port
+    except ValueError as exc:
+        raise bad(str(exc)) from None
+    if not parts.hostname:
+        raise bad("no host")
+    query = parse_qs(parts.query, keep_blank_values=True, strict_parsing=False)
+    if set(query) - {"domain"} or any(len(v) != 1 for v in query.values()):
+        raise bad("the only query parameter is domain=N, given once")
+    domain = check_domain(query["domain"][0], f"domain= in {url!r}") if "domain" in query else None
+    return parts.hostname, port if port is not None else DEFAULT_PORT, domain
+
+
+def topic_key(domain: int, topic: str, dds_name: str, type_hash: str) -> str:
+    """rmw_zenoh's key expression of a topic, as ``0/chatter/<type>/RIHS01_...``."""
+    return f"{domain}/{topic.strip('/')}/{dds_name}/{type_hash}"
+
+
+def _mangle(name: str) -> str:
+    return name.replace("/", "%")
+
+
+def qos_text(topic: RosTopic) -> str:
+    """The QoS part of a liveliness token, as rmw_zenoh writes it (``::,10:,:,:,,``)."""
+    qos = topic.qos
+    depth = "" if qos.depth == _DEFAULT_DEPTH else str(qos.depth)
+    return (
+        f"{_RELIABILITY[qos.reliability]}:{_DURABILITY[qos.durability]}:"
+        f"{_HISTORY[qos.history]},{depth}:,:,:,,"
+    )
+
+
+def liveliness_key(
+    domain: int, session_id: str, node_id: int, entity_id: int, kind: str,
+    namespace: str, node: str, topic: RosTopic | None = None,
+) -> str:
+    """The liveliness token of a node (``kind`` NN) or of a publisher (MP) or subscription (MS)."""
+    key = (
+        f"@ros2_lv/{domain}/{session_id}/{node_id}/{entity_id}/{kind}/%/{_mangle(namespace)}/"
+        f"{_mangle(node)}"
+    )
+    if topic is not None:
+        key += (
+            f"/{_mangle(topic.name)}/{topic.codec.dds_name}/{topic.codec.type_hash}/"
+            f"{qos_text(topic)}"
+        )
+    return key
+
+
+def attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
+    """The 33-byte rmw_zenoh attachment of one message."""
+    return _ATTACHMENT.pack(sequence, timestamp_ns, _GID_SIZE, gid)
+
+
+def _gid(key: str) -> bytes:
+    # rmw_zenoh hashes the token's key into the GID (XXH3-128); only equality of GIDs matters
+    # to ROS tools, so any 16-byte digest of the same key serves.
+    return hashlib.blake2b(key.encode(), digest_size=_GID_SIZE).digest()
+
+
+class _Publisher:
+    """One topic's Zenoh publisher, its liveliness token, GID and sequence numbers."""
+
+    def __init__(self, publisher: Any, token: Any, gid: bytes) -> None:
+        self.publisher = publisher
+        self.token = token
+        self.gid = gid
+        self.sequence = itertools.count(1)
+
+    def undeclare(self) -> None:
+        for entity in (self.token, self.publisher):
+            try:
+                entity.undeclare()
+            except zenoh.ZError:
+                pass  # the session is already closed: nothing is left to undeclare
+
+
+class ZenohTransport(RosTransport):
+    """ROS 2 topics over Zenoh with rmw_zenoh's conventions (see the module docstring).
+
+    ``url`` is ``zenoh://HOST:PORT[?domain=N]``: the Zenoh router or peer to connect to.
+    ``listen`` adds endpoints this session listens on (``["tcp/127.0.0.1:7448"]``), so that
+    other peers can connect to it. ``config_file`` starts from a Zenoh JSON5 configuration
+    (rmw_zenoh's ``ZENOH_SESSION_CONFIG_URI`` files work); mode, endpoints and multicast
+    scouting are then set as described. ``connect()`` fails with :class:`CommError` if nothing
+    answers at ``HOST:PORT`` within ``connect_timeout`` seconds. The other keywords are
+    :class:`~rasm.ros2.transport.RosTransport`'s.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        *,
+        listen: Sequence[str] = (),
+        config_file: str | None = None,
+        connect_timeout: float = 5.0,
+        domain: int | None = None,
+        **options: Any,
+    ) -> None:
+        self.host, self.port, url_domain = parse_zenoh_url(url)
+        if url_domain is not None and domain is not None and url_domain != domain:
+            raise CommError(f"{url}: domain={domain} contradicts the URL's domain")
+        super().__init__(domain=url_domain if url_domain is not None else domain, **options)
+        self.url = url
+        self.listen = list(listen)
+        self.config_file = config_file
+        self.connect_timeout = connect_timeout
+        self._session: Any = None
+        self._session_id = ""
+        self._node_token: Any = None
+        self._entity_ids = itertools.count(1)  # 0 is the node's
+        self._publishers: dict[str, _Publisher] = {}
+        self._subscribers: dict[str, tuple[Any, Any]] = {}  # topic -> (subscriber, token)
+
+    # -- the wire -------------------------------------------------------------------------------
+    def _open_wire(self) -> None:
+        config = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        settings = {
+            "mode": "peer",
+            "connect/endpoints": [f"tcp/{host}:{self.port}"],
+            "listen/endpoints": self.listen,
+            "scouting/multicast/enabled": False,
+            "connect/timeout_ms": int(self.connect_timeout * 1000),
+            "connect/exit_on_failure": True,
+        }
+        try:
+            for key, value in settings.items():
+                config.insert_json5(key, json.dumps(value))
+            self._session = zenoh.open(config)
+        except zenoh.ZError as exc:
+            raise CommError(
+                f"could not reach a Zenoh router or peer at {self.host}:{self.port} within "
+                f"{self.connect_timeout:g} s ({exc}); is one running there? (ROS 2: "
+                "ros2 run rmw_zenoh_cpp rmw_zenohd)"
+            ) from None
+        self._session_id = str(self._session.zid())
+        self._node_token = self._declare_token(0, "NN")
+
+    def _close_wire(self) -> None:
+        for publisher in self._publishers.values():
+            publisher.undeclare()
+        for name in list(self._subscribers):
+            self._undeclare_subscriber(name)
+        self._publishers.clear()
+        session, self._session = self._session, None
+        if session is not None:
+            try:
+                self._node_token.undeclare()
+            finally:
+                session.close()
+
+    def _declare_token(self, entity_id: int, kind: str, topic: RosTopic | None = None) -> Any:
+        key = liveliness_key(
+            self.domain, self._session_id, 0, entity_id, kind, self.namespace, self.node_name,
+            topic,
+        )
+        return self._session.liveliness().declare_token(key)
+
+    def _key(self, topic: RosTopic) -> str:
+        return topic_key(self.domain, topic.name, topic.codec.dds_name, topic.codec.type_hash)
+
+    def _wire_publisher(self, topic: RosTopic) -> _Publisher:
+        found = self._publishers.get(topic.name)
+        if found is not None and found.token is not None:
+            return found
+        qos = topic.qos
+        reliable = qos.reliability == "reliable"
+        reliability = zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT
+        options: dict[str, Any] = {
+            "reliability": reliability,
+            # as rmw_zenoh: only a reliable keep-all publisher waits for a slow network
+            "congestion_control": zenoh.CongestionControl.BLOCK
+            if reliable and qos.keeps_all else zenoh.CongestionControl.DROP,
+        }
+        if qos.durability == "transient_local":
+            # late subscribers get the last `depth` messages from the publisher's cache
+            publisher = zenoh.ext.declare_advanced_publisher(
+                self._session, self._key(topic),
+                cache=zenoh.ext.CacheConfig(max_samples=qos.depth),
+                publisher_detection=True, **options,
+            )
+        else:
+            publisher = self._session.declare_publisher(self._key(topic), **options)
+        entity_id = next(self._entity_ids)
+        token_key = liveliness_key(
+            self.domain, self._session_id, 0, entity_id, "MP", self.namespace, self.node_name,
+            topic,
+        )
+        made = _Publisher(publisher, self._session.liveliness().declare_token(token_key),
+                          _gid(token_key))
+        self._publishers[topic.name] = made
+        return made
+
+    def _wire_send(self, topic: RosTopic, data: bytes) -> None:
+        publisher = self._publishers.get(topic.name) or self._wire_publisher(topic)
+        extra = attachment(next(publisher.sequence), time.time_ns(), publisher.gid)
+        try:
+            publisher.publisher.put(data, attachment=extra)
+        except zenoh.ZError as exc:
+            raise CommError(f"{self.url}: could not publish on {topic.name}: {exc}") from None
+
+    def _wire_subscribe(self, topic: RosTopic) -> None:
+        if topic.name in self._subscribers:
+            return
+        # any type and hash: a message with the wrong ones is counted, not silently missed
+        key = f"{self.domain}/{topic.name.strip('/')}/*/*"
+        on_sample = self._sample_handler(topic)
+        if topic.qos.durability == "transient_local":
+            subscriber = zenoh.ext.declare_advanced_subscriber(
+                self._session, key, on_sample,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+                subscriber_detection=True,
+            )
+        else:
+            subscriber = self._session.declare_subscriber(key, on_sample)
+        token = self._declare_token(next(self._entity_ids), "MS", topic)
+        self._subscribers[topic.name] = (subscriber, token)
+
+    def _wire_unsubscribe(self, topic: RosTopic) -> None:
+        self._undeclare_subscriber(topic.name)
+
+    def _undeclare_subscriber(self, name: str) -> None:
+        entry = self._subscribers.pop(name, None)
+        if entry is None:
+            return
+        for entity in reversed(entry):
+            try:
+                entity.undeclare()
+            except zenoh.ZError:
+                pass  # the session is already closed
+
+    def _sample_handler(self, topic: RosTopic):
+        expected_type, expected_hash = topic.codec.dds_name, topic.codec.type_hash
+
+        def on_sample(sample: Any) -> None:
+            # runs on a Zenoh thread: check the key, hand the bytes over, never raise
+            try:
+                if sample.kind != zenoh.SampleKind.PUT:
+                    return
+                type_part, hash_part = str(sample.key_expr).rsplit("/", 2)[-2:]
+                if type_part != expected_type:
+                    self._reject_type(topic, type_part)
+                elif hash_part != expected_hash:
+                    self._reject(
+                        topic.name, "wrong_hash",
+                        f"type hash {hash_part[:80]} is not {expected_hash}, this type store's "
+                        f"{topic.typename} ({self.store.distro}); the publisher's definition "
+                        "differs",
+                    )
+                else:
+                    uid, stamp = _sender(sample.attachment)
+                    self._received(topic, sample.payload.to_bytes(), uid, stamp)
+            except Exception:
+                _log.exception("error receiving a message on %s", topic.name)
+
+        return on_sample
+
+    def _reject_type(self, topic: RosTopic, type_part: str) -> None:
+        ros_name = ros_type_name(type_part)
+        if ros_name is None or ros_name not in self.store:
+            self._reject(
+                topic.name, "unknown_type",
+                f"its type {type_part[:80]!r} is not in the type store (declared type: "
+                f"{topic.typename})",
+            )
+        else:
+            self._reject(
+                topic.name, "type_conflict",
+                f"published as {ros_name}, but declared as {topic.typename}",
+            )
+
+
+def _sender(extra: Any) -> tuple[str | None, float | None]:
+    """``(uid, source time in s)`` from an rmw_zenoh attachment; ``(None, None)`` without one."""
+    if extra is None:
+        return None, None
+    data = extra.to_bytes()
+    if len(data) != _ATTACHMENT.size:
+        return None, None
+    sequence, stamp, size, gid = _ATTACHMENT.unpack(data)
+    if size != _GID_SIZE:
+        return None, None
+    return f"{gid.hex()}.{sequence}", stamp / 1e9
