@@ -209,6 +209,9 @@ class DdsTransport(RosTransport):
         if result < 0:
             raise CommError(f"{self.url}: could not publish on {topic.name} (DDS error {result})")
 
+    def _wire_matched(self, topic: RosTopic, publisher: DataWriter) -> bool:
+        return bool(publisher.get_matched_subscriptions())
+
     def _wire_subscribe(self, topic: RosTopic) -> None:
         if topic.name in self._readers:
             return

@@ -255,6 +255,13 @@ class RosTransport(Transport):
         self._require_open(f"advertise {topic!r}")
         self._wire_publisher(self._declared(topic, "advertise"))
 
+    def has_subscribers(self, topic: str) -> bool:
+        """True if some subscriber on the network matches this transport's publisher of
+        ``topic`` (created if need be): what a sender waits for before its first message."""
+        self._require_open(f"look for subscribers of {topic!r}")
+        declared = self._declared(topic, "look for subscribers of")
+        return self._wire_matched(declared, self._wire_publisher(declared))
+
     @property
     def rejected(self) -> dict[str, int]:
         """Received messages not delivered, by reason (see :data:`REJECTIONS`)."""
@@ -382,6 +389,9 @@ class RosTransport(Transport):
         raise NotImplementedError
 
     def _wire_send(self, topic: RosTopic, data: bytes) -> None:
+        raise NotImplementedError
+
+    def _wire_matched(self, topic: RosTopic, publisher: Any) -> bool:
         raise NotImplementedError
 
     # -- the dispatcher -------------------------------------------------------------------------

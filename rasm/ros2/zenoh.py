@@ -190,6 +190,7 @@ class ZenohTransport(RosTransport):
             "scouting/multicast/enabled": False,
             "connect/timeout_ms": int(self.connect_timeout * 1000),
             "connect/exit_on_failure": True,
+            "timestamping/enabled": True,  # transient_local's publication cache needs it
         }
         try:
             for key, value in settings.items():
@@ -266,6 +267,16 @@ class ZenohTransport(RosTransport):
             publisher.publisher.put(data, attachment=extra)
         except zenoh.ZError as exc:
             raise CommError(f"{self.url}: could not publish on {topic.name}: {exc}") from None
+
+    def _wire_matched(self, topic: RosTopic, publisher: _Publisher) -> bool:
+        status = getattr(publisher.publisher, "matching_status", None)
+        if status is not None:
+            return bool(status.matching)
+        # a transient_local (advanced) publisher has no matching status: ask the ROS graph
+        # whether some subscription of this topic has a liveliness token
+        key = f"@ros2_lv/{self.domain}/*/*/*/MS/*/*/*/{_mangle(topic.name)}/**"
+        replies = self._session.liveliness().get(key, timeout=self.connect_timeout)
+        return any(reply.ok is not None for reply in replies)
 
     def _wire_subscribe(self, topic: RosTopic) -> None:
         if topic.name in self._subscribers:

@@ -1,0 +1,276 @@
+"""A ROS 2 peer written only with eclipse-zenoh, cyclonedds and rosbags (never rasm), run as a
+subprocess by the tests: it stands for a ROS 2 node on the other side of the wire.
+
+Usage: ``python peer.py CONFIG_JSON``. It prints JSON lines on stdout:
+``{"event": "ready"}`` once its entities exist, ``{"event": "message", ...}`` per message
+received, ``{"event": "published", "n": N}`` after each round of publishing, and
+``{"event": "token", "key": ...}`` per liveliness token seen. It stops when stdin closes.
+
+CONFIG keys: ``middleware`` (zenoh | dds), ``role`` (pub | sub | graph), ``listen`` (Zenoh
+endpoint), ``domain``, ``repeat`` (publish again and again until stdin closes), ``msg``
+(``[[file, package], ...]`` custom .msg files) and ``topics``: a list of ``{"topic", "type",
+"messages"}`` (dicts to publish), where ``raw`` (hex payloads sent as they are), ``key`` (a
+Zenoh key expression), ``type_name`` (a DDS type name) and ``type_hash`` (announced in DDS
+user data) override what the peer would send.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+PRIMITIVE_DTYPES = {
+    "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "uint8": np.uint8, "int8": np.int8,
+    "uint16": np.uint16, "int16": np.int16, "uint32": np.uint32, "int32": np.int32,
+    "uint64": np.uint64, "int64": np.int64, "float32": np.float32, "float64": np.float64,
+}
+
+
+def say(**event):
+    sys.stdout.write(json.dumps(event) + "\n")
+    sys.stdout.flush()
+
+
+def stdin_closed() -> threading.Event:
+    done = threading.Event()
+
+    def watch():
+        sys.stdin.read()
+        done.set()
+
+    threading.Thread(target=watch, daemon=True).start()
+    return done
+
+
+# -- rosbags objects <-> JSON-able dicts (this peer's own, independent of rasm) ----------------
+def to_object(typename, value):
+    fields = STORE.fielddefs[typename][1]
+    kwargs = {}
+    for name, desc in fields:
+        kwargs[name] = field_value(desc, (value or {}).get(name))
+    return STORE.types[typename](**kwargs)
+
+
+def field_value(desc, value):
+    kind, rest = desc
+    if kind == Nodetype.NAME:
+        return to_object(rest, value)
+    if kind == Nodetype.BASE:
+        base = rest[0]
+        if value is None:
+            return "" if base == "string" else (False if base == "bool" else 0)
+        return value
+    (inner_kind, inner), length = rest
+    if value is None:
+        value = [] if kind == Nodetype.SEQUENCE else [None] * length
+    if inner_kind == Nodetype.NAME:
+        return [to_object(inner, v) for v in value]
+    if inner[0] == "string":
+        return [v or "" for v in value]
+    return np.array([0 if v is None else v for v in value], dtype=PRIMITIVE_DTYPES[inner[0]])
+
+
+def to_plain(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, list):
+        return [to_plain(v) for v in obj]
+    if hasattr(obj, "__msgtype__"):
+        return {
+            name: to_plain(getattr(obj, name))
+            for name, _ in STORE.fielddefs[obj.__msgtype__][1]
+            if name != "structure_needs_at_least_one_member"
+        }
+    return obj
+
+
+def dds_name(typename):
+    package, _, name = typename.split("/")
+    return f"{package}::msg::dds_::{name}_"
+
+
+# -- Zenoh --------------------------------------------------------------------------------------
+def zenoh_key(config, entry):
+    if entry.get("key"):
+        return entry["key"]
+    typename = entry["type"]
+    return (f"{config.get('domain', 0)}/{entry['topic'].strip('/')}/{dds_name(typename)}/"
+            f"{STORE.hash_rihs01(typename)}")
+
+
+def payloads_of(entry):
+    if "raw" in entry:
+        return [bytes.fromhex(h) for h in entry["raw"]]
+    return [bytes(STORE.serialize_cdr(to_object(entry["type"], m), entry["type"]))
+            for m in entry["messages"]]
+
+
+def zenoh_main(config):
+    import zenoh
+
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("listen/endpoints", json.dumps([config["listen"]]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(conf)
+    say(event="listening")
+    done = stdin_closed()
+    role = config["role"]
+    entities = []
+    if role == "sub":
+        for entry in config["topics"]:
+            def on_sample(sample, entry=entry):
+                attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
+                data = bytes(sample.payload.to_bytes())
+                say(event="message", topic=entry["topic"], key=str(sample.key_expr),
+                    attachment=attachment.hex(),
+                    data=to_plain(STORE.deserialize_cdr(data, entry["type"])))
+
+            entities.append(session.declare_subscriber(zenoh_key(config, entry), on_sample))
+        say(event="ready")
+        done.wait()
+    elif role == "graph":
+        entities.append(session.liveliness().declare_subscriber(
+            "@ros2_lv/**", lambda s: say(event="token", key=str(s.key_expr), kind=str(s.kind)),
+            history=True,
+        ))
+        say(event="ready")
+        done.wait()
+    else:
+        publishers = [
+            (session.declare_publisher(zenoh_key(config, entry),
+                                       congestion_control=zenoh.CongestionControl.BLOCK),
+             payloads_of(entry))
+            for entry in config["topics"]
+        ]
+        for publisher, _ in publishers:
+            while not publisher.matching_status.matching and not done.is_set():
+                done.wait(0.01)  # poll the match: zenoh-python offers no blocking wait for it
+        say(event="ready")
+        sequence = 0
+        gid = bytes(range(16))
+        while True:
+            for publisher, payloads in publishers:
+                for payload in payloads:
+                    sequence += 1
+                    attachment = struct.pack("<qqB16s", sequence, time.time_ns(), 16, gid)
+                    publisher.put(payload, attachment=attachment)
+            say(event="published", n=sequence)
+            if not config.get("repeat") or done.wait(0.05):
+                break
+        done.wait()
+        entities = [p for p, _ in publishers]
+    for entity in entities:
+        entity.undeclare()
+    session.close()
+
+
+# -- Cyclone DDS --------------------------------------------------------------------------------
+def dds_main(config):
+    from cyclonedds._clayer import ddspy_take, ddspy_write
+    from cyclonedds.core import InstanceState, SampleState, ViewState
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.idl import make_idl_struct
+    from cyclonedds.idl import types as t
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.qos import Policy, Qos
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    primitives = {
+        "bool": bool, "byte": t.byte, "char": t.uint8, "uint8": t.uint8, "int8": t.int8,
+        "int16": t.int16, "uint16": t.uint16, "int32": t.int32, "uint32": t.uint32,
+        "int64": t.int64, "uint64": t.uint64, "float32": t.float32, "float64": t.float64,
+    }
+    made = {}
+
+    def idl(desc):
+        kind, rest = desc
+        if kind == Nodetype.NAME:
+            return struct_of(rest)
+        if kind == Nodetype.BASE:
+            if rest[0] == "string":
+                return t.bounded_str[rest[1]] if rest[1] else str
+            return primitives[rest[0]]
+        inner, length = rest
+        if kind == Nodetype.ARRAY:
+            return t.array[idl(inner), length]
+        return t.sequence[idl(inner), length] if length else t.sequence[idl(inner)]
+
+    def struct_of(typename, name=None):
+        key = (typename, name)
+        if key not in made:
+            fields = {f: idl(d) for f, d in STORE.fielddefs[typename][1]}
+            made[key] = make_idl_struct(
+                typename.replace("/", "_") + "_peer" + str(len(made)), name or dds_name(typename),
+                fields,
+            )
+        return made[key]
+
+    participant = DomainParticipant(config.get("domain", 0))
+    done = stdin_closed()
+    mask = SampleState.Any | ViewState.Any | InstanceState.Any
+    endpoints = []
+    for entry in config["topics"]:
+        qos = Qos(
+            Policy.Reliability.Reliable(10**8), Policy.History.KeepLast(100),
+            Policy.DataRepresentation(use_cdrv0_representation=True),
+            *([Policy.Userdata(f"typehash={entry['type_hash']};".encode())]
+              if entry.get("type_hash") else []),
+        )
+        topic = Topic(participant, "rt" + entry["topic"],
+                      struct_of(entry["type"], entry.get("type_name")), qos=qos)
+        if config["role"] == "sub":
+            endpoints.append((entry, DataReader(participant, topic, qos=qos)))
+        else:
+            endpoints.append((entry, DataWriter(participant, topic, qos=qos)))
+    if config["role"] == "sub":
+        say(event="ready")
+        while not done.is_set():
+            idle = True
+            for entry, reader in endpoints:
+                samples = ddspy_take(reader._ref, mask, 64)
+                for data, info in samples if not isinstance(samples, int) else []:
+                    idle = False
+                    if info.valid_data:
+                        say(event="message", topic=entry["topic"],
+                            data=to_plain(STORE.deserialize_cdr(data, entry["type"])))
+            if idle:
+                done.wait(0.005)  # poll: this peer has no listener thread of its own
+        return
+    for _, writer in endpoints:
+        while not writer.get_matched_subscriptions() and not done.is_set():
+            done.wait(0.01)
+    say(event="ready")
+    written = 0
+    payloads = [(writer, payloads_of(entry)) for entry, writer in endpoints]
+    while True:
+        for writer, items in payloads:
+            for payload in items:
+                ddspy_write(writer._ref, payload + b"\0" * (-len(payload) % 4))
+                written += 1
+        say(event="published", n=written)
+        if not config.get("repeat") or done.wait(0.05):
+            break
+    done.wait()
+
+
+def main():
+    config = json.loads(sys.argv[1])
+    for file, package in config.get("msg", []):
+        path = Path(file)
+        STORE.register(get_types_from_msg(path.read_text(), f"{package}/msg/{path.stem}"))
+    (zenoh_main if config["middleware"] == "zenoh" else dds_main)(config)
+
+
+if __name__ == "__main__":
+    main()
