@@ -159,7 +159,7 @@ class DdsTransport(RosTransport):
             self._participant = DomainParticipant(self.domain)
             self._discovery = BuiltinDataReader(
                 self._participant, BuiltinTopicDcpsPublication,
-                listener=Listener(on_data_available=self._on_publications),
+                listener=Listener(on_data_available=lambda _: self._on_publications()),
             )
         except DDSException as exc:
             self._delete_all()
@@ -215,11 +215,14 @@ class DdsTransport(RosTransport):
     def _wire_subscribe(self, topic: RosTopic) -> None:
         if topic.name in self._readers:
             return
-        self._readers[topic.name] = DataReader(
+        reader = self._readers[topic.name] = DataReader(
             self._participant, self._dds_topic(topic),
             qos=_qos(topic.qos, topic.codec.type_hash),
-            listener=Listener(on_data_available=lambda reader: self._on_data(topic, reader)),
+            listener=Listener(on_data_available=lambda _: self._on_data(topic)),
         )
+        # Data can arrive while the reader is being made (a latched message), before Cyclone's
+        # Python layer knows the reader: the listener then gets None; take what is there now.
+        self._on_data(topic, reader)
 
     def _wire_unsubscribe(self, topic: RosTopic) -> None:
         reader = self._readers.pop(topic.name, None)
@@ -227,7 +230,10 @@ class DdsTransport(RosTransport):
             reader.__del__()  # as in _delete_all: stop receiving now, not at collection
 
     # -- receiving (on Cyclone's threads: never raise) ------------------------------------------
-    def _on_data(self, topic: RosTopic, reader: DataReader) -> None:
+    def _on_data(self, topic: RosTopic, reader: DataReader | None = None) -> None:
+        reader = reader or self._readers.get(topic.name)
+        if reader is None:
+            return  # not made yet: _wire_subscribe takes what arrived meanwhile
         try:
             while True:
                 samples = ddspy_take(reader._ref, _ANY_SAMPLE, _TAKE_BATCH)
@@ -269,31 +275,38 @@ class DdsTransport(RosTransport):
         self._publications[handle] = why
         return why
 
-    def _on_publications(self, reader: BuiltinDataReader) -> None:
+    def _on_publications(self) -> None:
         """Count publishers of another type on our topics (DDS never matches them)."""
+        reader = self._discovery
+        if reader is None:
+            return
         try:
-            for endpoint in reader.take(_TAKE_BATCH):
-                if not getattr(endpoint.sample_info, "valid_data", True):
-                    continue
-                name = endpoint.topic_name
-                topic = self._topics.get(name[2:]) if name.startswith("rt/") else None
-                if topic is None or name[2:] not in self._readers:
-                    continue
-                if endpoint.type_name == topic.codec.dds_name or endpoint.key in self._foreign:
-                    continue
-                self._foreign.add(endpoint.key)
-                ros_name = ros_type_name(endpoint.type_name)
-                if ros_name is None or ros_name not in self.store:
-                    self._reject(
-                        topic.name, "unknown_type",
-                        f"a publisher of the unknown type {endpoint.type_name[:80]!r} "
-                        f"(declared type: {topic.typename}) is never matched",
-                    )
-                else:
-                    self._reject(
-                        topic.name, "type_conflict",
-                        f"a publisher of {ros_name} (declared type: {topic.typename}) is "
-                        "never matched",
-                    )
+            while endpoints := reader.take(_TAKE_BATCH):
+                self._check_publications(endpoints)
         except Exception:
             _log.exception("error reading DDS discovery data")
+
+    def _check_publications(self, endpoints: list[Any]) -> None:
+        for endpoint in endpoints:
+            if not getattr(endpoint.sample_info, "valid_data", True):
+                continue
+            name = endpoint.topic_name
+            topic = self._topics.get(name[2:]) if name.startswith("rt/") else None
+            if topic is None or name[2:] not in self._readers:
+                continue
+            if endpoint.type_name == topic.codec.dds_name or endpoint.key in self._foreign:
+                continue
+            self._foreign.add(endpoint.key)
+            ros_name = ros_type_name(endpoint.type_name)
+            if ros_name is None or ros_name not in self.store:
+                self._reject(
+                    topic.name, "unknown_type",
+                    f"a publisher of the unknown type {endpoint.type_name[:80]!r} "
+                    f"(declared type: {topic.typename}) is never matched",
+                )
+            else:
+                self._reject(
+                    topic.name, "type_conflict",
+                    f"a publisher of {ros_name} (declared type: {topic.typename}) is "
+                    "never matched",
+                )
