@@ -96,7 +96,7 @@ class BagReader:
 
     ``topics`` limits the reading to those topics (default: all). ``store`` is the type store
     (default: the standard interfaces); the bag's own definitions fill in the types it lacks.
-    :attr:`topics` maps each recorded topic to its type; :attr:`message_count` counts the
+    :attr:`topics` maps every recorded topic to its type; :attr:`message_count` counts the
     messages of the selected topics.
     """
 
@@ -131,9 +131,9 @@ class BagReader:
 
     def _scan(self, reader: Reader) -> None:
         for connection in reader.connections:
+            known = self.topics.setdefault(connection.topic, connection.msgtype)
             if self._wanted is not None and connection.topic not in self._wanted:
                 continue
-            known = self.topics.setdefault(connection.topic, connection.msgtype)
             if known != connection.msgtype:
                 raise BagError(
                     f"{self.path}: topic {connection.topic} is recorded with two types, "
