@@ -1,0 +1,281 @@
+"""ROS 2 speed: ingest of /odom-sized messages over Zenoh and DDS, and rosbag2 decoding.
+
+Ingest: a publisher process (eclipse-zenoh or cyclonedds with rosbags, no rasm) sends N
+nav_msgs/msg/Odometry messages (724 bytes of CDR) as fast as it can, on loopback. In this
+process, in turn,
+
+- a bare subscriber (eclipse-zenoh callback / cyclonedds listener) decodes each with rosbags,
+- rasm's ZenohTransport / DdsTransport delivers each to a callback as a dict (keep-all QoS);
+
+the rate is messages received per second, first to last. Each case runs 3 times; the median
+counts. Bag: a bag of N Odometry messages (MCAP) is read and decoded by rosbags' AnyReader and
+by rasm's BagReader.
+
+Run: ``.venv/bin/python benchmarks/ros2.py [--count N]``. The ratios print last. Figures are
+recorded in docs/ros2.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+CYCLONE_LOOPBACK = (
+    '<CycloneDDS><Domain id="any"><General><Interfaces>'
+    '<NetworkInterface address="127.0.0.1"/></Interfaces>'
+    "<AllowMulticast>false</AllowMulticast></General>"
+    '<Discovery><Peers><Peer address="127.0.0.1"/></Peers>'
+    "<ParticipantIndex>auto</ParticipantIndex></Discovery></Domain></CycloneDDS>"
+)
+os.environ.setdefault("CYCLONEDDS_URI", CYCLONE_LOOPBACK)
+
+TYPE = "nav_msgs/msg/Odometry"
+TOPIC = "/odom"
+RUNS = 3
+WAIT = 60.0
+
+
+def odometry_cdr() -> bytes:
+    from rasm.ros2 import TypeStore
+
+    return TypeStore().codec(TYPE).encode({
+        "header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "odom"},
+        "child_frame_id": "base_link",
+        "pose": {"pose": {"position": {"x": 1.0, "y": 2.0}, "orientation": {"w": 1.0}},
+                 "covariance": [0.01] * 36},
+        "twist": {"twist": {"linear": {"x": 0.2}, "angular": {"z": 0.1}},
+                  "covariance": [0.01] * 36},
+    })
+
+
+# -- the publisher process (no rasm on the wire side) -------------------------------------------
+def publish(middleware: str, where: str, count: int) -> None:
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    data = odometry_cdr()
+    done = threading.Event()
+    threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+    if middleware == "zenoh":
+        import zenoh
+
+        config = zenoh.Config()
+        config.insert_json5("mode", '"peer"')
+        config.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{where}"]))
+        config.insert_json5("scouting/multicast/enabled", "false")
+        session = zenoh.open(config)
+        key = f"0/odom/nav_msgs::msg::dds_::Odometry_/{store.hash_rihs01(TYPE)}"
+        publisher = session.declare_publisher(
+            key, congestion_control=zenoh.CongestionControl.BLOCK)
+        print("listening", flush=True)
+        while not publisher.matching_status.matching:
+            done.wait(0.01)
+        attachment = bytes(33)
+        for _ in range(count):
+            publisher.put(data, attachment=attachment)
+    else:
+        from cyclonedds._clayer import ddspy_write
+        from cyclonedds.domain import DomainParticipant
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.qos import Policy, Qos
+        from cyclonedds.topic import Topic
+
+        from rasm.ros2 import TypeStore
+        from rasm.ros2.dds import idl_struct
+
+        participant = DomainParticipant(int(where))
+        qos = Qos(Policy.Reliability.Reliable(10**9), Policy.History.KeepAll,
+                  Policy.DataRepresentation(use_cdrv0_representation=True))
+        topic = Topic(participant, "rt/odom", idl_struct(TypeStore(), TYPE), qos=qos)
+        writer = DataWriter(participant, topic, qos=qos)
+        print("listening", flush=True)
+        while not writer.get_matched_subscriptions():
+            done.wait(0.01)
+        padded = data + b"\0" * (-len(data) % 4)
+        for _ in range(count):
+            ddspy_write(writer._ref, padded)
+    print("published", flush=True)
+    done.wait()
+
+
+class Receiver:
+    """Counts arrivals; notes the first and last time."""
+
+    def __init__(self, count: int) -> None:
+        self.count = count
+        self.n = 0
+        self.first = self.last = 0.0
+        self.done = threading.Event()
+
+    def hit(self, *_: object) -> None:
+        now = time.perf_counter()
+        if self.n == 0:
+            self.first = now
+        self.n += 1
+        self.last = now
+        if self.n >= self.count:
+            self.done.set()
+
+    def rate(self) -> float:
+        return (self.n - 1) / (self.last - self.first) if self.n > 1 else 0.0
+
+
+def run_case(middleware: str, rasm: bool, count: int) -> tuple[float, int]:
+    from rasm.testing.servers import free_port
+
+    where = str(free_port()) if middleware == "zenoh" else str(100 + os.getpid() % 100)
+    publisher = subprocess.Popen(
+        [sys.executable, __file__, "publish", middleware, where, str(count)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+    )
+    assert publisher.stdout is not None
+    publisher.stdout.readline()  # "listening"
+    receiver = Receiver(count)
+    cleanup = []
+    try:
+        if rasm:
+            cleanup.append(start_rasm(middleware, where, receiver))
+        else:
+            cleanup.append(start_bare(middleware, where, receiver))
+        receiver.done.wait(WAIT)
+        time.sleep(0.2)  # let stragglers in before closing: they count in n, not in the rate
+    finally:
+        for close in cleanup:
+            close()
+        publisher.stdin.close()  # type: ignore[union-attr]
+        publisher.wait(10)
+    return receiver.rate(), receiver.n
+
+
+def start_rasm(middleware: str, where: str, receiver: Receiver):
+    from rasm.ros2 import DdsTransport, ZenohTransport
+
+    options = {"types": {TOPIC: TYPE}, "qos": {TOPIC: {"history": "keep_all"}},
+               "max_pending": 1_000_000}
+    if middleware == "zenoh":
+        transport = ZenohTransport(f"zenoh://127.0.0.1:{where}", **options)
+    else:
+        transport = DdsTransport(f"dds://?domain={where}", **options)
+    transport.subscribe(TOPIC, receiver.hit)
+    transport.connect()
+    return transport.close
+
+
+def start_bare(middleware: str, where: str, receiver: Receiver):
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    if middleware == "zenoh":
+        import zenoh
+
+        config = zenoh.Config()
+        config.insert_json5("mode", '"peer"')
+        config.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{where}"]))
+        config.insert_json5("scouting/multicast/enabled", "false")
+        session = zenoh.open(config)
+        key = f"0/odom/nav_msgs::msg::dds_::Odometry_/{store.hash_rihs01(TYPE)}"
+
+        def on_sample(sample):
+            receiver.hit(store.deserialize_cdr(sample.payload.to_bytes(), TYPE))
+
+        session.declare_subscriber(key, on_sample)
+        return session.close
+    from cyclonedds._clayer import ddspy_take
+    from cyclonedds.core import InstanceState, Listener, SampleState, ViewState
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.qos import Policy, Qos
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    from rasm.ros2 import TypeStore
+    from rasm.ros2.dds import idl_struct
+
+    mask = SampleState.Any | ViewState.Any | InstanceState.Any
+    participant = DomainParticipant(int(where))
+    qos = Qos(Policy.Reliability.Reliable(10**9), Policy.History.KeepAll,
+              Policy.DataRepresentation(use_cdrv0_representation=True))
+    topic = Topic(participant, "rt/odom", idl_struct(TypeStore(), TYPE), qos=qos)
+    readers = []
+
+    def on_data(_):
+        while samples := ddspy_take(readers[0]._ref, mask, 64):
+            for data, _info in samples:
+                receiver.hit(store.deserialize_cdr(data, TYPE))
+
+    readers.append(DataReader(participant, topic, qos=qos,
+                              listener=Listener(on_data_available=on_data)))
+    return lambda: participant.__del__()
+
+
+def bag_rates(count: int) -> tuple[float, float]:
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from rasm.ros2 import BagReader, TypeStore
+
+    store = TypeStore()
+    data = odometry_cdr()
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = Path(tmp) / "bag"
+        with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            connection = writer.add_connection(TOPIC, TYPE, typestore=store.rosbags)
+            for i in range(count):
+                writer.write(connection, i * 1000, data)
+        theirs, ours = [], []
+        for _ in range(RUNS):
+            start = time.perf_counter()
+            with AnyReader([bag]) as reader:
+                n = sum(1 for c, _, raw in reader.messages() if reader.deserialize(raw, c.msgtype))
+            theirs.append(n / (time.perf_counter() - start))
+            start = time.perf_counter()
+            n = sum(1 for _ in BagReader(bag))
+            ours.append(n / (time.perf_counter() - start))
+    return statistics.median(theirs), statistics.median(ours)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args[:1] == ["publish"]:
+        publish(args[1], args[2], int(args[3]))
+        return 0
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--count", type=int, default=20_000, help="messages per run")
+    options = parser.parse_args(args)
+    rows = {}
+    for middleware in ("zenoh", "dds"):
+        for rasm in (False, True):
+            name = f"{middleware} {'rasm transport' if rasm else 'bare + rosbags'}"
+            results = [run_case(middleware, rasm, options.count) for _ in range(RUNS)]
+            rows[name] = statistics.median(r for r, _ in results)
+            lost = options.count - min(n for _, n in results)
+            print(f"  {name}: {rows[name]:,.0f} msg/s (fewest received: "
+                  f"{options.count - lost} of {options.count})", file=sys.stderr)
+    theirs, ours = bag_rates(options.count)
+    print(f"\nIngest of {TYPE} over loopback, messages/s (median of {RUNS} runs)")
+    for name, rate in rows.items():
+        print(f"{name:<28} {rate:>10,.0f}")
+    print(f"\nBag decoding ({options.count} {TYPE}, MCAP), messages/s")
+    print(f"{'rosbags AnyReader':<28} {theirs:>10,.0f}")
+    print(f"{'rasm BagReader':<28} {ours:>10,.0f}")
+    zenoh_ratio = rows["zenoh rasm transport"] / rows["zenoh bare + rosbags"]
+    dds_ratio = rows["dds rasm transport"] / rows["dds bare + rosbags"]
+    print("\nRatios (rasm / bare)")
+    print(f"zenoh_ingest_ratio {zenoh_ratio:.2f}   (goal >= 0.50)")
+    print(f"dds_ingest_ratio   {dds_ratio:.2f}")
+    print(f"bag_decode_ratio   {ours / theirs:.2f}   (goal >= 0.70)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
