@@ -212,6 +212,9 @@ class DdsTransport(RosTransport):
     def _wire_matched(self, topic: RosTopic, publisher: DataWriter) -> bool:
         return bool(publisher.get_matched_subscriptions())
 
+    def _in_use(self, topic: str) -> bool:
+        return topic in self._writers
+
     def _wire_subscribe(self, topic: RosTopic) -> None:
         if topic.name in self._readers:
             return

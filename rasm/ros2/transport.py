@@ -238,6 +238,11 @@ class RosTransport(Transport):
                 )
             if qos is None or known.qos == profile:
                 return known
+            if known.name in self._wired or self._in_use(known.name):
+                raise CommError(
+                    f"{topic} is already in use with {known.qos}; its QoS cannot change now "
+                    "(declare it with its QoS before subscribing or publishing)"
+                )
         declared = self._topics[topic] = RosTopic(topic, codec, profile)
         if self._state == "open" and self._wanted(topic) and topic not in self._wired:
             self._wire_subscribe(declared)
@@ -277,6 +282,10 @@ class RosTransport(Transport):
                 f"(transport.declare({topic!r}, 'pkg/msg/Type') or types={{{topic!r}: ...}})"
             )
         return found
+
+    def _in_use(self, topic: str) -> bool:
+        """True if the middleware already has a publisher for ``topic`` (subclasses know)."""
+        return False
 
     def _wanted(self, topic: str) -> bool:
         """True if some active subscription's pattern matches ``topic``."""

@@ -278,6 +278,9 @@ class ZenohTransport(RosTransport):
         replies = self._session.liveliness().get(key, timeout=self.connect_timeout)
         return any(reply.ok is not None for reply in replies)
 
+    def _in_use(self, topic: str) -> bool:
+        return topic in self._publishers
+
     def _wire_subscribe(self, topic: RosTopic) -> None:
         if topic.name in self._subscribers:
             return

@@ -100,3 +100,16 @@ def test_the_qos_text_of_liveliness_tokens_is_rmw_zenohs():
     assert qos_text(transport.topics["/a"]) == "::,10:,:,:,,"
     assert qos_text(transport.topics["/b"]) == "::,:,:,:,,"  # 42 is rmw_zenoh's default depth
     assert qos_text(transport.topics["/c"]) == "2:1:2,10:,:,:,,"
+
+
+def test_a_topics_qos_cannot_change_once_in_use(transports, dds_domain):
+    from rasm.ros2 import DdsTransport
+
+    transport = transports(DdsTransport(f"dds://?domain={dds_domain}",
+                                        types={"/odom": "nav_msgs/msg/Odometry"}))
+    transport.declare("/odom", "nav_msgs/msg/Odometry", qos={"depth": 3})  # not used yet: fine
+    transport.subscribe("/odom", lambda m: None)
+    transport.connect()
+    with pytest.raises(CommError, match="its QoS cannot change now"):
+        transport.declare("/odom", "nav_msgs/msg/Odometry", qos={"depth": 4})
+    assert transport.topics["/odom"].qos.depth == 3
