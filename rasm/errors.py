@@ -144,6 +144,18 @@ def is_interrupt(exc: BaseException) -> bool:
     )
 
 
+class Misfit(RasmError):
+    """A value that does not fit its declared type or range (see :func:`rasm.values.fit`).
+
+    ``reason`` says why without quoting the value (``expected float, got str``: what a count of
+    refusals is keyed by); the message quotes it (``expected float, got str 'hot'``).
+    """
+
+    def __init__(self, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+
+
 class StatechartError(RasmError):
     """The statechart layer failed (loading, validating or executing a chart)."""
 

@@ -1,9 +1,10 @@
-"""Value types of the knowledge base: declarations and the checks that guard every write.
+"""Declarations of the knowledge base and the checks that guard every write.
 
 Five types: ``float``, ``int``, ``bool``, ``str`` and ``json`` (any JSON value: plans, scans as
-lists, dicts with string keys). A check turns an accepted value into its canonical form (an int
-given for a float becomes a float; a JSON value becomes a fresh copy as JSON would give it back)
-so that what is read from memory equals what a restore from disk gives back.
+lists, dicts with string keys), checked by :func:`rasm.values.fit`. A check turns an accepted
+value into the form it is kept in (an int given for a float becomes a float; a JSON value becomes
+a fresh copy as JSON would give it back) so that what is read from memory equals what a restore
+from disk gives back.
 """
 
 from __future__ import annotations
@@ -15,10 +16,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from rasm.errors import KnowledgeError
+from rasm.errors import KnowledgeError, Misfit
+from rasm.values import TYPES, fit, infer_type
 
-TYPES: tuple[str, ...] = ("float", "int", "bool", "str", "json")
-"""The value types a key may be declared with."""
+__all__ = [
+    "DEFAULT_HISTORY", "TYPES", "Check", "Declaration", "decode", "encode", "infer_type",
+    "make_check",
+]
 
 DEFAULT_HISTORY = 1000
 """Samples kept in memory per key when a declaration does not say."""
@@ -72,94 +76,15 @@ def _is_number(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def _describe(value: object) -> str:
-    text = repr(value)
-    if len(text) > 60:
-        text = text[:57] + "..."
-    return f"{type(value).__name__} {text}"
-
-
-def mismatch(key: str, expected: str, value: object, hint: str = "") -> KnowledgeError:
-    """The error for a value of the wrong type: names the key, the expected type and what came."""
-    message = f"knowledge {key!r}: expected {expected}, got {_describe(value)}"
-    return KnowledgeError(message + (f" ({hint})" if hint else ""))
-
-
-def infer_type(value: object) -> str:
-    """The type an undeclared key takes from its first value."""
-    if isinstance(value, bool):
-        return "bool"
-    if isinstance(value, numbers.Integral):
-        return "int"
-    if isinstance(value, numbers.Real):
-        return "float"
-    if isinstance(value, str):
-        return "str"
-    return "json"
-
-
 def make_check(decl: Declaration) -> Check:
-    """Build the check of one declaration (a closure: the hot path does no dictionary lookups)."""
-    key, kind = decl.key, decl.type
-    if kind == "float":
-        return _number_check(key, decl, float, numbers.Real)
-    if kind == "int":
-        return _number_check(key, decl, int, numbers.Integral)
-    if kind == "bool":
-
-        def check_bool(value: Any) -> Any:
-            if value is True or value is False:
-                return value
-            raise mismatch(key, "bool", value)
-
-        return check_bool
-    if kind == "str":
-
-        def check_str(value: Any) -> Any:
-            if type(value) is str:
-                return value
-            if isinstance(value, str):
-                return str(value)  # a str subclass is stored as a plain str, as disk gives back
-            raise mismatch(key, "str", value)
-
-        return check_str
-
-    def check_json(value: Any) -> Any:
-        # One encode both proves the value is JSON and makes the canonical copy that readers
-        # share: later changes to the caller's list or dict cannot rewrite history.
-        try:
-            return json.loads(json.dumps(value))
-        except (TypeError, ValueError, RecursionError) as exc:
-            raise mismatch(
-                key,
-                "a JSON value",
-                value,
-                "None, bool, numbers, str, lists and dicts with str keys; "
-                "convert arrays with .tolist()",
-            ) from exc
-
-    return check_json
-
-
-def _number_check(key: str, decl: Declaration, convert: type, abstract: type) -> Check:
-    kind = decl.type
-    lo, hi = decl.minimum, decl.maximum
+    """The check of one declaration: :func:`rasm.values.fit` with its type and bounds."""
+    key, kind, low, high = decl.key, decl.type, decl.minimum, decl.maximum
 
     def check(value: Any) -> Any:
-        if type(value) is not convert:
-            if isinstance(value, bool) or not isinstance(value, abstract):
-                # bool is an int to Python, never here: True is not a count or a velocity
-                raise mismatch(key, kind, value)
-            try:
-                value = convert(value)
-            except (OverflowError, ValueError) as exc:
-                raise mismatch(key, kind, value, str(exc)) from exc
-        # written as "not (x >= lo)" so that NaN is out of any declared range
-        if lo is not None and not value >= lo:
-            raise KnowledgeError(f"knowledge {key!r}: {value!r} is below its minimum {lo!r}")
-        if hi is not None and not value <= hi:
-            raise KnowledgeError(f"knowledge {key!r}: {value!r} is above its maximum {hi!r}")
-        return value
+        try:
+            return fit(value, kind, minimum=low, maximum=high)
+        except Misfit as misfit:
+            raise KnowledgeError(f"knowledge {key!r}: {misfit}") from None
 
     return check
 

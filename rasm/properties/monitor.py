@@ -10,24 +10,18 @@ from dataclasses import dataclass, field
 from types import CodeType
 from typing import NamedTuple
 
-from rasm.errors import SpecError
+from rasm.errors import Misfit, SpecError
 from rasm.properties.ast import Specification
 from rasm.properties.codegen import UNSET, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
 from rasm.properties.times import nanoseconds
+from rasm.values import fit, wanted
 
 __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties"]
 
 NUMERIC = frozenset((int, float))
 SCALAR = frozenset((int, float, str, bool))
-_WANT = {
-    "float": "a number",
-    "int": "an integer",
-    "bool": "true or false",
-    "str": "a string",
-    "any": "a number, string or boolean",
-}
 
 
 class Verdict(NamedTuple):
@@ -73,21 +67,16 @@ BAD = type("Bad", (), {"__repr__": lambda self: "<bad value>"})()
 
 
 def coerce(value, kind: str):
-    """The slow path of the generated checks: convert numpy-like scalars, refuse the rest.
+    """The slow path of the generated checks: :func:`rasm.values.fit` of a value whose class
+    is not the one the fast test looks for (a numpy number, an int subclass), an int given for
+    a float kept exact.
 
     Returns the plain Python value, or :data:`BAD`.
     """
-    if isinstance(value, bool) or type(value).__name__ in ("bool_", "bool8"):
-        return bool(value) if kind in ("bool", "any") else BAD
-    if kind == "bool":
+    try:
+        return fit(value, kind, int_as_float=False)
+    except Misfit:
         return BAD
-    if isinstance(value, numbers.Integral):
-        return int(value) if kind in ("int", "float", "any") else BAD
-    if isinstance(value, numbers.Real):
-        return float(value) if kind in ("float", "any") else BAD
-    if isinstance(value, str):
-        return str(value) if kind in ("str", "any") else BAD
-    return BAD
 
 
 def describe_rejection(time, record, signal: str | None, kind: str) -> str:
@@ -101,7 +90,7 @@ def describe_rejection(time, record, signal: str | None, kind: str) -> str:
     if kind == "backwards":
         return f"time {time!r} goes back in time"
     value = record.get(signal)
-    return f"{signal!r} must be {_WANT[kind]}, not {json_repr(value)}"
+    return f"{signal!r} must be {wanted(kind)}, not {json_repr(value)}"
 
 
 def json_repr(value) -> str:

@@ -17,33 +17,20 @@ import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from rasm.errors import Location, SourceError, SourceErrors, read_utf8
+from rasm.errors import Location, Misfit, SourceError, SourceErrors, read_utf8
 from rasm.jsontext import JsonProblem, parse_json
 from rasm.properties.times import FAST, Seconds, nanoseconds
+from rasm.values import fit, wanted
 
 __all__ = ["read_trace", "parse_trace", "MAX_REPORTED"]
 
 MAX_REPORTED = 50  # a broken file is reported by its first problems, not a million lines
-_WANT = {
-    "float": "a number",
-    "int": "an integer",
-    "bool": "true or false",
-    "str": "a string",
-    "any": "a number, string or boolean",
-}
-
-
-def _accepts(kind: str, value: object) -> bool:
-    cls = value.__class__
-    if kind == "float":
-        return cls is int or cls is float
-    if kind == "int":
-        return cls is int
-    if kind == "bool":
-        return cls is bool
-    if kind == "str":
-        return cls is str
-    return cls in (int, float, str, bool)
+def _fits(value: object, kind: str) -> bool:
+    try:
+        fit(value, kind, int_as_float=False)  # nan and the infinities are numbers here
+    except Misfit:
+        return False
+    return True
 
 
 _TIME_TEXT = re.compile(r'"time"\s*:\s*(-?[0-9][0-9.eE+-]*)')
@@ -127,9 +114,9 @@ def parse_trace(
         bad = False
         for key, value in record.items():
             kind = signals.get(key)
-            if kind is not None and not _accepts(kind, value):
+            if kind is not None and not _fits(value, kind):
                 fail(
-                    f"{key!r} must be {_WANT[kind]}, not {json.dumps(value)}",
+                    f"{key!r} must be {wanted(kind)}, not {json.dumps(value)}",
                     number,
                     _column(line, key),
                 )

@@ -32,6 +32,7 @@ from typing import Any
 
 from hypothesis import strategies as st
 
+from rasm.errors import Misfit
 from rasm.properties.ast import (
     COMPARISONS,
     INF,
@@ -48,6 +49,7 @@ from rasm.properties.ast import (
     children,
 )
 from rasm.testing._props import PropertyFile, property_file
+from rasm.values import fit
 
 __all__ = ["traces", "signal_domains", "Domain"]
 
@@ -211,15 +213,11 @@ def _given_domain(name: str, kind: str, value: Any, required: bool, source: str)
 
 
 def _fits(kind: str, value: Any) -> bool:
-    if kind == "bool":
-        return isinstance(value, bool)
-    if kind == "str":
-        return isinstance(value, str)
-    if kind == "int":
-        return isinstance(value, int) and not isinstance(value, bool)
-    if kind == "float":
-        return _is_number(value)
-    return isinstance(value, int | float | str | bool)
+    try:
+        fit(value, kind, int_as_float=False)
+    except Misfit:
+        return False
+    return True
 
 
 def _last(k: int) -> bool:

@@ -248,3 +248,21 @@ def test_a_dashboard_port_out_of_range_exits_2(tmp_path, capsys, monkeypatch, po
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err == f"rasm: dashboard: port {port} is not a TCP port (0 to 65535)\n"
+
+
+def test_the_schema_declares_the_value_types_rasm_checks():
+    # the schema is also the editors' reference: its type lists are the ones rasm.values checks
+    from rasm.platform.manifest import SCHEMA
+    from rasm.values import TYPES
+
+    enums = []
+    stack = [SCHEMA]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            if "float" in node.get("enum", ()):
+                enums.append(node["enum"])
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+    assert len(enums) == 3 and all(tuple(enum) == TYPES for enum in enums)
