@@ -17,7 +17,7 @@ from typing import Any
 import jsonschema
 
 from rasm.errors import Location, SourceError, SourceErrors, not_utf8
-from rasm.platform.trace import LOOP_KEYS
+from rasm.loop import LOOP_KEYS
 from rasm.statechart.source import YamlSource, load_yaml, plain
 
 __all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEMA"]
@@ -25,7 +25,6 @@ __all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEM
 SCHEMA: dict[str, Any] = json.loads(
     (Path(__file__).with_name("app.schema.json")).read_text(encoding="utf-8")
 )
-STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
 _REF = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 
 

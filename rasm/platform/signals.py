@@ -31,12 +31,11 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import Location, SourceError, SourceErrors, mark, read_utf8
+from rasm.loop import LOOP_SIGNAL_TYPES
 from rasm.platform.manifest import AppManifest, manifest_location
-from rasm.platform.trace import LOOP_KEYS
 from rasm.resources import data_dir
 
 __all__ = [
-    "LOOP_SIGNAL_TYPES",
     "Provided",
     "Provider",
     "app_problems",
@@ -46,25 +45,6 @@ __all__ = [
     "reads",
     "unprovided",
 ]
-
-#: The type of each key the loop writes in the trace (LOOP_KEYS), as a property reads it.
-LOOP_SIGNAL_TYPES: dict[str, str] = {
-    "time": "float",
-    "stage": "str",
-    "duration": "float",
-    "anomaly": "bool",
-    "planned": "bool",
-    "legitimate": "bool",
-    "rejected": "bool",
-    "trusted": "bool",
-    "executed": "bool",
-    "dropped": "bool",
-    "plan": "str",
-    "broken_rules": "json",
-    "explanation": "str",
-    "drift": "bool",
-    "twin_model_version": "int",
-}
 
 # what the runtime registers in knowledge for a twin (twin_residual also goes in the trace)
 _TWIN_KNOWLEDGE = {"twin_residual": "float", "twin_model": "json"}
@@ -130,7 +110,7 @@ def provided(manifest: AppManifest) -> Provided:
         for key, kind in effector.fields.items():
             plan.setdefault(key, Provider(kind, f"effector {effector.name}'s fields"))
     # a loop key without a known type ("any") is provided but not type-checked
-    trace = {key: Provider(LOOP_SIGNAL_TYPES.get(key, "any"), "the loop") for key in LOOP_KEYS}
+    trace = {key: Provider(kind, "the loop") for key, kind in LOOP_SIGNAL_TYPES.items()}
     # the trace holds knowledge as registered (json values never: reading them is a type
     # error) and the planned record the plan's fields
     trace.update(knowledge)

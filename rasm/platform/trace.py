@@ -13,31 +13,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
+from rasm.loop import LOOP_KEYS  # moved to rasm.loop; imported from here by rasm.platform
+
 __all__ = ["LOOP_KEYS", "TraceWriter", "round_time"]
-
-#: The keys the loop itself writes in trace records (SPEC §4, docs/runtime.md). A knowledge
-#: signal of one of these names would forge the loop's own events in the trace and in what the
-#: Trustworthiness Checker's monitors see, so Monitor results and probe signals may not use them.
-LOOP_KEYS = frozenset(
-    {
-        "time",
-        "stage",
-        "duration",
-        "anomaly",
-        "planned",
-        "legitimate",
-        "rejected",
-        "trusted",
-        "executed",
-        "dropped",
-        "plan",
-        "broken_rules",
-        "explanation",
-        "drift",
-        "twin_model_version",
-    }
-)
-
 
 # json.dumps(..., separators=...) makes a new encoder per call: one for every line instead
 _encode = json.JSONEncoder(separators=(", ", ": ")).encode

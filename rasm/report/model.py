@@ -18,11 +18,9 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-__all__ = ["Adaptation", "LOOP_KEYS", "STAGES", "TraceModel", "percentiles"]
+from rasm.loop import EVENTS, LOOP_KEYS, STAGES
 
-STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
-EVENTS = ("anomaly", "planned", "legitimate", "rejected", "trusted", "executed", "dropped")
-LOOP_KEYS = frozenset({*EVENTS, "stage", "duration", "plan", "broken_rules", "explanation"})
+__all__ = ["Adaptation", "TraceModel", "percentiles"]
 
 
 def percentiles(values: Iterable[float], qs: tuple[float, ...] = (50, 90, 99)) -> dict[str, float]:

@@ -13,14 +13,11 @@ from collections.abc import Iterator
 from typing import Any
 
 from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.loop import LOOP_KEYS, STAGES
 from rasm.platform.signals import closest, reads, unprovided
-from rasm.platform.trace import LOOP_KEYS
-from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel, Check
+from rasm.workflow.model import ArchitectureModel, Check
 
-__all__ = ["PLATFORM_SIGNALS", "check_model", "produced_signals", "property_reads"]
-
-# keys the platform itself writes into the adaptation trace (SPEC §4): properties may read them
-PLATFORM_SIGNALS = LOOP_KEYS
+__all__ = ["check_model", "produced_signals", "property_reads"]
 
 
 def check_model(model: ArchitectureModel, *, signals: bool = True) -> list[SourceError]:
@@ -219,7 +216,7 @@ def _loop(model: ArchitectureModel) -> Iterator[SourceError]:
     where = model.source.key(model.source.data, "components") if model.source else Location("")
     seen: dict[str, str] = {}
     for component in model.components.values():
-        if component.role not in MAPLE_STAGES:
+        if component.role not in STAGES:
             continue
         if component.role in seen:
             yield _error(
@@ -230,7 +227,7 @@ def _loop(model: ArchitectureModel) -> Iterator[SourceError]:
             )
         else:
             seen[component.role] = component.name
-    for stage in MAPLE_STAGES:
+    for stage in STAGES:
         if stage not in seen:
             yield _error(
                 model,
@@ -339,11 +336,12 @@ def _trustworthiness(model: ArchitectureModel, *, signals: bool) -> Iterator[Sou
         spec, problems = _specification(check, model)
         yield from problems
         if spec is not None and signals:
+            readable = produced | LOOP_KEYS  # properties may read the keys the loop writes
             places = [
                 (name, where, "" if what == "read" else what)
-                for name, where, what in unprovided(spec, produced | PLATFORM_SIGNALS)
+                for name, where, what in unprovided(spec, readable)
             ]
-            yield from _unproduced(check, model, places, produced | PLATFORM_SIGNALS)
+            yield from _unproduced(check, model, places, readable)
 
 
 def _plan_fields(model: ArchitectureModel) -> set[str]:

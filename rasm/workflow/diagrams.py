@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel
+from rasm.loop import STAGES
+from rasm.workflow.model import ArchitectureModel
 
 __all__ = ["deployment_diagram", "logical_diagram", "model_to_dict", "physical_diagram"]
 
@@ -24,8 +25,8 @@ def _label(text: str) -> str:
 def logical_diagram(model: ArchitectureModel) -> str:
     """Components grouped into the managing (MAPLE-K) and managed systems; edges are topics."""
     lines = ["flowchart LR"]
-    managing = [c for c in model.components.values() if c.role in MAPLE_STAGES]
-    managed = [c for c in model.components.values() if c.role not in MAPLE_STAGES]
+    managing = [c for c in model.components.values() if c.role in STAGES]
+    managed = [c for c in model.components.values() if c.role not in STAGES]
     for title, group in (("managing system (MAPLE-K)", managing), ("managed system", managed)):
         if not group:
             continue
@@ -33,7 +34,7 @@ def logical_diagram(model: ArchitectureModel) -> str:
         for c in group:
             lines.append(f'    {_id(c.name)}["{_label(c.name)}<br/><i>{c.role}</i>"]')
         lines.append("  end")
-    order = [c.name for s in MAPLE_STAGES for c in managing if c.role == s]
+    order = [c.name for s in STAGES for c in managing if c.role == s]
     for a, b in zip(order, order[1:], strict=False):
         lines.append(f"  {_id(a)} -.->|knowledge| {_id(b)}")
     for link in model.links:

@@ -20,9 +20,10 @@ from ruamel.yaml import YAML
 from ruamel.yaml.scalarstring import LiteralScalarString
 
 from rasm.errors import Location, RasmError, SourceError, SourceErrors
+from rasm.loop import STAGES
 from rasm.workflow.checks import check_model, produced_signals
 from rasm.workflow.derive import app_config, effectors, probes, publications
-from rasm.workflow.model import MANAGED_ROLES, MAPLE_STAGES, ArchitectureModel, load_model
+from rasm.workflow.model import MANAGED_ROLES, ArchitectureModel, load_model
 from rasm.workflow.regions import Region, RegionError, merge
 
 __all__ = ["GenerateError", "Generated", "generate_app", "new_app", "templates"]
@@ -133,7 +134,7 @@ def _rules_stub(model: ArchitectureModel) -> str:
 
 
 def _context(model: ArchitectureModel) -> dict[str, Any]:
-    maple = [c for c in (model.stage(s) for s in MAPLE_STAGES) if c is not None]
+    maple = [c for c in (model.stage(s) for s in STAGES) if c is not None]
     managed = [c for c in model.components.values() if c.role in MANAGED_ROLES]
     signals = sorted(
         key

@@ -17,6 +17,7 @@ from typing import Any
 import jsonschema
 
 from rasm.errors import Location, SourceError, SourceErrors
+from rasm.loop import STAGES
 from rasm.statechart.source import YamlSource, load_yaml, plain
 
 __all__ = [
@@ -27,7 +28,6 @@ __all__ = [
     "Link",
     "Message",
     "Port",
-    "MAPLE_STAGES",
     "MANAGED_ROLES",
     "SCHEMA",
     "lint_model",
@@ -38,7 +38,6 @@ __all__ = [
 SCHEMA: dict[str, Any] = json.loads(
     Path(__file__).with_name("model.schema.json").read_text(encoding="utf-8")
 )
-MAPLE_STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
 MANAGED_ROLES = ("probe", "effector", "managed")
 _NOWHERE = Location("<model>")
 _RESERVED = frozenset({"Any", "Simulator", "Random", "StageContext", "Action", "Anomaly", "Plan"})
@@ -80,7 +79,7 @@ class Component:
 
     @property
     def managing(self) -> bool:
-        return self.role in MAPLE_STAGES
+        return self.role in STAGES
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,7 @@ from ruamel.yaml import YAML
 
 import rasm
 from rasm.errors import RasmError, SourceErrors
+from rasm.loop import STAGES
 from rasm.workflow.checks import check_model
 from rasm.workflow.derive import host_arch, model_from_manifest
 from rasm.workflow.diagrams import (
@@ -46,7 +47,7 @@ from rasm.workflow.diagrams import (
 )
 from rasm.workflow.generate import templates
 from rasm.workflow.integrity import MANIFEST, SIGNATURE, digest, manifest_bytes, sign
-from rasm.workflow.model import MAPLE_STAGES, ArchitectureModel, ComputeUnit, load_model
+from rasm.workflow.model import ArchitectureModel, ComputeUnit, load_model
 
 __all__ = [
     "PackageError",
@@ -250,7 +251,7 @@ def _dump(data: Any) -> str:
 
 
 def _role(model: ArchitectureModel, unit: str) -> str:
-    roles = {c.role in MAPLE_STAGES for c in model.components_on(unit)}
+    roles = {c.role in STAGES for c in model.components_on(unit)}
     return "all" if roles == {True, False} else "managing" if True in roles else "managed"
 
 
@@ -282,7 +283,7 @@ def _unit_config(model: ArchitectureModel, unit: ComputeUnit, manifest: Any) -> 
 
 def _node(model: ArchitectureModel, name: str, manifest: Any) -> tuple[str, dict[str, Any]]:
     c = model.components[name]
-    layer = f"maple_k/{c.role}" if c.role in MAPLE_STAGES else "managed_system"
+    layer = f"maple_k/{c.role}" if c.role in STAGES else "managed_system"
     ports = {}
     for port in c.ports.values():
         rows = [
@@ -304,12 +305,12 @@ def _node(model: ArchitectureModel, name: str, manifest: Any) -> tuple[str, dict
             ],
         }
     implementation = (
-        manifest.components.get(c.role) if c.role in MAPLE_STAGES else manifest.simulator
+        manifest.components.get(c.role) if c.role in STAGES else manifest.simulator
     )
     return f"02_Nodes/{layer}/{name}.yaml", {
         "node": name,
         "role": c.role,
-        "layer": "MAPLE-K" if c.role in MAPLE_STAGES else "managed system",
+        "layer": "MAPLE-K" if c.role in STAGES else "managed system",
         "unit": model.deployment.get(name),
         "implementation": implementation,
         "app_module": app_module(manifest.name),

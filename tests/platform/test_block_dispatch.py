@@ -9,9 +9,9 @@ from typing import Any
 
 import pytest
 
+from rasm.loop import LOOP_KEYS
 from rasm.platform.block import Block
 from rasm.platform.components import StageError, as_signals
-from rasm.platform.trace import LOOP_KEYS
 
 CHART = """\
 statechart:

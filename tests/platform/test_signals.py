@@ -21,8 +21,7 @@ from rasm.errors import SourceErrors
 from rasm.lint import lint_paths
 from rasm.platform.manifest import load_manifest
 from rasm.platform.runtime import Platform
-from rasm.platform.signals import LOOP_SIGNAL_TYPES, app_problems, check_app, provided
-from rasm.platform.trace import LOOP_KEYS
+from rasm.platform.signals import app_problems, check_app, provided
 from rasm.testing import run_app
 
 from .conftest import HOTBOX, ROOT
@@ -64,10 +63,6 @@ def test_the_examples_lint_clean_and_pass_the_check():
     assert lint_paths([str(HOTBOX), str(TURTLEBOT), str(ROOT / "examples" / "models")]) == []
     for app in (HOTBOX, TURTLEBOT):
         check_app(load_manifest(app))
-
-
-def test_every_loop_key_has_a_type():
-    assert set(LOOP_SIGNAL_TYPES) == LOOP_KEYS
 
 
 def test_the_monitors_declared_signals_are_provided_and_undeclared_ones_are_not(tmp_path):

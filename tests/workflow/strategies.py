@@ -8,7 +8,8 @@ from typing import Any
 from hypothesis import strategies as st
 from ruamel.yaml import YAML
 
-STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
+from rasm.loop import STAGES
+
 # free text with quotes, backslashes and line breaks: it ends up in docstrings and YAML
 DESCRIPTIONS = st.text(
     st.characters(codec="utf-8", exclude_categories=("Cc", "Cs"), include_characters="\n"),

@@ -1,0 +1,36 @@
+"""The MAPLE-K loop's vocabulary: its stages, and the keys and events it writes in a trace.
+
+The platform, the report, the architecture models and the signal checks all speak of the loop
+with these names; this module is where they are defined, once.
+"""
+
+from __future__ import annotations
+
+__all__ = ["EVENTS", "LOOP_KEYS", "LOOP_SIGNAL_TYPES", "STAGES"]
+
+STAGES: tuple[str, ...] = ("monitor", "analyse", "plan", "legitimate", "execute")
+"""The MAPLE-K stages, in the order one iteration runs them (Knowledge is shared by all)."""
+
+EVENTS: tuple[str, ...] = (
+    "anomaly", "planned", "legitimate", "rejected", "trusted", "executed", "dropped",
+)
+"""The events of one adaptation, in the order it meets them: each is a trace key set to true
+on the record of the moment it happened."""
+
+LOOP_SIGNAL_TYPES: dict[str, str] = {
+    "time": "float",
+    "stage": "str",
+    "duration": "float",
+    **{event: "bool" for event in EVENTS},
+    "plan": "str",
+    "broken_rules": "json",
+    "explanation": "str",
+    "drift": "bool",
+    "twin_model_version": "int",
+}
+"""Every key the loop itself writes in trace records, with the type a property reads it as."""
+
+LOOP_KEYS: frozenset[str] = frozenset(LOOP_SIGNAL_TYPES)
+"""The keys the loop writes in trace records. A knowledge signal of one of these names would
+forge the loop's own events in the trace and in what the monitors see, so probe signals and
+Monitor results may not use them."""
