@@ -82,7 +82,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes
     from rasm.properties.check import check_records, format_json, format_text, format_verdicts
     from rasm.properties.loader import load_specification
-    from rasm.properties.trace import read_trace
+    from rasm.trace import read_trace
 
     text = read_utf8(args.props)
     spec = load_specification(text, source=args.props)

@@ -1,6 +1,6 @@
 """The per-record class tests: ``type()`` first (a pointer test), ``__class__`` only after.
 
-Telegraf's digest, the store's ring, the trace copy and the platform's record of the values
+Telegraf's digest, the store's ring and the platform's record of the values
 stored decide on a value's class. They read ``type(value)`` first and fall back to
 ``value.__class__`` (an attribute lookup) only when that is not the class looked for, so their
 answer is the one ``__class__`` always gave, also for an object that says it is another class.
@@ -17,7 +17,6 @@ from hypothesis import strategies as st
 
 from rasm.platform.blocks import Telegraf, _check_value
 from rasm.platform.manifest import Probe, Signal
-from rasm.testing.apps import trace_line
 
 
 class ClaimsFloat:
@@ -40,41 +39,12 @@ class ClaimsFloat:
         return 1.5
 
 
-class ClaimsNan(ClaimsFloat):
-    """Says it is a float, finite to float() but not to ``x - x == 0``: which test decided
-    shows (the trace copy's fast path takes ``x - x``, its general path math.isfinite)."""
-
-    def __sub__(self, other: Any) -> float:
-        return math.nan
-
-
-class ClaimsStr:
-    """Says it is a str: a trace key taken as one (its isascii() is asked, as of a str)."""
-
-    @property  # type: ignore[misc]
-    def __class__(self) -> type:
-        return str
-
-    def isascii(self) -> bool:
-        return True
-
-
 def test_telegraf_takes_a_value_that_says_it_is_a_float_as_it_is():
     probe = Probe("box", {"t": Signal("t", "float", 0.0, 2.0)})
     tg = Telegraf([probe], lambda values, time: None)
     tg.send("configure")
     claims = ClaimsFloat()
     assert tg.digest("box", {"t": claims}, 1.0)["t"] is claims
-
-
-def test_a_trace_line_decides_on_what_says_it_is_a_str_or_a_float_as_before():
-    # the fast path takes both as what they say they are: x - x is nan, so the value is null
-    key = ClaimsStr()
-    assert trace_line(1.0, {key: ClaimsNan()}) == {"time": 1.0, key: None}
-    assert trace_line(1.0, {"k": ClaimsNan()}) == {"time": 1.0, "k": None}
-    rounded = ClaimsFloat()  # a time rounded to what says it is a float: the fast path too
-    time = type("Time", (), {"__round__": lambda self, digits: rounded})()
-    assert trace_line(time, {"k": ClaimsNan()}) == {"time": rounded, "k": None}
 
 
 # -------------------------------------------------------------------- Telegraf's range test

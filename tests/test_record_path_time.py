@@ -1,10 +1,8 @@
-"""The loop's time: a record's time is rounded as round(time, 9) rounds it, and the scheduler's
-now() is its clock's time."""
+"""The loop's time: the scheduler's now() is its clock's time."""
 
 from __future__ import annotations
 
 import math
-import random
 
 import pytest
 import sismic.clock.clock as sismic_clock
@@ -13,7 +11,6 @@ from hypothesis import strategies as st
 from sismic.clock import SimulatedClock
 
 from rasm.platform.scheduler import Scheduler
-from rasm.platform.trace import round_time
 from rasm.statechart import MonotonicClock
 
 SETTINGS = settings(max_examples=400, deadline=None, database=None)
@@ -28,49 +25,6 @@ def _same(a, b) -> bool:
             return math.isnan(b)
         return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
     return a == b
-
-
-# -------------------------------------------------------------------- round_time
-
-
-def _near_ties(k: int) -> list[float]:
-    """Times whose nanoseconds are (about) k + 1/2: where the fast rounding must step aside."""
-    tie = (k + 0.5) / 1e9
-    return [tie, math.nextafter(tie, 0.0), math.nextafter(tie, math.inf), k / 1e9]
-
-
-TIMES = st.one_of(
-    st.floats(0, 20_000),
-    st.floats(1e6, 1e8),  # on both sides of 2**52 nanoseconds (52 days)
-    st.floats(0, 1e-6),
-    st.floats(allow_nan=True, allow_infinity=True),
-    st.integers(0, 2**53).flatmap(lambda k: st.sampled_from(_near_ties(k))),
-    st.integers(1, 200_000).map(lambda n: sum([0.1] * (n % 997)) + n * 0.1),
-    st.sampled_from([0.0, -0.0, 5e-10, 1.5e-9, 2.5e-9, 2.0**52 / 1e9, 2.0**51 / 1e9]),
-    st.integers(-(10**6), 10**6),
-)
-
-
-@SETTINGS
-@given(TIMES)
-def test_round_time_is_round_to_the_nanosecond(time):
-    assert _same(round_time(time), round(time, 9))
-
-
-@pytest.mark.parametrize("high", [1e-6, 1.0, 1e3, 1e5, 2.0**52 / 1e9, 2.0**53 / 1e9, 1e8])
-def test_round_time_on_a_sweep_of_each_magnitude(high):
-    rng = random.Random(high)
-    for _ in range(20_000):
-        time = rng.uniform(high / 2, high)
-        assert _same(round_time(time), round(time, 9))
-
-
-def test_round_time_on_a_run_of_simulated_times():
-    # the times a simulated loop goes through: sums of its periods, for hours
-    now = 0.0
-    for _ in range(200_000):
-        now += 0.1
-        assert _same(round_time(now), round(now, 9))
 
 
 # -------------------------------------------------------------------- Scheduler.now

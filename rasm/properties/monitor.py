@@ -306,7 +306,7 @@ class Monitor:
     def run(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> list[PropertyRun]:
         """Check a whole trace of ``(time, values)`` pairs; faster than ``step`` per record.
 
-        A bad record raises :class:`SpecError` (read traces with :mod:`rasm.properties.trace` to get
+        A bad record raises :class:`SpecError` (read traces with :mod:`rasm.trace` to get
         line numbers). Returns each property's verdicts, in record order; where a property
         could not be evaluated, its value is False and ``errors`` says why.
         """

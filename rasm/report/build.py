@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import Location, SourceError
-from rasm.properties.trace import read_trace
 from rasm.report.model import TraceModel
 from rasm.report.page import render_page
 from rasm.report.verdicts import check_trace, load_properties, platform_properties
+from rasm.trace import read_trace
 
 __all__ = ["build_model", "missing_notes", "write_report"]
 

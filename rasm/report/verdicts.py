@@ -24,8 +24,8 @@ from rasm.properties.check import check_records
 from rasm.properties.explain import explain
 from rasm.properties.loader import load_specification, signals_of
 from rasm.properties.outcome import PropertyOutcome
-from rasm.properties.trace import read_trace
 from rasm.resources import data_dir
+from rasm.trace import read_trace
 
 __all__ = ["EXPLAINED", "VerdictTimeline", "check_trace", "load_properties", "platform_properties"]
 

@@ -12,13 +12,14 @@ The pytest plugin (:mod:`rasm.testing.plugin`, loaded automatically) adds the ``
 fixture. The tutorial is ``docs/testing.md``.
 """
 
-from rasm.testing.apps import Trace, run_app
+from rasm.testing.apps import run_app
 from rasm.testing.assertions import PropertyViolation, assert_properties, check_trace
 from rasm.testing.failures import failures_dir
 from rasm.testing.machine import ChartFailure, ChartState, statechart_machine
 from rasm.testing.monitors import applicable_monitors, watched_states
 from rasm.testing.scenarios import scenarios, windows
 from rasm.testing.traces import signal_domains, traces
+from rasm.trace import Trace
 
 __all__ = [
     "ChartFailure",

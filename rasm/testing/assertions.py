@@ -11,9 +11,9 @@ from typing import Any
 from rasm.properties.ast import Specification
 from rasm.properties.check import CheckReport, PropertyReport, check_records, format_text
 from rasm.properties.outcome import ERROR, NOT_JUDGED, VIOLATED
-from rasm.properties.trace import parse_trace
 from rasm.testing._props import property_file
 from rasm.testing.failures import is_final_example, save_jsonl
+from rasm.trace import parse_trace
 
 __all__ = ["PropertyViolation", "assert_properties", "check_trace"]
 

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from rasm.cli import main
 from rasm.errors import SourceErrors
 from rasm.properties.printer import unparse
-from rasm.properties.trace import parse_trace
+from rasm.trace import parse_trace
 
 from .strategies import HEADER, formulas, traces
 

@@ -23,7 +23,7 @@ from rasm.properties import compile_properties, load_specification
 from rasm.properties.ast import Future, Until, children
 from rasm.properties.check import check_records
 from rasm.properties.times import Seconds, nanoseconds
-from rasm.properties.trace import parse_trace, read_trace
+from rasm.trace import parse_trace, read_trace
 
 from .reference import exact_seconds
 from .strategies import HEADER, UNITS, decimal_traces, formulas

@@ -9,8 +9,8 @@ from hypothesis import Phase, find, given, settings
 from hypothesis import strategies as st
 
 from rasm.properties import compile_properties
-from rasm.properties.trace import parse_trace
 from rasm.testing import signal_domains, traces
+from rasm.trace import parse_trace
 
 PROPS = """
 input velocity: float          # m/s, range [0, 1.5]

@@ -1,14 +1,17 @@
-"""The trace file's lines: what json.dumps made of each record before the line writer got fast."""
+"""rasm.trace: a trace written, read back and held in memory is the same trace."""
 
 from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.trace import TraceWriter
+from rasm.errors import SourceErrors
+from rasm.trace import TraceWriter, format_line, parse_trace, read_trace, trace_line
 
 
 class Reading(float):
@@ -124,3 +127,95 @@ def test_each_record_reaches_the_file_as_it_is_emitted(tmp_path):
             range(i + 1)
         )
     writer.close()
+
+
+# ----------------------------------------------------------------------------- in memory
+
+
+def same(a, b) -> bool:
+    """Equal with the same types all the way down, a nan equal to a nan."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    if isinstance(a, list):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, dict):
+        return list(a) == list(b) and all(same(a[k], b[k]) for k in a)
+    return a == b
+
+
+RECORD_KEYS = KEYS.filter(lambda key: key != "time")  # the loop's own key: no record sets it
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.floats(0, 1e6), st.dictionaries(RECORD_KEYS, VALUES, max_size=5)),
+        max_size=5,
+    )
+)
+def test_a_trace_in_memory_is_the_trace_read_back_from_its_file(tmp_path_factory, records):
+    path = tmp_path_factory.mktemp("trace") / "trace.jsonl"
+    writer = TraceWriter(path)
+    in_memory = []
+    writer.observers.append(lambda time, record: in_memory.append(trace_line(time, record)))
+    for time, record in records:
+        writer.emit(time, record)
+    writer.close()
+    read_back = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()]
+    assert same(in_memory, read_back)
+    parsed = read_trace(path)
+    assert same([{"time": t, **values} for t, values in parsed], read_back)
+
+
+def test_a_record_in_memory_shares_no_container_with_the_record():
+    record = {"plan": {"mode": "boost", "steps": [1, 2.5]}, "broken_rules": ("a", "b")}
+    line = trace_line(1.0, record)
+    assert line == {
+        "time": 1.0,
+        "plan": {"mode": "boost", "steps": [1, 2.5]},
+        "broken_rules": ["a", "b"],
+    }
+    record["plan"]["steps"].append(3)
+    assert line["plan"]["steps"] == [1, 2.5]
+
+
+def test_a_line_has_time_first_to_the_nanosecond_and_a_top_level_nan_as_null():
+    line = format_line(0.30000000000000004, {"t": math.nan, "scan": [math.inf], "ok": True})
+    assert line == '{"time": 0.3, "t": null, "scan": [Infinity], "ok": true}'
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def test_a_value_is_read_against_its_signals_type_at_its_line_and_column():
+    lines = [
+        '{"time": 0, "v": 1}',  # an int for a float is a number
+        '{"time": 1, "v": true}',
+        "",
+        '{"time": 2, "n": 1.5, "v": NaN}',  # a trace may hold NaN
+        '{"time": -0.5, "v": 2.0}',  # refused records do not count: back from 0
+    ]
+    with pytest.raises(SourceErrors) as caught:
+        parse_trace(lines, {"v": "float", "n": "int"}, source="t.jsonl")
+    assert [str(e) for e in caught.value.errors] == [
+        "t.jsonl:2:13: 'v' must be a number, not true",
+        "t.jsonl:4:13: 'n' must be an integer, not 1.5",
+        "t.jsonl:5:2: time -0.5 goes back in time (the previous record has 0)",
+    ]
+
+
+def test_a_huge_int_for_a_float_signal_is_kept_exact():
+    [(time, values)] = parse_trace([f'{{"time": 0, "v": {10**400}}}'], {"v": "float"})
+    assert values == {"v": 10**400} and time == 0
+
+
+def test_a_run_in_memory_is_its_trace_file(tmp_path):
+    from rasm.testing import run_app
+
+    hotbox = Path(__file__).resolve().parents[1] / "examples" / "hotbox"
+    trace = run_app(hotbox, seed=1, duration=30, trace=tmp_path / "run.jsonl")
+    read_back = [json.loads(line) for line in (tmp_path / "run.jsonl").read_text().splitlines()]
+    assert len(trace) > 100 and same(list(trace), read_back)
+    assert trace.lines() == (tmp_path / "run.jsonl").read_text().splitlines()

@@ -1,0 +1,350 @@
+"""The adaptation trace: JSON lines, one record a line, ``time`` first, then what it updates.
+
+Written by :class:`TraceWriter` (``rasm run --trace``), read by :func:`read_trace` and
+:func:`parse_trace` (``rasm check``, ``rasm report``), held in memory as a :class:`Trace` of
+records (``run_app``). A record in memory is what :func:`trace_line` gives: the record as it
+reads back from its line, so a trace in memory and the same trace read from its file are equal.
+
+A line holds ``time`` rounded to the nanosecond and every other value as JSON has it; a
+non-finite number at the top level (a sensor's NaN) is written as ``null``.
+
+Reading reports every malformed record at its line (and the column of the offending key): not
+a JSON object, no numeric ``time``, a time going back, a value of the wrong type for a signal
+the properties read. Blank lines are skipped; the others are records 0, 1, 2, … A time is a
+JSON number of seconds; where its float loses digits (epoch seconds with nine decimals) it is
+read again from the line's text as a :class:`~rasm.properties.times.Seconds`: a float that
+carries the exact nanoseconds the monitors compare.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import sys
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+from rasm.errors import Location, Misfit, SourceError, SourceErrors, read_utf8
+from rasm.jsontext import JsonProblem, parse_json
+from rasm.properties.times import FAST, Seconds, nanoseconds
+from rasm.values import fit, wanted
+
+if TYPE_CHECKING:
+    from rasm.platform.runtime import RunSummary
+
+__all__ = [
+    "MAX_REPORTED", "Trace", "TraceWriter", "format_line", "parse_trace", "read_trace",
+    "trace_line",
+]
+
+
+# ----------------------------------------------------------------------------- the line
+
+
+def _jsonable(value: Any) -> Any:
+    """``value`` as a line holds it at the top level: a non-finite float (not JSON) is None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def format_line(time: float, record: Mapping[str, Any]) -> str:
+    """The record's JSON line (without its newline): ``time`` first, to the nanosecond."""
+    line = {"time": round(time, 9)}
+    for key, value in record.items():
+        line[key] = _jsonable(value)
+    return json.dumps(line)
+
+
+def trace_line(time: float, record: Mapping[str, Any]) -> dict[str, Any]:
+    """The record as it reads back from its line: what a :class:`Trace` holds."""
+    return json.loads(format_line(time, record))
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+class TraceWriter:
+    """Writes loop records to ``path`` (if any; ``"-"`` is standard output) and hands them to
+    ``observers``.
+
+    Records never go back in time: one emitted with a time before the last's is written at the
+    last's. Each line is handed to the operating system as it is written (a flush per record),
+    so a process killed at any moment leaves every record it emitted in the file.
+
+    With ``max_bytes``, the file is rotated by size: when a line would take it past
+    ``max_bytes``, ``trace.jsonl`` becomes ``trace.1.jsonl`` (an older ``trace.1.jsonl``
+    becomes ``trace.2.jsonl``, and so on), the oldest beyond ``keep`` is deleted, and a fresh
+    ``trace.jsonl`` goes on. A trace left by an earlier run is rotated away the same way on
+    opening. The files take at most about ``(keep + 1) * max_bytes``; a record is never split.
+    """
+
+    def __init__(
+        self, path: str | Path | None = None, *, max_bytes: int | None = None, keep: int = 4
+    ) -> None:
+        if max_bytes is not None and max_bytes <= 0:
+            raise ValueError(f"max_bytes must be positive, not {max_bytes}")
+        if keep < 0:
+            raise ValueError(f"keep must be 0 or more, not {keep}")
+        self.path = Path(path) if path is not None and str(path) != "-" else None
+        self.max_bytes = max_bytes if self.path is not None else None
+        self.keep = keep
+        self.rotations = 0
+        self._size = 0  # bytes in the current file (lines are ASCII: json escapes the rest)
+        self._out: TextIO | None = None
+        self._owned = self.path is not None
+        if str(path) == "-":
+            self._out = sys.stdout
+        elif self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            if self.max_bytes is not None and self.path.exists() and self.path.stat().st_size:
+                self._shift()  # an earlier run's trace is kept, not overwritten
+            self._out = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        self.observers: list[Callable[[float, dict[str, Any]], Any]] = []
+        self.records = 0
+        self.last_time = -math.inf
+
+    def rotated(self, n: int) -> Path:
+        """The path of the ``n``-th older file: ``trace.jsonl`` → ``trace.<n>.jsonl``."""
+        assert self.path is not None
+        return self.path.with_name(f"{self.path.stem}.{n}{self.path.suffix}")
+
+    def emit(self, time: float, record: dict[str, Any]) -> None:
+        """Write one record and hand it to the observers."""
+        time = max(time, self.last_time)
+        self.last_time = time
+        self.records += 1
+        if self._out is not None:
+            line = format_line(time, record) + "\n"
+            if self.max_bytes is not None:
+                if self._size and self._size + len(line) > self.max_bytes:
+                    self._rotate()
+                self._size += len(line)
+            self._out.write(line)
+            self._out.flush()
+        for observer in self.observers:
+            observer(time, record)
+
+    def _shift(self) -> None:
+        """Move ``trace.jsonl`` to ``trace.1.jsonl``, each older one a place up, and delete
+        what falls beyond ``keep``."""
+        assert self.path is not None
+        for n in range(self.keep, 0, -1):
+            older = self.path if n == 1 else self.rotated(n - 1)
+            if older.exists():
+                older.replace(self.rotated(n))
+        self.path.unlink(missing_ok=True)  # keep 0: the full file is dropped
+
+    def _rotate(self) -> None:
+        assert self._out is not None and self.path is not None
+        self._out.close()
+        self._shift()
+        self._out = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        self._size = 0
+        self.rotations += 1
+
+    def flush(self) -> None:
+        if self._out is not None:
+            self._out.flush()
+
+    def close(self) -> None:
+        if self._out is not None and self._owned:
+            self._out.close()
+        self._out = None
+
+
+# ----------------------------------------------------------------------------- reading
+
+MAX_REPORTED = 50  # a broken file is reported by its first problems, not a million lines
+
+
+def _fits(value: object, kind: str) -> bool:
+    try:
+        fit(value, kind, int_as_float=False)  # nan and the infinities are numbers here
+    except Misfit:
+        return False
+    return True
+
+
+_TIME_TEXT = re.compile(r'"time"\s*:\s*(-?[0-9][0-9.eE+-]*)')
+
+
+def _exact_time(line: str, time: float) -> float:
+    """``time``, a float too large for its decimals to survive, read again from ``line``."""
+    # JSON keeps the last of repeated keys; a "time" key of a nested object reads differently
+    for text in reversed(_TIME_TEXT.findall(line)):
+        try:
+            exact = Seconds(text)
+        except ValueError:
+            continue
+        if exact == time:
+            return exact
+    return time
+
+
+def _column(line: str, key: str) -> int:
+    position = line.find(json.dumps(key))
+    return position + 1 if position >= 0 else 1
+
+
+def parse_trace(
+    lines: Iterable[str],
+    signals: Mapping[str, str] | None = None,
+    *,
+    source: str = "<trace>",
+) -> list[tuple[float, dict]]:
+    """Parse trace lines into ``(time, values)`` records, checking them against ``signals``.
+
+    ``signals`` maps signal names to float | int | bool | str | any (a monitor's
+    ``spec.signals``); other keys are kept unchecked. Raises :class:`SourceErrors` listing every
+    malformed record (at most :data:`MAX_REPORTED`).
+    """
+    signals = signals or {}
+    records: list[tuple[float, dict]] = []
+    errors: list[SourceError] = []
+    hidden = 0
+    last_time = -math.inf
+    last_ns = -math.inf  # compared exactly, as the monitors do
+
+    def fail(message: str, number: int, col: int = 1) -> None:
+        nonlocal hidden
+        if len(errors) < MAX_REPORTED:
+            errors.append(SourceError(message, Location(source, number, col)))
+        else:
+            hidden += 1
+
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            record = parse_json(line.rstrip("\r\n"))
+        except JsonProblem as exc:
+            fail(exc.message, number, exc.column)
+            continue
+        if not isinstance(record, dict):
+            fail(f"a record must be a JSON object, not {type(record).__name__}", number)
+            continue
+        time = record.pop("time", None)
+        if time is None:
+            fail("record without 'time' (seconds, a number)", number)
+            continue
+        if isinstance(time, bool) or not isinstance(time, int | float) or time != time:
+            fail(f"'time' must be a number, not {json.dumps(time)}", number, _column(line, "time"))
+            continue
+        if isinstance(time, float) and math.isinf(time):
+            fail(f"'time' must be finite, not {json.dumps(time)}", number, _column(line, "time"))
+            continue
+        if isinstance(time, float) and not -FAST < time < FAST:
+            time = _exact_time(line, time)
+        ns = nanoseconds(time)
+        if ns < last_ns:
+            fail(
+                f"time {time} goes back in time (the previous record has {last_time})",
+                number,
+                _column(line, "time"),
+            )
+            continue
+        bad = False
+        for key, value in record.items():
+            kind = signals.get(key)
+            if kind is not None and not _fits(value, kind):
+                fail(
+                    f"{key!r} must be {wanted(kind)}, not {json.dumps(value)}",
+                    number,
+                    _column(line, key),
+                )
+                bad = True
+        if bad:
+            continue
+        last_time, last_ns = time, ns
+        records.append((time, record))
+    if errors:
+        if hidden:
+            errors.append(SourceError(
+                f"… and {hidden} more malformed records (fix the ones above first)",
+                Location(source),
+            ))
+        raise SourceErrors(errors)
+    return records
+
+
+def read_trace(path: str | Path, signals: Mapping[str, str] | None = None) -> list:
+    """Read a JSONL trace file; see :func:`parse_trace`."""
+    path = Path(path)
+    try:
+        with path.open(encoding="utf-8") as handle:
+            return parse_trace(handle, signals, source=str(path))
+    except UnicodeDecodeError:
+        read_utf8(path)  # read whole, to name the line and column of the first bad byte
+        raise
+
+
+# ----------------------------------------------------------------------------- in memory
+
+
+class Trace(Sequence[dict[str, Any]]):
+    """An adaptation trace in memory: a list of records, and how it was made.
+
+    ``records`` is the list, each record as :func:`trace_line` gives it; ``summary`` the run's
+    :class:`~rasm.platform.runtime.RunSummary` (None for a trace that was not made by
+    :func:`rasm.testing.run_app`); ``seed``, ``scenario`` and ``duration`` say how to make it
+    again.
+    """
+
+    def __init__(
+        self,
+        records: Sequence[Mapping[str, Any]],
+        *,
+        summary: RunSummary | None = None,
+        app: str = "",
+        seed: int | None = None,
+        scenario: Mapping[str, Any] | None = None,
+        duration: float | None = None,
+    ) -> None:
+        self.records = [dict(r) for r in records]
+        self.summary = summary
+        self.app = app
+        self.seed = seed
+        self.scenario = dict(scenario) if scenario is not None else None
+        self.duration = duration
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return self.records[index]
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        return iter(self.records)
+
+    def __repr__(self) -> str:
+        how = f" seed={self.seed} scenario={self.scenario}" if self.app else ""
+        return f"<Trace {self.app}{how}: {len(self.records)} records>"
+
+    def when(self, event: str) -> list[float]:
+        """The times of the records on which ``event`` is true (``trace.when("executed")``)."""
+        return [r["time"] for r in self.records if r.get(event) is True]
+
+    def values(self, signal: str) -> list[tuple[float, Any]]:
+        """``(time, value)`` for every record that sets ``signal``."""
+        return [(r["time"], r[signal]) for r in self.records if signal in r]
+
+    def lines(self) -> list[str]:
+        """The trace as JSON lines (what ``rasm run --trace`` writes)."""
+        return [json.dumps(r) for r in self.records]
+
+    def save(self, path: str | Path) -> Path:
+        """Write the trace as JSONL to ``path`` (for ``rasm check``); returns the path."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("".join(line + "\n" for line in self.lines()), encoding="utf-8")
+        return path
+
+    def check(self, props: Any) -> Any:
+        """Check a property file on this trace: a :class:`rasm.properties.check.CheckReport`
+        (as :func:`rasm.testing.check_trace` does)."""
+        from rasm.testing.assertions import check_trace  # the test helpers build on this module
+
+        return check_trace(props, self)
