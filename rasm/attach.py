@@ -88,9 +88,7 @@ def load_topic_map(
 ) -> TopicMap:
     """The topic map of a ``--topics`` YAML file, completed with the default for every signal
     it does not name. Raises :class:`SourceError` naming the file (and line) of a problem."""
-    import yaml
-
-    from rasm.yamlsafe import safe_load, yaml_error
+    from rasm.yamltext import load_yaml, plain
 
     source = str(path)
     if text is None:
@@ -98,10 +96,7 @@ def load_topic_map(
             text = Path(path).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise SourceError(f"cannot read the topic map: {exc}", Location(source)) from None
-    try:
-        data = safe_load(text)
-    except yaml.YAMLError as exc:  # syntax, nesting, a forbidden character: at its place
-        raise yaml_error(exc, text, source) from None
+    data = plain(load_yaml(text, source).data)  # a syntax error or a guard's: at its place
     if data is None:
         data = {}
     if not isinstance(data, dict):

@@ -195,7 +195,7 @@ def _read_scenario(text: str) -> dict:
 
     from rasm.errors import Location, SourceError
     from rasm.jsontext import JsonProblem, parse_json
-    from rasm.statechart.source import load_yaml, plain
+    from rasm.yamltext import load_yaml, plain
 
     path = Path(text)
     try:

@@ -18,7 +18,7 @@ import jsonschema
 
 from rasm.errors import Location, SourceError, SourceErrors, not_utf8
 from rasm.loop import LOOP_KEYS
-from rasm.statechart.source import YamlSource, load_yaml, plain
+from rasm.yamltext import YamlSource, load_yaml, plain
 
 __all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEMA"]
 

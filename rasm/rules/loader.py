@@ -14,7 +14,6 @@ from pathlib import Path, PurePath
 from typing import Any
 
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
-from ruamel.yaml.error import YAMLError
 from ruamel.yaml.scalarstring import (
     DoubleQuotedScalarString,
     FoldedScalarString,
@@ -26,7 +25,7 @@ from rasm.errors import Location, SourceError, SourceErrors, mark, not_utf8
 from rasm.properties import parse_expression
 from rasm.rules.model import TYPES, Rule, Rules, Variable
 from rasm.rules.typing import check_rule_expression
-from rasm.yamlsafe import document_start, yaml_error, yaml_reader
+from rasm.yamltext import YamlSource, document_start, load_yaml
 
 _TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}
 _VARIABLE_KEYS = {"type", "min", "max", "values", "description"}
@@ -75,6 +74,7 @@ class _Loader:
         self.lines = text.splitlines()
         self.errors: list[SourceError] = []
         self.broken: set[str] = set()  # variables declared with a refused declaration
+        self.src: YamlSource | None = None
 
     # ------------------------------------------------------------------ helpers
 
@@ -86,14 +86,12 @@ class _Loader:
 
     def where(self, parent: Any, key: Any, *, value: bool = True) -> tuple[int, int]:
         """0-based position of ``parent[key]`` (its value, or its key)."""
-        try:
-            if isinstance(parent, CommentedMap):
-                return parent.lc.value(key) if value else parent.lc.key(key)
-            if isinstance(parent, CommentedSeq):
-                return parent.lc.item(key)
-        except (KeyError, IndexError, TypeError, AttributeError):
-            pass
-        return (parent.lc.line, parent.lc.col) if hasattr(parent, "lc") else (0, 0)
+        assert self.src is not None
+        if isinstance(parent, CommentedSeq):
+            location = self.src.item(parent, key)
+        else:
+            location = self.src.value(parent, key) if value else self.src.key(parent, key)
+        return location.line - 1, location.col - 1
 
     def raise_errors(self) -> None:
         if len(self.errors) == 1:
@@ -104,10 +102,8 @@ class _Loader:
     # ------------------------------------------------------------------ reading
 
     def load(self) -> Rules:
-        try:
-            data = yaml_reader(preserve_quotes=True).load(self.text)
-        except YAMLError as exc:
-            raise yaml_error(exc, self.text, self.source) from None
+        self.src = load_yaml(self.text, self.source, preserve_quotes=True)
+        data = self.src.data
         if not isinstance(data, CommentedMap):
             found = "an empty file" if data is None else f"a {_kind(data)}"
             line, col = document_start(self.text)

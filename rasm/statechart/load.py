@@ -22,7 +22,7 @@ from sismic.io.datadict import import_from_dict
 from sismic.model import Statechart
 
 from rasm.errors import Location, SourceError, SourceErrors, not_utf8
-from rasm.statechart.source import YamlSource, load_yaml, plain
+from rasm.yamltext import YamlSource, load_yaml, plain
 
 __all__ = ["ChartProblem", "load_statechart", "check_statechart", "source_of"]
 

@@ -24,9 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-import yaml
-
-from rasm.errors import RasmError, not_utf8
+from rasm.errors import RasmError, SourceError, not_utf8
 from rasm.workflow.derive import host_arch
 from rasm.workflow.integrity import (
     MANIFEST,
@@ -36,7 +34,7 @@ from rasm.workflow.integrity import (
     verify_files,
     verify_signature,
 )
-from rasm.yamlsafe import safe_load, yaml_error
+from rasm.yamltext import load_yaml, plain
 
 __all__ = [
     "DeployError",
@@ -157,9 +155,8 @@ def _yaml_file(contents: dict[str, bytes], name: str) -> Any:
     except UnicodeDecodeError as exc:
         raise DeployError(str(not_utf8(name, exc))) from None
     try:
-        return safe_load(text)
-    except yaml.YAMLError as exc:
-        error = yaml_error(exc, text, name)
+        return plain(load_yaml(text, name).data)
+    except SourceError as error:
         raise DeployError(f"{error.location}: {error.message}") from None
 
 
@@ -238,8 +235,8 @@ def run_workflow(target: Path, name: str, env: dict[str, str] | None = None) -> 
     package = target / "package"
     file = package / "06_Workflows" / "workflows.yaml"
     try:
-        spec = _workflows(safe_load(file.read_text("utf-8")), str(file))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        spec = _workflows(plain(load_yaml(file.read_text("utf-8"), str(file)).data), str(file))
+    except (OSError, UnicodeDecodeError, SourceError) as exc:
         raise DeployError(f"{file}: cannot read the workflows: {exc}") from None
     workflow = spec["workflows"].get(name)
     if workflow is None:

@@ -18,7 +18,7 @@ import jsonschema
 
 from rasm.errors import Location, SourceError, SourceErrors
 from rasm.loop import STAGES
-from rasm.statechart.source import YamlSource, load_yaml, plain
+from rasm.yamltext import YamlSource, load_yaml, plain
 
 __all__ = [
     "ArchitectureModel",

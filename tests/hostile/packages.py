@@ -6,10 +6,9 @@ milliseconds and shows that its workflow ran.
 
 from __future__ import annotations
 
+import json
 import zipfile
 from pathlib import Path
-
-import yaml
 
 from rasm.workflow.derive import host_arch
 from rasm.workflow.integrity import MANIFEST, SIGNATURE, digest, manifest_bytes, sign
@@ -33,9 +32,9 @@ def unit_config(**changes: object) -> dict[str, object]:
 
 def files(**extra: bytes) -> dict[str, bytes]:
     """A minimal valid package's files (``extra`` added, by name with '__' for '/')."""
-    out = {
-        f"04_Platform/{UNIT}.yaml": yaml.safe_dump(unit_config()).encode(),
-        "06_Workflows/workflows.yaml": yaml.safe_dump(WORKFLOWS).encode(),
+    out = {  # JSON is YAML
+        f"04_Platform/{UNIT}.yaml": json.dumps(unit_config()).encode(),
+        "06_Workflows/workflows.yaml": json.dumps(WORKFLOWS).encode(),
         "05_Actions/install.sh": b'touch "$RASM_DIR/installed"\n',
     }
     out.update({name.replace("__", "/"): data for name, data in extra.items()})

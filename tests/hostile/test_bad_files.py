@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from rasm.cli import main
-from rasm.yamlsafe import MAX_ALIAS_VALUES, MAX_DEPTH
+from rasm.yamltext import MAX_ALIAS_VALUES, MAX_DEPTH
 
 from .support import assert_refused_at, chart_nested, position, rasm
 

@@ -8,17 +8,18 @@ whose property they break (the monitors are not vacuous).
 from __future__ import annotations
 
 import functools
+import json
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from sismic.exceptions import PropertyStatechartError
 from sismic.interpreter import Interpreter as SismicInterpreter
 
 from rasm.statechart import Interpreter, load_statechart
+from rasm.yamltext import load_yaml, plain
 
 from .support import (
     BRING_UP,
@@ -178,10 +179,10 @@ def rewire(source: str, event: str | None, target: str) -> Edit:
 
 @functools.cache
 def mutant(*edits: Edit):
-    doc = yaml.safe_load(CHART.read_text(encoding="utf-8"))
+    doc = plain(load_yaml(CHART.read_text(encoding="utf-8"), str(CHART)).data)
     for edit in edits:
         edit(doc)
-    return load_statechart(text=yaml.safe_dump(doc, sort_keys=False), source="<mutant>")
+    return load_statechart(text=json.dumps(doc), source="<mutant>")  # JSON is YAML
 
 
 TO_LEGITIMATING = ("tick", "monitored", "anomaly", "planned")

@@ -17,13 +17,18 @@ import zipfile
 from pathlib import Path
 
 import pytest
-import yaml
 
 from rasm.cli import main
 from rasm.workflow import DeployError, deploy_package, new_app, package_app, run_workflow
 from rasm.workflow.integrity import MANIFEST, SIGNATURE, digest
+from rasm.yamltext import load_yaml, plain
 
 from .helpers import HOTBOX_MODEL, ROOT
+
+
+def read_yaml(archive: zipfile.ZipFile, name: str):
+    return plain(load_yaml(archive.read(name).decode(), name).data)
+
 
 KEY = b"correct horse battery staple"
 LAYOUT = (
@@ -83,12 +88,12 @@ def test_the_package_has_the_seed_layout_and_a_checksum_of_every_file(hotbox_zip
         architecture = archive.read("00_Documentation/architecture.md").decode()
         assert architecture.count("```mermaid") == 3
         assert "derived from its `app.yaml`" in architecture
-        unit = yaml.safe_load(archive.read("04_Platform/local.yaml"))
+        unit = read_yaml(archive, "04_Platform/local.yaml")
         assert unit["role"] == "all" and unit["transport"] == "local"
         assert unit["knowledge"] == "sqlite" and unit["clock"] == "wall"
         checklist = archive.read("06_Workflows/checklist.md").decode()
         assert "rules `rules/hotbox.yaml` | local | PASS: consistent (z3)" in checklist
-        workflows = yaml.safe_load(archive.read("06_Workflows/workflows.yaml"))
+        workflows = read_yaml(archive, "06_Workflows/workflows.yaml")
         assert workflows["workflows"]["deploy"]["steps"] == ["install", "validate"]
     wheels = [n for n in listed if n.endswith(".whl")]
     assert "01_Binaries/rasm-0.1.0-py3-none-any.whl" in wheels
@@ -263,8 +268,8 @@ def test_a_modelled_app_is_packaged_per_unit(tmp_path: Path) -> None:
     report = package_app(app, out, dependencies=False)
     assert report.units == ["box", "edge"] and not report.signed and not report.derived_model
     with zipfile.ZipFile(out) as archive:
-        box = yaml.safe_load(archive.read("04_Platform/box.yaml"))
-        edge = yaml.safe_load(archive.read("04_Platform/edge.yaml"))
+        box = read_yaml(archive, "04_Platform/box.yaml")
+        edge = read_yaml(archive, "04_Platform/edge.yaml")
         architecture = archive.read("00_Documentation/architecture.md").decode()
         listed = archive.namelist()
     assert (box["role"], box["transport"], box["arch"]) == (
