@@ -157,11 +157,23 @@ class Misfit(RasmError):
 
 
 class StatechartError(RasmError):
-    """The statechart layer failed (loading, validating or executing a chart)."""
+    """The statechart layer failed: a step of a chart raised, or a chart cannot be run.
+
+    (A chart that does not load is a :class:`SourceError` at its place.)
+    """
 
 
 class ExecutionError(StatechartError):
-    """An exception was raised inside a step; the step was rolled back."""
+    """A step of a chart raised and was rolled back (:class:`rasm.statechart.Interpreter`).
+
+    ``cause`` (also ``__cause__``) is what sismic or the chart's code raised: sismic's
+    ``ContractError``, ``PropertyStatechartError``, ``CodeEvaluationError``, … The message
+    names it: ``CodeEvaluationError: 'division by zero' occurred while executing 'x = 1 / 0'``.
+    """
+
+    def __init__(self, cause: BaseException) -> None:
+        super().__init__(f"{type(cause).__name__}: {cause}")
+        self.cause = cause
 
 
 class SpecError(RasmError):

@@ -10,10 +10,12 @@ from __future__ import annotations
 import json
 import sys
 
+from rasm.errors import RasmError
+
 __all__ = ["JsonProblem", "parse_json"]
 
 
-class JsonProblem(ValueError):
+class JsonProblem(RasmError, ValueError):
     """Why a JSON text could not be read, and the column (1-based) where that is known."""
 
     def __init__(self, message: str, column: int = 1) -> None:

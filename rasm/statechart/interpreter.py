@@ -5,12 +5,12 @@ Two things stock sismic lacks and the platform needs:
 * **Atomic steps.** An exception inside a step (an action, a guard, a contract, a property
   statechart) leaves sismic half-applied: old state exited, new one not entered, event consumed.
   :class:`AtomicStepMixin` saves the interpreter's mutable state before a step changes it (lazily:
-  most steps change nothing) and restores it when the step raises, then re-raises the original
-  exception (sismic's own types, so existing code that catches them keeps working) after
-  recording it in :attr:`last_failure`. The event that
-  caused the failure is discarded, so the next step does not fail on it again. Meta-events for
-  ordinary listeners (``bind``, ``attach``) are delivered only when the step succeeds, so a bound
-  interpreter never receives an event sent by a step that was rolled back.
+  most steps change nothing) and restores it when the step raises, records the exception in
+  :attr:`last_failure` and raises :class:`~rasm.errors.ExecutionError` from it (its ``cause``:
+  sismic's ``ContractError``, ``PropertyStatechartError``, ``CodeEvaluationError``, …). The
+  event that caused the failure is discarded, so the next step does not fail on it again.
+  Meta-events for ordinary listeners (``bind``, ``attach``) are delivered only when the step
+  succeeds, so a bound interpreter never receives an event sent by a step that was rolled back.
 * **The next deadline.** ``after()``/``idle()`` guards and delayed events are only looked at when a
   step runs, and sismic offers no "when should I run next". :meth:`Interpreter.next_deadline`
   answers it, so a live runner sleeps until then (or until an event arrives) instead of polling.
@@ -31,7 +31,7 @@ from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
 from sismic.model import Event, InternalEvent, MetaEvent
 
-from rasm.errors import is_interrupt
+from rasm.errors import ExecutionError, RasmError, is_interrupt
 from rasm.statechart.fast import FastInterpreter
 
 __all__ = [
@@ -412,7 +412,9 @@ class AtomicStepMixin:
             # Discard the event that made the step fail, or the next step fails on it again.
             event = None if consumed is None else consumed.pop(0)[1]
             self.last_failure = StepFailure(self.time, event, exc)
-            raise
+            if isinstance(exc, RasmError):  # rasm's own (a chart edited under the interpreter)
+                raise
+            raise ExecutionError(exc) from exc
         self._lazy_snapshot = ()
         if self._property_records is not None:
             self._property_records = None

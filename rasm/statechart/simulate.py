@@ -19,7 +19,7 @@ from typing import Any, TextIO
 from sismic.clock import SimulatedClock
 from sismic.model import MacroStep, Statechart
 
-from rasm.errors import Location, SourceError, SourceErrors, not_utf8
+from rasm.errors import ExecutionError, Location, SourceError, SourceErrors, not_utf8
 from rasm.statechart.interpreter import Interpreter
 from rasm.statechart.load import load_statechart, source_of
 
@@ -165,6 +165,11 @@ def _step(macro: MacroStep, interp: Interpreter) -> SimulatedStep:
     )
 
 
+def _what(exc: Exception) -> str:
+    """What a failed step raised: an ExecutionError's message names its cause already."""
+    return str(exc) if isinstance(exc, ExecutionError) else f"{type(exc).__name__}: {exc}"
+
+
 def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> None:
     for _ in range(MAX_STEPS):
         try:
@@ -178,7 +183,7 @@ def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> Non
                     configuration=sorted(interp.configuration),
                     entered=[],
                     exited=[],
-                    error=f"{where}: step rolled back: {type(exc).__name__}: {exc}",
+                    error=f"{where}: step rolled back: {_what(exc)}",
                 )
             )
             if failure is None or failure.event is None:

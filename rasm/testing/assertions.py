@@ -8,6 +8,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from rasm.errors import RasmError
 from rasm.properties.ast import Specification
 from rasm.properties.check import CheckReport, PropertyReport, check_records, format_text
 from rasm.properties.outcome import ERROR, NOT_JUDGED, VIOLATED
@@ -18,7 +19,7 @@ from rasm.trace import parse_trace
 __all__ = ["PropertyViolation", "assert_properties", "check_trace"]
 
 
-class PropertyViolation(AssertionError):
+class PropertyViolation(RasmError, AssertionError):
     """A property was violated, in error or not judged on a trace; ``report`` is the full
     check report."""
 

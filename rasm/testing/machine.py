@@ -31,6 +31,7 @@ from hypothesis.stateful import RuleBasedStateMachine, rule
 from sismic.exceptions import ContractError, PropertyStatechartError
 from sismic.model import Statechart
 
+from rasm.errors import ExecutionError, RasmError
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 from rasm.testing.failures import is_final_example, save_jsonl
 from rasm.testing.monitors import applicable_monitors
@@ -54,7 +55,7 @@ class ChartState:
         return name in self.configuration
 
 
-class ChartFailure(AssertionError):
+class ChartFailure(RasmError, AssertionError):
     """A chart broke a contract, a monitor or an invariant; the message says how to replay it.
 
     ``events`` is the sequence sent (``{"time", "event"[, "data"]}`` dicts, the lines of the
@@ -248,23 +249,10 @@ class _Runner:
         for _ in range(MAX_STEPS_PER_EVENT):
             try:
                 step = self.interpreter.execute_once()
-            except ContractError as error:
-                raise _Broken(
-                    "contract", f"a contract failed: {type(error).__name__}: {_contract(error)}"
-                ) from None
-            except PropertyStatechartError as error:
-                monitor = error.property_statechart.statechart
-                about = (monitor.description or "").strip().splitlines()
-                raise _Broken(
-                    f"monitor {monitor.name}",
-                    f"the property statechart {monitor.name!r} reached its final state"
-                    + (f" ({about[0].strip()} …)" if about else ""),
-                ) from None
+            except ExecutionError as failure:  # the step was rolled back: what did it raise?
+                raise _broken(failure.cause) from None
             except Exception as error:  # noqa: BLE001 - a crashing step is a finding
-                raise _Broken(
-                    f"raised {type(error).__name__}",
-                    f"the step raised {type(error).__name__}: {error}",
-                ) from None
+                raise _broken(error) from None
             if step is None:
                 return
             self.visited.update(self.interpreter.configuration)
@@ -284,6 +272,25 @@ class _Runner:
         if result is False:
             name = getattr(self.invariant, "__name__", "invariant")
             raise _Broken("invariant", f"the invariant {name}() returned False")
+
+
+def _broken(error: BaseException) -> _Broken:
+    """The finding of a step that raised ``error``: a contract, a monitor, or a crash."""
+    if isinstance(error, ContractError):
+        return _Broken(
+            "contract", f"a contract failed: {type(error).__name__}: {_contract(error)}"
+        )
+    if isinstance(error, PropertyStatechartError):
+        monitor = error.property_statechart.statechart
+        about = (monitor.description or "").strip().splitlines()
+        return _Broken(
+            f"monitor {monitor.name}",
+            f"the property statechart {monitor.name!r} reached its final state"
+            + (f" ({about[0].strip()} …)" if about else ""),
+        )
+    return _Broken(
+        f"raised {type(error).__name__}", f"the step raised {type(error).__name__}: {error}"
+    )
 
 
 def _replay(make: Callable[[], _Runner], events: Sequence[dict[str, Any]]):

@@ -11,13 +11,15 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from rasm.errors import RasmError
+
 __all__ = ["Region", "RegionError", "merge", "parse_regions"]
 
 _OPEN = re.compile(r"^\s*(?:#|<!--) >>> rasm:user (\S+?)(?: -->)?\s*$")
 _CLOSE = re.compile(r"^\s*(?:#|<!--) <<< rasm:user (\S+?)(?: -->)?\s*$")
 
 
-class RegionError(ValueError):
+class RegionError(RasmError, ValueError):
     """Markers that do not pair up (an open without its close, a close without its open)."""
 
 

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from sismic.exceptions import PropertyStatechartError
 from sismic.interpreter import Interpreter as SismicInterpreter
 
+from rasm.errors import ExecutionError
 from rasm.statechart import Interpreter, load_statechart
 from rasm.yamltext import load_yaml, plain
 
@@ -36,6 +37,17 @@ from .support import (
 )
 
 CHART = chart_path("adaptation_orchestrator")
+
+
+# what a violated monitor raises: sismic's error, or rasm's step error raised from it
+MONITOR_FAILED = (PropertyStatechartError, ExecutionError)
+
+
+def violation(error: BaseException) -> PropertyStatechartError:
+    """sismic's PropertyStatechartError, as sismic raises it or as the cause of rasm's error."""
+    cause = error.cause if isinstance(error, ExecutionError) else error
+    assert isinstance(cause, PropertyStatechartError), error
+    return cause
 
 
 def monitors(names=MONITORS):
@@ -97,7 +109,7 @@ def test_no_event_sequence_makes_a_monitor_fail_on_the_shipped_orchestrator(
     run.send_all(BRING_UP)
     for _ in range(data.draw(st.integers(min_value=0, max_value=60), label="length")):
         delay, event = data.draw(next_step(current(run)), label="delay, event")
-        run.advance(delay)  # a PropertyStatechartError here or below fails the test
+        run.advance(delay)  # a monitor's failure here or below fails the test
         run.send(event)
     bound = [listener._interpreter for listener in run.interpreter._listeners]
     assert [p.statechart.name for p in bound] == list(MONITORS)
@@ -274,9 +286,9 @@ def test_a_broken_orchestrator_is_caught_by_exactly_the_monitors_it_breaks(name,
     run = start(mutant(*edits), monitors=monitors([monitor]), engine=engine)
     run.send_all(BRING_UP)
     if monitor in catchers:
-        with pytest.raises(PropertyStatechartError) as failure:
+        with pytest.raises(MONITOR_FAILED) as failure:
             feed(run, script)
-        assert failure.value.property_statechart.statechart.name == monitor
+        assert violation(failure.value).property_statechart.statechart.name == monitor
     else:
         feed(run, script)
 
@@ -294,8 +306,9 @@ def test_the_monitor_catches_every_rejected_plan_that_is_executed(data):
         run.advance(delay)
         breaks = current(run) == "legitimating" and event == "rejected"
         if breaks:
-            with pytest.raises(PropertyStatechartError):
+            with pytest.raises(MONITOR_FAILED) as failure:
                 run.send(event)
+            violation(failure.value)
             return
         run.send(event)
 
@@ -316,7 +329,8 @@ def _play(run, script) -> list[bool]:
                 run.advance(delay)
                 if event is not None:
                     run.send(event)
-            except PropertyStatechartError:
+            except MONITOR_FAILED as error:
+                violation(error)
                 failed = True
         out.append(failed)
     return out

@@ -29,7 +29,7 @@ import weakref
 from collections import defaultdict
 from typing import Any
 
-from sismic.exceptions import StatechartError
+from sismic.exceptions import StatechartError as SismicStatechartError
 from sismic.model import (
     CompoundState,
     DeepHistoryState,
@@ -40,6 +40,8 @@ from sismic.model import (
     StateMixin,
     Transition,
 )
+
+from rasm.errors import StatechartError
 
 __all__ = ["ChartEditedError", "ChartTables", "tables_for"]
 
@@ -53,15 +55,16 @@ COMPOUND = "compound"  # acted on when it has an initial state
 PAIR_OK = "ok"
 PAIR_NON_DETERMINISM = "non-determinism"
 PAIR_CONFLICT = "conflict"
-PAIR_NO_LCA = "no common ancestor"  # stock calls state_for(None), which raises StatechartError
+PAIR_NO_LCA = "no common ancestor"  # stock calls state_for(None): sismic's StatechartError
 
 
-class ChartEditedError(StatechartError):
+class ChartEditedError(StatechartError, SismicStatechartError):
     """The statechart was edited after an interpreter that runs it was built.
 
     :class:`~rasm.statechart.fast.FastInterpreter` precomputes the chart's tree and transition
     tables when it is built, so it cannot follow an edit of the chart; it raises this error at the
-    next step instead of running a chart that no longer exists.
+    next step instead of running a chart that no longer exists. It is rasm's
+    :class:`~rasm.errors.StatechartError` and, for code written for sismic, sismic's.
     """
 
     def __init__(self, statechart: Statechart, what: str) -> None:
