@@ -13,7 +13,7 @@ Cases (see docs/performance-statecharts.md for the figures):
 - ``parallel-all+property`` / ``parallel-one+property``: the same with a property statechart bound;
 - ``orchestrator``: the platform's MAPLE-K orchestrator
   (``statecharts/adaptation_orchestrator.yaml``) through full loop iterations, if that chart exists;
-- ``orchestrator+monitors``: the same with the three property statecharts of ``monitors/`` bound,
+- ``orchestrator+monitors``: the same with the property statecharts of ``monitors/`` bound,
   as the platform runs it.
 
 Run: ``.venv/bin/python benchmarks/statecharts.py [--quick]``.

@@ -35,7 +35,7 @@ BLOCKS = (
     "telegraf",
     "storage_manager",
 )
-MONITORS = ("accepted_before_executing", "stage_order", "stage_outcome")
+MONITORS = ("accepted_before_executing", "stage_outcome")
 
 MODES = ("instantiated", "configuration", "initialization", "initialized", "fault", "terminated")
 

@@ -200,37 +200,39 @@ def mutant(*edits: Edit):
 TO_LEGITIMATING = ("tick", "monitored", "anomaly", "planned")
 TO_EXECUTING = (*TO_LEGITIMATING, "accepted")
 
-#: name -> (edits, what to feed: event names or delays in seconds, the monitors that must fail)
+#: name -> (edits, what to feed: event names or delays in seconds, the monitors that must fail).
+#: The order of the stages is checked on the trace (stage_order in properties/maple_k.rv), not by
+#: a property statechart: a mutant that only breaks the order fails none of these.
 MUTANTS = {
     "rejected_plan_is_executed": (
         (rewire("legitimating", "rejected", "executing"),),
         (*TO_LEGITIMATING, "rejected"),
-        {"accepted_before_executing", "stage_order"},
+        {"accepted_before_executing"},
     ),
     "planning_is_skipped": (
         (rewire("analysing", "anomaly", "legitimating"),),
         ("tick", "monitored", "anomaly"),
-        {"stage_order"},
+        set(),
     ),
     "idle_jumps_to_executing": (
         (rewire("idle", "tick", "executing"),),
         ("tick",),
-        {"stage_order", "accepted_before_executing"},
+        {"accepted_before_executing"},
     ),
     "accepted_plan_is_planned_again": (
         (rewire("legitimating", "accepted", "planning"),),
         (*TO_LEGITIMATING, "accepted"),
-        {"stage_order"},
+        set(),
     ),
     "next_iteration_skips_idle": (
         (rewire("executing", "executed", "monitoring"),),
         (*TO_EXECUTING, "executed"),
-        {"stage_order"},
+        set(),
     ),
     "failed_stage_executes": (
         (rewire("analysing", "stage_failed", "executing"),),
         ("tick", "monitored", "stage_failed"),
-        {"stage_order", "accepted_before_executing"},
+        {"accepted_before_executing"},
     ),
     "timeout_goes_on_to_the_next_stage": (
         (rewire("monitoring", None, "analysing"),),
