@@ -1,12 +1,16 @@
-"""The Communication Manager's operations (seed §5.5.1) on top of any :class:`Transport`.
+"""The Communication Manager's operations on top of any :class:`Transport`.
 
 ``create_publisher`` / ``publish_message`` and ``create_subscriber`` / ``get_queue_message``:
 a building block publishes on fixed topics and reads what it subscribed to from a bounded queue,
-at its own pace, on its own thread.
+at its own pace, on its own thread. ``publish_message(topic, payload)`` publishes on any topic
+and ``subscribe(pattern, callback)`` hands each message to a callback on the transport's thread,
+for the blocks that route many topics (Telegraf, the effectors). This is the one implementation:
+the platform's Communication Manager block adds only its operation modes to it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from rasm.comm.message import Message
@@ -91,6 +95,22 @@ class CommunicationManager:
     def __init__(self, transport: Transport) -> None:
         self.transport = transport
         self._subscribers: list[Subscriber] = []
+        self._subscriptions: list[Subscription] = []
+
+    def publish_message(
+        self, topic: str, payload: dict[str, Any], *, qos: int | None = None
+    ) -> None:
+        """Send ``payload`` (a JSON-able dict) on ``topic`` (a topic name without wildcards)."""
+        self.transport.publish(topic, payload, qos=qos)
+
+    def subscribe(
+        self, pattern: str, callback: Callable[[Message], Any], *, qos: int | None = None
+    ) -> Subscription:
+        """Call ``callback(message)`` for every message matching ``pattern``, on the transport's
+        thread; cancel the returned subscription to stop (:meth:`close` cancels it too)."""
+        subscription = self.transport.subscribe(pattern, callback, qos=qos)
+        self._subscriptions.append(subscription)
+        return subscription
 
     def create_publisher(self, topic: str, *, qos: int | None = None) -> Publisher:
         """A :class:`Publisher` for ``topic`` (a topic name without wildcards)."""
@@ -105,7 +125,10 @@ class CommunicationManager:
         return subscriber
 
     def close(self) -> None:
-        """Close every subscriber made here."""
+        """Close every subscriber and cancel every subscription made here."""
         for subscriber in self._subscribers:
             subscriber.close()
         self._subscribers.clear()
+        for subscription in self._subscriptions:
+            subscription.cancel()
+        self._subscriptions.clear()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import pytest
 
@@ -76,3 +77,51 @@ def test_a_publisher_needs_a_topic_name_not_a_pattern(local):
 def test_maxsize_must_be_positive(local):
     with pytest.raises(ValueError, match="maxsize"):
         CommunicationManager(local).create_subscriber("t", maxsize=0)
+
+
+def test_publish_message_sends_on_any_topic_to_callbacks_and_queues(local):
+    cm = CommunicationManager(local)
+    seen = []
+    arrived = threading.Event()
+
+    def callback(message):
+        seen.append((message.topic, message.payload))
+        arrived.set()
+
+    cm.subscribe("robot/+/cmd", callback)
+    queued = cm.create_subscriber("robot/#")
+    cm.publish_message("robot/wheels/cmd", {"v": 0.2})
+    assert arrived.wait(5)
+    assert seen == [("robot/wheels/cmd", {"v": 0.2})]
+    assert queued.get_queue_message(timeout=5).payload == {"v": 0.2}
+
+
+def test_closing_the_manager_cancels_its_callback_subscriptions(local):
+    cm = CommunicationManager(local)
+    seen = []
+    subscription = cm.subscribe("t", seen.append)
+    assert subscription.active and local.subscriptions == 1
+    cm.close()
+    assert not subscription.active and local.subscriptions == 0
+    cm.publish_message("t", {"late": True})
+    assert seen == []
+
+
+def test_publish_message_needs_a_topic_name_not_a_pattern(local):
+    with pytest.raises(CommError, match="wildcard"):
+        CommunicationManager(local).publish_message("robot/+", {"x": 1})
+
+
+def test_the_operations_work_over_a_real_broker(shared_broker, mqtt_factory):
+    cm = CommunicationManager(mqtt_factory(shared_broker.url))
+    arrived = threading.Event()
+    seen = []
+    cm.subscribe("cm/+", lambda message: (seen.append(message.payload), arrived.set()))
+    queued = cm.create_subscriber("cm/#")
+    deadline = time.monotonic() + 10
+    while not arrived.is_set() and time.monotonic() < deadline:  # until the subscription is live
+        cm.publish_message("cm/x", {"n": 1})
+        arrived.wait(0.2)
+    assert seen and seen[0] == {"n": 1}
+    assert queued.get_queue_message(timeout=5).payload == {"n": 1}
+    cm.close()
