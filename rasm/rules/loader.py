@@ -25,7 +25,7 @@ from rasm.errors import Location, SourceError, SourceErrors, mark, not_utf8
 from rasm.properties import parse_expression
 from rasm.rules.model import TYPES, Rule, Rules, Variable
 from rasm.rules.typing import check_rule_expression
-from rasm.yamltext import YamlSource, document_start, load_yaml
+from rasm.yamltext import YamlSource, load_yaml
 
 _TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}
 _VARIABLE_KEYS = {"type", "min", "max", "values", "description"}
@@ -78,20 +78,17 @@ class _Loader:
 
     # ------------------------------------------------------------------ helpers
 
-    def error(self, message: str, line0: int, col0: int, width: int = 1) -> None:
-        """Record a problem at 0-based ``line0``/``col0`` (ruamel's convention)."""
-        line, col = line0 + 1, col0 + 1
-        excerpt = mark(self.text, line, col, width)
-        self.errors.append(SourceError(message, Location(self.source, line, col), excerpt))
+    def error(self, message: str, location: Location, width: int = 1) -> None:
+        """Record a problem at ``location``, its line marked under ``width`` characters."""
+        excerpt = mark(self.text, location.line, location.col, width)
+        self.errors.append(SourceError(message, location, excerpt))
 
-    def where(self, parent: Any, key: Any, *, value: bool = True) -> tuple[int, int]:
-        """0-based position of ``parent[key]`` (its value, or its key)."""
+    def where(self, parent: Any, key: Any, *, value: bool = True) -> Location:
+        """Where ``parent[key]`` is written (its value, or its key)."""
         assert self.src is not None
         if isinstance(parent, CommentedSeq):
-            location = self.src.item(parent, key)
-        else:
-            location = self.src.value(parent, key) if value else self.src.key(parent, key)
-        return location.line - 1, location.col - 1
+            return self.src.item(parent, key)
+        return self.src.value(parent, key) if value else self.src.key(parent, key)
 
     def raise_errors(self) -> None:
         if len(self.errors) == 1:
@@ -106,18 +103,16 @@ class _Loader:
         data = self.src.data
         if not isinstance(data, CommentedMap):
             found = "an empty file" if data is None else f"a {_kind(data)}"
-            line, col = document_start(self.text)
             self.error(
                 f"a rules file is a mapping with 'variables' and 'rules', not {found}",
-                line - 1, col - 1,
+                self.src.start(),
             )
             self.raise_errors()
         for key in data:
             if key not in _TOP_KEYS:
-                line0, col0 = self.where(data, key, value=False)
                 self.error(
                     f"unknown key {key!r} (a rules file has 'variables' and 'rules')",
-                    line0, col0, len(str(key)),
+                    self.where(data, key, value=False), len(str(key)),
                 )
         variables = self.variables(data)
         rules = self.rules(data, variables)
@@ -131,22 +126,21 @@ class _Loader:
         if not isinstance(section, CommentedMap):
             self.error(
                 f"'variables' must be a mapping of name to domain, not a {_kind(section)}",
-                *self.where(data, "variables"),
+                self.where(data, "variables"),
             )
             return {}
         result: dict[str, Variable] = {}
         for name, spec in section.items():
-            kline, kcol = self.where(section, name, value=False)
+            location = self.where(section, name, value=False)
             if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
-                self.error(f"variable name {name!r} is not an identifier", kline, kcol)
+                self.error(f"variable name {name!r} is not an identifier", location)
                 continue
             if name in _RESERVED:
                 self.error(
                     f"variable name {name!r} is reserved by the expression language",
-                    kline, kcol, len(name),
+                    location, len(name),
                 )
                 continue
-            location = Location(self.source, kline + 1, kcol + 1)
             variable = self.variable(name, spec, section, location)
             if variable is not None:
                 result[name] = variable
@@ -161,7 +155,7 @@ class _Loader:
             self.error(
                 f"variable {name!r}: expected a mapping like {{type: real, min: 0, max: 1}}, "
                 f"not a {_kind(spec)}",
-                *self.where(section, name),
+                self.where(section, name),
             )
             return None
         ok = True
@@ -169,13 +163,13 @@ class _Loader:
             if key not in _VARIABLE_KEYS:
                 self.error(
                     f"variable {name!r}: unknown key {key!r} (use type, min, max, values)",
-                    *self.where(spec, key, value=False), len(str(key)),
+                    self.where(spec, key, value=False), len(str(key)),
                 )
                 ok = False
         if "type" not in spec:
             self.error(
                 f"variable {name!r}: missing 'type' (one of {', '.join(TYPES)})",
-                *self.where(section, name),
+                self.where(section, name),
             )
             return None
         type_ = spec["type"]
@@ -183,7 +177,7 @@ class _Loader:
         if type_ not in TYPES:
             self.error(
                 f"variable {name!r}: unknown type {spec['type']!r} (use one of {', '.join(TYPES)})",
-                *self.where(spec, "type"), len(str(spec["type"])),
+                self.where(spec, "type"), len(str(spec["type"])),
             )
             return None
         if type_ in ("real", "int"):
@@ -192,14 +186,14 @@ class _Loader:
             if key in spec:
                 self.error(
                     f"variable {name!r}: '{key}' applies only to real and int variables",
-                    *self.where(spec, key, value=False), len(key),
+                    self.where(spec, key, value=False), len(key),
                 )
                 ok = False
         if type_ == "bool":
             if "values" in spec:
                 self.error(
                     f"variable {name!r}: 'values' applies only to enum variables",
-                    *self.where(spec, "values", value=False), len("values"),
+                    self.where(spec, "values", value=False), len("values"),
                 )
                 ok = False
             return Variable(name, "bool", location=location) if ok else None
@@ -214,7 +208,7 @@ class _Loader:
         if "values" in spec:
             self.error(
                 f"variable {name!r}: 'values' applies only to enum variables",
-                *self.where(spec, "values", value=False), len("values"),
+                self.where(spec, "values", value=False), len("values"),
             )
             return None
         bounds: dict[str, int | float | None] = {"min": None, "max": None}
@@ -228,14 +222,14 @@ class _Loader:
             ):
                 self.error(
                     f"variable {name!r}: '{key}' must be a finite number, not {value!r}",
-                    *self.where(spec, key), len(str(value)),
+                    self.where(spec, key), len(str(value)),
                 )
                 ok = False
             elif type_ == "int" and not isinstance(value, int):
                 self.error(
                     f"variable {name!r}: '{key}' of an int variable must be an integer, "
                     f"not {value!r}",
-                    *self.where(spec, key), len(str(value)),
+                    self.where(spec, key), len(str(value)),
                 )
                 ok = False
             else:
@@ -244,7 +238,7 @@ class _Loader:
         if ok and low is not None and high is not None and low > high:
             self.error(
                 f"variable {name!r}: empty domain, min {low!r} is greater than max {high!r}",
-                *self.where(spec, "min"),
+                self.where(spec, "min"),
             )
             ok = False
         return Variable(name, type_, minimum=low, maximum=high, location=location) if ok else None
@@ -255,23 +249,22 @@ class _Loader:
             where = self.where(spec, "values") if "values" in spec else self.where(spec, "type")
             self.error(
                 f"variable {name!r}: an enum needs 'values', a non-empty list like [dock, idle]",
-                *where,
+                where,
             )
             return None
         result: list[str] = []
         ok = True
         for index, value in enumerate(values):
-            line0, col0 = self.where(values, index)
+            at = self.where(values, index)
             if not isinstance(value, str) or not value:
                 self.error(
                     f"variable {name!r}: enum value {value!r} must be a non-empty string "
                     f"(quote it: '{value}')",
-                    line0, col0, len(str(value)),
+                    at, len(str(value)),
                 )
                 ok = False
             elif value in result:
-                self.error(f"variable {name!r}: duplicate enum value {value!r}", line0, col0,
-                           len(value))
+                self.error(f"variable {name!r}: duplicate enum value {value!r}", at, len(value))
                 ok = False
             else:
                 result.append(value)
@@ -279,7 +272,7 @@ class _Loader:
 
     def rules(self, data: CommentedMap, variables: dict[str, Variable]) -> list[Rule]:
         if "rules" not in data:
-            self.error("missing 'rules': a list of {name, when, require}", 0, 0)
+            self.error("missing 'rules': a list of {name, when, require}", self.src.start())
             return []
         section = data["rules"]
         if section is None:
@@ -287,7 +280,7 @@ class _Loader:
         if not isinstance(section, CommentedSeq):
             self.error(
                 f"'rules' must be a list of {{name, when, require}}, not a {_kind(section)}",
-                *self.where(data, "rules"),
+                self.where(data, "rules"),
             )
             return []
         result: list[Rule] = []
@@ -306,10 +299,10 @@ class _Loader:
         variables: dict[str, Variable],
         seen: dict[str, Location],
     ) -> Rule | None:
-        line0, col0 = self.where(section, index)
+        at = self.where(section, index)
         if not isinstance(item, CommentedMap):
             self.error(f"rule #{index + 1}: expected a mapping with name and require, "
-                       f"not a {_kind(item)}", line0, col0)
+                       f"not a {_kind(item)}", at)
             return None
         ok = True
         for key in item:
@@ -317,28 +310,28 @@ class _Loader:
                 self.error(
                     f"rule #{index + 1}: unknown key {key!r} "
                     "(use name, when, require, description)",
-                    *self.where(item, key, value=False), len(str(key)),
+                    self.where(item, key, value=False), len(str(key)),
                 )
                 ok = False
         name = item.get("name")
         if "name" not in item:
-            self.error(f"rule #{index + 1}: missing 'name'", line0, col0)
+            self.error(f"rule #{index + 1}: missing 'name'", at)
             ok = False
         elif not isinstance(name, str) or not name.strip():
             self.error(f"rule #{index + 1}: 'name' must be a non-empty string",
-                       *self.where(item, "name"))
+                       self.where(item, "name"))
             ok = False
         else:
-            nline, ncol = self.where(item, "name")
+            name_at = self.where(item, "name")
             if name in seen:
                 self.error(f"duplicate rule name {name!r} (first defined at {seen[name]})",
-                           nline, ncol, len(name))
+                           name_at, len(name))
                 ok = False
             else:
-                seen[name] = Location(self.source, nline + 1, ncol + 1)
+                seen[name] = name_at
         label = f"rule {name!r}" if isinstance(name, str) else f"rule #{index + 1}"
         if "require" not in item:
-            self.error(f"{label}: missing 'require' (the condition the rule imposes)", line0, col0)
+            self.error(f"{label}: missing 'require' (the condition the rule imposes)", at)
             ok = False
         reads: set[str] = set()
         exprs: dict[str, tuple[Any, str]] = {}
@@ -363,7 +356,7 @@ class _Loader:
             require_text=require_text,
             when_text=when_text,
             description=str(description or ""),
-            location=Location(self.source, line0 + 1, col0 + 1),
+            location=at,
             reads=frozenset(reads),
         )
 
@@ -371,20 +364,20 @@ class _Loader:
         self, label: str, key: str, item: CommentedMap, variables: dict[str, Variable]
     ) -> tuple[Any, str, set[str]] | None:
         value = item[key]
-        line0, col0 = self.where(item, key)
+        at = self.where(item, key)
         if isinstance(value, bool):
             value = "true" if value else "false"
         elif isinstance(value, int | float) or not isinstance(value, str):
             self.error(
                 f"{label}: '{key}' must be a condition like velocity <= 0.5, not {value!r}",
-                line0, col0, len(str(value)),
+                at, len(str(value)),
             )
             return None
         text = str(value).strip()
         if not text:
-            self.error(f"{label}: '{key}' is empty", line0, col0)
+            self.error(f"{label}: '{key}' is empty", at)
             return None
-        source_text, line, col = self.expression_source(value, line0, col0)
+        source_text, line, col = self.expression_source(value, at)
         try:
             expr = parse_expression(source_text, source=self.source, line=line, col=col)
         except SourceErrors as exc:
@@ -402,16 +395,18 @@ class _Loader:
             return None
         return expr, " ".join(text.split()), reads
 
-    def expression_source(self, value: Any, line0: int, col0: int) -> tuple[str, int, int]:
-        """The text to parse and the 1-based line and column where it starts in the file.
+    def expression_source(self, value: Any, at: Location) -> tuple[str, int, int]:
+        """The text to parse and the 1-based line and column where it starts in the file
+        (``at``: where the value is written).
 
         A block scalar (``|`` or ``>``) is parsed from the file's own lines, indentation and
         all, so that positions on its second and later lines are right too.
         """
         if isinstance(value, DoubleQuotedScalarString | SingleQuotedScalarString):
-            return str(value), line0 + 1, col0 + 2  # skip the opening quote
+            return str(value), at.line, at.col + 1  # skip the opening quote
         if isinstance(value, LiteralScalarString | FoldedScalarString):
-            first = next((n for n in range(line0 + 1, len(self.lines)) if self.lines[n].strip()),
+            # the content starts on the line after the indicator (index at.line, 0-based)
+            first = next((n for n in range(at.line, len(self.lines)) if self.lines[n].strip()),
                          None)
             if first is not None:
                 indent = len(self.lines[first]) - len(self.lines[first].lstrip())
@@ -422,7 +417,7 @@ class _Loader:
                         break
                     last = number
                 return "\n".join(self.lines[first : last + 1]), first + 1, 1
-        return str(value), line0 + 1, col0 + 1
+        return str(value), at.line, at.col
 
 
 def _kind(value: Any) -> str:
