@@ -15,8 +15,8 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.blocks import Telegraf, _check_value
 from rasm.platform.manifest import Probe, Signal
+from rasm.platform.telegraf import Telegraf, _check_value
 
 
 class ClaimsFloat:

@@ -20,8 +20,8 @@ from typing import Any
 from sismic.clock import SimulatedClock
 
 from rasm.errors import is_interrupt
+from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.block import Block, shared_chart
-from rasm.platform.blocks import AdaptationManager, StateManager, TrustworthinessManager
 from rasm.platform.components import (
     StageContext,
     StageError,
@@ -33,6 +33,8 @@ from rasm.platform.components import (
     describe_failure,
 )
 from rasm.platform.stages import StageOutcome, StageRunner
+from rasm.platform.state_manager import StateManager
+from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.resources import platform_monitors
 
 __all__ = ["AdaptationOrchestrator", "LoopStats"]

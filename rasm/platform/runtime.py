@@ -24,17 +24,8 @@ from typing import Any
 
 from rasm.errors import Location, PlatformError, RasmError, SourceError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
-from rasm.platform.blocks import (
-    AdaptationManager,
-    CommunicationManager,
-    KnowledgeManager,
-    LoggingAndTracking,
-    StateManager,
-    StorageManager,
-    Telegraf,
-    TrustworthinessChecker,
-    TrustworthinessManager,
-)
+from rasm.platform.adaptation_manager import AdaptationManager
+from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.components import (
     Action,
     describe_failure,
@@ -43,12 +34,19 @@ from rasm.platform.components import (
 )
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution
+from rasm.platform.knowledge_manager import KnowledgeManager
+from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.logs import RepeatedLogs
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
 from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
+from rasm.platform.state_manager import StateManager
+from rasm.platform.storage_manager import StorageManager
+from rasm.platform.telegraf import Telegraf
 from rasm.platform.trace import TraceWriter
+from rasm.platform.trustworthiness_checker import TrustworthinessChecker
+from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.properties.outcome import PASSING, PropertyOutcome
 from rasm.resources import data_dir
 from rasm.statechart import MonotonicClock, SimulatedClock

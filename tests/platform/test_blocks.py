@@ -10,10 +10,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.blocks import Telegraf, TrustworthinessChecker, _check_value
 from rasm.platform.components import Action
 from rasm.platform.manifest import Effector, Probe, Signal
 from rasm.platform.runtime import Platform
+from rasm.platform.telegraf import Telegraf, _check_value
+from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 
 PROBE = Probe(
     "box/sensors",
@@ -248,7 +249,7 @@ def test_platform_verdict_observers_added_while_running_see_the_live_verdicts(ho
 def test_knowledge_manager_batches_refuse_each_bad_value_and_everything_when_not_running():
     from rasm.errors import PlatformError
     from rasm.knowledge import KnowledgeBase
-    from rasm.platform.blocks import KnowledgeManager
+    from rasm.platform.knowledge_manager import KnowledgeManager
 
     class OneAtATime:  # a store without register_values
         def __init__(self):

@@ -12,17 +12,15 @@ from rasm.comm.transport import Transport
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.redis import RedisKnowledgeBase
 from rasm.platform.block import Block
-from rasm.platform.blocks import (
-    CommunicationManager,
-    KnowledgeManager,
-    StateManager,
-    Telegraf,
-    TrustworthinessChecker,
-)
+from rasm.platform.communication_manager import CommunicationManager
+from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.orchestrator import AdaptationOrchestrator
 from rasm.platform.runtime import Platform
 from rasm.platform.scheduler import Scheduler
+from rasm.platform.state_manager import StateManager
+from rasm.platform.telegraf import Telegraf
 from rasm.platform.trace import TraceWriter
+from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from tests.slots import shadowed_slots, slot_names
 
 from .conftest import HOTBOX

@@ -7,8 +7,9 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.platform.blocks import TrustworthinessChecker, TrustworthinessManager
 from rasm.platform.components import Action, Plan
+from rasm.platform.trustworthiness_checker import TrustworthinessChecker
+from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.properties import compile_properties
 from rasm.properties.monitor import Verdict
 

@@ -11,14 +11,18 @@ from __future__ import annotations
 import ast
 import importlib
 import inspect
+import pkgutil
 
 import pytest
 
+import rasm.platform
 from rasm.platform.block import Block
 
 from .support import BLOCKS, chart_path, load, transition_events
 
-MODULES = ("rasm.platform.core", "rasm.platform.blocks", "rasm.platform.orchestrator")
+MODULES = [
+    f"rasm.platform.{module.name}" for module in pkgutil.iter_modules(rasm.platform.__path__)
+]
 
 
 def sent_by(cls: type) -> set[str]:

@@ -1,0 +1,61 @@
+"""Adaptation Manager: an action checked by the Trustworthiness Manager, then registered with
+the Trustworthiness Checker."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rasm.platform.block import Block
+from rasm.platform.components import Action
+from rasm.platform.trustworthiness_checker import TrustworthinessChecker
+from rasm.platform.trustworthiness_manager import TrustworthinessManager
+
+__all__ = ["AdaptationManager"]
+
+
+class AdaptationManager(Block):
+    """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis`` (seed §6.4.4).
+
+    Has the Trustworthiness Manager check the action; when trustworthy, registers it with the
+    Trustworthiness Checker, which alone hands it to the effector. Otherwise the action is dropped.
+    """
+
+    chart_name = "adaptation_manager"
+    short_name = "am"
+
+    def __init__(self, tm: TrustworthinessManager, tc: TrustworthinessChecker, **kw: Any) -> None:
+        self.tm = tm
+        self.tc = tc
+        self._action: Action | None = None
+        self._outcome: tuple[bool, str] = (False, "")
+        self.last_trusted = False
+        super().__init__(**kw)
+
+    def perform_adaptation(self, action: Action) -> tuple[bool, str]:
+        """Check and register ``action``; (True, why) when it reached the effector."""
+        self.last_trusted = False
+        if self.mode != "initialized":
+            return False, f"adaptation manager is {self.mode}"
+        self._action = action
+        self._outcome = (False, "the adaptation did not complete in time")
+        self.send("action_requested")
+        return self._outcome
+
+    def perform_diagnosis(self, action: Action) -> tuple[bool, str]:
+        return self.perform_adaptation(
+            Action(action.effector, action.payload, action.plan, "diagnosis")
+        )
+
+    def on_enter_checking_trustworthiness(self) -> None:
+        ok, why = self.tm.check_trustworthiness(self._action)
+        self.last_trusted = ok
+        self._outcome = (False, why)
+        self.post("trustworthy" if ok else "untrustworthy")
+
+    def on_enter_registering(self) -> None:
+        ok, why = self.tc.register_action(self._action)
+        self._outcome = (ok, why)
+        self.post("registered" if ok else "registration_refused")
+
+    def on_enter_dropping(self) -> None:
+        self.post("dropped")

@@ -1,0 +1,46 @@
+"""Storage Manager: knowledge updates batched and persisted."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from rasm.platform.block import Block
+
+__all__ = ["StorageManager"]
+
+
+class StorageManager(Block):
+    """Storage Manager (stom): batches knowledge updates and persists them (SQLite, WAL)."""
+
+    chart_name = "storage_manager"
+    short_name = "stom"
+
+    def __init__(self, storage: Any, *, flush_period: float = 1.0, **kw: Any) -> None:
+        self.storage = storage
+        self.persisted = 0
+        super().__init__(context={"flush_period": flush_period}, **kw)
+
+    def register_knowledge_update(self, key: str, sample: Any) -> None:
+        if self.storage is None:
+            return
+        self.storage.register_knowledge_update(key, sample)
+        if "idle" in self.interpreter._configuration:  # only the first update steps the chart
+            self.send("update_registered")
+
+    def on_enter_persisting(self) -> None:
+        try:
+            self.persisted += self.update_persistency()
+        except Exception as exc:  # a full disk must not stop the loop; the chart retries
+            logging.getLogger("rasm.platform").error("persisting knowledge failed: %s", exc)
+            self.post("persist_failed")
+            return
+        self.post("persisted")
+
+    def update_persistency(self) -> int:
+        return 0 if self.storage is None else int(self.storage.update_persistency() or 0)
+
+    def on_termination(self) -> None:
+        if self.storage is not None:
+            self.storage.update_persistency()
+            self.storage.close()

@@ -1,0 +1,196 @@
+"""Trustworthiness Checker: the online property monitors and the only path to an effector."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from rasm.platform.block import Block
+from rasm.platform.components import Action
+from rasm.platform.manifest import Effector
+from rasm.properties.monitor import Verdict
+from rasm.properties.outcome import PropertyOutcome
+
+__all__ = ["TrustworthinessChecker"]
+
+
+class TrustworthinessChecker(Block):
+    """Trustworthiness Checker (tc): ``register_action`` and the online property monitors.
+
+    The only path to an effector: an action is sent when it is applicable in the managed
+    system's current mode (and its effector is known). The online monitors of the app's and the
+    platform's properties run over every record of the loop (:meth:`observe`): ``latest`` holds
+    each property's latest verdict, ``outcomes`` counts them all (its state is the property's
+    overall verdict so far). A monitor that raises on a record makes every property it checks
+    ``error`` for that record: the checker cannot vouch for them there, and says so.
+    """
+
+    chart_name = "trustworthiness_checker"
+    short_name = "tc"
+
+    def __init__(
+        self,
+        *,
+        monitors: list[Any],
+        effectors: dict[str, Effector],
+        send: Callable[[Effector, Action], Any],
+        mode_of: Callable[[], str | None],
+        on_verdict: Callable[[Verdict], Any] | None = None,
+        observers: list[Callable[[Verdict], Any]] | None = None,
+        online: Callable[[], bool] = lambda: True,
+        **kw: Any,
+    ) -> None:
+        self.online = online
+        self.monitors = monitors
+        self.effectors = effectors
+        self.send_to_effector = send
+        self.mode_of = mode_of
+        self.on_verdict = on_verdict
+        # called with every verdict, like on_verdict; the list is the caller's and is read at
+        # each record, so observers may come and go during a run
+        self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
+        # the latest verdict of each property; _decided_on: the step (a record, or the end)
+        # that decided it
+        self.latest: dict[str, Verdict] = {}
+        self._decided_on: dict[str, int] = {}
+        self._steps = 0
+        self.outcomes: dict[str, PropertyOutcome] = {
+            name: PropertyOutcome(name) for monitor in monitors for name in monitor.properties
+        }
+        self.records = 0
+        self.monitor_failures = 0  # records on which a monitor raised
+        self._failing: dict[Any, int] = {}  # monitor -> records it failed on since it last worked
+        self._action: Action | None = None
+        self._outcome: tuple[bool, str] = (False, "")
+        super().__init__(**kw)
+
+    def observe(self, time: float, record: dict[str, Any]) -> list[Verdict]:
+        """Feed one loop record to every monitor; returns the verdicts it decided."""
+        index = self.records
+        self.records += 1
+        self._steps += 1
+        decided: list[Verdict] = []
+        for monitor in self.monitors:
+            try:
+                verdicts = monitor.step(time, record)
+            except Exception as exc:
+                verdicts = self._failed(monitor, index, time, exc)
+            else:
+                if monitor in self._failing:
+                    self._recovered(monitor, time)
+            for verdict in verdicts:
+                self._take(verdict)
+            decided += verdicts
+        return decided
+
+    def finish(self) -> list[Verdict]:
+        """The end of the run: settle every monitor (``None``: the run ended before a verdict
+        could be decided) and name the signals each property never judged waits for."""
+        self._steps += 1
+        decided: list[Verdict] = []
+        for monitor in self.monitors:
+            try:
+                verdicts = monitor.finish()
+            except Exception as exc:
+                verdicts = self._failed(monitor, self.records, self.clock.time, exc)
+            for verdict in verdicts:
+                self._take(verdict)
+            decided += verdicts
+        for name, outcome in self.outcomes.items():
+            if not outcome.judged:
+                outcome.missing = self.missing(name)
+        return decided
+
+    def missing(self, name: str) -> tuple[str, ...]:
+        """The signals property ``name`` waits for (none once it has started, or when its
+        monitor cannot tell)."""
+        for monitor in self.monitors:
+            if name in monitor.properties:
+                waits = getattr(monitor, "missing", None)
+                return tuple(waits(name)) if waits is not None else ()
+        return ()
+
+    def _take(self, verdict: Verdict) -> None:
+        name = verdict.property
+        outcome = self.outcomes.get(name)
+        if outcome is None:  # a monitor of another kind may decide about a name it did not list
+            outcome = self.outcomes[name] = PropertyOutcome(name)
+        outcome.add(verdict.value, verdict.error)
+        # a record may decide several verdicts of a bounded-future property, in no particular
+        # order: the latest is the worst of those the newest deciding record gave
+        if self._decided_on.get(name) != self._steps or _rank(verdict) > _rank(self.latest[name]):
+            self.latest[name] = verdict
+            self._decided_on[name] = self._steps
+        if self.on_verdict is not None:
+            self.on_verdict(verdict)
+        for observer in self.observers:
+            observer(verdict)
+
+    def _failed(self, monitor: Any, index: int, time: float, exc: Exception) -> list[Verdict]:
+        """Every property of ``monitor`` in error for this record; the first failure of a run
+        of them is logged with its traceback, the rest counted."""
+        self.monitor_failures += 1
+        why = f"the monitor raised {type(exc).__name__}: {exc}"
+        failed = self._failing.get(monitor, 0)
+        self._failing[monitor] = failed + 1
+        if not failed:
+            logging.getLogger("rasm.tc").error(
+                "monitor of %s failed at t=%g: %s; its properties (%s) are in error until it "
+                "works again",
+                _origin(monitor), time, why, ", ".join(monitor.properties), exc_info=exc,
+            )
+        return [Verdict(name, index, time, False, why) for name in monitor.properties]
+
+    def _recovered(self, monitor: Any, time: float) -> None:
+        failed = self._failing.pop(monitor)
+        logging.getLogger("rasm.tc").warning(
+            "monitor of %s works again at t=%g, after failing on %d record(s)",
+            _origin(monitor), time, failed,
+        )
+
+    def register_action(self, action: Action | None) -> tuple[bool, str]:
+        if self.mode != "initialized" or action is None:
+            return False, f"trustworthiness checker is {self.mode}"
+        self._action = action
+        self._outcome = (False, "registration did not complete")
+        self.send("register_requested")
+        return self._outcome
+
+    def on_enter_checking_action(self) -> None:
+        action = self._action
+        effector = self.effectors.get(action.effector) if action else None
+        if action is None or effector is None:
+            self._outcome = (False, f"unknown effector {action.effector if action else None!r}")
+            self.post("action_refused")
+            return
+        if not self.online():
+            self._outcome = (False, "the managed system is offline")
+            self.post("action_refused")
+            return
+        mode = self.mode_of()
+        if effector.modes is not None and mode not in effector.modes:
+            self._outcome = (False, f"not applicable in managed-system mode {mode!r}")
+            self.post("action_refused")
+            return
+        try:
+            self.send_to_effector(effector, action)
+        except Exception as exc:
+            self._outcome = (False, f"effector unreachable: {exc}")
+            self.post("action_refused")
+            return
+        self._outcome = (True, f"sent to {effector.name} on {effector.topic}")
+        self.post("action_registered")
+
+
+def _rank(verdict: Verdict) -> int:
+    """How bad a verdict is for the checker's trust: error, false, inconclusive, true."""
+    if verdict.error is not None:
+        return 3
+    return {False: 2, None: 1, True: 0}[verdict.value]
+
+
+def _origin(monitor: Any) -> str:
+    """The property file a monitor checks, for a log line."""
+    spec = getattr(monitor, "spec", None)
+    return getattr(spec, "source", None) or type(monitor).__name__
