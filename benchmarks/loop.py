@@ -23,8 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rasm import Platform  # noqa: E402
 from rasm.platform.manifest import load_manifest  # noqa: E402
-from rasm.platform.runtime import Platform  # noqa: E402
 
 HOTBOX = ROOT / "examples" / "hotbox"
 

@@ -152,7 +152,7 @@ class _CarelessAnalyse:
 
 def run(seed: int, condition: str) -> dict[str, Any]:
     """One scenario under one condition; the measures."""
-    from rasm.platform.runtime import Platform
+    from rasm import Platform
     from rasm.testing.apps import app_manifest
 
     twin_class = _module("twin").HotboxTwin

@@ -19,8 +19,8 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
+from rasm import Platform
 from rasm.platform.manifest import load_manifest
-from rasm.platform.runtime import Platform
 from rasm.report import write_report
 from rasm.report.dashboard import serve
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from rasm.platform.manifest import AppManifest, load_manifest
-from rasm.platform.runtime import Platform
+from rasm.platform.platform import Platform
 from rasm.trace import Trace, trace_line
 
 __all__ = ["run_app", "app_manifest"]

@@ -189,8 +189,8 @@ class ExitingTwin:
 
 
 def test_a_twin_that_exits_fails_closed_and_the_loop_goes_on(tmp_path: Path) -> None:
+    from rasm import Platform
     from rasm.platform.manifest import load_manifest
-    from rasm.platform.runtime import Platform
 
     trace = tmp_path / "trace.jsonl"
     summary = Platform(

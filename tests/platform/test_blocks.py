@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rasm import Platform
 from rasm.platform.components import Action
 from rasm.platform.manifest import Effector, Probe, Signal
-from rasm.platform.runtime import Platform
 from rasm.platform.telegraf import Telegraf, _check_value
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 
-from rasm.platform.runtime import Platform
+from rasm import Platform
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import read_trace, start_managed

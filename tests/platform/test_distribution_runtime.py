@@ -7,8 +7,8 @@ import json
 import signal
 import threading
 
+from rasm import Platform
 from rasm.comm import BoundSigner, PresenceTracker, open_transport
-from rasm.platform.runtime import Platform
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import HOTBOX, read_trace, start_managed

@@ -17,8 +17,8 @@ import threading
 import paho.mqtt.publish as paho_publish
 import pytest
 
+from rasm import Platform
 from rasm.errors import SourceErrors
-from rasm.platform.runtime import Platform
 from rasm.testing import PropertyViolation, assert_properties, run_app
 from rasm.testing.servers import start_mosquitto
 

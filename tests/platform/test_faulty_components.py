@@ -8,8 +8,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from rasm import Platform
 from rasm.platform.components import Action, Anomaly, Plan
-from rasm.platform.runtime import Platform
 from rasm.rules import RuleSet
 
 from .conftest import HOTBOX, read_trace

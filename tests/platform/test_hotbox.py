@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rasm import Platform
 from rasm.cli import main
-from rasm.platform.runtime import Platform
 
 from .conftest import HOTBOX, read_trace
 

@@ -198,8 +198,8 @@ def test_cli_run_names_the_place_of_a_component_that_cannot_be_a_stage(
 
 
 def test_platform_refuses_bad_arguments_with_what_to_do(tmp_path):
+    from rasm import Platform
     from rasm.errors import PlatformError
-    from rasm.platform.runtime import Platform
 
     class Analyser:
         def analyse(self, ctx):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import shutil
 
+from rasm import Platform
 from rasm.platform.manifest import load_manifest
-from rasm.platform.runtime import Platform
 from rasm.resources import platform_chart
 
 from .conftest import HOTBOX, read_trace

@@ -12,8 +12,8 @@ from collections import Counter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rasm import Platform
 from rasm.platform.logs import RepeatedLogs
-from rasm.platform.runtime import Platform
 
 from .conftest import HOTBOX
 

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import paho.mqtt.client as paho
 
+from rasm import Platform
 from rasm.comm import MqttTransport, Presence, verify
-from rasm.platform.runtime import Platform
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import HOTBOX

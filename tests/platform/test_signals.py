@@ -16,11 +16,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from rasm import Platform
 from rasm.cli import main
 from rasm.errors import SourceErrors
 from rasm.lint import lint_paths
 from rasm.platform.manifest import load_manifest
-from rasm.platform.runtime import Platform
 from rasm.platform.signals import app_problems, check_app, provided
 from rasm.testing import run_app
 

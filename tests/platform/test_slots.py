@@ -6,16 +6,16 @@ from __future__ import annotations
 
 import pytest
 
+from rasm import Platform
 from rasm.comm.local import LocalTransport
 from rasm.comm.topics import TopicIndex
 from rasm.comm.transport import Transport
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.redis import RedisKnowledgeBase
+from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
 from rasm.platform.block import Block
 from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.knowledge_manager import KnowledgeManager
-from rasm.platform.orchestrator import AdaptationOrchestrator
-from rasm.platform.runtime import Platform
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.state_manager import StateManager
 from rasm.platform.telegraf import Telegraf

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rasm.platform.runtime import Platform
+from rasm import Platform
 
 from .conftest import read_trace
 

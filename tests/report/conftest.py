@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
+from rasm import Platform
 from rasm.platform.manifest import load_manifest
-from rasm.platform.runtime import Platform
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from rasm import Platform
 from rasm.errors import PlatformError
 from rasm.platform.manifest import load_manifest
-from rasm.platform.runtime import Platform
 from rasm.report.dashboard import serve
 
 from .conftest import HOTBOX

@@ -51,7 +51,7 @@ def test_the_dashboard_says_not_judged_and_names_the_signal(tmp_path: Path):
         extra="\nproperty steady:\n    always (heading <= 90)\n",
         every=8,
     )
-    from rasm.platform.runtime import Platform
+    from rasm import Platform
 
     platform = Platform(app, clock="simulated", seed=1)
     platform.build()

@@ -107,8 +107,8 @@ def test_run_app_leaves_nothing_on_disk_but_the_trace_it_was_asked_for(tmp_path,
 
 
 def test_a_simulated_run_starts_its_timing_file_afresh(tmp_path, monkeypatch):
+    from rasm import Platform
     from rasm.platform.manifest import load_manifest
-    from rasm.platform.runtime import Platform
 
     monkeypatch.chdir(tmp_path)
     sizes = []

@@ -8,9 +8,9 @@ import json
 import pytest
 from tb4.evaluation import APP, run
 
+from rasm import Platform
 from rasm.cli import main
 from rasm.platform.manifest import load_manifest
-from rasm.platform.runtime import Platform
 
 APP_PROPERTIES = {
     "velocity_limit",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from rasm.platform.runtime import Platform
+from rasm import Platform
 from rasm.testing.apps import app_manifest
 from tests.twin.hotbox import APP, HotboxTwin, box
 

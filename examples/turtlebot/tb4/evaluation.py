@@ -77,8 +77,8 @@ def run(
 ) -> Outcome:
     """Run scenario ``seed`` (:func:`~tb4.world.generate_scenario`, or ``scenario``) with the
     simulator seeded by ``seed``, on the simulated clock unless told otherwise."""
+    from rasm import Platform
     from rasm.platform.manifest import load_manifest
-    from rasm.platform.runtime import Platform
 
     platform = Platform(
         load_manifest(APP),

@@ -10,7 +10,7 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from rasm.platform.runtime import STAGES, Platform, RunSummary
+from rasm.platform.platform import STAGES, Platform, RunSummary
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PASSING
 

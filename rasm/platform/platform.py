@@ -25,6 +25,7 @@ from typing import Any
 from rasm.errors import Location, PlatformError, RasmError, SourceError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.platform.adaptation_manager import AdaptationManager
+from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.components import (
     Action,
@@ -38,7 +39,6 @@ from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.logs import RepeatedLogs
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
-from rasm.platform.orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.state_manager import StateManager

@@ -18,7 +18,7 @@ import rasm
 from rasm.errors import RasmError, SourceErrors, printable, raise_interrupted, read_utf8
 
 if TYPE_CHECKING:
-    from rasm.platform.runtime import Platform
+    from rasm.platform.platform import Platform
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -277,9 +277,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
-    from rasm.platform.console import LiveView, print_summary
+    from rasm.cli.console import LiveView, print_summary
     from rasm.platform.manifest import load_manifest
-    from rasm.platform.runtime import Platform
+    from rasm.platform.platform import Platform
 
     manifest = load_manifest(args.app)
     if args.duration is not None and not 0 < args.duration < math.inf:  # nan, inf: never ends
@@ -541,6 +541,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
 
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -6,10 +6,9 @@ import io
 
 from rich.console import Console
 
-from rasm.platform.console import LiveView
-from rasm.platform.runtime import Platform
-
-from .guarded import write_guarded_app
+from rasm import Platform
+from rasm.cli.console import LiveView
+from tests.platform.guarded import write_guarded_app
 
 
 def _lines(view: LiveView, time: float, *, styled: bool) -> dict[str, str]:
