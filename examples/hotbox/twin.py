@@ -40,8 +40,6 @@ NOMINAL = {"heat_capacity": 500.0, "loss_closed": 2.0, "loss_open": 12.0}
 DEFAULT_SETTINGS = {"mode": "normal", "setpoint": 37.5, "power_limit": 60.0}
 MODE_LIMITS = {"normal": 60.0, "boost": 100.0}  # power limits of the app's plans, by mode
 PARAMS = ("heat_capacity", "loss_closed", "loss_open")
-# TwinUpdate((...)) without the named tuple's Python-level __new__: one per record
-_new_update = tuple.__new__
 
 
 # the window's running sums are summed afresh after this many records, so the rounding of
@@ -295,16 +293,10 @@ class HotboxTwin(DigitalTwin):
         f0, f1, f2 = a0 * recent.power, -b0 * recent.loss, -c0 * recent.lid
         self._reference[lid] = (f0, f1, f2)
         # overlapping windows share their records: each counts as 1/len of an observation
-        # the window's change and length read off its records (no property or __len__ call)
-        entries = recent._entries
-        change = entries[-1][1] - entries[0][1]
-        error = self.rls.update3(f0, f1, f2, change, 1.0 / (len(entries) - 1))
+        error = self.rls.update((f0, f1, f2), recent.change, 1.0 / (len(recent) - 1))
         residual = abs(error)
-        errors = self._errors = self._errors + 1
-        # min(errors, 100) without the call (this runs once per record)
-        self._square_error += (error * error - self._square_error) / (
-            errors if errors < 100 else 100
-        )
+        self._errors += 1
+        self._square_error += (error * error - self._square_error) / min(self._errors, 100)
 
         drift = False
         if self._armed:
@@ -325,7 +317,7 @@ class HotboxTwin(DigitalTwin):
             changed = confident and self._worth_publishing(time)
         if changed:
             self._publish(time)
-        return _new_update(TwinUpdate, (residual, drift, changed))
+        return TwinUpdate(residual, drift, changed)
 
     def _confident(self) -> bool:
         """Physical estimates, both lid states seen, and for a window of each the parameters'
@@ -352,7 +344,7 @@ class HotboxTwin(DigitalTwin):
         published = self._published
         if published["version"] == 0 or self._relearning:
             return True
-        if published.get("learned_at").__class__ is not float and not self._confident():
+        if not isinstance(published.get("learned_at"), float) and not self._confident():
             # a hand-written model's learned_at may be anything (or missing): only a confident
             # estimate may trip over it, whichever of the two tests is asked first
             return False

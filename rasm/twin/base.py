@@ -15,8 +15,7 @@ class TwinError(RasmError):
 
 
 class TwinUpdate(NamedTuple):
-    """What one learning step found (immutable; a named tuple, the cheapest record Python
-    makes: a twin returns one per record).
+    """What one learning step found.
 
     * ``residual``: the size of this step's prediction error, in the predicted signal's unit
       (``|measured - predicted|``; each twin documents which prediction).

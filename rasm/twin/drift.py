@@ -55,17 +55,11 @@ class PageHinkley:
 
     def update(self, x: float) -> bool:
         """Add one sample; True if it completes the evidence of a drift."""
-        # once per twin record: locals, and min() and the statistic written out
-        samples = self.samples + 1
-        self.samples = samples
-        mean = self.mean + (x - self.mean) / samples
-        self.mean = mean
-        cumulative = self.cumulative + (x - mean - self.delta)
-        self.cumulative = cumulative
-        minimum = self.minimum
-        if cumulative < minimum:  # min(minimum, cumulative): the first unless the second is less
-            minimum = self.minimum = cumulative
-        if samples >= self.min_samples and cumulative - minimum > self.threshold:
+        self.samples += 1
+        self.mean += (x - self.mean) / self.samples
+        self.cumulative += x - self.mean - self.delta
+        self.minimum = min(self.minimum, self.cumulative)
+        if self.samples >= self.min_samples and self.statistic > self.threshold:
             self.detections += 1
             self.reset()
             return True
