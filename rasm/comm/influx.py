@@ -32,6 +32,7 @@ import threading
 import time as _time
 from collections import deque
 from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
 from urllib.parse import urlencode, urlsplit
@@ -271,20 +272,18 @@ class _FileSink:
 # --------------------------------------------------------------------------- the writer
 
 
+@dataclass
 class WriterStats:
     """Counters of an :class:`InfluxWriter`: points ``written``, ``dropped`` (queue full, never
     sent), ``failed`` (sent but refused, or the server unreachable), ``batches`` sent."""
 
-    __slots__ = ("written", "dropped", "failed", "batches")
-
-    def __init__(self) -> None:
-        self.written = self.dropped = self.failed = self.batches = 0
+    written: int = 0
+    dropped: int = 0
+    failed: int = 0
+    batches: int = 0
 
     def as_dict(self) -> dict[str, int]:
-        return {name: getattr(self, name) for name in self.__slots__}
-
-    def __repr__(self) -> str:
-        return f"WriterStats({', '.join(f'{k}={v}' for k, v in self.as_dict().items())})"
+        return asdict(self)
 
 
 class InfluxWriter:

@@ -8,7 +8,6 @@ from typing import Any, NamedTuple
 __all__ = ["Message", "TransportStats"]
 
 
-
 class Message(NamedTuple):
     """One received message.
 
@@ -16,7 +15,6 @@ class Message(NamedTuple):
     and given here as ``uid`` (unique per message) and ``timestamp`` (the sender's wall clock,
     seconds since the epoch). Both are ``None`` when a foreign publisher did not send them.
     Treat ``payload`` as read-only: on the local bus every subscriber sees the same dict.
-    (A named tuple: immutable and the cheapest record Python makes, one per message.)
     """
 
     topic: str
@@ -39,18 +37,15 @@ class TransportStats:
     """
 
     FIELDS = ("published", "delivered", "malformed", "dropped", "errors", "reconnects")
-    __slots__ = ("_lock", *FIELDS)
-    published: int
-    delivered: int
-    malformed: int
-    dropped: int
-    errors: int
-    reconnects: int
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        for name in self.FIELDS:
-            setattr(self, name, 0)
+        self.published = 0
+        self.delivered = 0
+        self.malformed = 0
+        self.dropped = 0
+        self.errors = 0
+        self.reconnects = 0
 
     def incr(self, field: str, n: int = 1) -> None:
         """Add ``n`` to the counter ``field`` (used by layers built on a transport, too)."""
@@ -58,16 +53,11 @@ class TransportStats:
             setattr(self, field, getattr(self, field) + n)
 
     def add_delivery(self, delivered: int, errors: int, published: int = 0) -> None:
-        """Count one message's outcome under a single lock acquisition (the hot path)."""
-        lock = self._lock
-        lock.acquire()  # not `with`: see the note on locks above
-        try:
+        """Count one message's outcome (its callback calls) under one lock."""
+        with self._lock:
             self.published += published
             self.delivered += delivered
-            if errors:  # mostly none: no read and write of a counter that stays as it is
-                self.errors += errors
-        finally:
-            lock.release()
+            self.errors += errors
 
     def as_dict(self) -> dict[str, int]:
         """A consistent snapshot of every counter."""

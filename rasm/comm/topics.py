@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Hashable
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeVar
 
 from rasm.errors import CommError
 
@@ -74,15 +74,6 @@ def _match_levels(levels: list[str], topic: str) -> bool:
     return len(levels) == n
 
 
-def _matching(exact: dict[str, tuple[Any, ...]], wild: Any, topic: str) -> tuple[Any, ...]:
-    """The items for ``topic``: exact ones first, then wildcards in order (TopicIndex.match on
-    a cache miss; its own function, so that match, compiled, makes no generator closure on
-    every call)."""
-    return exact.get(topic, ()) + tuple(
-        item for _, levels, item in wild if _match_levels(levels, topic)
-    )
-
-
 def topic_matches(pattern: str, topic: str) -> bool:
     """True if the subscription ``pattern`` matches the topic name ``topic``."""
     return _match_levels(pattern.split("/"), topic)
@@ -101,11 +92,6 @@ class TopicIndex(Generic[T]):
     a lock (subscriptions change rarely; messages are many), which also keeps readers on other
     threads consistent: they always see one whole generation, never a half-applied change.
     """
-
-    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
-    __slots__ = (
-        "_lock", "_state", "__dict__", "__weakref__",
-    )
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -151,7 +137,9 @@ class TopicIndex(Generic[T]):
         exact, wild, cache = self._state
         found = cache.get(topic)
         if found is None:
-            found = _matching(exact, wild, topic)
+            found = exact.get(topic, ()) + tuple(
+                item for _, levels, item in wild if _match_levels(levels, topic)
+            )
             if len(cache) >= _CACHE_LIMIT:
                 cache.clear()
             cache[topic] = found

@@ -22,8 +22,6 @@ Callback = Callable[[Message], None]
 class Subscription:
     """A live subscription; :meth:`cancel` ends it (idempotent)."""
 
-    __slots__ = ("pattern", "callback", "qos", "_transport", "_active")
-
     def __init__(self, transport: Transport, pattern: str, callback: Callback, qos: int) -> None:
         self.pattern = pattern
         self.callback = callback
@@ -68,11 +66,6 @@ class Transport(ABC):
 
     ``qos=None`` (the default) means the QoS configured for the topic, else 0.
     """
-
-    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
-    __slots__ = (
-        "stats", "_index", "_sub_lock", "_state", "__dict__", "__weakref__",
-    )
 
     #: The URL this transport was opened with (``local`` or ``mqtt://host:port``).
     url: str
