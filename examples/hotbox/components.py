@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import random
 
-from rasm.platform.components import Action, Anomaly, Plan
+from rasm import Action, Anomaly, Plan
 
 BAND = (35.0, 40.0)  # where the controller should keep the content
 NORMAL = {"mode": "normal", "setpoint": 37.5, "power_limit": 60.0}
@@ -61,27 +61,20 @@ class HotboxSimulator:
             self.capacity = self.content_changes.pop(0)[1]
         lid = self.lid_open(time)
         loss = self.LOSS_OPEN if lid else self.LOSS_CLOSED
-        settings = self.settings
-        setpoint = settings["setpoint"]
-        ambient = self.AMBIENT
-        temperature = self.temperature
-        feed_forward = self.LOSS_CLOSED * (setpoint - ambient)
-        wanted = feed_forward + self.GAIN * (setpoint - temperature)
-        # min(max(wanted, 0.0), limit) written out: this runs for every reading
-        power = 0.0 if 0.0 > wanted else wanted
-        limit = settings["power_limit"]
-        if limit < power:
-            power = limit
-        self.power = power
-        temperature += dt * (power - loss * (temperature - ambient)) / self.capacity
-        self.temperature = temperature
-        measured = temperature + self.rng.gauss(0.0, 0.02)
+        setpoint = self.settings["setpoint"]
+        # the local P-controller, with a feed-forward term for the closed-lid heat loss
+        feed_forward = self.LOSS_CLOSED * (setpoint - self.AMBIENT)
+        wanted = feed_forward + self.GAIN * (setpoint - self.temperature)
+        self.power = min(max(wanted, 0.0), self.settings["power_limit"])
+        heat_loss = loss * (self.temperature - self.AMBIENT)
+        self.temperature += dt * (self.power - heat_loss) / self.capacity
+        measured = self.temperature + self.rng.gauss(0.0, 0.02)
         return {
             "hotbox/sensors": {
                 "temperature": round(measured, 4),
                 "lid_open": lid,
-                "heater_power": round(power, 3),
-                "heater_mode": settings["mode"],
+                "heater_power": round(self.power, 3),
+                "heater_mode": self.settings["mode"],
                 "setpoint": setpoint,
             }
         }

@@ -16,7 +16,7 @@ import math
 import sys
 from pathlib import Path
 
-from rasm.platform.components import Action, Anomaly, Plan
+from rasm import Action, Anomaly, Plan
 
 _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:  # the app folder holds the tb4 package

@@ -77,8 +77,7 @@ def run(
 ) -> Outcome:
     """Run scenario ``seed`` (:func:`~tb4.world.generate_scenario`, or ``scenario``) with the
     simulator seeded by ``seed``, on the simulated clock unless told otherwise."""
-    from rasm import Platform
-    from rasm.platform.manifest import load_manifest
+    from rasm import Platform, load_manifest
 
     platform = Platform(
         load_manifest(APP),
