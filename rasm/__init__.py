@@ -27,7 +27,7 @@ __version__ = "0.1.0"
 # public name -> the module that defines it
 _PUBLIC = {
     "Platform": "rasm.platform.platform",
-    "RunSummary": "rasm.platform.platform",
+    "RunSummary": "rasm.platform.summary",
     "Anomaly": "rasm.platform.components",
     "Plan": "rasm.platform.components",
     "Action": "rasm.platform.components",
@@ -56,7 +56,8 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from rasm.errors import RasmError, SourceError
     from rasm.platform.components import Action, Anomaly, Plan, StageContext
     from rasm.platform.manifest import load_manifest
-    from rasm.platform.platform import Platform, RunSummary
+    from rasm.platform.platform import Platform
+    from rasm.platform.summary import RunSummary
     from rasm.properties import compile_properties
 
 

@@ -30,6 +30,31 @@ def test_import_rasm_gives_the_application_names() -> None:
     assert rasm.Plan({"mode": "boost"})["mode"] == "boost"
 
 
+def test_rasm_platform_gives_its_public_names_and_no_others() -> None:
+    import rasm.platform
+
+    assert set(rasm.platform.__all__) == {
+        "Action",
+        "Anomaly",
+        "AppManifest",
+        "LoopStats",
+        "Plan",
+        "Platform",
+        "RunSummary",
+        "StageContext",
+        "load_manifest",
+    }
+    for name in rasm.platform.__all__:
+        assert getattr(rasm.platform, name) is not None, name
+    assert rasm.platform.Platform is rasm.Platform
+    try:
+        rasm.platform.Telegraf  # noqa: B018 - a building block: imported from its own module
+    except AttributeError:
+        pass
+    else:
+        raise AssertionError("rasm.platform.Telegraf should not be a public name")
+
+
 def test_an_unknown_name_is_an_attribute_error() -> None:
     try:
         rasm.Nothing  # noqa: B018
@@ -40,7 +65,7 @@ def test_an_unknown_name_is_an_attribute_error() -> None:
 
 
 def test_import_rasm_loads_no_platform_until_asked() -> None:
-    code = "import sys, rasm; print('rasm.platform.runtime' in sys.modules)"
+    code = "import sys, rasm, rasm.platform; print('rasm.platform.platform' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -3,18 +3,30 @@ the Trustworthiness Checker."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 from rasm.platform.block import Block
 from rasm.platform.components import Action
-from rasm.platform.trustworthiness_checker import TrustworthinessChecker
-from rasm.platform.trustworthiness_manager import TrustworthinessManager
 
-__all__ = ["AdaptationManager"]
+__all__ = ["ActionGate", "AdaptationManager", "TrustJudge"]
+
+
+class TrustJudge(Protocol):
+    """What decides whether an action is trustworthy: the Trustworthiness Manager."""
+
+    def check_trustworthiness(self, action: Action) -> tuple[bool, str]:
+        """(trustworthy, why)."""
+
+
+class ActionGate(Protocol):
+    """The only path to the effectors: the Trustworthiness Checker."""
+
+    def register_action(self, action: Action) -> tuple[bool, str]:
+        """(sent to its effector, why)."""
 
 
 class AdaptationManager(Block):
-    """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis`` (seed §6.4.4).
+    """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis``.
 
     Has the Trustworthiness Manager check the action; when trustworthy, registers it with the
     Trustworthiness Checker, which alone hands it to the effector. Otherwise the action is dropped.
@@ -23,7 +35,7 @@ class AdaptationManager(Block):
     chart_name = "adaptation_manager"
     short_name = "am"
 
-    def __init__(self, tm: TrustworthinessManager, tc: TrustworthinessChecker, **kw: Any) -> None:
+    def __init__(self, tm: TrustJudge, tc: ActionGate, **kw: Any) -> None:
         self.tm = tm
         self.tc = tc
         self._action: Action | None = None

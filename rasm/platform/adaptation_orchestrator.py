@@ -13,16 +13,18 @@ from __future__ import annotations
 import logging
 import traceback
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from sismic.clock import SimulatedClock
 
 from rasm.errors import is_interrupt
-from rasm.platform.adaptation_manager import AdaptationManager
+from rasm.knowledge.base import KnowledgeBase
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.components import (
+    Action,
+    Plan,
     StageContext,
     StageError,
     as_actions,
@@ -33,11 +35,13 @@ from rasm.platform.components import (
     describe_failure,
 )
 from rasm.platform.stages import StageOutcome, StageRunner
-from rasm.platform.state_manager import StateManager
-from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.resources import platform_monitors
 
-__all__ = ["AdaptationOrchestrator", "LoopStats"]
+if TYPE_CHECKING:
+    from rasm.rules import RuleSet
+    from rasm.twin import DigitalTwin
+
+__all__ = ["AdaptationOrchestrator", "Adapter", "LoopStats", "PlanRegistry", "StageTimer"]
 
 _log = logging.getLogger("rasm.loop")
 
@@ -58,15 +62,35 @@ class LoopStats:
     timeouts: Counter[str] = field(default_factory=Counter)
 
 
+class Adapter(Protocol):
+    """What performs an action: the Adaptation Manager."""
+
+    last_trusted: bool  # whether the latest action was found trustworthy
+
+    def perform_adaptation(self, action: Action) -> tuple[bool, str]:
+        """(the action reached its effector, why)."""
+
+
+class PlanRegistry(Protocol):
+    """What holds the plans the Legitimate stage accepted: the Trustworthiness Manager."""
+
+    def accept_plan(self, plan: Plan) -> None: ...
+
+    def forget_plan(self, plan_id: str) -> None: ...
+
+
+class StageTimer(Protocol):
+    """What keeps each stage's timing: the State Manager."""
+
+    def record_stage(self, stage: str, start: float, duration: float) -> None: ...
+
+
+Register = Callable[[dict[str, Any], float], Any]
+Emit = Callable[[float, dict[str, Any]], Any]
+
+
 class AdaptationOrchestrator(Block):
     """Adaptation Orchestrator (ao): ``orchestration_loop`` is its chart; this is its driver."""
-
-    # Slots, as Block's: the attributes a loop iteration reads (the twin's are set on a
-    # plan's check only, and stay in the instance dict).
-    __slots__ = (
-        "twin", "components", "knowledge", "rules", "register", "emit", "am", "tm", "sm",
-        "stage_budget", "max_actions", "runner", "stats", "ctx", "_plans", "plan_prefix",
-    )
 
     chart_name = "adaptation_orchestrator"
     short_name = "ao"
@@ -74,20 +98,20 @@ class AdaptationOrchestrator(Block):
     def __init__(
         self,
         *,
-        components: dict[str, Any],
-        knowledge: Any,
-        rules: list[Any],
-        register: Callable[[dict[str, Any], float], Any],
-        emit: Callable[[float, dict[str, Any]], Any],
-        am: AdaptationManager,
-        tm: TrustworthinessManager,
-        sm: StateManager,
+        components: dict[str, object],
+        knowledge: KnowledgeBase,
+        rules: list[RuleSet],
+        register: Register,
+        emit: Emit,
+        am: Adapter,
+        tm: PlanRegistry,
+        sm: StageTimer,
         stage_budget: float = 1.0,
         max_replans: int = 2,
         max_actions: int = 16,
         isolate_stages: bool = True,
-        twin: Any = None,
-        twin_properties: list[tuple[str, str]] = (),  # type: ignore[assignment]
+        twin: DigitalTwin | None = None,
+        twin_properties: Sequence[tuple[str, str]] = (),
         twin_horizon: float = 20.0,
         twin_dt: float = 0.5,
         plan_prefix: str = "",
@@ -135,20 +159,19 @@ class AdaptationOrchestrator(Block):
 
     # ------------------------------------------------------------------ stages
 
-    def _stage(self, stage: str, method: str, body: Callable[[StageContext, Any], str]) -> None:
-        """Run ``body`` for ``stage``; post its outcome event, or ``stage_failed``."""
+    def _stage(self, stage: str, body: Callable[[StageContext, Any], str]) -> None:
+        """Run the user's code for ``stage``, then ``body`` with its result; post the outcome
+        event ``body`` returns, or ``stage_failed``."""
         ctx = self.ctx
         start = self.clock.time
-        component = self.components.get(stage)
-        func = getattr(component, method, None) if component is not None else None
+        func = getattr(self.components.get(stage), stage, None)
         if func is None:
             outcome = StageOutcome(True, None)
         else:
             outcome = self.runner.call(func, self.stage_budget, ctx)
-        ok, result, error, tb, timed_out, duration = outcome  # (a named tuple: one unpacking)
-        self.sm.record_stage(stage, start, duration)
-        self.emit(start, {"stage": stage, "duration": round(duration, 9)})
-        if timed_out:
+        self.sm.record_stage(stage, start, outcome.duration)
+        self.emit(start, {"stage": stage, "duration": round(outcome.duration, 9)})
+        if outcome.timed_out:
             self.stats.timeouts[stage] += 1
             self.logs.log(
                 _log,
@@ -157,25 +180,25 @@ class AdaptationOrchestrator(Block):
                 "%s stage overran its %.3g s budget (%.3g s): iteration cancelled",
                 stage,
                 self.stage_budget,
-                duration,
+                outcome.duration,
             )
             self.emit(start, {"explanation": f"{stage} stage overran its time budget"})
             if isinstance(self.clock, SimulatedClock):
                 # an overrun costs the whole budget, so the chart's after() timer fires
                 self.clock.time = start + self.stage_budget
             return  # the chart's after(stage_budget) transition ends the iteration
-        if not ok:
-            self._fail(stage, describe_failure(error), tb)
+        if not outcome.ok:
+            self._fail(stage, describe_failure(outcome.error), outcome.traceback)
             return
         try:
-            event = body(ctx, result)
+            event = body(ctx, outcome.result)
         except StageError as exc:
             self._fail(stage, str(exc), "")
             return
         except Exception as exc:  # an odd result the checks above missed: fail the stage
             self._fail(stage, describe_failure(exc), traceback.format_exc())
             return
-        self.interpreter.queue(event)  # self.post(event), one call fewer
+        self.post(event)
 
     def _fail(self, stage: str, reason: str, tb: str) -> None:
         self.stats.failed_stages[stage] += 1
@@ -195,10 +218,8 @@ class AdaptationOrchestrator(Block):
     def on_enter_monitoring(self) -> None:
         self.stats.iterations += 1
         self.ctx = StageContext(self.knowledge, self.clock.time, self.stats.iterations)
-        self._stage("monitor", "monitor", self._monitored)
+        self._stage("monitor", self._monitored)
 
-    # Each stage's outcome is a method (bound at each call) rather than a closure, which would
-    # cost a new function object per iteration.
     def _monitored(self, ctx: StageContext, result: Any) -> str:
         signals = as_signals(result)
         if signals:
@@ -206,7 +227,7 @@ class AdaptationOrchestrator(Block):
         return "monitored"
 
     def on_enter_analysing(self) -> None:
-        self._stage("analyse", "analyse", self._analysed)
+        self._stage("analyse", self._analysed)
 
     def _analysed(self, ctx: StageContext, result: Any) -> str:
         anomaly = as_anomaly(result)
@@ -219,70 +240,70 @@ class AdaptationOrchestrator(Block):
         return "anomaly"
 
     def on_enter_planning(self) -> None:
-        def done(ctx: StageContext, result: Any) -> str:
-            self._plans += 1
-            plan = as_plan(result, f"{self.plan_prefix}p{self._plans}")
-            if plan is None:
-                self.emit(self.clock.time, {"explanation": "no plan for the anomaly"})
-                return "no_plan"
-            ctx.plan = plan
-            self.stats.plans += 1
-            record = {"planned": True, "plan": plan.id}
-            record.update(
-                {
-                    k: v
-                    for k, v in plan.values.items()
-                    if isinstance(v, int | float | str | bool) and k not in record
-                }
-            )
-            if plan.explanation:
-                record["explanation"] = plan.explanation
-            self.emit(self.clock.time, record)
-            return "planned"
+        self._stage("plan", self._planned)
 
-        self._stage("plan", "plan", done)
+    def _planned(self, ctx: StageContext, result: Any) -> str:
+        self._plans += 1
+        plan = as_plan(result, f"{self.plan_prefix}p{self._plans}")
+        if plan is None:
+            self.emit(self.clock.time, {"explanation": "no plan for the anomaly"})
+            return "no_plan"
+        ctx.plan = plan
+        self.stats.plans += 1
+        record = {"planned": True, "plan": plan.id}
+        record.update(
+            {
+                k: v
+                for k, v in plan.values.items()
+                if isinstance(v, int | float | str | bool) and k not in record
+            }
+        )
+        if plan.explanation:
+            record["explanation"] = plan.explanation
+        self.emit(self.clock.time, record)
+        return "planned"
 
     def on_enter_legitimating(self) -> None:
-        def done(ctx: StageContext, result: Any) -> str:
-            plan = ctx.plan
-            assert plan is not None
-            ok, why = as_verdict(result)
-            broken: list[str] = []
-            reasons: list[str] = []
-            context = self.knowledge.snapshot()
-            for rules in self.rules:
-                decision = rules.evaluate(plan.values, context)
-                if not decision.accepted:
-                    broken.extend(decision.broken)
-                    reasons.append(decision.explanation())
-            if not ok:
-                broken.append("application")
+        self._stage("legitimate", self._legitimated)
+
+    def _legitimated(self, ctx: StageContext, result: Any) -> str:
+        plan = ctx.plan
+        assert plan is not None
+        ok, why = as_verdict(result)
+        broken: list[str] = []
+        reasons: list[str] = []
+        context = self.knowledge.snapshot()
+        for rules in self.rules:
+            decision = rules.evaluate(plan.values, context)
+            if not decision.accepted:
+                broken.extend(decision.broken)
+                reasons.append(decision.explanation())
+        if not ok:
+            broken.append("application")
+            reasons.append(why)
+        if not broken and self.twin is not None:
+            for name, why in self._twin_check(plan, context):
+                broken.append(f"twin:{name}")
                 reasons.append(why)
-            if not broken and self.twin is not None:
-                for name, why in self._twin_check(plan, context):
-                    broken.append(f"twin:{name}")
-                    reasons.append(why)
-            if broken:
-                self.stats.rejected += 1
-                ctx.rejections.append((plan, broken, "; ".join(reasons)))
-                self.emit(
-                    self.clock.time,
-                    {
-                        "rejected": True,
-                        "plan": plan.id,
-                        "broken_rules": broken,
-                        "explanation": "; ".join(reasons),
-                    },
-                )
-                return "rejected"
-            self.stats.accepted += 1
-            self.tm.accepted_plans[plan.id] = plan
-            self.emit(self.clock.time, {"legitimate": True, "plan": plan.id})
-            return "accepted"
+        if broken:
+            self.stats.rejected += 1
+            ctx.rejections.append((plan, broken, "; ".join(reasons)))
+            self.emit(
+                self.clock.time,
+                {
+                    "rejected": True,
+                    "plan": plan.id,
+                    "broken_rules": broken,
+                    "explanation": "; ".join(reasons),
+                },
+            )
+            return "rejected"
+        self.stats.accepted += 1
+        self.tm.accept_plan(plan)
+        self.emit(self.clock.time, {"legitimate": True, "plan": plan.id})
+        return "accepted"
 
-        self._stage("legitimate", "legitimate", done)
-
-    def _twin_check(self, plan: Any, context: dict[str, Any]) -> list[tuple[str, str]]:
+    def _twin_check(self, plan: Plan, context: dict[str, Any]) -> list[tuple[str, str]]:
         """Simulate ``plan`` on the digital twin: the properties it would break where keeping
         the current settings would not (an absolute check would reject the plan that helps
         most whenever every option leaves the band; docs/twin.md)."""
@@ -299,44 +320,40 @@ class AdaptationOrchestrator(Block):
         return list(worse.items())
 
     def on_enter_executing(self) -> None:
-        def done(ctx: StageContext, result: Any) -> str:
-            plan = ctx.plan
-            assert plan is not None
-            actions = as_actions(result, plan.id)
-            if len(actions) > self.max_actions:
-                # a flood would hold the loop (each action is checked and sent in turn) and the
-                # effector: the whole lot is refused, so no partial adaptation goes out either
-                raise StageError(
-                    f"execute returned {len(actions)} actions, more than loop.max_actions "
-                    f"({self.max_actions}): none was sent"
-                )
-            executed = 0
-            for action in actions:
-                ok, why = self.am.perform_adaptation(action)
-                if self.am.last_trusted:
-                    self.emit(self.clock.time, {"trusted": True, "plan": plan.id})
-                if ok:
-                    executed += 1
-                    self.emit(
-                        self.clock.time, {"executed": True, "plan": plan.id, "explanation": why}
-                    )
-                else:
-                    self.emit(
-                        self.clock.time, {"dropped": True, "plan": plan.id, "explanation": why}
-                    )
-            self.tm.accepted_plans.pop(plan.id, None)
-            if executed:
-                self.stats.executed += 1
-                return "executed"
-            self.stats.dropped += 1
-            if not actions:
-                self.emit(
-                    self.clock.time,
-                    {"dropped": True, "plan": plan.id, "explanation": "execute produced no action"},
-                )
-            return "dropped"
+        self._stage("execute", self._executed)
 
-        self._stage("execute", "execute", done)
+    def _executed(self, ctx: StageContext, result: Any) -> str:
+        plan = ctx.plan
+        assert plan is not None
+        actions = as_actions(result, plan.id)
+        if len(actions) > self.max_actions:
+            # a flood would hold the loop (each action is checked and sent in turn) and the
+            # effector: the whole lot is refused, so no partial adaptation goes out either
+            raise StageError(
+                f"execute returned {len(actions)} actions, more than loop.max_actions "
+                f"({self.max_actions}): none was sent"
+            )
+        executed = 0
+        for action in actions:
+            ok, why = self.am.perform_adaptation(action)
+            if self.am.last_trusted:
+                self.emit(self.clock.time, {"trusted": True, "plan": plan.id})
+            if ok:
+                executed += 1
+                self.emit(self.clock.time, {"executed": True, "plan": plan.id, "explanation": why})
+            else:
+                self.emit(self.clock.time, {"dropped": True, "plan": plan.id, "explanation": why})
+        self.tm.forget_plan(plan.id)
+        if executed:
+            self.stats.executed += 1
+            return "executed"
+        self.stats.dropped += 1
+        if not actions:
+            self.emit(
+                self.clock.time,
+                {"dropped": True, "plan": plan.id, "explanation": "execute produced no action"},
+            )
+        return "dropped"
 
     def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
         if name == "adaptation_cancelled":

@@ -10,12 +10,16 @@ convention of docs/statecharts.md:
 Subclasses override :meth:`on_configuration`, :meth:`on_initialization`, :meth:`on_termination`
 and :meth:`on_fault`; an exception in the first two becomes the ``failed`` event. A sub-state ``s``
 of the core task entered by the chart calls ``on_enter_s()`` when the block defines it.
+
+The low-frequency work of a block (an action through Adaptation Manager, Trustworthiness Manager
+and Trustworthiness Checker; a persistence batch) steps its chart through the core task's
+sub-states. The per-record work (Telegraf digesting, knowledge registration, logging) only asks
+the block's mode: a chart step costs tens of microseconds, a record must cost less.
 """
 
 from __future__ import annotations
 
 import logging
-import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -32,15 +36,8 @@ from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 __all__ = ["MODES", "Block", "ModeListener", "shared_chart"]
 
 MODES = ("instantiated", "configuration", "initialization", "initialized", "fault", "terminated")
-_MODE_SET = frozenset(MODES)
 # the modes whose work the block does itself, not through an on_enter_<state> hook
 _LIFECYCLE_WORK = frozenset({"configuration", "initialization", "fault", "terminated"})
-# state -> its interned hook name, for the states that are neither a mode nor lifecycle work (the
-# core task's sub-states, entered at every loop iteration): one lookup tells a state needs its
-# hook only. A name built afresh for each getattr misses the type's attribute cache (it caches
-# interned names only) and is hashed again every time.
-_SUBSTATE_HOOKS: dict[str, str] = {}
-
 ModeListener = Callable[["Block", str], Any]
 
 _log = logging.getLogger("rasm.platform")
@@ -69,15 +66,6 @@ def shared_chart(name: str | Path) -> Statechart:
 
 class Block:
     """Base class of every building block. ``chart_name`` names its chart in ``statecharts/``."""
-
-    # The attributes the loop reads at every step are slots: compiled code reads a slot without
-    # the instance dict lookup (most of what an attribute access costs). ``__dict__`` keeps any
-    # other attribute working (a subclass's, a user's), ``__weakref__`` weak references.
-    __slots__ = (
-        "name", "depends_on", "clock", "interpreter", "failure_reason", "step_failures",
-        "_lock", "_running", "_listeners", "_mode", "on_deadline", "_armed",
-        "__dict__", "__weakref__",
-    )
 
     chart_name: ClassVar[str] = ""
     short_name: ClassVar[str] = ""
@@ -151,15 +139,9 @@ class Block:
 
     def send(self, event: str | None, **data: Any) -> list[MacroStep]:
         """Queue ``event`` (if any) and run the chart until it is stable, doing each mode's work."""
-        # not `with`: this runs at every loop iteration
-        lock = self._lock
-        lock.acquire()
-        try:
+        with self._lock:
             if event is not None:
-                if data:
-                    self.interpreter.queue(event, **data)
-                else:  # no keyword dict to copy
-                    self.interpreter.queue(event)
+                self.interpreter.queue(event, **data)
             if self._running:  # re-entrant call from a hook: the outer loop will run it
                 return []
             self._running = True
@@ -169,8 +151,6 @@ class Block:
                 self._running = False
             self._arm_timer()
             return steps
-        finally:
-            lock.release()
 
     def _arm_timer(self) -> None:
         if self.on_deadline is None:
@@ -193,10 +173,9 @@ class Block:
 
     def _run(self) -> list[MacroStep]:
         steps: list[MacroStep] = []
-        execute_once = self.interpreter.execute_once
         while True:
             try:
-                step = execute_once()
+                step = self.interpreter.execute_once()
             except Exception as exc:
                 # the interpreter rolled the step back and discarded its event (a monitor that
                 # refuses a step, an action that raises): the block stays where it was
@@ -210,31 +189,20 @@ class Block:
             if step is None:
                 return steps
             steps.append(step)
-            # the macro step's entered_states, then its sent_events, read from its micro steps
-            # (those properties build a new list at each call; `steps` is sismic's property
-            # returning `_steps`, read directly)
-            micro_steps = step._steps if type(step) is MacroStep else step.steps
-            for micro in micro_steps:
-                for state in micro.entered_states:
-                    self._entered(state)
-            for micro in micro_steps:
-                for sent in micro.sent_events:
-                    self.on_event_sent(sent.name, dict(sent.data))
+            for state in step.entered_states:
+                self._entered(state)
+            for sent in step.sent_events:
+                self.on_event_sent(sent.name, dict(sent.data))
 
     def _entered(self, state: str) -> None:
-        name = _SUBSTATE_HOOKS.get(state)
-        if name is None:  # a mode, lifecycle work, or a sub-state entered for the first time
-            if state in _MODE_SET:
-                self._mode = state
-                for listener in list(self._listeners):
-                    listener(self, state)
-            if state in _LIFECYCLE_WORK:
-                self._lifecycle_work(state)
-                return
-            name = sys.intern(f"on_enter_{state}")
-            if state not in _MODE_SET:
-                _SUBSTATE_HOOKS[state] = name
-        hook = getattr(self, name, None)
+        if state in MODES:
+            self._mode = state
+            for listener in list(self._listeners):
+                listener(self, state)
+        if state in _LIFECYCLE_WORK:
+            self._lifecycle_work(state)
+            return
+        hook = getattr(self, f"on_enter_{state}", None)
         if hook is not None:
             hook()
 

@@ -14,14 +14,10 @@ else fails the stage with an explanation, and no action comes out of a failed st
 
 from __future__ import annotations
 
-import importlib
-import sys
-import types
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-from rasm.errors import PlatformError, is_interrupt
+from rasm.errors import PlatformError
 from rasm.platform.trace import LOOP_KEYS
 
 __all__ = [
@@ -30,7 +26,6 @@ __all__ = [
     "Plan",
     "StageContext",
     "StageError",
-    "load_component",
     "as_actions",
     "as_anomaly",
     "as_plan",
@@ -107,55 +102,11 @@ class StageContext:
     log: Any = None
 
 
-def load_component(
-    ref: str, folder: Path, *, package: str, kwargs: dict[str, Any] | None = None
-) -> Any:
-    """Instantiate ``module:Class`` (``module`` a file or package in ``folder``) with ``kwargs``."""
-    module_name, _, class_name = ref.partition(":")
-    if package not in sys.modules:
-        # the app folder as a package, so its modules can import each other relatively
-        parent = types.ModuleType(package)
-        parent.__path__ = [str(folder)]
-        parent.__package__ = package
-        sys.modules[package] = parent
-    qualified = f"{package}.{module_name}"
-    try:
-        module = importlib.import_module(qualified)
-    except ModuleNotFoundError as exc:
-        if exc.name == qualified or (exc.name or "").startswith(package):
-            raise PlatformError(f"{ref}: no module {module_name!r} in {folder}") from exc
-        raise PlatformError(f"{ref}: importing {module_name} failed: {exc}") from exc
-    except BaseException as exc:  # sys.exit() at import: an error, not an exit
-        if is_interrupt(exc):
-            raise
-        sys.modules.pop(qualified, None)
-        raise PlatformError(
-            f"{ref}: importing {module_name} failed: {type(exc).__name__}: {exc}"
-        ) from exc
-    cls = getattr(module, class_name, None)
-    if cls is None:
-        raise PlatformError(f"{ref}: {module_name} has no {class_name!r}")
-    try:
-        return cls(**(kwargs or {}))
-    except BaseException as exc:
-        if is_interrupt(exc):
-            raise
-        raise PlatformError(f"{ref}: creating {class_name}() failed: {exc}") from exc
-
-
-def _str_keys(value: dict) -> bool:
-    # a loop rather than all(generator): the monitor's result is checked at every iteration
-    for key in value:
-        if not isinstance(key, str):
-            return False
-    return True
-
-
 def as_signals(value: Any) -> dict[str, Any]:
     """Monitor's result: derived signals to register (a dict), or nothing."""
     if value is None:
         return {}
-    if not isinstance(value, dict) or not _str_keys(value):
+    if not isinstance(value, dict) or not all(isinstance(key, str) for key in value):
         raise StageError(
             f"monitor must return a dict of signals or None, not {type(value).__name__}"
         )

@@ -1,4 +1,4 @@
-"""Core: brings every building block up and down (seed §5.2.5, §6.1-6.2).
+"""Core: brings every building block up and down.
 
 Core is a block itself, driven by ``statecharts/core.yaml``. Inside its ``initialized`` mode it
 starts the other blocks in dependency order (``starting_blocks``), and on shutdown stops them in

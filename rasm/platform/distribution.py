@@ -1,4 +1,4 @@
-"""What a platform does when its two halves meet over a network (seed §4.1, §6.1, ID_RAP_03).
+"""What a platform does when its two halves meet over a network.
 
 - **Presence**: over MQTT each process announces itself on ``rasm/presence/<node>``, sends
   heartbeats and leaves a last will, so a crashed node is marked offline by the broker. The
@@ -33,15 +33,25 @@ import os
 import secrets
 import time as _time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from rasm.comm import Transport
 from rasm.comm.signing import BoundSigner, SignedEffector, new_epoch
 from rasm.errors import CommError, PlatformError
 
-__all__ = ["Distribution", "key_from_env"]
+if TYPE_CHECKING:
+    from rasm.comm import InfluxWriter, Presence, PresenceTracker, UpdateReceiver
+    from rasm.properties.monitor import Monitor
+    from rasm.rules import RuleSet
+
+__all__ = ["Distribution", "DistributionHooks", "key_from_env"]
 
 _log = logging.getLogger("rasm.platform")
+
+Observers = list[Callable[[float, dict[str, Any]], Any]]
+"""The trace's observers: each is called with every record (time, record)."""
 
 
 def key_from_env(name: str) -> bytes | None:
@@ -57,23 +67,60 @@ def key_from_env(name: str) -> bytes | None:
         ) from None
 
 
-class Distribution:
-    """The network-facing parts of one platform process; each does nothing on the local bus."""
+@dataclass(frozen=True)
+class DistributionHooks:
+    """What the managing side's network parts tell the loop, as callables.
 
-    def __init__(self, platform: Any) -> None:
-        self.platform = platform
-        self.networked = platform.transport_url != "local"
-        role = platform.role
-        self.node = f"{platform.manifest.name}-{role}-{os.getpid()}"
+    ``managed_system(event)``: ``managed_system_lost`` or ``managed_system_back`` (called on a
+    transport thread); ``node(name, state)``: a remote process's presence changed;
+    ``rules``: the rule sets an update replaces the first of; ``add_monitor(monitor)``: the
+    properties of an accepted update (called on a transport thread).
+    """
+
+    managed_system: Callable[[str], Any]
+    node: Callable[[str, str], Any]
+    rules: list[RuleSet]
+    add_monitor: Callable[[Monitor], Any]
+
+
+class Distribution:
+    """The network-facing parts of one platform process; each does nothing on the local bus.
+
+    ``timing`` is the manifest's ``timing:`` (``off``, ``file:PATH``, an InfluxDB URL, or None
+    for ``timing_file``); a simulated run (``fresh``) starts its timing file afresh.
+    """
+
+    def __init__(
+        self,
+        *,
+        app: str,
+        role: str,
+        transport_url: str,
+        period: float,
+        timing: str | None,
+        timing_file: Path,
+        fresh: bool,
+    ) -> None:
+        self.app = app
+        self.role = role
+        self.transport_url = transport_url
+        self.networked = transport_url != "local"
+        self.period = period
+        self.timing_target = timing
+        self.timing_file = timing_file
+        self.fresh = fresh
+        self.node = f"{app}-{role}-{os.getpid()}"
         self.action_key = key_from_env("RASM_ACTION_KEY")
         self.update_key = key_from_env("RASM_UPDATE_KEY")
-        self.presence: Any = None
-        self.tracker: Any = None
-        self.updates: Any = None
-        self.timing: Any = None
-        self.gates: list[Any] = []  # one effector gate per effector topic
+        self.presence: Presence | None = None
+        self.tracker: PresenceTracker | None = None
+        self.updates: UpdateReceiver | None = None
+        self.timing: InfluxWriter | None = None
+        self.gates: list[SignedEffector] = []  # one effector gate per effector topic
         self.managed_nodes: dict[str, str] = {}
         self._epoch = 0.0
+        self._transport: Transport | None = None
+        self._hooks: DistributionHooks | None = None
         # this process's incarnation (what actions and updates sent to it must be bound to)
         # and this run of its managing side (the prefix of live plan ids, the signer's run)
         self.epoch = new_epoch()
@@ -83,6 +130,10 @@ class Distribution:
         )
         self._unbound_logged = False
 
+    @property
+    def managing(self) -> bool:
+        return self.role in ("all", "managing")
+
     def transport_options(self) -> dict[str, Any]:
         """Options for ``open_transport``: the last will that marks this node offline, and the
         broker credentials from ``RASM_MQTT_USERNAME``/``RASM_MQTT_PASSWORD``."""
@@ -91,37 +142,49 @@ class Distribution:
         from rasm.comm import credentials_from_env, presence_will
 
         return {
-            "will": presence_will(self.node, self.platform.role),
-            **credentials_from_env(self.platform.transport_url),
+            "will": presence_will(self.node, self.role),
+            **credentials_from_env(self.transport_url),
         }
 
     # ------------------------------------------------------------------ start and stop
 
-    def start(self) -> None:
-        p = self.platform
-        self._epoch = _time.time() - p.clock.time
-        self._start_timing()
+    def start(
+        self,
+        transport: Transport,
+        observers: Observers,
+        *,
+        clock_time: float,
+        hooks: DistributionHooks | None = None,
+    ) -> None:
+        """Start the network parts on ``transport``. ``observers`` are the trace's: the timing
+        writer and the trace on the bus join them. ``clock_time`` is the platform clock's time
+        now; ``hooks`` (the managing side's) are what presence and updates act on."""
+        self._transport = transport
+        self._hooks = hooks
+        self._epoch = _time.time() - clock_time
+        if self.managing:
+            self._start_timing(observers)
         if not self.networked:
             return
         from rasm.comm import Presence, PresenceTracker, UpdateReceiver
 
         self.presence = Presence(
-            p.transport,
+            transport,
             self.node,
-            role=p.role,
-            period=max(p.manifest.period, 0.5),
-            info={"app": p.manifest.name, "epoch": self.epoch},
+            role=self.role,
+            period=max(self.period, 0.5),
+            info={"app": self.app, "epoch": self.epoch},
         ).start()
-        if p.role in ("all", "managing"):
-            p.trace.observers.append(self._publish_record)
+        if self.managing:
+            observers.append(self._publish_record)
             self.tracker = PresenceTracker(
-                p.transport,
-                timeout=3 * max(p.manifest.period, 0.5),
+                transport,
+                timeout=3 * max(self.period, 0.5),
                 on_change=self._presence_changed,
             ).start()
             if self.update_key is not None:
                 self.updates = UpdateReceiver(
-                    p.transport,
+                    transport,
                     self.update_key,
                     rules=self._apply_rules,
                     properties=self._apply_properties,
@@ -140,32 +203,30 @@ class Distribution:
 
     # ------------------------------------------------------------------ timing
 
-    def _start_timing(self) -> None:
-        p = self.platform
-        if p.role == "managed":
-            return
+    def _start_timing(self, observers: Observers) -> None:
         from rasm.comm import InfluxWriter
 
-        target = p.manifest.timing
+        target = self.timing_target
         if target == "off":
             return
         if target and target.startswith(("http://", "https://")):
             base, _, database = target.rstrip("/").rpartition("/")
             self.timing = InfluxWriter(base, database or "rasm")
         else:
-            path = Path(target[len("file:") :]) if target else p.state_dir / "timing.lp"
+            path = Path(target[len("file:") :]) if target else self.timing_file
             # a simulated run starts afresh, as its knowledge does; a live one continues its
             # timeline (a restarted managing system) and so its file
-            self.timing = InfluxWriter.to_file(path, append=p.clock_kind != "simulated")
-        p.trace.observers.append(
-            lambda t, record: self.timing.write_record(self._epoch + t, record)
-        )
+            self.timing = InfluxWriter.to_file(path, append=not self.fresh)
+        observers.append(self._write_timing)
+
+    def _write_timing(self, time: float, record: dict[str, Any]) -> None:
+        self.timing.write_record(self._epoch + time, record)
 
     # ------------------------------------------------------------------ managing side
 
     def _publish_record(self, time: float, record: dict[str, Any]) -> None:
         try:
-            self.platform.transport.publish("rasm/trace", {"time": time, **record})
+            self._transport.publish("rasm/trace", {"time": time, **record})
         except Exception:  # the trace on the bus is best effort; the loop never waits for it
             pass
 
@@ -174,20 +235,17 @@ class Distribution:
         info = tracker.nodes().get(node) if tracker is not None else None
         if info is None or info.role != "managed":
             return
-        if (
-            node not in self.managed_nodes
-            and info.payload.get("app") != self.platform.manifest.name
-        ):
+        if node not in self.managed_nodes and info.payload.get("app") != self.app:
             return  # another application's managed system on the same broker
         before = any(s == "online" for s in self.managed_nodes.values())
         self.managed_nodes[node] = state
         after = any(s == "online" for s in self.managed_nodes.values())
-        self.platform.sm.nodes[node] = state
+        self._hooks.node(node, state)
         if before != after:
             event = "managed_system_back" if after else "managed_system_lost"
             log = _log.info if after else _log.warning
             log("managed system %s is %s: %s", node, state, event)
-            self.platform.scheduler.submit(lambda: self.platform.ao.send(event))
+            self._hooks.managed_system(event)
 
     @property
     def managed_online(self) -> bool:
@@ -197,9 +255,9 @@ class Distribution:
         return any(state == "online" for state in self.managed_nodes.values())
 
     def _apply_rules(self, text: str) -> tuple[bool, str]:
-        if not self.platform.rules:
+        if not self._hooks.rules:
             return False, "this application has no rules to replace"
-        result = self.platform.rules[0].swap_text(text, source="rasm/update/rules")
+        result = self._hooks.rules[0].swap_text(text, source="rasm/update/rules")
         return bool(result.accepted), result.reason
 
     def _apply_properties(self, text: str) -> tuple[bool, str]:
@@ -209,7 +267,7 @@ class Distribution:
             monitor = compile_properties(text, source="rasm/update/properties")
         except Exception as exc:
             return False, f"properties refused: {exc}"
-        self.platform.scheduler.submit(lambda: self.platform.tc.monitors.append(monitor))
+        self._hooks.add_monitor(monitor)
         return True, f"{len(monitor.properties)} properties added to the checker"
 
     # ------------------------------------------------------------------ actions
@@ -217,9 +275,9 @@ class Distribution:
     def _managed_epochs(self) -> list[str]:
         """The epochs of the managed processes an action is for: this process's own in role
         ``all``, and those of the online managed processes of this app announced so far."""
-        epochs = [self.epoch] if self.platform.role == "all" else []
+        epochs = [self.epoch] if self.role == "all" else []
         if self.tracker is not None:
-            found = self.tracker.epochs(role="managed", app=self.platform.manifest.name)
+            found = self.tracker.epochs(role="managed", app=self.app)
             epochs += sorted(found.values())
         return epochs
 

@@ -2,116 +2,69 @@
 
 :class:`Platform` is what ``rasm run`` drives and what :func:`rasm.testing.run_app` uses::
 
-    platform = Platform(load_manifest("examples/hotbox"), clock="simulated", seed=1)
+    platform = Platform("examples/hotbox", clock="simulated", seed=1)
     summary = platform.run(duration=60)
 
-The managing side (Core and the blocks, seed §5) and the managed side (the app's simulator, with
-its probes and effectors) meet only on the transport: the simulator publishes on probe topics,
-Telegraf digests them into knowledge, and actions reach the simulator only through the
+The managing side (Core and the building blocks) and the managed side (the app's simulator,
+with its probes and effectors) meet only on the transport: the simulator publishes on probe
+topics, Telegraf digests them into knowledge, and actions reach the simulator only through the
 Trustworthiness Checker publishing on an effector topic.
+
+Each block receives what it works with when it is built (the knowledge store, the rules, the
+callables it reports through); none receives the platform.
 """
 
 from __future__ import annotations
 
 import gc
-import hashlib
 import logging
 import random
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, PlatformError, RasmError, SourceError, is_interrupt
+from rasm.comm import Message, Transport
+from rasm.errors import PlatformError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
+from rasm.knowledge.storage import Storage
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.block import Block
 from rasm.platform.communication_manager import CommunicationManager
-from rasm.platform.components import (
-    Action,
-    describe_failure,
-    load_component,
-    missing_stage_method,
-)
+from rasm.platform.components import Action, describe_failure
 from rasm.platform.core import Core
-from rasm.platform.distribution import Distribution
+from rasm.platform.distribution import Distribution, DistributionHooks
 from rasm.platform.knowledge_manager import KnowledgeManager
+from rasm.platform.loading import (
+    check_components,
+    load_component,
+    load_stage_component,
+    load_twin,
+    package_name,
+)
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.logs import RepeatedLogs
-from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
+from rasm.platform.managed_system import ManagedSystem
+from rasm.platform.manifest import STAGES, AppManifest, Effector, load_manifest
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
+from rasm.platform.summary import RunSummary
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trace import TraceWriter
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
-from rasm.properties.outcome import PASSING, PropertyOutcome
+from rasm.properties.monitor import Monitor, Verdict
+from rasm.properties.outcome import PropertyOutcome
 from rasm.resources import data_dir
 from rasm.statechart import MonotonicClock, SimulatedClock
+from rasm.twin import DigitalTwin
 
-__all__ = ["Platform", "RunSummary", "STAGES"]
+__all__ = ["Platform", "RunSummary"]
 
-STAGES = ("monitor", "analyse", "plan", "legitimate", "execute")
 _log = logging.getLogger("rasm.platform")
 _SCALARS = (int, float, bool, str)
-
-
-@dataclass
-class RunSummary:
-    """What ``rasm run`` prints at the end."""
-
-    app: str
-    clock: str
-    duration: float
-    stats: LoopStats
-    verdicts: dict[str, str]  # property -> satisfied | violated | inconclusive | not judged | error
-    violations: dict[str, int]
-    timing: dict[str, dict[str, float]]
-    records: int
-    rejected_data: dict[str, int] = field(default_factory=dict)
-    # what the bus brought that was refused: malformed messages, actions the effector gate
-    # refused (unsigned, bad signature, replayed), updates refused (only the non-zero counts)
-    bus: dict[str, int] = field(default_factory=dict)
-    modes: dict[str, str] = field(default_factory=dict)
-    trace: str | None = None
-    # loop iterations skipped on the wall clock because the loop was still busy when they fell due
-    missed_iterations: int = 0
-    # what ended the run before its duration (e.g. "SIGTERM"), None if it ran to the end
-    stopped_by: str | None = None
-    # each failure logged more than once (shown once, then counted): how many times in all
-    repeated_failures: dict[str, int] = field(default_factory=dict)
-    # every property's verdicts counted: the state, the errors, the signals never seen
-    outcomes: dict[str, PropertyOutcome] = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        """No property violated, in error or not judged (inconclusive alone passes)."""
-        return all(state in PASSING for state in self.verdicts.values())
-
-    def properties(self) -> list[dict[str, Any]]:
-        """Each property's overall verdict as JSON-able data, in the shape of ``rasm check
-        --format json`` (with counts where ``rasm check`` lists the violations)."""
-        return [
-            {
-                "name": o.name,
-                "verdict": o.state,
-                "violations": o.violations,
-                "judged": o.judged,
-                "inconclusive": o.inconclusive,
-                "errors": o.errors,
-                "first_error": o.first_error,
-                "missing": list(o.missing),
-            }
-            for o in self.outcomes.values()
-        ]
-
-
-def _package_name(manifest: AppManifest) -> str:
-    """A module package per app folder: two apps of the same name never share modules."""
-    digest = hashlib.sha1(str(manifest.folder.resolve()).encode()).hexdigest()[:10]
-    return f"rasm_app_{manifest.name.replace('-', '_')}_{digest}"
 
 
 def _remove_sqlite(path: Path) -> None:
@@ -127,19 +80,9 @@ class Platform:
     ``check_signals=False`` runs such an app anyway (its properties are then never judged).
     """
 
-    # The attributes read for every record and loop job are slots: compiled code reads a slot
-    # without the instance dict lookup. The blocks are set by build(); before it, reading one
-    # raises the same AttributeError as without a slot. ``__dict__`` keeps every other
-    # attribute (and a subclass's) as it was.
-    __slots__ = (
-        "manifest", "clock", "scheduler", "trace", "on_record", "simulator", "twin",
-        "_twin_inputs", "_twin_from_batch", "_started_at", "kb", "km", "tg", "cm", "tc", "ao",
-        "__dict__", "__weakref__",
-    )
-
     def __init__(
         self,
-        manifest: AppManifest,
+        manifest: AppManifest | str | Path,
         *,
         clock: str | None = None,
         seed: int | None = None,
@@ -151,7 +94,7 @@ class Platform:
         knowledge: str | None = None,
         state_dir: str | Path | None = None,
         scenario: dict[str, Any] | None = None,
-        components: dict[str, Any] | None = None,
+        components: dict[str, object] | None = None,
         isolate_stages: bool | None = None,
         low_latency: bool = False,
         check_signals: bool = True,
@@ -163,7 +106,7 @@ class Platform:
         elif not isinstance(manifest, AppManifest):
             raise TypeError(
                 f"Platform() takes an app folder, its app.yaml or an AppManifest "
-                f"(rasm.platform.manifest.load_manifest), not {type(manifest).__name__}"
+                f"(rasm.platform.load_manifest), not {type(manifest).__name__}"
             )
         if check_signals and role != "managed":
             # a property or rule reading a name nothing provides: refused before anything runs
@@ -171,20 +114,7 @@ class Platform:
         if clock not in (None, "simulated", "wall"):
             raise PlatformError(f"unknown clock {clock!r} (simulated or wall)")
         if components is not None:
-            if not isinstance(components, dict):
-                raise TypeError(
-                    f"components must be a dict {{stage: object}}, not {type(components).__name__}"
-                )
-            unknown = sorted(set(components) - {*STAGES, "twin"})
-            if unknown:
-                raise PlatformError(
-                    f"components: unknown stage {unknown[0]!r} "
-                    f"(the stages are {', '.join(STAGES)}; or twin)"
-                )
-            for stage, obj in components.items():
-                problem = missing_stage_method(stage, obj) if stage in STAGES else None
-                if problem:
-                    raise PlatformError(f"components[{stage!r}]: {problem}")
+            check_components(components)
         self.manifest = manifest
         self.clock_kind = clock or manifest.clock or "wall"
         self.clock = (
@@ -192,6 +122,7 @@ class Platform:
         )
         self.seed = 0 if seed is None else seed
         self.role = role
+        self.managing = role in ("all", "managing")
         self.scheduler = Scheduler(self.clock)
         self.scheduler.on_error = self._job_failed
         # rotated by size with trace_max_bytes (rasm.platform.trace.TraceWriter)
@@ -215,16 +146,15 @@ class Platform:
         # every verdict of the online monitors goes to these callables (loop thread); nothing
         # keeps them, so a long run does not grow (the trace file has the records they judge).
         # Append to and remove from this list: the Trustworthiness Checker holds it.
-        self.on_verdict: list[Callable[[Any], Any]] = []
-        self.simulator: Any = None
+        self.on_verdict: list[Callable[[Verdict], Any]] = []
+        self.simulator: Any = None  # the app's simulator object (role all or managed)
+        self.managed: ManagedSystem | None = None
         self.core: Core | None = None
         self._built = False
         self._started_at = 0.0
         self._timeline_start = 0.0
-        self.twin: Any = None
+        self.twin: DigitalTwin | None = None
         self._twin_inputs: frozenset[str] = frozenset()
-        self._twin_from_batch = False
-        self._effector_gates: dict[str, Any] = {}
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
         self.logs = RepeatedLogs()
@@ -233,58 +163,72 @@ class Platform:
 
     def build(self) -> None:
         """Create every block (not started yet: :meth:`start` asks Core to do that)."""
-        storage = self._open_knowledge() if self.role in ("all", "managing") else None
+        storage = self._open_knowledge() if self.managing else None
         try:
             self._build(storage)
         except BaseException:
             # a platform that cannot be built holds nothing: its knowledge file stays usable
             if storage is not None:
                 storage.close()
-            close = getattr(getattr(self, "kb", None), "close", None)
-            if close is not None:
-                close()
+            kb = getattr(self, "kb", None)
+            if kb is not None and hasattr(kb, "close"):
+                kb.close()
             raise
 
-    def _build(self, storage: Any) -> None:
+    def _build(self, storage: Storage | None) -> None:
         from rasm.comm import open_transport
 
         m = self.manifest
-        clock = self.clock
-        self.dist = Distribution(self)
-        self.transport = open_transport(self.transport_url, **self.dist.transport_options())
-        log = self.manifest.logging
+        self.dist = Distribution(
+            app=m.name,
+            role=self.role,
+            transport_url=self.transport_url,
+            period=m.period,
+            timing=m.timing,
+            timing_file=self.state_dir / "timing.lp",
+            fresh=self.clock_kind == "simulated",
+        )
+        self.transport: Transport = open_transport(
+            self.transport_url, **self.dist.transport_options()
+        )
+        log = m.logging
         self.lt = LoggingAndTracking(
             chart=self._chart("logging_and_tracking"),
             level=logging.getLevelName(log.get("level", "warning").upper()),
             sinks=tuple(log.get("sinks", ("console",))),
-            publish=lambda topic, payload: self.transport.publish(topic, payload),
-            clock=clock,
+            publish=self.transport.publish,
+            clock=self.clock,
         )
-        self.sm = StateManager(chart=self._chart("state_manager"), clock=clock, depends_on=("lt",))
+        self.sm = StateManager(
+            chart=self._chart("state_manager"), clock=self.clock, depends_on=("lt",)
+        )
         self.cm = CommunicationManager(
             self.transport,
             chart=self._chart("communication_manager"),
-            clock=clock,
+            clock=self.clock,
             depends_on=("lt",),
         )
-        blocks: list[Any] = [self.lt, self.sm, self.cm]
-        if self.role in ("all", "managing"):
+        blocks: list[Block] = [self.lt, self.sm, self.cm]
+        if self.managing:
             blocks += self._managing_blocks(storage)
         if self.role in ("all", "managed") and m.simulator:
             self.simulator = load_component(
                 m.simulator,
                 m.folder,
-                package=_package_name(m),
+                package=package_name(m),
                 kwargs={"scenario": self.scenario, "seed": self.seed},
             )
-        self.core = Core(blocks, clock=clock)
+            self.managed = ManagedSystem(
+                self.simulator, period=m.simulator_period, effectors=m.effectors, logs=self.logs
+            )
+        self.core = Core(blocks, clock=self.clock)
         for block in blocks:
             self.sm.track(block)
             block.on_deadline = self._schedule_block
             block.logs = self.logs
         self._built = True
 
-    def _open_knowledge(self) -> Any:
+    def _open_knowledge(self) -> Storage | None:
         """Open (and restore) the knowledge store; returns its storage, if persistent."""
         from rasm.knowledge import open_knowledge
 
@@ -295,6 +239,7 @@ class Platform:
         if url.startswith("sqlite:") and self.clock_kind == "simulated":
             # a simulation is a fresh world: no knowledge from an earlier run
             _remove_sqlite(Path(url[len("sqlite:") :]))
+        self.kb: KnowledgeBase
         self.kb, storage = open_knowledge(url, base_dir=Path.cwd())
         if url.startswith(("redis://", "rediss://")) and self.clock_kind == "simulated":
             self.kb.clear()  # a simulation is a fresh world here too
@@ -315,7 +260,7 @@ class Platform:
             )
         return storage
 
-    def _managing_blocks(self, storage: Any) -> list[Any]:
+    def _managing_blocks(self, storage: Storage | None) -> list[Block]:
         from rasm.properties import compile_properties
         from rasm.rules import RuleSet
 
@@ -338,7 +283,7 @@ class Platform:
             depends_on=("km", "cm"),
         )
         self.rules = [RuleSet.load(path) for path in m.rules]
-        files = [*self._platform_properties(), *m.properties]
+        files = [*sorted(data_dir("properties").glob("*.rv")), *m.properties]
         monitors = [compile_properties(p.read_text(encoding="utf-8"), source=str(p)) for p in files]
         defined: dict[str, Path] = {}
         for path, monitor in zip(files, monitors, strict=True):
@@ -354,7 +299,7 @@ class Platform:
             monitors=monitors,
             effectors=m.effectors,
             send=self._send_action,
-            mode_of=lambda: self.kb.read_knowledge(m.mode_signal) if m.mode_signal else None,
+            mode_of=self._managed_system_mode,
             online=lambda: self.dist.managed_online,
             observers=self.on_verdict,  # the list itself: observers added later are called
             clock=clock,
@@ -364,8 +309,7 @@ class Platform:
             chart=self._chart("trustworthiness_manager"),
             rules=self.rules,
             veto_properties=m.veto_properties,
-            verdicts=lambda: self.tc.latest,
-            waiting_for=lambda name: self.tc.missing(name),
+            checker=self.tc,
             context=self.kb.snapshot,
             clock=clock,
             depends_on=("sm", "km", "tc"),
@@ -377,14 +321,19 @@ class Platform:
             clock=clock,
             depends_on=("tm", "tc"),
         )
-        package = _package_name(m)
+        package = package_name(m)
         components = {
             stage: self._component_overrides.get(stage)
-            or self._stage_component(stage, ref, package)
+            or load_stage_component(m, stage, ref, package)
             for stage, ref in m.components.items()
         }
         components.update(self._component_overrides)
-        self.twin = self._load_twin(package)
+        twin = self._component_overrides.get("twin")
+        if twin is None and m.twin:
+            twin = load_component(m.twin, m.folder, package=package)
+        self.twin = load_twin(twin, self.kb.read_knowledge("twin_model"))
+        if self.twin is not None:
+            self._twin_inputs = frozenset(self.twin.inputs)
         self.ao = AdaptationOrchestrator(
             chart=self._chart("adaptation_orchestrator"),
             twin=self.twin,
@@ -411,74 +360,37 @@ class Platform:
         self.trace.observers.append(self.tc.observe)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
 
-    def _stage_component(self, stage: str, ref: str, package: str) -> Any:
-        """The manifest's component for ``stage``; a problem names its place in app.yaml."""
-        m = self.manifest
-        try:
-            component = load_component(ref, m.folder, package=package)
-        except PlatformError as exc:
-            cause = exc.__cause__
-            if isinstance(cause, SyntaxError) and cause.filename and cause.lineno:
-                # the place of the mistake is in the Python file, not in app.yaml
-                where = Location(cause.filename, cause.lineno, cause.offset or 1)
-                raise SourceError(f"{ref}: SyntaxError: {cause.msg}", where) from exc
-            raise SourceError(str(exc), manifest_location(m, m.component_path(stage))) from exc
-        problem = missing_stage_method(stage, component) if stage in STAGES else None
-        if problem:
-            raise SourceError(
-                f"components.{stage}: {ref}: {problem}, so the {stage} stage would never run it",
-                manifest_location(m, m.component_path(stage)),
-            )
-        return component
+    def _chart(self, name: str) -> Path | None:
+        """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
+        return self.manifest.statecharts.get(name)
 
-    def _load_twin(self, package: str) -> Any:
-        """The app's digital twin (manifest ``twin:``), restored from knowledge if it learned
-        before a restart."""
-        m = self.manifest
-        twin = self._component_overrides.get("twin")
-        if twin is None and m.twin:
-            twin = load_component(m.twin, m.folder, package=package)
-        if twin is not None:
-            model = self.kb.read_knowledge("twin_model")
-            if model:
-                try:
-                    twin.load(model)
-                except BaseException as exc:  # a stale model is relearned, never fatal
-                    if is_interrupt(exc):
-                        raise
-                    _log.warning("the twin's stored model was not restored: %s", exc)
-            self._twin_inputs = frozenset(twin.inputs)
-            # a store read from memory holds, for an input just stored, the value stored: the
-            # batch tells it (register_values' `into`), no read needed
-            kind = type(self.kb)
-            self._twin_from_batch = (
-                kind.read_values is KnowledgeBase.read_values
-                and kind.read_knowledge is KnowledgeBase.read_knowledge
-            )
-        return twin
+    # ------------------------------------------------------------------ data paths
 
-    def _observe_twin(
-        self, time: float, stored: dict[str, Any], batch: dict[str, Any] | None
-    ) -> None:
+    def _register(self, values: dict[str, Any], time: float) -> None:
+        """Store values in knowledge (one trace record for the batch, with the twin's residual
+        when they were the twin's inputs)."""
+        # one call for the batch: a bad value is refused on its own, logged and dropped
+        refused = self.km.register_values(values, time)
+        for key, exc in refused.items():
+            self._refused(key, values[key], exc)
+        # the trace record has the scalars stored
+        stored = {
+            key: value
+            for key, value in values.items()
+            if key not in refused and isinstance(value, _SCALARS)
+        }
+        if not self._twin_inputs.isdisjoint(values):
+            self._observe_twin(time, stored)
+        if stored:
+            self._emit(time, stored)
+
+    def _observe_twin(self, time: float, stored: dict[str, Any]) -> None:
         """Let the twin learn from the latest inputs; register its residual (and add it to
         ``stored``, the trace record of the inputs that produced it), and publish its model and
-        drift. ``batch``: the values just stored, as stored, or None."""
+        drift."""
         twin = self.twin
-        inputs = twin.inputs
-        values: dict[str, Any] | None = None
-        if batch:
-            # a local only ever a dict: compiled, its items are set without a type test
-            found: dict[str, Any] = {}
-            for key in inputs:
-                if key not in batch:  # an input not in this batch: its latest is read
-                    break
-                found[key] = batch[key]
-            else:
-                values = found
-        if values is None:
-            values = self.kb.read_values(inputs)  # one lock for the inputs
         try:
-            update = twin.observe(time, values)
+            update = twin.observe(time, self.kb.read_values(twin.inputs))
             residual = None if update is None else float(update.residual)
         except BaseException as exc:  # a twin fault is logged; learning goes on
             if is_interrupt(exc):
@@ -500,53 +412,9 @@ class Platform:
             self._emit(time, {"twin_model_version": model.get("version")})
         if update.drift:
             self._emit(time, {"drift": True, "explanation": "the digital twin detected drift"})
-            self.scheduler.submit(self._drift_detected)
+            self.scheduler.submit(lambda: self.ao.send("drift_detected"))
         if residual is not None:
             stored["twin_residual"] = residual
-
-    def _drift_detected(self) -> None:
-        # a method, not a lambda in _observe_twin: compiled, a lambda there would make that
-        # function allocate a closure on every call (every record), drift or not
-        self.ao.send("drift_detected")
-
-    def _chart(self, name: str) -> Path | None:
-        """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
-        return self.manifest.statecharts.get(name)
-
-    def _platform_properties(self) -> list[Path]:
-        return sorted(data_dir("properties").glob("*.rv"))
-
-    # ------------------------------------------------------------------ data paths
-
-    def _register(self, values: dict[str, Any], time: float) -> None:
-        """Store values in knowledge (one trace record for the batch, with the twin's residual
-        when they were the twin's inputs)."""
-        observe = self.twin is not None and not self._twin_inputs.isdisjoint(values)
-        # the values as stored, for the twin (None: it reads them back)
-        batch: dict[str, Any] | None = {} if observe and self._twin_from_batch else None
-        # one call for the batch: a bad value is refused on its own, logged and dropped
-        if batch is None:
-            refused = self.km.register_values(values, time)
-        else:
-            refused = self.km.register_values(values, time, into=batch)
-        for key, exc in refused.items():
-            self._refused(key, values[key], exc)
-        # the trace record has the scalars stored (a loop, not a comprehension: no function
-        # call); the refused ones are taken out after, in the rare batch that has any
-        stored: dict[str, Any] = {}
-        for key, value in values.items():
-            cls = type(value)  # the exact scalar classes without isinstance's call
-            if cls is float or cls is bool or cls is str or cls is int or (
-                isinstance(value, _SCALARS)
-            ):
-                stored[key] = value
-        if refused:
-            for key in refused:
-                stored.pop(key, None)
-        if observe:
-            self._observe_twin(time, stored, batch)
-        if stored:
-            self._emit(time, stored)
 
     def _refused(self, key: str, value: Any, exc: Exception) -> None:
         """Log a value knowledge refused; the same reason again (whatever the value) is counted."""
@@ -566,33 +434,43 @@ class Platform:
         for observer in self.on_record:
             observer(time, record)
 
+    def _managed_system_mode(self) -> str | None:
+        """The managed system's mode, by which an effector is applicable or not."""
+        signal = self.manifest.mode_signal
+        return self.kb.read_knowledge(signal) if signal else None
+
     def _send_action(self, effector: Effector, action: Action) -> None:
         payload = {**action.payload, "plan": action.plan, "kind": action.kind}
         self.cm.publish_message(effector.topic, self.dist.seal(effector.topic, payload))
 
-    def _on_probe(self, message: Any) -> None:
-        # Delivered on the transport's thread: hand it to the loop thread (digested at the
-        # loop's time then).
+    def _on_probe(self, message: Message) -> None:
+        # delivered on the transport's thread: digested on the loop's, at the loop's time then
         topic, payload = message.topic, message.payload
-        scheduler = self.scheduler
-        digest, now = self.tg.digest, scheduler.now
-        scheduler.submit(lambda: digest(topic, payload, now()))
+        self.scheduler.submit(lambda: self.tg.digest(topic, payload, self.scheduler.now()))
 
-    def _on_effector(self, name: str, message: Any) -> None:
-        payload = dict(message.payload)
-        gate = self._effector_gates.get(name)
-        if gate is None:  # the gate checks signatures when RASM_ACTION_KEY is set
-            gate = self._effector_gates[name] = self.dist.effector_gate(
-                lambda action, name=name: self._apply_action(name, action), message.topic
-            )
-        self.scheduler.submit(lambda: gate(payload))
-
-    def _schedule_block(self, block: Any, due: float) -> None:
+    def _schedule_block(self, block: Block, due: float) -> None:
         self.scheduler.at(due, block.wake)
 
     def _job_failed(self, exc: BaseException) -> None:
         what = f"a loop job failed: {type(exc).__name__}: {exc}"
         self.logs.log(_log, logging.ERROR, what, exc_info=exc)
+
+    def _hooks(self) -> DistributionHooks:
+        """What presence and updates from the network act on (called on a transport thread,
+        so what touches the loop is handed to the loop thread)."""
+
+        def managed_system(event: str) -> None:
+            self.scheduler.submit(lambda: self.ao.send(event))
+
+        def add_monitor(monitor: Monitor) -> None:
+            self.scheduler.submit(lambda: self.tc.add_monitor(monitor))
+
+        return DistributionHooks(
+            managed_system=managed_system,
+            node=self.sm.set_node,
+            rules=self.rules,
+            add_monitor=add_monitor,
+        )
 
     # ------------------------------------------------------------------ running
 
@@ -610,9 +488,14 @@ class Platform:
             gc.freeze()
             self._gc_frozen = True
         self._started_at = self.clock.time
-        self.dist.start()
+        self.dist.start(
+            self.transport,
+            self.trace.observers,
+            clock_time=self.clock.time,
+            hooks=self._hooks() if self.managing else None,
+        )
         m = self.manifest
-        if self.role in ("all", "managing"):
+        if self.managing:
             for probe in m.probes:
                 self.cm.subscribe(probe.topic, self._on_probe)
             # a loop that overran skips the iterations it missed (Scheduler.missed)
@@ -622,47 +505,10 @@ class Platform:
                 start=self.clock.time + m.period,
                 skip_missed=True,
             )
-        if self.simulator is not None:
-            for name, effector in m.effectors.items():
-                self.cm.subscribe(
-                    effector.topic, lambda message, name=name: self._on_effector(name, message)
-                )
-            self.scheduler.every(m.simulator_period, self._step_simulator)
-
-    def _apply_action(self, effector: str, action: dict[str, Any]) -> None:
-        try:
-            self.simulator.apply(effector, action, self.clock.time - self._started_at)
-        except BaseException as exc:  # the simulator is user code: never fatal
-            if is_interrupt(exc):
-                raise
-            what = f"the simulator's apply({effector!r}) failed: {describe_failure(exc)}"
-            self.logs.log(_log, logging.ERROR, what, exc_info=exc)
-
-    def _step_simulator(self) -> None:
-        # the simulated world starts at 0 whatever the managing system's restored timeline
-        try:
-            readings = self.simulator.step(
-                self.scheduler.now() - self._started_at, self.manifest.simulator_period
+        if self.managed is not None:
+            self.managed.start(
+                self.cm, self.scheduler, started_at=self._started_at, gate=self.dist.effector_gate
             )
-        except BaseException as exc:  # the simulator is user code: never fatal
-            if is_interrupt(exc):
-                raise
-            what = f"the simulator's step failed: {describe_failure(exc)}"
-            self.logs.log(_log, logging.ERROR, what, exc_info=exc)
-            return
-        if readings is not None and not isinstance(readings, dict):
-            what = (
-                "the simulator's step must return {topic: payload} or None, "
-                f"not {type(readings).__name__}"
-            )
-            self.logs.log(_log, logging.ERROR, what)
-            return
-        for topic, payload in (readings or {}).items():
-            try:
-                self.cm.publish_message(topic, payload)
-            except RasmError as exc:  # a topic or payload the transport refuses
-                what = f"the simulator's reading on {topic!r} was not published: {exc}"
-                self.logs.log(_log, logging.ERROR, what)
 
     def run(self, duration: float | None = None) -> RunSummary:
         """Start, run for ``duration`` seconds of the platform's clock, stop, summarise.
@@ -679,6 +525,9 @@ class Platform:
             self.stop()
         if ran >= length:  # a stop asked for as the run ended anyway changed nothing
             self.stopped_by = None
+        if self.managing:
+            self.tc.finish()  # the verdicts still open go to the observers too
+        self.trace.close()
         return self.summary(ran)
 
     def request_stop(self, reason: str = "a stop request") -> None:
@@ -700,24 +549,22 @@ class Platform:
             self._gc_frozen = False
 
     def _bus_refusals(self) -> dict[str, int]:
-        stats = getattr(getattr(self, "transport", None), "stats", None)
-        dist = getattr(self, "dist", None)
-        updates = getattr(dist, "updates", None)
+        updates = self.dist.updates
         counts = {
-            "malformed messages": getattr(stats, "malformed", 0),
-            "actions refused by the effector gate": getattr(dist, "actions_refused", 0),
-            "updates refused": getattr(updates, "refused", 0),
+            "malformed messages": self.transport.stats.malformed,
+            "actions refused by the effector gate": self.dist.actions_refused,
+            "updates refused": updates.refused if updates is not None else 0,
         }
         return {what: n for what, n in counts.items() if n}
 
     def summary(self, duration: float) -> RunSummary:
+        """The run so far, read from the blocks (nothing is changed)."""
         verdicts: dict[str, str] = {}
         violations: dict[str, int] = {}
         timing: dict[str, dict[str, float]] = {}
         stats = LoopStats()
         outcomes: dict[str, PropertyOutcome] = {}
-        if self.role in ("all", "managing"):
-            self.tc.finish()  # the verdicts still open go to the observers too
+        if self.managing:
             outcomes = dict(self.tc.outcomes)
             verdicts = {name: o.state for name, o in outcomes.items()}
             violations = {name: o.violations for name, o in outcomes.items() if o.violations}
@@ -727,7 +574,6 @@ class Platform:
                 if self.sm.stage_timing.get(stage)
             }
             stats = self.ao.stats
-        self.trace.close()
         return RunSummary(
             app=self.manifest.name,
             clock=self.clock_kind,
@@ -737,7 +583,7 @@ class Platform:
             violations=violations,
             timing=timing,
             records=self.trace.records,
-            rejected_data=dict(self.tg.rejected) if hasattr(self, "tg") else {},
+            rejected_data=dict(self.tg.rejected) if self.managing else {},
             bus=self._bus_refusals(),
             missed_iterations=self.scheduler.missed,
             modes=self.sm.get_status(),

@@ -19,58 +19,33 @@ from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
 
-from rasm.statechart.clock import SimulatedClock as RasmSimulatedClock
-
 __all__ = ["Scheduler"]
 
 Job = Callable[[], Any]
 
 
-
 class Scheduler:
     """Runs jobs at their times. ``clock`` is a ``SimulatedClock`` (jumps) or a real clock."""
-
-    # slots for what each record reads, ``__dict__`` for the rest (as rasm.platform.block.Block)
-    __slots__ = (
-        "clock", "simulated", "_heap", "_order", "_lock", "_wake", "_waiting", "_inbox",
-        "_stopping", "on_error", "missed", "_direct", "__dict__", "__weakref__",
-    )
 
     def __init__(self, clock: Clock) -> None:
         self.clock = clock
         self.simulated = isinstance(clock, SimulatedClock)
         self._heap: list[tuple[float, int, Job]] = []
         self._order = itertools.count()
-        # the Condition's own lock, used directly (a C-level context manager, not the
-        # Condition's Python one) where no waiting is involved
-        self._lock = threading.RLock()
-        self._wake = threading.Condition(self._lock)
+        self._wake = threading.Condition(threading.RLock())
         self._waiting = False  # the loop thread sleeps in _wake.wait(): a submit must notify
         self._inbox: list[Job] = []
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
         self.missed = 0  # turns of periodic jobs skipped because they were already past
-        # sismic's SimulatedClock (or rasm's, which reads it the same way) is read and moved
-        # through its attributes while it stands still (not start()ed): each `time` read is a
-        # property call and each set another and a time() call; `time` is then `_time + 0` (no
-        # elapsed time) and the setter's other write, `_base`, is read only by a running clock
-        self._direct = (
-            type(clock) in (SimulatedClock, RasmSimulatedClock)
-            and hasattr(clock, "_time")
-            and hasattr(clock, "_play")
-        )
 
     @property
     def time(self) -> float:
         return self.clock.time
 
     def now(self) -> float:
-        """The clock's time, ``clock.time``: read directly from a simulated clock standing
-        still (the loop asks at every reading of the managed system)."""
-        clock = self.clock
-        if self._direct and not clock._play:
-            return clock._time + 0
-        return clock.time
+        """The clock's time."""
+        return self.clock.time
 
     def at(self, time: float, job: Job) -> None:
         """Run ``job`` at ``time`` (loop thread only; other threads use :meth:`submit`)."""
@@ -97,11 +72,6 @@ class Scheduler:
                 f"a period of {period:g} s is too short to move the clock at {first:g} s"
             )
 
-        heap, order = self._heap, self._order  # (never replaced)
-        # every turn of every periodic job is scheduled: at()'s push without the call, unless
-        # at() is another one (a subclass's, or one set on this scheduler)
-        push = type(self).at is Scheduler.at and "at" not in vars(self)
-
         def tick(n: int = 0) -> None:
             try:
                 job()
@@ -112,24 +82,16 @@ class Scheduler:
                     if current > turn:
                         self.missed += current - turn
                         turn = current
-                due = first + turn * period
-                if push:
-                    heappush(heap, (due, next(order), partial(tick, turn)))
-                else:
-                    self.at(due, partial(tick, turn))
+                self.at(first + turn * period, partial(tick, turn))
 
         self.at(first, tick)
 
     def submit(self, job: Job) -> None:
         """Run ``job`` on the loop thread as soon as possible (thread-safe)."""
-        lock = self._lock
-        lock.acquire()  # not `with`: see the note on locks above
-        try:
+        with self._wake:
             self._inbox.append(job)
             if self._waiting:  # notify() would find no waiter otherwise
                 self._wake.notify()
-        finally:
-            lock.release()
 
     def stop(self) -> None:
         """Make :meth:`run_until` return after the current job (thread-safe)."""
@@ -147,23 +109,18 @@ class Scheduler:
 
     def run_until(self, end: float | None) -> None:
         """Run jobs until the clock reaches ``end`` (None: until :meth:`stop`)."""
-        clock, heap, simulated, run = self.clock, self._heap, self.simulated, self._run
-        direct = self._direct  # (see __init__)
+        clock, heap, simulated = self.clock, self._heap, self.simulated
         while True:
             # Peeked without the lock (taken only to take the inbox): a submit() racing with the
             # peek is served next turn, as if it had come just after a locked look.
             if self._inbox or self._stopping:
-                lock = self._lock
-                lock.acquire()  # not `with`: see the note on locks above
-                try:
+                with self._wake:
                     if self._stopping:
                         self._stopping = False
                         return
                     inbox, self._inbox = self._inbox, []
-                finally:
-                    lock.release()
                 for job in inbox:
-                    run(job)
+                    self._run(job)
                 continue
             due = heap[0][0] if heap else None
             if end is not None and (due is None or due > end):
@@ -174,15 +131,10 @@ class Scheduler:
             if simulated:
                 if due is None:
                     return  # nothing will ever happen again
-                if direct and not clock._play:
-                    now = clock._time + 0
-                    if due > now:  # as the setter with max(now, due), which keeps an equal now
-                        clock._time = now = due
-                else:
-                    clock.time = max(clock.time, due)
-                    now = clock.time
+                clock.time = max(clock.time, due)
+                now = clock.time
             else:
-                with self._lock:
+                with self._wake:
                     wait = None if due is None else due - clock.time
                     if (wait is None or wait > 0) and not self._inbox and not self._stopping:
                         self._waiting = True
@@ -199,6 +151,6 @@ class Scheduler:
             # has fallen behind (a stage overrunning every period) would otherwise catch up for
             # ever, never reaching ``end`` nor the messages in the inbox
             while heap and heap[0][0] <= now:
-                run(heappop(heap)[2])
+                self._run(heappop(heap)[2])
             if not simulated and end is not None and clock.time >= end:
                 return

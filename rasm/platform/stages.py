@@ -12,7 +12,7 @@ import queue
 import threading
 import traceback
 from collections.abc import Callable
-from time import perf_counter  # a module global: read faster than time.perf_counter each call
+from time import perf_counter
 from typing import Any, NamedTuple
 
 from rasm.errors import is_interrupt
@@ -30,16 +30,6 @@ class StageOutcome(NamedTuple):
     traceback: str = ""
     timed_out: bool = False
     duration: float = 0.0
-
-
-# StageOutcome(True, result, duration=d) without the named tuple's Python-level __new__ (two
-# stage calls per loop iteration end this way)
-_new_tuple = tuple.__new__
-
-
-def _succeeded(result: Any, duration: float) -> StageOutcome:
-    """``StageOutcome(True, result, duration=duration)``."""
-    return _new_tuple(StageOutcome, (True, result, None, "", False, duration))
 
 
 class _Worker:
@@ -69,7 +59,7 @@ class _Worker:
                     )
                 )
             else:
-                reply.put(_succeeded(result, perf_counter() - start))
+                reply.put(StageOutcome(True, result, duration=perf_counter() - start))
 
 
 class StageRunner:
@@ -81,8 +71,7 @@ class StageRunner:
         self.abandoned = 0
 
     def call(self, job: Callable[..., Any], budget: float, *args: Any) -> StageOutcome:
-        """``job(*args)`` within ``budget`` seconds (the arguments passed on, so a caller needs
-        no closure per call)."""
+        """``job(*args)`` within ``budget`` seconds."""
         if not self.isolate:
             start = perf_counter()
             try:
@@ -99,7 +88,7 @@ class StageRunner:
             duration = perf_counter() - start
             if duration > budget:
                 return StageOutcome(False, timed_out=True, duration=duration)
-            return _succeeded(result, duration)
+            return StageOutcome(True, result, duration=duration)
         if self._worker is None:
             self._worker = _Worker()
         reply: queue.SimpleQueue[StageOutcome] = queue.SimpleQueue()

@@ -14,8 +14,6 @@ __all__ = ["StateManager"]
 class StateManager(Block):
     """State Manager (sm): the mode of every block and the timing history of every stage."""
 
-    __slots__ = ("modes", "nodes", "stage_timing")  # slots, as Block's (read per iteration)
-
     chart_name = "state_manager"
     short_name = "sm"
 
@@ -38,9 +36,13 @@ class StateManager(Block):
     def get_time(self) -> float:
         return self.clock.time
 
-    def get_status(self, name: str | None = None) -> Any:
+    def get_status(self, name: str | None = None) -> dict[str, str] | str | None:
         """The mode of block ``name``, or of every block."""
         return dict(self.modes) if name is None else self.modes.get(name)
+
+    def set_node(self, node: str, state: str) -> None:
+        """Record the presence of remote process ``node``: online, offline or silent."""
+        self.nodes[node] = state
 
     def record_stage(self, stage: str, start: float, duration: float) -> None:
         self.stage_timing[stage].append((start, duration))

@@ -5,34 +5,42 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+from rasm.knowledge.base import Sample
+from rasm.knowledge.storage import Storage
 from rasm.platform.block import Block
 
 __all__ = ["StorageManager"]
 
+_log = logging.getLogger("rasm.platform")
+
 
 class StorageManager(Block):
-    """Storage Manager (stom): batches knowledge updates and persists them (SQLite, WAL)."""
+    """Storage Manager (stom): batches knowledge updates and persists them (SQLite, WAL).
+
+    Every update is buffered by the storage; only the first one after a flush steps the chart,
+    which persists the batch ``flush_period`` seconds later.
+    """
 
     chart_name = "storage_manager"
     short_name = "stom"
 
-    def __init__(self, storage: Any, *, flush_period: float = 1.0, **kw: Any) -> None:
+    def __init__(self, storage: Storage | None, *, flush_period: float = 1.0, **kw: Any) -> None:
         self.storage = storage
         self.persisted = 0
         super().__init__(context={"flush_period": flush_period}, **kw)
 
-    def register_knowledge_update(self, key: str, sample: Any) -> None:
+    def register_knowledge_update(self, key: str, sample: Sample) -> None:
         if self.storage is None:
             return
         self.storage.register_knowledge_update(key, sample)
-        if "idle" in self.interpreter._configuration:  # only the first update steps the chart
+        if "idle" in self.configuration:
             self.send("update_registered")
 
     def on_enter_persisting(self) -> None:
         try:
             self.persisted += self.update_persistency()
         except Exception as exc:  # a full disk must not stop the loop; the chart retries
-            logging.getLogger("rasm.platform").error("persisting knowledge failed: %s", exc)
+            _log.error("persisting knowledge failed: %s", exc)
             self.post("persist_failed")
             return
         self.post("persisted")

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
 
 from rasm.platform.block import Block
 from rasm.platform.components import Action
@@ -12,7 +12,27 @@ from rasm.platform.manifest import Effector
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PropertyOutcome
 
-__all__ = ["TrustworthinessChecker"]
+__all__ = ["PropertyMonitor", "TrustworthinessChecker"]
+
+_log = logging.getLogger("rasm.tc")
+
+
+class PropertyMonitor(Protocol):
+    """What the checker runs over the loop's records: compiled properties
+    (:func:`rasm.properties.compile_properties`)."""
+
+    @property
+    def properties(self) -> list[str]:
+        """The names of the properties it decides."""
+
+    def step(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
+        """Take one record; return the verdicts it decided."""
+
+    def finish(self) -> list[Verdict]:
+        """The end of the trace: the verdicts still open."""
+
+    def missing(self, name: str) -> tuple[str, ...]:
+        """The signals property ``name`` still waits for."""
 
 
 class TrustworthinessChecker(Block):
@@ -32,11 +52,10 @@ class TrustworthinessChecker(Block):
     def __init__(
         self,
         *,
-        monitors: list[Any],
+        monitors: list[PropertyMonitor],
         effectors: dict[str, Effector],
         send: Callable[[Effector, Action], Any],
         mode_of: Callable[[], str | None],
-        on_verdict: Callable[[Verdict], Any] | None = None,
         observers: list[Callable[[Verdict], Any]] | None = None,
         online: Callable[[], bool] = lambda: True,
         **kw: Any,
@@ -46,9 +65,8 @@ class TrustworthinessChecker(Block):
         self.effectors = effectors
         self.send_to_effector = send
         self.mode_of = mode_of
-        self.on_verdict = on_verdict
-        # called with every verdict, like on_verdict; the list is the caller's and is read at
-        # each record, so observers may come and go during a run
+        # called with every verdict; the list is the caller's and is read at each record, so
+        # observers may come and go during a run
         self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
         # the latest verdict of each property; _decided_on: the step (a record, or the end)
         # that decided it
@@ -60,7 +78,8 @@ class TrustworthinessChecker(Block):
         }
         self.records = 0
         self.monitor_failures = 0  # records on which a monitor raised
-        self._failing: dict[Any, int] = {}  # monitor -> records it failed on since it last worked
+        # monitor -> records it failed on since it last worked
+        self._failing: dict[PropertyMonitor, int] = {}
         self._action: Action | None = None
         self._outcome: tuple[bool, str] = (False, "")
         super().__init__(**kw)
@@ -102,13 +121,19 @@ class TrustworthinessChecker(Block):
                 outcome.missing = self.missing(name)
         return decided
 
+    def add_monitor(self, monitor: PropertyMonitor) -> None:
+        """Check ``monitor``'s properties too, from the next record on."""
+        self.monitors.append(monitor)
+
+    def latest_verdict(self, name: str) -> Verdict | None:
+        """The latest verdict of property ``name``, or None before its first."""
+        return self.latest.get(name)
+
     def missing(self, name: str) -> tuple[str, ...]:
-        """The signals property ``name`` waits for (none once it has started, or when its
-        monitor cannot tell)."""
+        """The signals property ``name`` waits for (none once it has started)."""
         for monitor in self.monitors:
             if name in monitor.properties:
-                waits = getattr(monitor, "missing", None)
-                return tuple(waits(name)) if waits is not None else ()
+                return tuple(monitor.missing(name))
         return ()
 
     def _take(self, verdict: Verdict) -> None:
@@ -122,12 +147,12 @@ class TrustworthinessChecker(Block):
         if self._decided_on.get(name) != self._steps or _rank(verdict) > _rank(self.latest[name]):
             self.latest[name] = verdict
             self._decided_on[name] = self._steps
-        if self.on_verdict is not None:
-            self.on_verdict(verdict)
         for observer in self.observers:
             observer(verdict)
 
-    def _failed(self, monitor: Any, index: int, time: float, exc: Exception) -> list[Verdict]:
+    def _failed(
+        self, monitor: PropertyMonitor, index: int, time: float, exc: Exception
+    ) -> list[Verdict]:
         """Every property of ``monitor`` in error for this record; the first failure of a run
         of them is logged with its traceback, the rest counted."""
         self.monitor_failures += 1
@@ -135,16 +160,16 @@ class TrustworthinessChecker(Block):
         failed = self._failing.get(monitor, 0)
         self._failing[monitor] = failed + 1
         if not failed:
-            logging.getLogger("rasm.tc").error(
+            _log.error(
                 "monitor of %s failed at t=%g: %s; its properties (%s) are in error until it "
                 "works again",
                 _origin(monitor), time, why, ", ".join(monitor.properties), exc_info=exc,
             )
         return [Verdict(name, index, time, False, why) for name in monitor.properties]
 
-    def _recovered(self, monitor: Any, time: float) -> None:
+    def _recovered(self, monitor: PropertyMonitor, time: float) -> None:
         failed = self._failing.pop(monitor)
-        logging.getLogger("rasm.tc").warning(
+        _log.warning(
             "monitor of %s works again at t=%g, after failing on %d record(s)",
             _origin(monitor), time, failed,
         )
@@ -190,7 +215,7 @@ def _rank(verdict: Verdict) -> int:
     return {False: 2, None: 1, True: 0}[verdict.value]
 
 
-def _origin(monitor: Any) -> str:
+def _origin(monitor: PropertyMonitor) -> str:
     """The property file a monitor checks, for a log line."""
     spec = getattr(monitor, "spec", None)
     return getattr(spec, "source", None) or type(monitor).__name__

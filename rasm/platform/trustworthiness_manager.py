@@ -2,24 +2,38 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
 
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.properties.monitor import Verdict
 
-__all__ = ["TrustworthinessManager"]
+if TYPE_CHECKING:
+    from rasm.rules import RuleSet
+
+__all__ = ["TrustworthinessManager", "VerdictSource"]
+
+
+class VerdictSource(Protocol):
+    """What vouches for the veto properties: the Trustworthiness Checker."""
+
+    def latest_verdict(self, name: str) -> Verdict | None:
+        """The latest verdict of property ``name``, or None before its first."""
+
+    def missing(self, name: str) -> tuple[str, ...]:
+        """The signals property ``name`` still waits for."""
 
 
 class TrustworthinessManager(Block):
-    """Trustworthiness Manager (tm): ``check_trustworthiness`` of an action (seed §6.4.4).
+    """Trustworthiness Manager (tm): ``check_trustworthiness`` of an action.
 
     An action is trustworthy when its plan was accepted by the Legitimate stage (the loop hands
-    over the accepted plans), the rules still accept the plan now, and the Trustworthiness
-    Checker vouches for every *veto* property: its latest verdict holds. A veto property whose
-    latest verdict is violated, in error or inconclusive, or that has no verdict yet (still in
-    warm-up, or a signal it reads never had a value), vetoes the action: fail closed.
+    over the accepted plans with :meth:`accept_plan`), the rules still accept the plan now, and
+    the Trustworthiness Checker vouches for every *veto* property: its latest verdict holds. A
+    veto property whose latest verdict is violated, in error or inconclusive, or that has no
+    verdict yet (still in warm-up, or a signal it reads never had a value), vetoes the action:
+    fail closed.
     """
 
     chart_name = "trustworthiness_manager"
@@ -28,28 +42,34 @@ class TrustworthinessManager(Block):
     def __init__(
         self,
         *,
-        rules: list[Any],
+        rules: list[RuleSet],
         veto_properties: tuple[str, ...],
-        verdicts: Callable[[], Mapping[str, Verdict]],
+        checker: VerdictSource,
         context: Callable[[], dict[str, Any]],
-        waiting_for: Callable[[str], tuple[str, ...]] = lambda name: (),
         **kw: Any,
     ) -> None:
         self.rules = rules
         self.veto_properties = veto_properties
-        self.verdicts = verdicts  # the latest verdict of each property
-        self.waiting_for = waiting_for  # the signals a property not judged yet waits for
+        self.checker = checker
         self.context_of = context
-        self.accepted_plans: dict[str, Plan] = {}
+        self._accepted_plans: dict[str, Plan] = {}
         self._evidence: tuple[Action, Plan | None] | None = None
         self._verdict: tuple[bool, str] = (False, "not checked")
         super().__init__(**kw)
+
+    def accept_plan(self, plan: Plan) -> None:
+        """``plan`` passed the Legitimate stage: its actions may be checked."""
+        self._accepted_plans[plan.id] = plan
+
+    def forget_plan(self, plan_id: str) -> None:
+        """The iteration of plan ``plan_id`` is over: no later action may use it."""
+        self._accepted_plans.pop(plan_id, None)
 
     def check_trustworthiness(self, action: Action) -> tuple[bool, str]:
         """Return (trustworthy, explanation); fail closed when the block is not running."""
         if self.mode != "initialized":
             return False, f"trustworthiness manager is {self.mode}"
-        self._evidence = (action, self.accepted_plans.get(action.plan))
+        self._evidence = (action, self._accepted_plans.get(action.plan))
         self._verdict = (False, "check did not complete in time")
         self.send("check_requested")
         return self._verdict
@@ -78,8 +98,9 @@ class TrustworthinessManager(Block):
                 decision = rules.evaluate(sent, context)
                 if not decision.accepted:
                     return False, f"rules do not accept the action: {decision.explanation()}"
-        verdicts = self.verdicts()
-        vetoes = [self._veto(name, verdicts.get(name)) for name in self.veto_properties]
+        vetoes = [
+            self._veto(name, self.checker.latest_verdict(name)) for name in self.veto_properties
+        ]
         vetoes = [why for why in vetoes if why is not None]
         if vetoes:
             return False, "; ".join(vetoes)
@@ -90,7 +111,7 @@ class TrustworthinessManager(Block):
     def _veto(self, name: str, verdict: Verdict | None) -> str | None:
         """Why veto property ``name`` stops the action, or None when it holds."""
         if verdict is None:
-            waits = self.waiting_for(name)
+            waits = self.checker.missing(name)
             if waits:
                 return f"veto property {name} not judged yet: no value for {', '.join(waits)}"
             return f"veto property {name} not judged yet: no verdict decided so far"

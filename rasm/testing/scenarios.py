@@ -30,7 +30,7 @@ from typing import Any
 from hypothesis import assume
 from hypothesis import strategies as st
 
-from rasm.platform.components import load_component
+from rasm.platform.loading import load_component
 from rasm.platform.manifest import AppManifest
 from rasm.testing.apps import app_manifest
 

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from rasm.errors import RasmError
 from rasm.knowledge import Declaration, KnowledgeBase, KnowledgeError, Sample
+from rasm.knowledge.values import make_check
 
 from .support import VALUES, same, time_steps, times_from
 
@@ -327,8 +328,7 @@ def test_a_batch_is_each_value_registered_one_after_the_other(batches):
     batched, batched_seen = _declared_base()
     single, single_seen = _declared_base()
     for values, time in batches:
-        stored: dict = {}
-        refused = batched.register_values(values, time, into=stored)
+        refused = batched.register_values(values, time)
         expected = {}
         for key, value in values.items():
             try:
@@ -339,13 +339,14 @@ def test_a_batch_is_each_value_registered_one_after_the_other(batches):
         assert [(type(e), str(e)) for e in refused.values()] == [
             (type(e), str(e)) for e in expected.values()
         ]
-        # `into` has each value stored, as a read gives it back
-        assert list(stored) == [key for key in values if key not in refused]
-        assert same(stored, {key: batched.read_knowledge(key) for key in stored})
-        assert same(stored, {key: single.read_knowledge(key) for key in stored})
+        stored = [key for key in values if key not in refused]
+        assert same(
+            {key: batched.read_knowledge(key) for key in stored},
+            {key: single.read_knowledge(key) for key in stored},
+        )
     assert same([list(s) for _, s in batched_seen], [list(s) for _, s in single_seen])
     assert [k for k, _ in batched_seen] == [k for k, _ in single_seen]
-    # what is handed out is a Sample (the store keeps plain tuples)
+    # what is handed out is a Sample
     assert all(type(s) is Sample for _, s in batched_seen)
     for key in single.keys():
         history = batched.history(key)
@@ -366,11 +367,10 @@ def test_a_batch_goes_through_a_store_that_registers_its_own_way():
     kb = Counting()
     kb.declare("speed", "float", minimum=0.0)
     kb.declare("count", "float")
-    stored: dict = {}
-    refused = kb.register_values({"speed": -1.0, "other": 2.0, "count": 3}, 1.0, into=stored)
+    refused = kb.register_values({"speed": -1.0, "other": 2.0, "count": 3}, 1.0)
     assert list(refused) == ["speed"] and Counting.calls == 3
     assert kb.read_knowledge("other") == 2.0
-    assert stored == {"other": 2.0, "count": 3.0} and type(stored["count"]) is float
+    assert kb.read_values(["count"]) == {"count": 3.0} and type(kb.read_knowledge("count")) is float
 
 
 def test_a_subscriber_failing_in_a_batch_fails_neither_the_batch_nor_the_others():
@@ -380,3 +380,120 @@ def test_a_subscriber_failing_in_a_batch_fails_neither_the_batch_nor_the_others(
     kb.subscribe(lambda key, sample: seen.append(key))
     assert kb.register_values({"a": 1.0, "b": "x"}, 0.0) == {}
     assert seen == ["a", "b"]
+
+
+# -- reads and writes agree ----------------------------------------------------------------
+
+
+def _same(a, b) -> bool:
+    """Equal and of the same type, a nan equal to a nan."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, float) and math.isnan(a):
+        return math.isnan(b)
+    return a == b
+
+
+READ_KEYS = st.sampled_from(["a", "b", "c", "missing"])
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(
+    st.lists(st.tuples(READ_KEYS, st.floats(-10, 10) | st.booleans() | st.text(max_size=3))),
+    st.lists(READ_KEYS, max_size=5),
+    st.none() | st.integers(),
+)
+def test_read_values_is_read_knowledge_of_each_key(writes, keys, default):
+    kb = KnowledgeBase(default_history=3)
+    for time, (key, value) in enumerate(writes):
+        try:
+            kb.register_knowledge(key, value, float(time))
+        except Exception:  # a value of another type than the key's first: refused, as ever
+            pass
+    assert kb.read_values(keys, default) == {k: kb.read_knowledge(k, default) for k in keys}
+
+
+BOUNDS = st.none() | st.integers(-5, 5) | st.floats(-5, 5) | st.sampled_from([-math.inf, math.inf])
+
+
+ANY_VALUE = (
+    st.none()
+    | st.booleans()
+    | st.integers()
+    | st.integers(-(2**1100), 2**1100)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=3)
+    | st.lists(st.integers(), max_size=2)
+)
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(st.sampled_from(["float", "int", "bool", "str", "json"]), BOUNDS, BOUNDS, ANY_VALUE)
+def test_a_stored_value_is_what_its_declarations_check_makes_of_it(kind, lo, hi, value):
+    numeric = kind in ("float", "int")
+    if numeric and lo is not None and hi is not None and lo > hi:
+        lo, hi = hi, lo
+    decl = Declaration("k", kind, minimum=lo if numeric else None, maximum=hi if numeric else None)
+    kb = KnowledgeBase()
+    kb.declare("k", kind, minimum=decl.minimum, maximum=decl.maximum)
+    try:
+        expected = make_check(decl)(value)
+    except KnowledgeError as exc:
+        with pytest.raises(KnowledgeError) as raised:
+            kb.register_knowledge("k", value, 1.0)
+        assert str(raised.value) == str(exc)
+        assert kb.register_values({"k": value}, 1.0)["k"].args == exc.args
+        return
+    assert _same(kb.register_knowledge("k", value, 1.0).value, expected)
+    assert kb.register_values({"k": value}, 2.0) == {}
+    assert _same(kb.read_knowledge("k"), expected)
+
+
+# one key's life: writes (many, so that the oldest are dropped several times over), reads of
+# every kind, a re-declaration with another history, a restore of samples in bulk
+OP = st.one_of(
+    st.tuples(st.just("write"), st.integers(1, 12)),
+    st.tuples(st.just("declare"), st.integers(1, 9)),
+    st.tuples(st.just("load"), st.integers(0, 12)),
+)
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(st.integers(1, 9), st.lists(OP, min_size=1, max_size=12))
+def test_a_key_holds_its_last_history_samples_through_many_writes(history, ops):
+    kb = KnowledgeBase()
+    kb.declare("x", "float", history=history)
+    held: list[Sample] = []  # what the key holds: its last `history` samples
+    now = 0.0
+    for op, n in ops:
+        if op == "declare":  # a new history keeps the newest samples held
+            history = n
+            kb.declare("x", "float", history=history)
+            held = held[-history:]
+        else:
+            fresh = [Sample(now + i, float(len(held) + i)) for i in range(n)]
+            now += n
+            if op == "write":
+                for sample in fresh:
+                    assert kb.register_knowledge("x", sample.value, sample.time) == sample
+            else:
+                assert kb.load_samples("x", fresh) == n
+            held = (held + fresh)[-history:]
+        assert kb.history("x") == held
+        assert kb.read_sample("x") == (held[-1] if held else None)
+        assert kb.read_knowledge("x", "none") == (held[-1].value if held else "none")
+        assert kb.read_values(["x"], "none") == {"x": held[-1].value if held else "none"}
+        assert kb.snapshot() == ({"x": held[-1].value} if held else {})
+        for last in (None, 1, 3):
+            for since in (None, now - 4.5, now - 3.0):
+                for until in (None, now - 2.0, now - 1.5):
+                    want = [
+                        s for s in held
+                        if (since is None or s.time >= since)
+                        and (until is None or s.time <= until)
+                    ]
+                    want = want if last is None else want[max(0, len(want) - last) :]
+                    assert kb.history("x", last=last, since=since, until=until) == want
+        # a time before the newest sample held is refused, whatever was dropped before it
+        if held:
+            assert kb.register_values({"x": 0.0}, held[-1].time - 0.5) != {}

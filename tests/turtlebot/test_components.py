@@ -6,7 +6,8 @@ import pytest
 from tb4.evaluation import APP
 
 from rasm.knowledge import KnowledgeBase
-from rasm.platform.components import StageContext, load_component
+from rasm.platform.components import StageContext
+from rasm.platform.loading import load_component
 
 FRONT = [None if i < 61 or i >= 300 else 3.0 for i in range(360)]  # 121 rays blocked ahead
 CLEAR = [3.0] * 360

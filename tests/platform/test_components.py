@@ -1,0 +1,16 @@
+"""What user components return is checked before the loop uses it."""
+
+from __future__ import annotations
+
+import pytest
+
+from rasm.platform.components import StageError, as_signals
+from rasm.platform.trace import LOOP_KEYS
+
+
+def test_a_monitor_result_using_loop_keys_names_the_first_of_them() -> None:
+    forged = sorted(LOOP_KEYS)[-2:]
+    with pytest.raises(StageError, match=f"monitor returned {forged[0]!r}, a key the loop"):
+        as_signals({"temperature": 1.0, forged[1]: 1, forged[0]: 2})
+    signals = {"temperature": 1.0}
+    assert as_signals(signals) is signals
