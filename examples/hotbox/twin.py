@@ -1,4 +1,4 @@
-"""The Hotbox's digital twin: the box's thermal model, learned online (seed ID_RAP_02).
+"""The Hotbox's digital twin: the box's thermal model, learned online.
 
 The box obeys ``C dT/dt = P - k (T - T_ambient)`` with ``k = k_closed`` or, with the lid open,
 ``k_open``. Divided by ``C`` it is linear in three unknowns::

@@ -1,4 +1,4 @@
-"""The TurtleBot 4 LiDAR-occlusion demonstrator (seed §7.1): MAPLE-K components and the
+"""The TurtleBot 4 LiDAR-occlusion demonstrator: MAPLE-K components and the
 simulated managed system.
 
 The robot follows waypoints through a room with obstacles; debris on the scanner blocks a sector

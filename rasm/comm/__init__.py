@@ -1,4 +1,4 @@
-"""rasm.comm: the Communication Manager and its transports (seed §5.5.1).
+"""rasm.comm: the Communication Manager and its transports.
 
 ``open_transport("local")`` is the in-process bus; ``open_transport("mqtt://host:port")`` talks
 to an MQTT broker. Both take MQTT topic patterns (``+``, ``#``) and JSON-able dict payloads, and

@@ -1,6 +1,6 @@
-"""MAPLE-K timing to InfluxDB (seed §3.4, Figure 2): the loop's records as line protocol.
+"""MAPLE-K timing to InfluxDB: the loop's records as line protocol.
 
-:func:`record_to_points` maps a SPEC §4 trace record to InfluxDB line-protocol lines:
+:func:`record_to_points` maps a trace record to InfluxDB line-protocol lines:
 
 - a stage record ``{"stage": "plan", "duration": d}`` at time ``t`` (the stage's start) gives
   ``maple_stage,stage=plan start=t,duration=d``;
@@ -54,7 +54,7 @@ __all__ = [
 _log = logging.getLogger("rasm.comm.influx")
 
 ADAPTATION_EVENTS = ("anomaly", "planned", "legitimate", "rejected", "trusted", "executed")
-"""The SPEC §4 event keys that become ``adaptation`` points."""
+"""The trace's event keys that become ``adaptation`` points."""
 
 _NOT_KNOWLEDGE = frozenset(
     ("time", "stage", "duration", "plan", "broken_rules", "explanation", *ADAPTATION_EVENTS)
@@ -369,7 +369,7 @@ class InfluxWriter:
         return queued
 
     def write_record(self, time: float, record: Mapping[str, Any]) -> int:
-        """Queue the points of one SPEC §4 record (see :func:`record_to_points`)."""
+        """Queue the points of one trace record (see :func:`record_to_points`)."""
         return self.write(record_to_points(time, record, precision=self.precision))
 
     def write_verdict(self, verdict: Any) -> int:

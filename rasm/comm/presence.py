@@ -1,4 +1,4 @@
-"""Node presence (seed §6.1): advertise start-up, periodic presence and shutdown; follow others.
+"""Node presence: advertise start-up, periodic presence and shutdown; follow others.
 
 Every node owns the topic ``rasm/presence/<node>``:
 

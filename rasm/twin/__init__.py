@@ -1,4 +1,4 @@
-"""rasm.twin: digital twins that learn online (seed requirement ID_RAP_02).
+"""rasm.twin: digital twins that learn online.
 
 A :class:`DigitalTwin` learns a model of the managed system from the records the probes
 deliver (:meth:`~DigitalTwin.observe`), predicts what a plan would do

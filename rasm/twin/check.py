@@ -16,7 +16,7 @@ class PredictionChecker:
 
     Each call checks a fresh monitor (a prediction is a trace of its own): a property is
     reported when it is false on at least one predicted record. Properties that read signals a
-    prediction never sets are not judged (SPEC §5: they never start) and never reported; a
+    prediction never sets are not judged and never reported; a
     bounded-future property whose window outlasts the prediction is inconclusive there, and
     inconclusive is not a violation.
     """

@@ -1,4 +1,4 @@
-"""The TurtleBot 4 occlusion demonstrator's own code (seed §7.1), split by concern.
+"""The TurtleBot 4 occlusion demonstrator's own code, split by concern.
 
 Managed system (the simulated robot): :mod:`.geometry` (shapes and ray casting), :mod:`.world`
 (maps and scenarios), :mod:`.lidar` (the 360-ray scanner with debris), :mod:`.navigation` (local

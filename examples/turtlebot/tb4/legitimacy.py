@@ -1,4 +1,4 @@
-"""Legitimate's inline simulation (seed §7.1.3.6): play a spin plan on the current map before it
+"""Legitimate's inline simulation: play a spin plan on the current map before it
 is executed.
 
 The map is what the robot's own scans show: the hit points of the recent scans, each placed with

@@ -1,4 +1,4 @@
-"""Analyse's model of the occlusion (seed §7.1.3.2): how likely each ray is blocked, judged over
+"""Analyse's model of the occlusion: how likely each ray is blocked, judged over
 a sliding window of recent scans, thresholded and clustered into windows of adjacent rays.
 
 A ray is *invalid* in a scan when it returned nothing (``None``) or less than the scanner's

@@ -1,4 +1,4 @@
-"""Plan's geometry (seed §7.1.3.3): stops and rotations that bring every occluded sector into view.
+"""Plan's geometry: stops and rotations that bring every occluded sector into view.
 
 The debris is fixed on the robot, so turning the robot by ``a`` degrees puts world direction
 ``psi`` (relative to the heading at the stop) on body ray ``psi - a``. A spin sweeps ``a`` over
