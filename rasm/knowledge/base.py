@@ -113,20 +113,6 @@ class Subscription:
         self.cancel()
 
 
-def register_each(
-    register: Callable[[str, Any, float], Any], values: Mapping[str, Any], time: float
-) -> dict[str, Exception]:
-    """Call ``register(key, value, time)`` for each value; return the refused ones with the error
-    each raised (a refused value does not stop the others)."""
-    refused: dict[str, Exception] = {}
-    for key, value in values.items():
-        try:
-            register(key, value, time)
-        except Exception as exc:
-            refused[key] = exc
-    return refused
-
-
 class KnowledgeBase:
     """Typed knowledge with a bounded history per key (the seed's Knowledge Manager).
 
@@ -200,20 +186,16 @@ class KnowledgeBase:
         a time older than the key's last sample. Subscribers are called before this returns.
         """
         with self._lock:
-            sample = self._append_sample(key, value, time)
+            series = self._series.get(key)
+            if series is None:
+                series = self._infer(key, value)
+            if not isinstance(time, float):
+                # the value is checked first: its error is the one raised when both are bad
+                series.check(value)
+                time = self._time(key, time)
+            sample = series.add(value, time)
             self._notify(key, sample)
             return sample
-
-    def _append_sample(self, key: str, value: Any, time: float) -> Sample:
-        """Check and store one value (the caller holds the lock); raise as register_knowledge."""
-        series = self._series.get(key)
-        if series is None:
-            series = self._infer(key, value)
-        if not isinstance(time, float):
-            # the value is checked first: its error is the one raised when both are bad
-            series.check(value)
-            time = self._time(key, time)
-        return series.add(value, time)
 
     def _notify(self, key: str, sample: Sample) -> None:
         """Call every subscriber; a failing reader must not fail the writer (Telegraf, the loop)."""
@@ -231,8 +213,14 @@ class KnowledgeBase:
         would raise}``) is not stored and does not stop the others. Subscribers are called for
         each stored value, in order, before this returns.
         """
+        refused: dict[str, Exception] = {}
         with self._lock:
-            return register_each(self.register_knowledge, values, time)
+            for key, value in values.items():
+                try:
+                    self.register_knowledge(key, value, time)
+                except Exception as exc:
+                    refused[key] = exc
+        return refused
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
         """Append samples in bulk **without** notifying subscribers; return how many.

@@ -17,8 +17,8 @@ _log = logging.getLogger("rasm.platform")
 class StorageManager(Block):
     """Storage Manager (stom): batches knowledge updates and persists them (SQLite, WAL).
 
-    Every update is buffered by the storage; only the first one after a flush steps the chart,
-    which persists the batch ``flush_period`` seconds later.
+    Every update is buffered by the storage; only the first one while the chart is ``idle``
+    steps it (to ``dirty``), and the chart persists the batch ``flush_period`` seconds later.
     """
 
     chart_name = "storage_manager"
@@ -27,14 +27,22 @@ class StorageManager(Block):
     def __init__(self, storage: Storage | None, *, flush_period: float = 1.0, **kw: Any) -> None:
         self.storage = storage
         self.persisted = 0
+        self._idle = False  # the chart is in `idle`: the next update is the first of a batch
         super().__init__(context={"flush_period": flush_period}, **kw)
 
     def register_knowledge_update(self, key: str, sample: Sample) -> None:
         if self.storage is None:
             return
         self.storage.register_knowledge_update(key, sample)
-        if "idle" in self.configuration:
+        if self._idle:
+            self._idle = False
             self.send("update_registered")
+
+    def on_enter_idle(self) -> None:
+        self._idle = True
+
+    def on_fault(self, reason: str | None) -> None:
+        self._idle = False
 
     def on_enter_persisting(self) -> None:
         try:
@@ -49,6 +57,7 @@ class StorageManager(Block):
         return 0 if self.storage is None else int(self.storage.update_persistency() or 0)
 
     def on_termination(self) -> None:
+        self._idle = False
         if self.storage is not None:
             self.storage.update_persistency()
             self.storage.close()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from operator import mul
 from typing import Any
 
 from rasm.twin.base import TwinError
@@ -18,6 +19,11 @@ from rasm.twin.base import TwinError
 __all__ = ["RecursiveLeastSquares"]
 
 Matrix = list[list[float]]
+
+
+def _dot(a: Iterable[float], b: Iterable[float]) -> float:
+    """The dot product, its terms added in order."""
+    return sum(map(mul, a, b))
 
 
 def _diagonal(values: Sequence[float]) -> Matrix:
@@ -88,13 +94,13 @@ class RecursiveLeastSquares:
 
     def predict(self, phi: Sequence[float]) -> float:
         """``phi · theta``: the prediction of the current estimate."""
-        return sum(p * t for p, t in zip(phi, self.theta, strict=True))
+        if len(phi) != self.n:
+            raise ValueError(f"phi has {len(phi)} values for {self.n} parameters")
+        return _dot(phi, self.theta)
 
     def variance_factor(self, phi: Sequence[float]) -> float:
         """``phi' P phi``: how uncertain the prediction for ``phi`` is, in units of the noise."""
-        n = self.n
-        P = self.P
-        return sum(phi[i] * sum(P[i][j] * phi[j] for j in range(n)) for i in range(n))
+        return _dot(phi, [_dot(row, phi) for row in self.P])
 
     def variances_within(self, phis: Sequence[Sequence[float]], bound: float) -> bool:
         """True when ``variance_factor(phi) <= bound`` for every ``phi`` of ``phis`` (the
@@ -115,8 +121,8 @@ class RecursiveLeastSquares:
         phi = [float(v) for v in phi]
         error = float(y) - self.predict(phi)
         P = self.P
-        Pphi = [sum(P[i][j] * phi[j] for j in range(n)) for i in range(n)]
-        denominator = self.forgetting / weight + sum(phi[i] * Pphi[i] for i in range(n))
+        Pphi = [_dot(row, phi) for row in P]
+        denominator = self.forgetting / weight + _dot(phi, Pphi)
         gain = [v / denominator for v in Pphi]
         self.theta = [t + g * error for t, g in zip(self.theta, gain, strict=True)]
         scale = 1.0 / self.forgetting
