@@ -93,7 +93,7 @@ def cast(ox: float, oy: float, angle: float, shapes: list[Shape], max_range: flo
     best = max_range
     hit = False
     for s in shapes:
-        t = _ray_box(ox, oy, dx, dy, s) if type(s) is Box else _ray_circle(ox, oy, dx, dy, s)
+        t = _ray_box(ox, oy, dx, dy, s) if isinstance(s, Box) else _ray_circle(ox, oy, dx, dy, s)
         if t is not None and t <= best:
             best, hit = t, True
     return best if hit else None
