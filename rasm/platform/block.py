@@ -38,7 +38,7 @@ __all__ = ["MODES", "Block", "ModeListener", "shared_chart"]
 MODES = ("instantiated", "configuration", "initialization", "initialized", "fault", "terminated")
 # the modes whose work the block does itself, not through an on_enter_<state> hook
 _LIFECYCLE_WORK = frozenset({"configuration", "initialization", "fault", "terminated"})
-ModeListener = Callable[["Block", str], Any]
+ModeListener = Callable[["Block", str], object]
 
 _log = logging.getLogger("rasm.platform")
 _CHARTS: dict[tuple[str, bytes], Statechart] = {}
@@ -94,7 +94,7 @@ class Block:
         self._mode = "instantiated"
         # Called with (block, time) when the chart has a timer due at `time` (after(), idle(),
         # delayed events): the platform's scheduler then steps the chart at that time.
-        self.on_deadline: Callable[[Block, float], Any] | None = None
+        self.on_deadline: Callable[[Block, float], object] | None = None
         self._armed: float | None = None
         # failures that recur at every step are logged once, then counted (the platform
         # gives all its blocks one RepeatedLogs)

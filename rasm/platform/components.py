@@ -15,10 +15,13 @@ else fails the stage with an explanation, and no action comes out of a failed st
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rasm.errors import PlatformError
 from rasm.platform.trace import LOOP_KEYS
+
+if TYPE_CHECKING:
+    from rasm.knowledge.base import KnowledgeBase
 
 __all__ = [
     "Action",
@@ -45,7 +48,7 @@ def describe_failure(exc: BaseException | None) -> str:
     return f"{type(exc).__name__}: {text}"
 
 
-def missing_stage_method(stage: str, component: Any) -> str | None:
+def missing_stage_method(stage: str, component: object) -> str | None:
     """Why ``component`` cannot serve ``stage`` (it has no ``stage(ctx)`` method), or None."""
     if callable(getattr(component, stage, None)):
         return None
@@ -93,7 +96,7 @@ class Action:
 class StageContext:
     """Everything a stage may read: knowledge, time, and what the earlier stages decided."""
 
-    knowledge: Any
+    knowledge: KnowledgeBase
     time: float
     iteration: int
     anomaly: Anomaly | None = None
@@ -102,7 +105,7 @@ class StageContext:
     log: Any = None
 
 
-def as_signals(value: Any) -> dict[str, Any]:
+def as_signals(value: object) -> dict[str, Any]:
     """Monitor's result: derived signals to register (a dict), or nothing."""
     if value is None:
         return {}
@@ -119,7 +122,7 @@ def as_signals(value: Any) -> dict[str, Any]:
     return value
 
 
-def as_anomaly(value: Any) -> Anomaly | None:
+def as_anomaly(value: object) -> Anomaly | None:
     """Analyse's result: an :class:`Anomaly`, ``True``/a reason string, or falsy for none."""
     if value is None or value is False:
         return None
@@ -140,7 +143,7 @@ def as_anomaly(value: Any) -> Anomaly | None:
     )
 
 
-def as_plan(value: Any, plan_id: str) -> Plan | None:
+def as_plan(value: object, plan_id: str) -> Plan | None:
     """Plan's result: a :class:`Plan` or a dict of plan values, or None for no plan."""
     if value is None:
         return None
@@ -160,7 +163,7 @@ def as_plan(value: Any, plan_id: str) -> Plan | None:
     )
 
 
-def as_verdict(value: Any) -> tuple[bool, str]:
+def as_verdict(value: object) -> tuple[bool, str]:
     """Legitimate's own opinion: ``True``/``None`` to accept, ``False`` or ``(False, why)``."""
     if value is None or value is True:
         return True, ""
@@ -173,7 +176,7 @@ def as_verdict(value: Any) -> tuple[bool, str]:
     )
 
 
-def as_actions(value: Any, plan_id: str) -> list[Action]:
+def as_actions(value: object, plan_id: str) -> list[Action]:
     """Execute's result: an :class:`Action`, a list of them, or ``{effector: payload}``."""
     if value is None:
         return []

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable
-from typing import Any
 
 from sismic.clock import Clock
 
@@ -81,7 +80,7 @@ class Core(Block):
         self.started: list[Block] = []
         self._order: list[Block] = []
         self._startup_failure: StartupError | None = None
-        self._abort_handler: Callable[[str], Any] | None = None
+        self._abort_handler: Callable[[str], object] | None = None
         super().__init__("core", clock=clock)
 
     # ------------------------------------------------------------------ the seed's interface
@@ -115,7 +114,7 @@ class Core(Block):
         self.deinitialize()
         raise PlatformAborted(reason)
 
-    def set_abort_handler(self, handler: Callable[[str], Any] | None) -> None:
+    def set_abort_handler(self, handler: Callable[[str], object] | None) -> None:
         """Replace the global abort handler (``None`` restores the default)."""
         self._abort_handler = handler
 

@@ -50,7 +50,7 @@ __all__ = ["Distribution", "DistributionHooks", "key_from_env"]
 
 _log = logging.getLogger("rasm.platform")
 
-Observers = list[Callable[[float, dict[str, Any]], Any]]
+Observers = list[Callable[[float, dict[str, Any]], object]]
 """The trace's observers: each is called with every record (time, record)."""
 
 
@@ -77,10 +77,10 @@ class DistributionHooks:
     properties of an accepted update (called on a transport thread).
     """
 
-    managed_system: Callable[[str], Any]
-    node: Callable[[str, str], Any]
+    managed_system: Callable[[str], object]
+    node: Callable[[str, str], object]
     rules: list[RuleSet]
-    add_monitor: Callable[[Monitor], Any]
+    add_monitor: Callable[[Monitor], object]
 
 
 class Distribution:

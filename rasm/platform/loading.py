@@ -38,7 +38,7 @@ def package_name(manifest: AppManifest) -> str:
 
 def load_component(
     ref: str, folder: Path, *, package: str, kwargs: dict[str, Any] | None = None
-) -> Any:
+) -> object:
     """Instantiate ``module:Class`` (``module`` a file or package in ``folder``) with ``kwargs``."""
     module_name, _, class_name = ref.partition(":")
     if package not in sys.modules:
@@ -92,7 +92,7 @@ def load_stage_component(m: AppManifest, stage: str, ref: str, package: str) -> 
     return component
 
 
-def load_twin(twin: DigitalTwin | None, model: Any) -> DigitalTwin | None:
+def load_twin(twin: DigitalTwin | None, model: dict[str, Any] | None) -> DigitalTwin | None:
     """``twin`` restored to ``model`` (what it learned before a restart, if anything): a model
     that does not load is logged and relearned, never fatal."""
     if twin is not None and model:
@@ -105,7 +105,7 @@ def load_twin(twin: DigitalTwin | None, model: Any) -> DigitalTwin | None:
     return twin
 
 
-def check_components(components: Any) -> None:
+def check_components(components: object) -> None:
     """``Platform(components=...)``: a dict of stage (or ``twin``) to an object serving it."""
     if not isinstance(components, dict):
         raise TypeError(

@@ -44,7 +44,7 @@ from rasm.platform.loading import (
 )
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.logs import RepeatedLogs
-from rasm.platform.managed_system import ManagedSystem
+from rasm.platform.managed_system import ManagedSystem, Simulator
 from rasm.platform.manifest import STAGES, AppManifest, Effector, load_manifest
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
@@ -142,12 +142,12 @@ class Platform:
         # milliseconds (docs/runtime.md)
         self.low_latency = low_latency
         self._gc_frozen = False
-        self.on_record: list[Callable[[float, dict[str, Any]], Any]] = []
+        self.on_record: list[Callable[[float, dict[str, Any]], object]] = []
         # every verdict of the online monitors goes to these callables (loop thread); nothing
         # keeps them, so a long run does not grow (the trace file has the records they judge).
         # Append to and remove from this list: the Trustworthiness Checker holds it.
-        self.on_verdict: list[Callable[[Verdict], Any]] = []
-        self.simulator: Any = None  # the app's simulator object (role all or managed)
+        self.on_verdict: list[Callable[[Verdict], object]] = []
+        self.simulator: Simulator | None = None  # the app's simulator (role all or managed)
         self.managed: ManagedSystem | None = None
         self.core: Core | None = None
         self._built = False
@@ -416,7 +416,7 @@ class Platform:
         if residual is not None:
             stored["twin_residual"] = residual
 
-    def _refused(self, key: str, value: Any, exc: Exception) -> None:
+    def _refused(self, key: str, value: object, exc: Exception) -> None:
         """Log a value knowledge refused; the same reason again (whatever the value) is counted."""
         reason = str(exc).replace(repr(value), "…")
         self.logs.log(
