@@ -77,7 +77,7 @@ class LiveView:
         verdicts.add_column("property")
         verdicts.add_column("now")
         for name in sorted(p.tc.outcomes):
-            word, style = _now(p.tc.latest.get(name))
+            word, style = _now(p.tc.latest_verdict(name))
             verdicts.add_row(name, Text(word, style=style))
         grid = Table.grid(padding=(0, 4))
         grid.add_row(modes, verdicts)
