@@ -338,6 +338,10 @@ class KnowledgeBase:
                 if series.samples
             }
 
+    def close(self) -> None:
+        """Release what the store holds (nothing, in memory; a store on a server closes its
+        connection)."""
+
     def __contains__(self, key: object) -> bool:
         with self._lock:
             return key in self._series

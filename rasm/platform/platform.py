@@ -170,9 +170,8 @@ class Platform:
             # a platform that cannot be built holds nothing: its knowledge file stays usable
             if storage is not None:
                 storage.close()
-            kb = getattr(self, "kb", None)
-            if kb is not None and hasattr(kb, "close"):
-                kb.close()
+            if self.managing:
+                self.kb.close()
             raise
 
     def _build(self, storage: Storage | None) -> None:
