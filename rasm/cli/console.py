@@ -10,7 +10,9 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from rasm.platform.platform import STAGES, Platform, RunSummary
+from rasm.platform.manifest import STAGES
+from rasm.platform.platform import Platform
+from rasm.platform.summary import RunSummary
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PASSING
 
