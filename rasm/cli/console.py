@@ -10,7 +10,7 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from rasm.platform.manifest import STAGES
+from rasm.loop import STAGES
 from rasm.platform.platform import Platform
 from rasm.platform.summary import RunSummary
 from rasm.properties.monitor import Verdict

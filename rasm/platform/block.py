@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 from sismic.clock import Clock
 from sismic.model import MacroStep, Statechart
 
-from rasm.errors import PlatformError, RasmError
+from rasm.errors import ExecutionError, PlatformError, RasmError
 from rasm.platform.logs import RepeatedLogs
 from rasm.resources import platform_chart
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
@@ -180,7 +180,11 @@ class Block:
                 # the interpreter rolled the step back and discarded its event (a monitor that
                 # refuses a step, an action that raises): the block stays where it was
                 self.step_failures += 1
-                what = f"{self.name}: step refused and rolled back: {type(exc).__name__}: {exc}"
+                # an ExecutionError's message already names what the chart code raised
+                why = f"{type(exc).__name__}: {exc}"
+                if isinstance(exc, ExecutionError):
+                    why = str(exc)
+                what = f"{self.name}: step refused and rolled back: {why}"
                 self.logs.log(_log, logging.ERROR, what)
                 failure = self.interpreter.last_failure
                 if failure is None or failure.event is None:

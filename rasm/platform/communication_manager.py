@@ -46,8 +46,8 @@ class CommunicationManager(Block):
 
     def publish_message(self, topic: str, payload: dict[str, Any]) -> None:
         self.require_mode("initialized")
-        self.transport.publish(topic, payload)
+        self.endpoints.publish_message(topic, payload)
 
     def subscribe(self, pattern: str, callback: Callback) -> Subscription:
         """Call ``callback(message)`` for every message on ``pattern`` (transport thread)."""
-        return self.transport.subscribe(pattern, callback)
+        return self.endpoints.subscribe(pattern, callback)

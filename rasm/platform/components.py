@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from rasm.errors import PlatformError
-from rasm.platform.trace import LOOP_KEYS
+from rasm.loop import LOOP_KEYS
 
 if TYPE_CHECKING:
     from rasm.knowledge.base import KnowledgeBase

@@ -15,8 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import Location, PlatformError, SourceError, is_interrupt
+from rasm.loop import STAGES
 from rasm.platform.components import missing_stage_method
-from rasm.platform.manifest import STAGES, AppManifest, manifest_location
+from rasm.platform.manifest import AppManifest, manifest_location
 from rasm.twin import DigitalTwin
 
 __all__ = [

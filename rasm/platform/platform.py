@@ -27,6 +27,7 @@ from rasm.comm import Message, Transport
 from rasm.errors import PlatformError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
+from rasm.loop import STAGES
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.block import Block
@@ -45,20 +46,20 @@ from rasm.platform.loading import (
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.logs import RepeatedLogs
 from rasm.platform.managed_system import ManagedSystem, Simulator
-from rasm.platform.manifest import STAGES, AppManifest, Effector, load_manifest
+from rasm.platform.manifest import AppManifest, Effector, load_manifest
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
 from rasm.platform.summary import RunSummary
 from rasm.platform.telegraf import Telegraf
-from rasm.platform.trace import TraceWriter
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.properties.outcome import PropertyOutcome
 from rasm.resources import data_dir
 from rasm.statechart import MonotonicClock, SimulatedClock
+from rasm.trace import TraceWriter
 from rasm.twin import DigitalTwin
 
 __all__ = ["Platform", "RunSummary"]
@@ -125,7 +126,7 @@ class Platform:
         self.managing = role in ("all", "managing")
         self.scheduler = Scheduler(self.clock)
         self.scheduler.on_error = self._job_failed
-        # rotated by size with trace_max_bytes (rasm.platform.trace.TraceWriter)
+        # rotated by size with trace_max_bytes (rasm.trace.TraceWriter)
         self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
         self.state_dir = Path(state_dir) if state_dir else Path(".rasm") / manifest.name
         self.scenario = manifest.scenario if scenario is None else scenario

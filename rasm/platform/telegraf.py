@@ -3,24 +3,18 @@
 from __future__ import annotations
 
 import logging
-import math
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
+from rasm.errors import Misfit
 from rasm.platform.block import Block
 from rasm.platform.manifest import Probe, Signal
+from rasm.values import fit
 
 __all__ = ["Telegraf"]
 
 _log = logging.getLogger("rasm.telegraf")
-
-_TYPES: dict[str, tuple[type, ...]] = {
-    "float": (float, int),
-    "int": (int,),
-    "bool": (bool,),
-    "str": (str,),
-}
 
 Register = Callable[[dict[str, Any], float], Any]
 """Stores one message's values, all at one time: ``register(values, time)``."""
@@ -58,38 +52,27 @@ class Telegraf(Block):
             if key not in payload:
                 continue
             value = payload[key]
-            problem = _check_value(signal, value)
-            if problem:
-                self.rejected[problem] += 1
+            try:
+                values[key] = fit(
+                    value,
+                    signal.type,
+                    minimum=signal.minimum,
+                    maximum=signal.maximum,
+                    finite=True,
+                )
+            except Misfit as misfit:
+                self.rejected[misfit.reason] += 1
                 self.logs.log(
                     _log,
                     logging.WARNING,
-                    f"{topic}: {key} rejected: {problem}",
-                    "%s: %s=%r rejected: %s",
+                    f"{topic}: {key} rejected: {misfit.reason}",
+                    "%s: %s rejected: %s",
                     topic,
                     key,
-                    value,
-                    problem,
+                    misfit,
                 )
-                continue
-            values[key] = float(value) if signal.type == "float" else value
         if values:
             self.register(values, time)
             self.digested += 1
         return values
 
-
-def _check_value(signal: Signal, value: Any) -> str | None:
-    if signal.type == "json":
-        return None
-    allowed = _TYPES[signal.type]
-    if not isinstance(value, allowed) or (signal.type != "bool" and isinstance(value, bool)):
-        return f"expected {signal.type}, got {type(value).__name__}"
-    if signal.type in ("float", "int"):
-        if not math.isfinite(value):
-            return "not a finite number"
-        if signal.minimum is not None and value < signal.minimum:
-            return f"below the declared minimum {signal.minimum}"
-        if signal.maximum is not None and value > signal.maximum:
-            return f"above the declared maximum {signal.maximum}"
-    return None

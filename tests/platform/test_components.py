@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from rasm.loop import LOOP_KEYS
 from rasm.platform.components import StageError, as_signals
-from rasm.platform.trace import LOOP_KEYS
 
 
 def test_a_monitor_result_using_loop_keys_names_the_first_of_them() -> None:
