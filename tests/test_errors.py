@@ -17,6 +17,8 @@ from rasm.statechart import Interpreter, load_statechart
 
 def rasm_modules():
     for info in pkgutil.walk_packages(rasm.__path__, "rasm."):
+        if info.name.endswith(".__main__"):  # running it is the command line itself
+            continue
         try:
             yield importlib.import_module(info.name)
         except ImportError as exc:  # an optional dependency of an optional part

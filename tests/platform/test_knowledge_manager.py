@@ -18,7 +18,7 @@ def test_knowledge_manager_batches_refuse_each_bad_value_and_everything_when_not
     assert all(isinstance(e, PlatformError) for e in refused.values())
     km.send("configure")
     refused = km.register_values({"speed": -1.0, "mode": "x"}, 1.0)
-    assert list(refused) == ["speed"] and "below its minimum" in str(refused["speed"])
+    assert list(refused) == ["speed"] and "below the declared minimum" in str(refused["speed"])
     assert km.read_knowledge("mode") == "x"
 
 
