@@ -110,7 +110,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     import threading
 
     from rasm.attach import Attachment, load_topic_map
-    from rasm.comm import credentials_from_env, open_transport
+    from rasm.comm import open_transport
+    from rasm.comm.url import credentials_from_env
     from rasm.properties import load_specification
 
     duration = getattr(args, "duration", None)

@@ -139,7 +139,8 @@ class Distribution:
         broker credentials from ``RASM_MQTT_USERNAME``/``RASM_MQTT_PASSWORD``."""
         if not self.networked:
             return {}
-        from rasm.comm import credentials_from_env, presence_will
+        from rasm.comm import presence_will
+        from rasm.comm.url import credentials_from_env
 
         return {
             "will": presence_will(self.node, self.role),

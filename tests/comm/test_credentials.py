@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from rasm.comm import MqttTransport, credentials_from_env
+from rasm.comm import MqttTransport
+from rasm.comm.url import credentials_from_env
 from rasm.errors import CommError
 from rasm.testing.servers import Broker, free_port
 

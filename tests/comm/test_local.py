@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.comm import CommError, LocalTransport, Message, topic_matches
+from rasm.comm import CommError, LocalTransport, Message
+from rasm.comm.topics import topic_matches
 
 from .strategies import PAYLOADS, TOPICS, patterns
 

@@ -16,8 +16,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from paho.mqtt.enums import CallbackAPIVersion
 
-from rasm.comm import CommError, CommunicationManager, Message, MqttTransport, Will
+from rasm.comm import CommError, CommunicationManager, Message, MqttTransport
 from rasm.comm.envelope import MalformedPayload, decode
+from rasm.comm.mqtt import Will
 from rasm.testing.servers import free_port
 
 from .strategies import PAYLOADS
@@ -287,7 +288,8 @@ def test_subscriptions_made_while_disconnected_are_sent_on_reconnect(broker, mqt
 
 WILL_CHILD = """
 import sys, threading
-from rasm.comm import MqttTransport, Will
+from rasm.comm import MqttTransport
+from rasm.comm.mqtt import Will
 transport = MqttTransport(sys.argv[1], will=Will("presence/worker", {"online": False}))
 transport.connect()
 transport.publish("presence/worker", {"online": True}, qos=1)

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from paho.mqtt.client import topic_matches_sub
 
-from rasm.comm import CommError, topic_matches, validate_pattern, validate_topic
-from rasm.comm.topics import TopicIndex
+from rasm.comm import CommError
+from rasm.comm.topics import TopicIndex, topic_matches, validate_pattern, validate_topic
 
 from .strategies import TOPICS, patterns
 

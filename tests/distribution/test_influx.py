@@ -10,8 +10,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rasm.comm import InfluxWriter, record_to_points, verdict_to_point
-from rasm.comm.influx import escape_key, field_value, query
+from rasm.comm import InfluxWriter
+from rasm.comm.influx import escape_key, field_value, query, record_to_points, verdict_to_point
 from rasm.errors import CommError
 from rasm.properties import compile_properties
 

@@ -13,14 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.comm import (
-    LocalTransport,
-    MqttTransport,
-    Presence,
-    PresenceTracker,
-    presence_topic,
-    presence_will,
-)
+from rasm.comm import LocalTransport, MqttTransport, Presence, PresenceTracker, presence_will
+from rasm.comm.presence import presence_topic
 from rasm.errors import CommError
 
 NODE = textwrap.dedent(

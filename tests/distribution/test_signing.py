@@ -9,16 +9,8 @@ import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
-from rasm.comm import (
-    BoundSigner,
-    Message,
-    ReplayGuard,
-    SignedEffector,
-    UpdateReceiver,
-    sign,
-    verify,
-)
-from rasm.comm.signing import SIGNATURE, UPDATE_TOPICS, canonical
+from rasm.comm import BoundSigner, Message, SignedEffector, UpdateReceiver, sign, verify
+from rasm.comm.signing import SIGNATURE, UPDATE_TOPICS, ReplayGuard, canonical
 from rasm.errors import CommError
 from rasm.rules import RuleSet
 from rasm.rules.loader import parse_rules

@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rasm.comm import CommError, credentials_from_env, open_transport
+from rasm.comm import CommError, open_transport
+from rasm.comm.url import credentials_from_env
 from rasm.ros2 import QosProfile, RosError
 from rasm.ros2.transport import KeepLastInbox, validate_ros_topic
 from rasm.ros2.zenoh import ZenohTransport, parse_zenoh_url, qos_text
