@@ -32,6 +32,7 @@ from rasm.comm.message import Message
 from rasm.comm.topics import validate_topic
 from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError
+from rasm.logs import RepeatedLogs
 
 __all__ = [
     "PRESENCE_PREFIX",
@@ -207,6 +208,7 @@ class PresenceTracker:
         self.timeout = float(timeout)
         self.on_change = on_change
         self.malformed = 0
+        self.logs = RepeatedLogs()
         self._nodes: dict[str, NodeState] = {}
         self._cond = threading.Condition(threading.RLock())
         self._stopped = False
@@ -278,7 +280,10 @@ class PresenceTracker:
         if state not in ("online", "offline") or not (role is None or isinstance(role, str)):
             with self._cond:
                 self.malformed += 1
-            _log.warning("malformed presence message on %r ignored: %r", message.topic, payload)
+            self.logs.log(
+                _log, logging.WARNING, f"malformed presence message on {message.topic!r} ignored",
+                "malformed presence message on %r ignored: %r", message.topic, payload,
+            )
             return
         reason = payload.get("reason")
         with self._cond:

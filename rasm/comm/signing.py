@@ -37,6 +37,7 @@ from typing import Any
 from rasm.comm.message import Message
 from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError
+from rasm.logs import RepeatedLogs
 
 __all__ = [
     "BINDING",
@@ -278,6 +279,7 @@ class UpdateReceiver:
         self.outcomes: deque[UpdateOutcome] = deque(maxlen=keep)
         self.refused = 0  # every refusal, not only those still in ``outcomes``
         self.guard = ReplayGuard(epoch)
+        self.logs = RepeatedLogs()
         self._lock = threading.Lock()  # one update at a time: appliers are not re-entered
         self._subscriptions: list[Subscription] = []
 
@@ -314,7 +316,10 @@ class UpdateReceiver:
         if accepted:
             _log.info("%s update accepted: %s", kind, reason)
         else:
-            _log.warning("%s update refused: %s", kind, reason)
+            self.logs.log(
+                _log, logging.WARNING, f"{kind} update refused: {reason.split(':')[0]}",
+                "%s update refused: %s", kind, reason,
+            )
         if self.on_outcome is not None:
             try:
                 self.on_outcome(outcome)
@@ -391,6 +396,7 @@ class SignedEffector:
         self.refused = 0
         self.last_refusal: str | None = None
         self.guard = ReplayGuard(epoch)
+        self.logs = RepeatedLogs()
         self._lock = threading.Lock()
 
     @property
@@ -413,7 +419,13 @@ class SignedEffector:
             with self._lock:
                 self.refused += 1
                 self.last_refusal = reason
-            _log.warning("action refused by the effector gate: %s", reason)
+            # the first of each kind in full, then counted (an attacker's flood of replays
+            # must not flood the log); the kind leaves out the sequence numbers
+            kind = reason.split(":")[0]
+            self.logs.log(
+                _log, logging.WARNING, f"action refused by the effector gate: {kind}",
+                "action refused by the effector gate: %s", reason,
+            )
             return False
         action = {k: v for k, v in payload.items() if k not in (SIGNATURE, BINDING)}
         with self._lock:

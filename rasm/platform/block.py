@@ -29,7 +29,7 @@ from sismic.clock import Clock
 from sismic.model import MacroStep, Statechart
 
 from rasm.errors import ExecutionError, PlatformError, RasmError
-from rasm.platform.logs import RepeatedLogs
+from rasm.logs import RepeatedLogs
 from rasm.resources import platform_chart
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 

@@ -14,8 +14,8 @@ from typing import Any, Protocol
 from rasm.comm import Message, Subscription
 from rasm.comm.transport import Callback
 from rasm.errors import RasmError, is_interrupt
+from rasm.logs import RepeatedLogs
 from rasm.platform.components import describe_failure
-from rasm.platform.logs import RepeatedLogs
 from rasm.platform.manifest import Effector
 from rasm.platform.scheduler import Scheduler
 

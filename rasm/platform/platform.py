@@ -27,6 +27,7 @@ from rasm.comm import Message, Transport
 from rasm.errors import PlatformError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
+from rasm.logs import RepeatedLogs
 from rasm.loop import STAGES
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
@@ -44,7 +45,6 @@ from rasm.platform.loading import (
     package_name,
 )
 from rasm.platform.logging_and_tracking import LoggingAndTracking
-from rasm.platform.logs import RepeatedLogs
 from rasm.platform.managed_system import ManagedSystem, Simulator
 from rasm.platform.manifest import AppManifest, Effector, load_manifest
 from rasm.platform.scheduler import Scheduler

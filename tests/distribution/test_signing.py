@@ -373,3 +373,23 @@ def test_a_signer_refuses_to_bind_to_nobody_and_bad_run_ids():
         ({"epochs": ["e"], "run": "r", "seq": 0, "topic": "t"}, "not a positive integer"),
     ):
         assert why in guard.admit(binding, "t")
+
+
+def test_a_flood_of_refused_actions_is_logged_once_then_counted(caplog):
+    applied: list[dict] = []
+    gate = SignedEffector(KEY, applied.append, topic="robot/heater")
+    signer = BoundSigner(KEY)
+    action = signer.sign({"mode": "boost"}, topic="robot/heater", epochs=[gate.epoch])
+    assert gate.handle(action) is True
+    with caplog.at_level("WARNING", logger="rasm.comm"):
+        for _ in range(50):  # an attacker replaying a captured action, and unsigned junk
+            gate.handle(action)
+            gate.handle({"mode": "boost"})
+    refusals = [r.getMessage() for r in caplog.records if "refused by the effector gate" in r.msg]
+    assert len(refusals) == 2  # the first replay and the first unsigned one, in full
+    assert any("replayed or stale: sequence 1" in text for text in refusals)
+    assert gate.refused == 100 and applied == [{"mode": "boost"}]
+    assert gate.logs.totals == {
+        "action refused by the effector gate: replayed or stale": 50,
+        "action refused by the effector gate: unsigned": 50,
+    }

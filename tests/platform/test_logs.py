@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm import Platform
-from rasm.platform.logs import RepeatedLogs
+from rasm.logs import RepeatedLogs
 
 from .conftest import HOTBOX
 

@@ -9,8 +9,8 @@ import pytest
 from sismic.clock import SimulatedClock
 
 from rasm.comm import LocalTransport
+from rasm.logs import RepeatedLogs
 from rasm.platform.communication_manager import CommunicationManager
-from rasm.platform.logs import RepeatedLogs
 from rasm.platform.managed_system import ManagedSystem
 from rasm.platform.manifest import Effector
 from rasm.platform.scheduler import Scheduler

@@ -17,6 +17,7 @@ repeated failure's count, for the run summary.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -41,7 +42,7 @@ class RepeatedLogs:
     the point is to keep the log readable while it is written, whatever the run's clock. At most
     ``capacity`` distinct failures are remembered; beyond that the oldest is forgotten (its count
     logged first), so a failure whose text changes every time cannot grow memory without end.
-    Used from the loop's thread only, like everything the loop does.
+    Safe to share between threads (a transport logs from its delivery thread).
     """
 
     def __init__(
@@ -56,6 +57,7 @@ class RepeatedLogs:
         self.capacity = capacity
         self._failures: dict[str, _Failure] = {}
         self._totals: dict[str, int] = {}  # the repeated ones, forgotten or not
+        self._lock = threading.Lock()
 
     def log(
         self,
@@ -68,6 +70,18 @@ class RepeatedLogs:
     ) -> bool:
         """Log failure ``what`` (as ``message % args`` the first time, if given); return
         whether this occurrence was logged in full."""
+        with self._lock:
+            return self._log(logger, level, what, message, args, exc_info)
+
+    def _log(
+        self,
+        logger: logging.Logger,
+        level: int,
+        what: str,
+        message: str | None,
+        args: tuple[Any, ...],
+        exc_info: Any,
+    ) -> bool:
         now = self.clock()
         failure = self._failures.get(what)
         if failure is None:
@@ -106,13 +120,15 @@ class RepeatedLogs:
 
     def flush(self) -> None:
         """Log the count of every failure that recurred since its last line."""
-        now = self.clock()
-        for what, failure in self._failures.items():
-            if failure.unreported:
-                self._report(what, failure, now)
+        with self._lock:
+            now = self.clock()
+            for what, failure in self._failures.items():
+                if failure.unreported:
+                    self._report(what, failure, now)
 
     @property
     def totals(self) -> dict[str, int]:
         """Each failure that occurred more than once: how many times in all (while it was
         remembered: one forgotten for ``capacity`` starts afresh)."""
-        return dict(self._totals)
+        with self._lock:
+            return dict(self._totals)
