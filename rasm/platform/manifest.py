@@ -16,16 +16,27 @@ from typing import Any
 
 import jsonschema
 
-from rasm.errors import Location, SourceError, SourceErrors, not_utf8
+from rasm.errors import Location, RasmError, SourceError, SourceErrors, not_utf8
 from rasm.loop import LOOP_KEYS
+from rasm.values import TYPES
 from rasm.yamltext import YamlSource, load_yaml, plain
 
-__all__ = ["AppManifest", "Signal", "Probe", "Effector", "load_manifest", "SCHEMA"]
+__all__ = [
+    "AppManifest",
+    "Effector",
+    "ExternalVerdict",
+    "Probe",
+    "SCHEMA",
+    "Signal",
+    "load_manifest",
+    "load_topic_map",
+]
 
 SCHEMA: dict[str, Any] = json.loads(
     (Path(__file__).with_name("app.schema.json")).read_text(encoding="utf-8")
 )
 _REF = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 @dataclass(frozen=True)
@@ -37,24 +48,51 @@ class Signal:
     minimum: float | None = None
     maximum: float | None = None
     history: int = 100
+    field: str | None = None  # its field path in a ROS 2 message (None: the payload's key)
 
 
 @dataclass(frozen=True)
 class Probe:
-    """A topic the managed system publishes on, routed by Telegraf into knowledge."""
+    """A topic the managed system publishes on, routed by Telegraf into knowledge.
+
+    With a ROS 2 interface ``type`` each signal is read from its field path; ``stamp`` is
+    ``header`` when a record's time is the message's ``header.stamp`` (else its arrival)."""
 
     topic: str
     signals: dict[str, Signal]
+    type: str | None = None
+    qos: dict[str, Any] | None = None
+    stamp: str = "receipt"
 
 
 @dataclass(frozen=True)
 class Effector:
-    """Where actions for one actuator go, and in which managed-system modes they apply."""
+    """Where actions for one actuator go, and in which managed-system modes they apply.
+
+    ``fields`` maps each payload key to its value type. An effector on a ROS 2 topic has its
+    interface ``type`` and ``message_fields``: message field path -> the payload key that fills
+    it (``fields`` then holds the types those fields give the keys)."""
 
     name: str
     topic: str
     modes: tuple[str, ...] | None = None
     fields: dict[str, str] = field(default_factory=dict)
+    type: str | None = None
+    qos: dict[str, Any] | None = None
+    message_fields: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ExternalVerdict:
+    """A verdict topic of a monitor outside rasm, a veto source (``trustworthiness.
+    external_verdicts``): ``{"value": bool}`` JSON, or on ROS 2 ``std_msgs/msg/Bool`` (its
+    ``data``) or ``std_msgs/msg/Empty`` (each message a violation that vetoes ``hold`` s)."""
+
+    name: str
+    topic: str
+    type: str | None = None
+    qos: dict[str, Any] | None = None
+    hold: float = 1.0
 
 
 @dataclass
@@ -86,12 +124,31 @@ class AppManifest:
     max_actions: int = 16
     veto_properties: tuple[str, ...] = ()
     mode_signal: str | None = None
+    external_verdicts: dict[str, ExternalVerdict] = field(default_factory=dict)
+    publish_verdicts: bool | None = None  # None: on a network transport
     logging: dict[str, Any] = field(default_factory=dict)
     timing: str | None = None
     twin: str | None = None
     twin_horizon: float = 20.0
     twin_dt: float = 0.5
     raw: dict[str, Any] = field(default_factory=dict)
+    # the ROS 2 types of the app (standard interfaces and its msg/*.msg), when it names any
+    types: Any = None
+
+    @property
+    def ros_topics(self) -> dict[str, tuple[str, dict[str, Any] | None]]:
+        """Every topic the app names with a ROS 2 type: topic -> (type, QoS settings)."""
+        found: dict[str, tuple[str, dict[str, Any] | None]] = {}
+        for probe in self.probes:
+            if probe.type:
+                found[probe.topic] = (probe.type, probe.qos)
+        for effector in self.effectors.values():
+            if effector.type:
+                found[effector.topic] = (effector.type, effector.qos)
+        for verdict in self.external_verdicts.values():
+            if verdict.type:
+                found[verdict.topic] = (verdict.type, verdict.qos)
+        return found
 
     def component_path(self, stage: str) -> list[str]:
         """Where ``stage``'s module:Class is in app.yaml (for :func:`manifest_location`)."""
@@ -108,8 +165,18 @@ class AppManifest:
         return out
 
 
-def _schema_errors(src: YamlSource) -> list[SourceError]:
-    validator = jsonschema.Draft202012Validator(SCHEMA)
+# a topic map (``rasm check --topics``): the probes of a manifest alone
+TOPIC_MAP_SCHEMA: dict[str, Any] = {
+    "$defs": SCHEMA["$defs"],
+    "type": "object",
+    "required": ["probes"],
+    "additionalProperties": False,
+    "properties": {"probes": SCHEMA["properties"]["probes"]},
+}
+
+
+def _schema_errors(src: YamlSource, schema: dict[str, Any] = SCHEMA) -> list[SourceError]:
+    validator = jsonschema.Draft202012Validator(schema)
     errors = []
     for error in sorted(validator.iter_errors(plain(src.data)), key=lambda e: list(e.path)):
         path = list(error.absolute_path)
@@ -146,6 +213,51 @@ def _schema_errors(src: YamlSource) -> list[SourceError]:
     return errors
 
 
+def _probes(src: YamlSource, problems: list[SourceError]) -> list[Probe]:
+    """The probes of a manifest (or a topic map), as the schema let them through."""
+    probes = []
+    for i, probe in enumerate(src.data.get("probes", [])):
+        signals = {}
+        for key, spec in probe["signals"].items():
+            signals[str(key)] = Signal(
+                str(key),
+                spec["type"],
+                spec.get("min"),
+                spec.get("max"),
+                spec.get("history", 100),
+                spec.get("field"),
+            )
+            if str(key) in LOOP_KEYS:
+                problems.append(
+                    src.error(
+                        f"signal '{key}': a key the loop writes itself in the trace "
+                        f"({', '.join(sorted(LOOP_KEYS))}); give the signal another name",
+                        src.key(src.data["probes"][i]["signals"], key),
+                    )
+                )
+            if (
+                spec.get("min") is not None
+                and spec.get("max") is not None
+                and spec["min"] > spec["max"]
+            ):
+                problems.append(
+                    src.error(
+                        f"signal '{key}': min is above max",
+                        src.at(["probes", i, "signals", key]),
+                    )
+                )
+        probes.append(
+            Probe(
+                str(probe["topic"]),
+                signals,
+                probe.get("type"),
+                plain(probe["qos"]) if "qos" in probe else None,
+                probe.get("stamp", "receipt"),
+            )
+        )
+    return probes
+
+
 def _derived_signal_problems(
     src: YamlSource, derived: dict[str, str], probes: list[Probe]
 ) -> list[SourceError]:
@@ -177,6 +289,215 @@ def _derived_signal_problems(
     return problems
 
 
+def _check_messages(
+    src: YamlSource,
+    folder: Path,
+    probes: list[Probe],
+    effectors: dict[str, Effector],
+    external: dict[str, ExternalVerdict],
+    problems: list[SourceError],
+) -> tuple[Any, dict[str, Effector]]:
+    """Check what the manifest says about messages: untyped topics carry JSON, typed ones a
+    ROS 2 interface whose field paths must exist and fit their signals. Returns the app's type
+    store (None when nothing is typed) and the effectors, a ROS 2 one with the value types of
+    its payload keys filled in from its message's fields."""
+    typed = any(
+        item.type for item in (*probes, *effectors.values(), *external.values())
+    )
+    for i, probe in enumerate(probes):
+        if probe.type:
+            continue
+        written = src.data["probes"][i]
+        for key, signal in probe.signals.items():
+            if signal.field is not None:
+                problems.append(src.error(
+                    f"signal '{key}': a field path reads a ROS 2 message; give probe "
+                    f"{probe.topic} its interface type (type: pkg/msg/Name)",
+                    src.at(["probes", i, "signals", key, "field"]),
+                ))
+        for key in ("stamp", "qos"):
+            if key in written:
+                problems.append(src.error(
+                    f"probe {probe.topic}: {key} belongs to a ROS 2 topic; give the probe its "
+                    "interface type (type: pkg/msg/Name)",
+                    src.key(written, key),
+                ))
+    for name, effector in effectors.items():
+        if effector.type:
+            continue
+        written = src.data["effectors"][name]
+        for key, kind in (written.get("fields") or {}).items():
+            if kind not in TYPES:
+                problems.append(src.error(
+                    f"effector {name}: field '{key}' has the type {kind!r}; a value type is "
+                    f"one of {', '.join(TYPES)} (a ROS 2 effector, with a type, maps message "
+                    "fields to payload keys instead)",
+                    src.at(["effectors", name, "fields", key]),
+                ))
+        if "qos" in written:
+            problems.append(src.error(
+                f"effector {name}: qos belongs to a ROS 2 topic; give the effector its "
+                "interface type (type: pkg/msg/Name)",
+                src.key(written, "qos"),
+            ))
+    if problems or not typed:
+        return None, effectors
+    try:
+        from rasm.platform.messages import app_type_store
+        from rasm.ros2 import RosError
+    except ImportError as exc:
+        first = next(i for i, p in enumerate(probes) if p.type) if probes else None
+        where = src.at(["probes", first, "type"]) if first is not None else src.start()
+        problems.append(src.error(
+            f"ROS 2 interface types need rasm's ROS 2 support, which is not installed "
+            f"({exc}): pip install 'rasm[ros2]'",
+            where,
+        ))
+        return None, effectors
+    try:
+        store = app_type_store(folder)
+    except SourceError as exc:
+        problems.append(exc)
+        return None, effectors
+    except RosError as exc:
+        problems.append(SourceError(str(exc), Location(str(folder / "msg"))))
+        return None, effectors
+    for i, probe in enumerate(probes):
+        if probe.type:
+            _check_probe(src, store, i, probe, problems)
+    checked = dict(effectors)
+    for name, effector in effectors.items():
+        if effector.type:
+            checked[name] = _check_effector(src, store, effector, problems)
+    for name, verdict in external.items():
+        if verdict.type:
+            path = ["trustworthiness", "external_verdicts", name, "topic"]
+            _check_topic(src, verdict.topic, path, problems)
+    return store, checked
+
+
+def _check_topic(
+    src: YamlSource, topic: str, path: list[Any], problems: list[SourceError]
+) -> bool:
+    from rasm.ros2.transport import validate_ros_topic
+
+    try:
+        validate_ros_topic(topic)
+    except RasmError as exc:
+        problems.append(src.error(str(exc), src.at(path)))
+        return False
+    return True
+
+
+def _resolve(
+    src: YamlSource, store: Any, typename: str, path: list[Any], problems: list[SourceError]
+) -> str | None:
+    import difflib
+
+    from rasm.ros2 import RosError
+
+    try:
+        return store.resolve(typename)
+    except RosError as exc:
+        message = str(exc)
+        close = difflib.get_close_matches(typename, store.types, n=1)
+        if close:
+            message = f"unknown message type {typename!r}: did you mean {close[0]}?"
+        problems.append(src.error(message, src.at(path), len(typename)))
+        return None
+
+
+def _check_probe(
+    src: YamlSource, store: Any, i: int, probe: Probe, problems: list[SourceError]
+) -> None:
+    from rasm.platform.messages import takes, value_type
+    from rasm.ros2 import RosError, field_type
+
+    _check_topic(src, probe.topic, ["probes", i, "topic"], problems)
+    typename = _resolve(src, store, probe.type, ["probes", i, "type"], problems)
+    if typename is None:
+        return
+    for key, signal in probe.signals.items():
+        where = ["probes", i, "signals", key]
+        path = signal.field or key
+        try:
+            found = field_type(store, typename, path)
+        except RosError as exc:
+            at = src.at(where + ["field"]) if signal.field else src.key(
+                src.data["probes"][i]["signals"], key
+            )
+            hint = "" if signal.field else " (give the signal a field: path)"
+            problems.append(src.error(f"signal '{key}': {exc}{hint}", at, len(path)))
+            continue
+        kind = value_type(found)
+        if not takes(signal.type, kind):
+            problems.append(src.error(
+                f"signal '{key}' is {signal.type} but {path} of {typename} is {found} "
+                f"({kind}): every value would be refused; declare it {kind}",
+                src.at(where + ["type"]),
+            ))
+    if probe.stamp == "header":
+        header = store.fields(typename).get("header")
+        if header is None or header.base != "std_msgs/msg/Header" or header.array:
+            problems.append(src.error(
+                f"probe {probe.topic}: stamp: header, but {typename} has no std_msgs/msg/Header "
+                "field 'header' (leave stamp out: records are timed on arrival)",
+                src.at(["probes", i, "stamp"]),
+            ))
+
+
+def _check_effector(
+    src: YamlSource, store: Any, effector: Effector, problems: list[SourceError]
+) -> Effector:
+    from rasm.platform.messages import value_type
+    from rasm.ros2 import RosError, field_type
+
+    where = ["effectors", effector.name]
+    _check_topic(src, effector.topic, where + ["topic"], problems)
+    typename = _resolve(src, store, effector.type, where + ["type"], problems)
+    if typename is None:
+        return effector
+    kinds: dict[str, str] = {}
+    written = src.data["effectors"][effector.name].get("fields") or {}
+    for path, key in effector.message_fields.items():
+        try:
+            found = field_type(store, typename, path)
+        except RosError as exc:
+            problems.append(src.error(
+                f"effector {effector.name}: {exc}", src.key(written, path), len(path)
+            ))
+            continue
+        if not _NAME.match(key):
+            problems.append(src.error(
+                f"effector {effector.name}: {key!r} is not a payload key (letters, digits and "
+                "_, not first a digit); write message field: payload key",
+                src.at(where + ["fields", path]),
+            ))
+            continue
+        kind = value_type(found)
+        if kinds.setdefault(key, kind) != kind:
+            problems.append(src.error(
+                f"effector {effector.name}: payload key '{key}' fills fields of two types "
+                f"({kinds[key]} and {kind})",
+                src.at(where + ["fields", path]),
+            ))
+    if not effector.message_fields:
+        problems.append(src.error(
+            f"effector {effector.name}: list the message fields its actions fill, as "
+            "fields: {message.field: payload_key}",
+            src.key(src.data["effectors"], effector.name),
+        ))
+    return Effector(
+        effector.name,
+        effector.topic,
+        effector.modes,
+        kinds,
+        typename,
+        effector.qos,
+        effector.message_fields,
+    )
+
+
 def _node_at(data: Any, path: list[Any]) -> Any:
     for step in path:
         data = data[step]
@@ -191,6 +512,35 @@ def manifest_location(manifest: AppManifest, path: list[Any]) -> Location:
         return src.at(path)
     except (OSError, UnicodeDecodeError, SourceError):
         return Location(str(manifest.file))
+
+
+def load_topic_map(path: str | Path) -> tuple[list[Probe], Any]:
+    """The probes of a topic map file (a ``probes:`` list, as in ``app.yaml``) and the type
+    store their ROS 2 types need (the standard interfaces and ``msg/*.msg`` beside the file;
+    None when no probe has a type). Raises :class:`SourceErrors` at the place of a problem."""
+    file = Path(path)
+    if not file.is_file():
+        raise SourceErrors([SourceError("no such topic map file", Location(str(file)))])
+    try:
+        text = file.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise not_utf8(str(file), exc) from None
+    src = load_yaml(text, str(file))
+    if not isinstance(src.data, dict):
+        raise SourceErrors(
+            [src.error("a topic map is a mapping with a 'probes:' list", src.node(src.data))]
+        )
+    errors = _schema_errors(src, TOPIC_MAP_SCHEMA)
+    if errors:
+        raise SourceErrors(errors)
+    problems: list[SourceError] = []
+    probes = _probes(src, problems)
+    types = None
+    if not problems:
+        types, _ = _check_messages(src, file.parent, probes, {}, {}, problems)
+    if problems:
+        raise SourceErrors(problems)
+    return probes, types
 
 
 def load_manifest(app: str | Path) -> AppManifest:
@@ -254,43 +604,34 @@ def load_manifest(app: str | Path) -> AppManifest:
             )
         )
     managed = data.get("managed_system", {}) or {}
-    probes = []
-    for i, probe in enumerate(data.get("probes", [])):
-        signals = {}
-        for key, spec in probe["signals"].items():
-            signals[str(key)] = Signal(
-                str(key), spec["type"], spec.get("min"), spec.get("max"), spec.get("history", 100)
-            )
-            if str(key) in LOOP_KEYS:
-                problems.append(
-                    src.error(
-                        f"signal '{key}': a key the loop writes itself in the trace "
-                        f"({', '.join(sorted(LOOP_KEYS))}); give the signal another name",
-                        src.key(src.data["probes"][i]["signals"], key),
-                    )
-                )
-            if (
-                spec.get("min") is not None
-                and spec.get("max") is not None
-                and spec["min"] > spec["max"]
-            ):
-                problems.append(
-                    src.error(
-                        f"signal '{key}': min is above max",
-                        src.at(["probes", i, "signals", key]),
-                    )
-                )
-        probes.append(Probe(str(probe["topic"]), signals))
+    probes = _probes(src, problems)
     problems.extend(_derived_signal_problems(src, produces.get("monitor", {}), probes))
-    effectors = {
-        str(name): Effector(
+    effectors = {}
+    for name, spec in (data.get("effectors") or {}).items():
+        fields = {str(k): str(v) for k, v in (spec.get("fields") or {}).items()}
+        effectors[str(name)] = Effector(
             str(name),
             str(spec["topic"]),
             tuple(spec["modes"]) if "modes" in spec else None,
-            dict(spec.get("fields", {})),
+            {} if spec.get("type") else fields,
+            spec.get("type"),
+            plain(spec["qos"]) if "qos" in spec else None,
+            fields if spec.get("type") else {},
         )
-        for name, spec in (data.get("effectors") or {}).items()
+    trust = data.get("trustworthiness", {}) or {}
+    external = {
+        str(name): ExternalVerdict(
+            str(name),
+            str(spec["topic"]),
+            spec.get("type"),
+            plain(spec["qos"]) if "qos" in spec else None,
+            float(spec.get("hold", 1.0)),
+        )
+        for name, spec in (trust.get("external_verdicts") or {}).items()
     }
+    types = None
+    if not problems:
+        types, effectors = _check_messages(src, folder, probes, effectors, external, problems)
     properties = [existing(["properties", i], p) for i, p in enumerate(data.get("properties", []))]
     rules_field = data.get("rules", [])
     rules_list = [rules_field] if isinstance(rules_field, str) else list(rules_field)
@@ -300,7 +641,6 @@ def load_manifest(app: str | Path) -> AppManifest:
         str(k): existing(["statecharts", k], v) for k, v in (data.get("statecharts") or {}).items()
     }
     loop = data.get("loop", {}) or {}
-    trust = data.get("trustworthiness", {}) or {}
     if problems:
         raise SourceErrors(problems)
     return AppManifest(
@@ -328,10 +668,13 @@ def load_manifest(app: str | Path) -> AppManifest:
         max_actions=int(loop.get("max_actions", 16)),
         veto_properties=tuple(trust.get("veto_properties", ())),
         mode_signal=trust.get("mode_signal"),
+        external_verdicts=external,
+        publish_verdicts=trust.get("publish_verdicts"),
         logging=plain(data.get("logging", {}) or {}),
         timing=data.get("timing"),
         twin=(data.get("twin") or {}).get("component"),
         twin_horizon=float((data.get("twin") or {}).get("horizon", 20.0)),
         twin_dt=float((data.get("twin") or {}).get("dt", 0.5)),
         raw=plain(data),
+        types=types,
     )

@@ -301,7 +301,7 @@ def _trustworthiness_problems(
     """A veto property no file defines would never veto; a mode signal nothing writes leaves
     every effector's modes unknown."""
     if manifest.veto_properties:
-        names = names | _platform_property_names()
+        names = names | _platform_property_names() | set(manifest.external_verdicts)
         for i, name in enumerate(manifest.veto_properties):
             if name not in names:
                 message = f"veto property '{name}' is not a property of this app"
