@@ -104,13 +104,20 @@ class Distribution:
         self.app = app
         self.role = role
         self.transport_url = transport_url
-        self.networked = transport_url != "local"
+        # presence, signed updates and the trace on the bus are MQTT's: a ROS 2 middleware
+        # has its own graph, and its topics carry typed messages only
+        self.networked = transport_url.strip().startswith(("mqtt://", "mqtts://"))
         self.period = period
         self.timing_target = timing
         self.timing_file = timing_file
         self.fresh = fresh
         self.node = f"{app}-{role}-{os.getpid()}"
         self.action_key = key_from_env("RASM_ACTION_KEY")
+        if self.action_key is not None and transport_url.strip().startswith(("zenoh:", "dds:")):
+            raise PlatformError(
+                "RASM_ACTION_KEY signs actions, which a ROS 2 message has no room for: unset "
+                "it, or send the actions over MQTT"
+            )
         self.update_key = key_from_env("RASM_UPDATE_KEY")
         self.presence: Presence | None = None
         self.tracker: PresenceTracker | None = None
@@ -201,6 +208,10 @@ class Distribution:
                     _log.warning("stopping %s: %s", type(part).__name__, exc)
         if self.timing is not None:
             self.timing.close()
+
+    def platform_time(self, wall: float) -> float:
+        """A wall-clock time (seconds since the epoch) on the platform clock's timeline."""
+        return wall - self._epoch
 
     # ------------------------------------------------------------------ timing
 

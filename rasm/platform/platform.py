@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import gc
 import logging
+import math
 import random
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rasm.comm import Message, Transport
-from rasm.errors import PlatformError, is_interrupt
+from rasm.errors import PlatformError, RasmError, SourceError, SourceErrors, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
@@ -36,6 +37,7 @@ from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.components import Action, describe_failure
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution, DistributionHooks
+from rasm.platform.external_verdicts import ExternalVerdicts
 from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.loading import (
     check_components,
@@ -46,7 +48,7 @@ from rasm.platform.loading import (
 )
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.managed_system import ManagedSystem, Simulator
-from rasm.platform.manifest import AppManifest, Effector, load_manifest
+from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.state_manager import StateManager
@@ -55,6 +57,9 @@ from rasm.platform.summary import RunSummary
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
+
+if TYPE_CHECKING:
+    from rasm.platform.replay import Replay
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.properties.outcome import PropertyOutcome
 from rasm.resources import data_dir
@@ -66,6 +71,11 @@ __all__ = ["Platform", "RunSummary"]
 
 _log = logging.getLogger("rasm.platform")
 _SCALARS = (int, float, bool, str)
+
+
+def _is_ros(url: str) -> bool:
+    """Whether a transport URL is a ROS 2 middleware's (zenoh://, dds://)."""
+    return url.strip().startswith(("zenoh://", "dds://"))
 
 
 def _remove_sqlite(path: Path) -> None:
@@ -99,9 +109,19 @@ class Platform:
         isolate_stages: bool | None = None,
         low_latency: bool = False,
         check_signals: bool = True,
+        replay: str | Path | None = None,
     ) -> None:
         if role not in ("all", "managing", "managed"):
             raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
+        if replay is not None:
+            # the recording is the managed system: nothing else runs, nothing is sent, and the
+            # loop runs on the recording's own time
+            if role != "all" or transport not in (None, "local") or clock == "wall":
+                raise PlatformError(
+                    "a replay drives the loop from the recording alone: it takes no role, "
+                    "no transport and no wall clock"
+                )
+            clock, transport = "simulated", "local"
         if isinstance(manifest, str | Path):
             manifest = load_manifest(manifest)
         elif not isinstance(manifest, AppManifest):
@@ -127,10 +147,22 @@ class Platform:
         self.scheduler = Scheduler(self.clock)
         self.scheduler.on_error = self._job_failed
         # rotated by size with trace_max_bytes (rasm.trace.TraceWriter)
-        self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
+        if trace is not None and str(trace).endswith(".mcap"):
+            if trace_max_bytes is not None:
+                raise PlatformError("an MCAP trace is not rotated: write JSONL to rotate")
+            from rasm.trace_mcap import McapTraceWriter
+
+            self.trace: TraceWriter = McapTraceWriter(trace)
+        else:
+            self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
         self.state_dir = Path(state_dir) if state_dir else Path(".rasm") / manifest.name
         self.scenario = manifest.scenario if scenario is None else scenario
         self.transport_url = transport or manifest.transport
+        self.replay_path = Path(replay) if replay is not None else None
+        self.replay: Replay | None = None
+        self.ros = _is_ros(self.transport_url)
+        self.external = ExternalVerdicts(manifest.external_verdicts)
+        self.verdicts_published = 0
         self.knowledge_url = knowledge or manifest.knowledge
         self._component_overrides = components or {}
         # live runs isolate user stages on a worker thread so an overrun can be walked away
@@ -188,9 +220,10 @@ class Platform:
             timing_file=self.state_dir / "timing.lp",
             fresh=self.clock_kind == "simulated",
         )
-        self.transport: Transport = open_transport(
-            self.transport_url, **self.dist.transport_options()
-        )
+        options = self.dist.transport_options()
+        if self.ros:
+            options.update(self._ros_options())
+        self.transport: Transport = open_transport(self.transport_url, **options)
         log = m.logging
         self.lt = LoggingAndTracking(
             chart=self._chart("logging_and_tracking"),
@@ -211,7 +244,11 @@ class Platform:
         blocks: list[Block] = [self.lt, self.sm, self.cm]
         if self.managing:
             blocks += self._managing_blocks(storage)
-        if self.role in ("all", "managed") and m.simulator:
+        if self.replay_path is not None:
+            from rasm.platform.replay import Recording, Replay
+
+            self.replay = Replay(Recording(self.replay_path, m.probes, m.types))
+        elif self.role in ("all", "managed") and m.simulator:
             self.simulator = load_component(
                 m.simulator,
                 m.folder,
@@ -227,6 +264,44 @@ class Platform:
             block.on_deadline = self._schedule_block
             block.logs = self.logs
         self._built = True
+
+    def _ros_options(self) -> dict[str, Any]:
+        """What a ROS 2 transport needs: every topic's type and QoS, the app's type store,
+        the node's name. A probe or effector without an interface type cannot be on ROS 2."""
+        m = self.manifest
+        untyped = [
+            (["probes", i, "topic"], f"probe {p.topic}")
+            for i, p in enumerate(m.probes)
+            if not p.type
+        ] + [
+            (["effectors", name, "topic"], f"effector {name}")
+            for name, e in m.effectors.items()
+            if not e.type
+        ] + [
+            (["trustworthiness", "external_verdicts", name, "topic"], f"external verdict {name}")
+            for name, v in m.external_verdicts.items()
+            if not v.type
+        ]
+        if untyped:
+            raise SourceErrors([
+                SourceError(
+                    f"{what} has no ROS 2 interface type, so it cannot be on "
+                    f"{self.transport_url}: give it one (type: pkg/msg/Name)",
+                    manifest_location(m, path),
+                )
+                for path, what in untyped
+            ])
+        from rasm.ros2.types import default_store
+
+        types = {topic: typename for topic, (typename, _) in m.ros_topics.items()}
+        qos = {topic: q for topic, (_, q) in m.ros_topics.items() if q}
+        node = "".join(c if c.isalnum() or c == "_" else "_" for c in m.name)
+        return {
+            "types": types,
+            "qos": qos,
+            "store": m.types if m.types is not None else default_store(),
+            "node_name": f"rasm_{node}",
+        }
 
     def _open_knowledge(self) -> Storage | None:
         """Open (and restore) the knowledge store; returns its storage, if persistent."""
@@ -278,6 +353,7 @@ class Platform:
         self.tg = Telegraf(
             m.probes,
             self._register,
+            timeline=self._timeline,
             chart=self._chart("telegraf"),
             clock=clock,
             depends_on=("km", "cm"),
@@ -294,6 +370,8 @@ class Platform:
                         f"{defined[name]}: rename one of them"
                     )
                 defined[name] = path
+        if self.external.sources:
+            monitors.append(self.external)
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
@@ -308,7 +386,8 @@ class Platform:
         self.tm = TrustworthinessManager(
             chart=self._chart("trustworthiness_manager"),
             rules=self.rules,
-            veto_properties=m.veto_properties,
+            # an external verdict is a veto source by being declared
+            veto_properties=tuple(dict.fromkeys((*m.veto_properties, *self.external.sources))),
             checker=self.tc,
             context=self.kb.snapshot,
             clock=clock,
@@ -358,7 +437,21 @@ class Platform:
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
         )
         self.trace.observers.append(self.tc.observe)
+        if self._publishes_verdicts():
+            names = [n for mon in monitors if mon is not self.external for n in mon.properties]
+            if self.ros:
+                for name in names:
+                    self.transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool")
+            self.on_verdict.append(self._publish_verdict)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+
+    def _publishes_verdicts(self) -> bool:
+        """Whether verdicts go out on the transport: as the manifest says, else on a network
+        transport (never in a replay, which sends nothing)."""
+        if self.replay_path is not None:
+            return False
+        wanted = self.manifest.publish_verdicts
+        return self.transport_url != "local" if wanted is None else wanted
 
     def _chart(self, name: str) -> Path | None:
         """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
@@ -439,9 +532,62 @@ class Platform:
         signal = self.manifest.mode_signal
         return self.kb.read_knowledge(signal) if signal else None
 
-    def _send_action(self, effector: Effector, action: Action) -> None:
-        payload = {**action.payload, "plan": action.plan, "kind": action.kind}
-        self.cm.publish_message(effector.topic, self.dist.seal(effector.topic, payload))
+    def _send_action(self, effector: Effector, action: Action) -> str | None:
+        payload: dict[str, Any] = {**action.payload, "plan": action.plan, "kind": action.kind}
+        if effector.type:
+            from rasm.platform.messages import build_message
+
+            payload = build_message(self.transport_store, effector, action.payload)
+        if self.replay is not None:
+            # a replay sends nothing: the action goes in the trace, as it would have been sent
+            action_record = {"effector": effector.name, "topic": effector.topic, "payload": payload}
+            self._emit(self.clock.time, {"recorded_action": action_record, "plan": action.plan})
+            return f"recorded in the trace, not sent (replay): {effector.name} on {effector.topic}"
+        if not effector.type:
+            payload = self.dist.seal(effector.topic, payload)
+        self.cm.publish_message(effector.topic, payload)
+        return None
+
+    @property
+    def transport_store(self) -> Any:
+        """The app's ROS 2 types (the standard interfaces when it has none of its own)."""
+        if self.manifest.types is not None:
+            return self.manifest.types
+        from rasm.ros2.types import default_store
+
+        return default_store()
+
+    def _timeline(self, stamp: float) -> float:
+        """A message's ``header.stamp`` (wall-clock seconds) on the platform's timeline: on
+        the wall clock, where that wall time falls; a simulated run (a replay) takes stamps
+        as they are."""
+        if self.clock_kind == "wall":
+            return self.dist.platform_time(stamp)
+        return stamp
+
+    def _publish_verdict(self, verdict: Verdict) -> None:
+        """One verdict out: ``std_msgs/msg/Bool`` on ``/rasm/verdict/<property>`` over ROS 2,
+        ``{"value": …, "time": …}`` on the topic named after the property otherwise. An
+        undecided verdict is not sent; one in error goes out false."""
+        if verdict.value is None or verdict.property in self.external.sources:
+            return
+        value = bool(verdict.value) and verdict.error is None
+        try:
+            if self.ros:
+                self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
+            else:
+                self.transport.publish(verdict.property, {"value": value, "time": verdict.time})
+            self.verdicts_published += 1
+        except RasmError as exc:  # the loop goes on; said once, then counted
+            what = f"verdict of {verdict.property} not published: {exc}"
+            self.logs.log(_log, logging.WARNING, what)
+
+    def _on_external_verdict(self, name: str, message: Message) -> None:
+        # on the transport's thread: the verdict is taken on the loop's, at the loop's time
+        payload = message.payload
+        self.scheduler.submit(
+            lambda: self.tc.take(self.external.receive(name, payload, self.scheduler.now()))
+        )
 
     def _on_probe(self, message: Message) -> None:
         # delivered on the transport's thread: digested on the loop's, at the loop's time then
@@ -482,6 +628,9 @@ class Platform:
         if isinstance(self.clock, MonotonicClock):
             # building took time; the run's timeline starts now (or after restored knowledge)
             self.clock.start_at(self._timeline_start)
+        elif self.replay is not None and self.replay.first_time is not None:
+            # a replay runs on the recording's time: its trace has the recording's times
+            self.clock.time = max(self.clock.time, self.replay.first_time)
         self.core.initialize()
         if self.low_latency and not self._gc_frozen:
             gc.collect()
@@ -495,9 +644,17 @@ class Platform:
             hooks=self._hooks() if self.managing else None,
         )
         m = self.manifest
-        if self.managing:
+        if self.replay is not None:
+            self.replay.start(self.scheduler, self.tg.digest, tail=m.period)
+        elif self.managing:
             for probe in m.probes:
                 self.cm.subscribe(probe.topic, self._on_probe)
+        if self.managing:
+            for name, source in m.external_verdicts.items():
+                self.cm.subscribe(
+                    source.topic,
+                    lambda message, name=name: self._on_external_verdict(name, message),
+                )
             # a loop that overran skips the iterations it missed (Scheduler.missed)
             self.scheduler.every(
                 m.period,
@@ -518,8 +675,10 @@ class Platform:
         random.seed(self.seed)
         self.start()
         length = duration if duration is not None else self.manifest.duration
+        if self.replay is not None and duration is None:
+            length = math.inf  # to the end of the recording (the replay stops the scheduler)
         try:
-            self.scheduler.run_until(self._started_at + length)
+            self.scheduler.run_until(self._started_at + length if length < math.inf else None)
             ran = min(length, self.clock.time - self._started_at)
         finally:
             self.stop()

@@ -125,6 +125,12 @@ class TrustworthinessChecker(Block):
         """Check ``monitor``'s properties too, from the next record on."""
         self.monitors.append(monitor)
 
+    def take(self, verdict: Verdict) -> None:
+        """A verdict decided outside the monitors (an external verdict source): counted, and
+        the property's latest from now on."""
+        self._steps += 1
+        self._take(verdict)
+
     def latest_verdict(self, name: str) -> Verdict | None:
         """The latest verdict of property ``name``, or None before its first."""
         return self.latest.get(name)
@@ -199,12 +205,14 @@ class TrustworthinessChecker(Block):
             self.post("action_refused")
             return
         try:
-            self.send_to_effector(effector, action)
+            note = self.send_to_effector(effector, action)
         except Exception as exc:
             self._outcome = (False, f"effector unreachable: {exc}")
             self.post("action_refused")
             return
-        self._outcome = (True, f"sent to {effector.name} on {effector.topic}")
+        # what the sender says happened (a replay records the action instead of sending it)
+        sent = f"sent to {effector.name} on {effector.topic}"
+        self._outcome = (True, note if isinstance(note, str) else sent)
         self.post("action_registered")
 
 
