@@ -26,6 +26,7 @@ LOOP_SIGNAL_TYPES: dict[str, str] = {
     "broken_rules": "json",
     "explanation": "str",
     "drift": "bool",
+    "recorded_action": "json",  # a replay's action, not sent: effector, topic, payload
     "twin_model_version": "int",
 }
 """Every key the loop itself writes in trace records, with the type a property reads it as."""

@@ -82,11 +82,25 @@ def _cmd_check(args: argparse.Namespace) -> int:
     # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes
     from rasm.properties.check import check_records, format_json, format_text, format_verdicts
     from rasm.properties.loader import load_specification
-    from rasm.trace import read_trace
+    from rasm.trace import parse_trace, read_trace
 
+    if args.app is not None and args.topics is not None:
+        raise UsageError("give a recording's topics by --app APP or by --topics MAP.yaml, not both")
     text = read_utf8(args.props)
     spec = load_specification(text, source=args.props)
-    records = read_trace(args.trace, spec.signals)
+    if _is_recording(args.trace):
+        records = _recorded_records(args, spec.signals)
+    elif args.app is not None or args.topics is not None:
+        raise UsageError(
+            f"{args.trace}: --app and --topics map a rosbag2 recording's topics to signals; a "
+            "JSONL trace names its signals itself"
+        )
+    elif args.trace.endswith(".mcap"):
+        from rasm.trace_mcap import read_mcap_trace
+
+        records = parse_trace(read_mcap_trace(args.trace), spec.signals, source=args.trace)
+    else:
+        records = read_trace(args.trace, spec.signals)
     explain = args.format == "text" and not args.verdicts
     report = check_records(spec, records, trace=args.trace, explain_violations=explain)
     if args.verdicts:
@@ -96,6 +110,44 @@ def _cmd_check(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(format_text(report))
     return EXIT_FAILED if report.failed else EXIT_OK
+
+
+def _is_recording(path: str) -> bool:
+    """A rosbag2 recording (a bag folder, a .db3 file, an MCAP file that is no rasm trace)."""
+    from pathlib import Path
+
+    target = Path(path)
+    if target.is_dir() or target.suffix == ".db3":
+        return True
+    if target.suffix != ".mcap":
+        return False
+    from rasm.trace_mcap import is_mcap_trace
+
+    return not is_mcap_trace(target)
+
+
+def _recorded_records(args: argparse.Namespace, signals: dict[str, str]) -> list:
+    """The records of a rosbag2 recording, read with the probes of --app or --topics."""
+    from rasm.platform.replay import recorded_trace
+
+    if args.app is not None:
+        from rasm.platform.manifest import load_manifest
+
+        manifest = load_manifest(args.app)
+        probes, store = manifest.probes, manifest.types
+    elif args.topics is not None:
+        from rasm.platform.manifest import load_topic_map
+
+        probes, store = load_topic_map(args.topics)
+    else:
+        raise UsageError(
+            f"{args.trace} is a rosbag2 recording: say which topics give which signals, with "
+            "--app APP (its probes) or --topics MAP.yaml (a 'probes:' list as in app.yaml)"
+        )
+    recorded = recorded_trace(args.trace, probes, store, signals)
+    for note in recorded.notes():
+        print(f"rasm: note: {args.trace}: {note}", file=sys.stderr)
+    return recorded.records
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
@@ -300,9 +352,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         trace_max_bytes=args.trace_rotate,
         trace_keep=args.trace_keep,
         role=args.role,
-        low_latency=(args.clock or manifest.clock or "wall") == "wall",
+        low_latency=(args.clock or manifest.clock or "wall") == "wall" and not args.replay,
+        replay=args.replay,
     )
     duration = args.duration if args.duration is not None else manifest.duration
+    if args.replay is not None and args.duration is None:
+        duration = None  # to the recording's end
     console = Console(stderr=args.trace == "-")  # keep stdout for the trace
     dashboard = None
     try:
@@ -313,7 +368,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
                 dashboard = serve(platform, args.dashboard)  # attaches before the run starts
                 console.print(f"dashboard: {dashboard.url}")
-            if console.is_terminal and args.role != "managed":
+            if console.is_terminal and args.role != "managed" and duration is not None:
                 with LiveView(platform, console, duration=duration):
                     summary = platform.run(duration)
             else:
@@ -436,11 +491,23 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("run", _cmd_run, "run an application's MAPLE-K loop")
     p.add_argument("app", help="application folder (with app.yaml)")
     p.add_argument("--duration", type=float, default=None, help="seconds to run")
-    p.add_argument("--transport", default=None, help="local | mqtt://host:port")
+    p.add_argument(
+        "--transport",
+        default=None,
+        help="local | mqtt://host:port | zenoh://host:port[?domain=N] | dds://[?domain=N]",
+    )
     p.add_argument(
         "--trace",
         default=None,
-        help="write the adaptation trace (JSONL) here; - for standard output",
+        help="write the adaptation trace here: JSONL, or MCAP for a name ending in .mcap; "
+        "- for standard output",
+    )
+    p.add_argument(
+        "--replay",
+        default=None,
+        metavar="RECORDING",
+        help="drive the loop from a rosbag2 recording (.mcap, .db3 or a bag folder) instead of "
+        "the managed system; actions go in the trace, nothing is sent",
     )
     p.add_argument("--trace-rotate", type=_byte_size, default=None, metavar="SIZE",
                    help="rotate the trace file at this size (e.g. 64M): trace.1.jsonl, …")
@@ -464,9 +531,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="after the last event, advance the clock to this time (timers fire)",
     )
 
-    p = command("check", _cmd_check, "check properties on a trace offline")
+    p = command("check", _cmd_check, "check properties on a trace or a recording offline")
     p.add_argument("props", help="property file (.rv)")
-    p.add_argument("trace", help="trace file (JSONL)")
+    p.add_argument(
+        "trace",
+        metavar="RECORDING",
+        help="trace file (JSONL, or MCAP from rasm run), or a rosbag2 recording (.mcap, .db3, "
+        "a bag folder)",
+    )
+    p.add_argument("--app", default=None, help="read a recording with this app's probes")
+    p.add_argument(
+        "--topics", default=None, metavar="MAP.yaml",
+        help="read a recording with these probes (a 'probes:' list as in app.yaml)",
+    )
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--verdicts", action="store_true", help="print every verdict as JSONL")
 

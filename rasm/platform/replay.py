@@ -1,0 +1,224 @@
+"""rosbag2 recordings as the managed system: replayed into the loop, or read as a trace.
+
+A recording (an ``.mcap`` or ``.db3`` storage file, or a bag folder) is read with the
+manifest's probes: each message of a probe's topic is one record of that probe's signals, read
+by field path as Telegraf reads a live message. A record's time is the message's log time in
+seconds, or with ``stamp: header`` its ``header.stamp`` (never later than its log time).
+
+- :func:`recorded_trace` turns a recording into the records ``rasm check`` judges;
+- :class:`Replay` feeds it to a running platform on the simulated clock, message by message
+  at its recorded time (``rasm run APP --replay BAG``).
+
+Both stream the recording (:class:`rasm.ros2.BagReader`): it is never loaded whole.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rasm.errors import Misfit
+from rasm.platform.manifest import Probe
+from rasm.properties.times import NS_PER_SECOND, Seconds
+from rasm.values import fit
+
+if TYPE_CHECKING:
+    from rasm.platform.scheduler import Scheduler
+    from rasm.ros2 import BagReader, TypeStore
+
+__all__ = ["Recording", "RecordedTrace", "Replay", "recorded_trace"]
+
+_log = logging.getLogger("rasm.replay")
+
+
+def _seconds(time_ns: int) -> Seconds:
+    """Nanoseconds as exact seconds (the monitors compare them to the nanosecond)."""
+    sign = "-" if time_ns < 0 else ""
+    whole, part = divmod(abs(time_ns), NS_PER_SECOND)
+    return Seconds(f"{sign}{whole}.{part:09d}")
+
+
+class Recording:
+    """The probes' topics of one recording, streamed in log-time order.
+
+    Raises :class:`rasm.ros2.BagError` for a recording that cannot be read, none of whose
+    topics a probe reads, or that records a probe's topic with another type than the probe's.
+    ``absent`` lists the probes' topics the recording does not have.
+    """
+
+    def __init__(self, path: str | Path, probes: list[Probe], store: TypeStore | None) -> None:
+        from rasm.ros2 import BagError, BagReader, normalize_type
+
+        self.path = Path(path)
+        recorded = BagReader(self.path, store=store).topics
+        self.probes = {p.topic: p for p in probes}
+        self.topics = [p.topic for p in probes if p.topic in recorded]
+        self.absent = [p.topic for p in probes if p.topic not in recorded]
+        if not self.topics:
+            raise BagError(
+                f"{self.path}: no probe topic ({', '.join(self.probes) or 'none'}) is in this "
+                f"recording (it has {', '.join(sorted(recorded)) or 'no topics'})"
+            )
+        for topic in self.topics:
+            declared = self.probes[topic].type
+            if declared and normalize_type(declared) != normalize_type(recorded[topic]):
+                raise BagError(
+                    f"{self.path}: topic {topic} is recorded as {recorded[topic]}, but its "
+                    f"probe reads {declared}"
+                )
+        self.types = {topic: recorded[topic] for topic in self.topics}
+        self.reader: BagReader = BagReader(self.path, topics=self.topics, store=store)
+
+    @property
+    def rejected(self) -> int:
+        """Messages that did not decode (skipped, logged once per topic)."""
+        return self.reader.rejected
+
+    def __iter__(self) -> Iterator[tuple[int, str, dict[str, Any]]]:
+        return iter(self.reader)
+
+
+def _probe_reader(probe: Probe) -> Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]]:
+    """How a probe's signals are read out of a decoded message (by field path)."""
+    from rasm.platform.messages import MessageReader
+
+    return MessageReader(probe).read
+
+
+@dataclass
+class RecordedTrace:
+    """A recording read as a trace: ``records`` for the monitors, and what was left out."""
+
+    records: list[tuple[float, dict[str, Any]]]
+    messages: int = 0
+    refused: Counter[str] = field(default_factory=Counter)
+    out_of_order: int = 0
+    undecoded: int = 0
+    absent: list[str] = field(default_factory=list)
+
+    def notes(self) -> list[str]:
+        """What was left out, one line each (nothing when nothing was)."""
+        out = [f"no messages on {topic} in the recording" for topic in self.absent]
+        if self.undecoded:
+            out.append(f"{self.undecoded} message(s) did not decode and were skipped")
+        for reason, n in sorted(self.refused.items()):
+            out.append(f"{n} value(s) refused: {reason}")
+        if self.out_of_order:
+            out.append(
+                f"{self.out_of_order} record(s) skipped: their header stamp goes back in time"
+            )
+        return out
+
+
+def recorded_trace(
+    path: str | Path,
+    probes: list[Probe],
+    store: TypeStore | None,
+    signals: Mapping[str, str] | None = None,
+) -> RecordedTrace:
+    """The records of a recording, as ``rasm check`` judges them.
+
+    ``signals`` (a property file's ``spec.signals``) limits the records to the signals the
+    properties read: a message giving none of them is no record. Values are checked against
+    their probe's declared types (a misfit is left out of its record and counted).
+    """
+    from rasm.platform.messages import header_stamp
+
+    recording = Recording(path, probes, store)
+    readers = {topic: _probe_reader(recording.probes[topic]) for topic in recording.topics}
+    out = RecordedTrace([], absent=recording.absent)
+    last_ns = None
+    for time_ns, topic, message in recording:
+        out.messages += 1
+        probe = recording.probes[topic]
+        raw, missing = readers[topic](message)
+        for _ in missing:
+            out.refused["no such field in this message"] += 1
+        record: dict[str, Any] = {}
+        for key, value in raw.items():
+            if signals is not None and key not in signals:
+                continue
+            signal = probe.signals[key]
+            try:
+                record[key] = fit(
+                    value, signal.type, minimum=signal.minimum, maximum=signal.maximum,
+                    int_as_float=False,
+                )
+            except Misfit as misfit:
+                out.refused[f"{topic} {key}: {misfit.reason}"] += 1
+        if not record:
+            continue
+        if probe.stamp == "header":
+            stamp = header_stamp(message)
+            if stamp is None:
+                out.refused[f"{topic}: no header.stamp"] += 1
+                continue
+            time_ns = min(time_ns, _stamp_ns(message))
+        if last_ns is not None and time_ns < last_ns:
+            out.out_of_order += 1
+            continue
+        last_ns = time_ns
+        out.records.append((_seconds(time_ns), record))
+    out.undecoded = recording.rejected
+    return out
+
+
+def _stamp_ns(message: Mapping[str, Any]) -> int:
+    stamp = message["header"]["stamp"]
+    return stamp["sec"] * NS_PER_SECOND + stamp["nanosec"]
+
+
+class Replay:
+    """A recording driving a platform in place of its managed system.
+
+    :meth:`start` puts the recording's messages on the scheduler, one job per message at its
+    log time (seconds), each handing it to ``digest(topic, message, time)`` (Telegraf); after
+    the last one and ``tail`` more seconds the scheduler is stopped. Only the next message is
+    read ahead.
+    """
+
+    def __init__(self, recording: Recording) -> None:
+        self.recording = recording
+        self.messages = 0
+        self.first_time: float | None = None
+        self.last_time: float | None = None
+        self._items: Iterator[tuple[int, str, dict[str, Any]]] = iter(recording)
+        self._next = next(self._items, None)
+        if self._next is not None:
+            self.first_time = self._next[0] / NS_PER_SECOND
+
+    def start(
+        self,
+        scheduler: Scheduler,
+        digest: Callable[[str, dict[str, Any], float], Any],
+        *,
+        tail: float,
+    ) -> None:
+        self._scheduler = scheduler
+        self._digest = digest
+        self._tail = tail
+        self._schedule()
+
+    def _schedule(self) -> None:
+        item = self._next
+        if item is None:
+            end = (self.last_time if self.last_time is not None else self._scheduler.now())
+            self._scheduler.at(end + self._tail, self._scheduler.stop)
+            return
+        time = item[0] / NS_PER_SECOND
+        self._scheduler.at(time, lambda: self._play(item, time))
+
+    def _play(self, item: tuple[int, str, dict[str, Any]], time: float) -> None:
+        _, topic, message = item
+        self.messages += 1
+        self.last_time = time
+        self._next = next(self._items, None)
+        try:
+            self._digest(topic, message, time)
+        finally:
+            self._schedule()
+
