@@ -7,11 +7,13 @@ received, ``{"event": "published", "n": N}`` after each round of publishing, and
 ``{"event": "token", "key": ...}`` per liveliness token seen. It stops when stdin closes.
 
 CONFIG keys: ``middleware`` (zenoh | dds), ``role`` (pub | sub | graph), ``listen`` (Zenoh
-endpoint), ``domain``, ``repeat`` (publish again and again until stdin closes), ``msg``
-(``[[file, package], ...]`` custom .msg files) and ``topics``: a list of ``{"topic", "type",
+endpoint), ``connect`` (Zenoh endpoints to connect to as well), ``domain``, ``repeat``
+(publish again and again until stdin closes), ``msg`` (``[[file, package], ...]`` custom
+.msg files) and ``topics``: a list of ``{"topic", "type",
 "messages"}`` (dicts to publish), where ``raw`` (hex payloads sent as they are), ``key`` (a
 Zenoh key expression), ``type_name`` (a DDS type name) and ``type_hash`` (announced in DDS
-user data) override what the peer would send.
+user data) override what the peer would send, and ``stamp`` (true) sets the messages'
+``header.stamp`` to the time each round is sent.
 """
 
 from __future__ import annotations
@@ -114,12 +116,24 @@ def payloads_of(entry):
             for m in entry["messages"]]
 
 
+def this_round(entry, payloads):
+    """The payloads to send now: with ``"stamp": true`` the messages' header.stamp is now."""
+    if not entry.get("stamp"):
+        return payloads
+    now = time.time_ns()
+    stamp = {"sec": now // 10**9, "nanosec": now % 10**9}
+    messages = [{**m, "header": {**m.get("header", {}), "stamp": stamp}} for m in entry["messages"]]
+    return payloads_of({**entry, "messages": messages})
+
+
 def zenoh_main(config):
     import zenoh
 
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("listen/endpoints", json.dumps([config["listen"]]))
+    if config.get("connect"):
+        conf.insert_json5("connect/endpoints", json.dumps(config["connect"]))
     conf.insert_json5("scouting/multicast/enabled", "false")
     session = zenoh.open(conf)
     say(event="listening")
@@ -149,18 +163,18 @@ def zenoh_main(config):
         publishers = [
             (session.declare_publisher(zenoh_key(config, entry),
                                        congestion_control=zenoh.CongestionControl.BLOCK),
-             payloads_of(entry))
+             entry, payloads_of(entry))
             for entry in config["topics"]
         ]
-        for publisher, _ in publishers:
+        for publisher, _, _ in publishers:
             while not publisher.matching_status.matching and not done.is_set():
                 done.wait(0.01)  # poll the match: zenoh-python offers no blocking wait for it
         say(event="ready")
         sequence = 0
         gid = bytes(range(16))
         while True:
-            for publisher, payloads in publishers:
-                for payload in payloads:
+            for publisher, entry, payloads in publishers:
+                for payload in this_round(entry, payloads):
                     sequence += 1
                     attachment = struct.pack("<qqB16s", sequence, time.time_ns(), 16, gid)
                     publisher.put(payload, attachment=attachment)
@@ -168,7 +182,7 @@ def zenoh_main(config):
             if not config.get("repeat") or done.wait(0.05):
                 break
         done.wait()
-        entities = [p for p, _ in publishers]
+        entities = [p for p, _, _ in publishers]
     for entity in entities:
         entity.undeclare()
     session.close()
@@ -252,10 +266,10 @@ def dds_main(config):
             done.wait(0.01)
     say(event="ready")
     written = 0
-    payloads = [(writer, payloads_of(entry)) for entry, writer in endpoints]
+    payloads = [(writer, entry, payloads_of(entry)) for entry, writer in endpoints]
     while True:
-        for writer, items in payloads:
-            for payload in items:
+        for writer, entry, items in payloads:
+            for payload in this_round(entry, items):
                 ddspy_write(writer._ref, payload + b"\0" * (-len(payload) % 4))
                 written += 1
         say(event="published", n=written)

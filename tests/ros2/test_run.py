@@ -1,0 +1,106 @@
+"""`rasm run` as the managing side of a ROS 2 system: foreign peers (eclipse-zenoh, cyclonedds
+and rosbags only, tests/ros2/peer.py) publish the robot's topics and subscribe to what rasm
+sends, over real Zenoh sessions and Cyclone DDS participants on loopback."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rasm.testing.servers import free_port
+from tests.ros2.conftest import CYCLONE_LOOPBACK, DATA
+
+GUARD = DATA / "guard"
+GUARD_MSG = [[str(GUARD / "msg" / "GuardState.msg"), "guard"]]
+
+# what the robot publishes: driving at 0.8 m/s with something 0.4 m ahead
+ODOM = {"header": {"frame_id": "odom"}, "pose": {"pose": {"position": {"x": 1.5}}},
+        "twist": {"twist": {"linear": {"x": 0.8}}}}
+SCAN = {"header": {"frame_id": "base_scan"}, "angle_increment": 0.0175, "range_max": 8.0,
+        "ranges": [0.4, 1.0, float("inf"), 2.5]}
+ROBOT = [
+    {"topic": "/odom", "type": "nav_msgs/msg/Odometry", "messages": [ODOM], "stamp": True},
+    {"topic": "/scan", "type": "sensor_msgs/msg/LaserScan", "messages": [SCAN]},
+    {"topic": "/bumper", "type": "std_msgs/msg/Bool", "messages": [{"data": False}]},
+]
+# what rasm sends: the guard's actions and its verdicts
+SENT = [
+    {"topic": "/cmd_vel", "type": "geometry_msgs/msg/Twist"},
+    {"topic": "/guard_state", "type": "guard/msg/GuardState"},
+    {"topic": "/rasm/verdict/speed_limit", "type": "std_msgs/msg/Bool"},
+    {"topic": "/rasm/verdict/slow_near_obstacles", "type": "std_msgs/msg/Bool"},
+]
+
+
+def rasm_run(app: Path, transport: str, cwd: Path, *extra: str) -> subprocess.Popen:
+    env = dict(os.environ, CYCLONEDDS_URI=CYCLONE_LOOPBACK, PYTHONUNBUFFERED="1")
+    return subprocess.Popen(
+        [sys.executable, "-m", "rasm.cli", "run", str(app), "--transport", transport, *extra],
+        cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+
+
+def finish(process: subprocess.Popen, timeout: float = 60) -> tuple[int, str]:
+    try:
+        out, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, err = process.communicate()
+        raise AssertionError(f"rasm run did not end: {out}\n{err}") from None
+    return process.returncode, out + err
+
+
+def network(peers, middleware: str):
+    """A publishing and a subscribing peer, and the transport URL rasm joins them by."""
+    if middleware == "zenoh":
+        a, b = free_port(), free_port()
+        robot = peers({"middleware": "zenoh", "role": "pub", "listen": f"tcp/127.0.0.1:{a}",
+                       "repeat": True, "topics": ROBOT})
+        robot.wait_for(lambda p: p.events, what="the robot peer to listen")
+        watcher = peers({"middleware": "zenoh", "role": "sub", "listen": f"tcp/127.0.0.1:{b}",
+                         "connect": [f"tcp/127.0.0.1:{a}"], "msg": GUARD_MSG, "topics": SENT})
+        return robot, watcher, f"zenoh://127.0.0.1:{a}"
+    domain = int.from_bytes(os.urandom(1), "big") % 200 + 20
+    robot = peers({"middleware": "dds", "role": "pub", "domain": domain, "repeat": True,
+                   "topics": ROBOT})
+    watcher = peers({"middleware": "dds", "role": "sub", "domain": domain, "msg": GUARD_MSG,
+                     "topics": SENT})
+    return robot, watcher, f"dds://?domain={domain}"
+
+
+@pytest.mark.parametrize("middleware", ["zenoh", "dds"])
+def test_rasm_run_reads_the_robots_topics_and_sends_actions_and_verdicts(
+    peers, tmp_path, middleware
+):
+    robot, watcher, url = network(peers, middleware)
+    watcher.wait_ready()
+    trace = tmp_path / "trace.jsonl"
+    run = rasm_run(GUARD, url, tmp_path, "--duration", "6", "--trace", str(trace))
+    robot.wait_ready()  # it publishes once rasm's subscriptions match
+    cmd = watcher.wait_for(lambda p: p.messages("/cmd_vel"), timeout=30, what="a Twist")[0]
+    state = watcher.wait_for(lambda p: p.messages("/guard_state"), timeout=30, what="a state")[0]
+    watcher.wait_for(
+        lambda p: p.messages("/rasm/verdict/slow_near_obstacles")
+        and p.messages("/rasm/verdict/speed_limit"),
+        timeout=30, what="verdicts",
+    )
+    code, output = finish(run)
+    # the action payload filled the message fields the manifest maps, the rest is zero
+    assert cmd["data"]["linear"] == {"x": 0.1, "y": 0.0, "z": 0.0}
+    assert cmd["data"]["angular"] == {"x": 0.0, "y": 0.0, "z": 0.5}
+    assert state["data"] == {"level": 2, "reason": "obstacle ahead"}
+    # 0.8 m/s: within the speed limit, not slow enough with 0.4 m ahead
+    assert {m["data"]["data"] for m in watcher.messages("/rasm/verdict/speed_limit")} == {True}
+    assert False in {m["data"]["data"] for m in watcher.messages(
+        "/rasm/verdict/slow_near_obstacles")}
+    assert code == 1, output  # a property was violated
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert any(r.get("speed") == 0.8 for r in records)
+    assert any(r.get("ahead") == pytest.approx(0.4) for r in records)
+    assert any(r.get("bumped") is False for r in records)
+    assert any(r.get("executed") for r in records)
