@@ -1,0 +1,132 @@
+"""Verdicts out and in: rasm's verdicts on ROS 2 and MQTT topics, and the verdicts of monitors
+outside rasm (a Bool verdict, Copilot's Empty triggers, the public checker's {"value": …})
+as veto sources that fail closed."""
+
+from __future__ import annotations
+
+import json
+import queue
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rasm.cli import main
+from rasm.comm import open_transport
+from rasm.platform import Platform
+from rasm.platform.external_verdicts import ExternalVerdicts
+from rasm.platform.manifest import ExternalVerdict, load_manifest
+from rasm.testing.servers import start_mosquitto
+from tests.ros2.conftest import DATA
+from tests.ros2.test_replay import record
+from tests.ros2.test_run import ROBOT, finish, rasm_run
+
+GUARD = DATA / "guard"
+VETOED = GUARD / "vetoed.yaml"
+HOTBOX = Path(__file__).resolve().parents[2] / "examples" / "hotbox"
+
+
+@given(st.lists(st.one_of(st.booleans(), st.integers(), st.none(), st.text(max_size=3))))
+def test_a_bool_or_json_source_gives_its_value_and_anything_else_is_an_error(values):
+    sources = ExternalVerdicts({
+        "ros": ExternalVerdict("ros", "/ok", "std_msgs/msg/Bool"),
+        "mqtt": ExternalVerdict("mqtt", "checker/ok"),
+    })
+    assert sources.missing("ros") == ("a verdict on /ok",)
+    for i, value in enumerate(values):
+        for name, payload in (("ros", {"data": value}), ("mqtt", {"value": value})):
+            verdict = sources.receive(name, payload, float(i))
+            if isinstance(value, bool):
+                assert (verdict.value, verdict.error) == (value, None)
+            else:  # fail closed: no verdict is a "no", said as an error
+                assert verdict.value is False and "not a verdict" in verdict.error
+    assert sources.missing("ros") == (() if values else ("a verdict on /ok",))
+
+
+@given(
+    triggers=st.lists(st.integers(0, 100), max_size=10).map(sorted),
+    checks=st.lists(st.integers(0, 120), min_size=1, max_size=20).map(sorted),
+)
+def test_an_empty_source_vetoes_for_hold_seconds_after_each_message(triggers, checks):
+    hold = 5
+    sources = ExternalVerdicts({"alarm": ExternalVerdict("alarm", "/alarm", "std_msgs/msg/Empty",
+                                                         hold=hold)})
+    assert sources.missing("alarm") == ()  # silence is its "yes": nothing to wait for
+    latest = None
+    events = sorted([(t, 0) for t in triggers] + [(t, 1) for t in checks])
+    for time, kind in events:
+        if kind == 0:
+            latest = sources.receive("alarm", {}, float(time))
+            continue
+        for verdict in sources.step(float(time), {}):
+            latest = verdict
+        vetoed = any(t <= time < t + hold for t in triggers)
+        assert latest is not None and latest.value is (not vetoed), (time, triggers)
+
+
+def test_a_replay_with_a_silent_verdict_source_sends_nothing(tmp_path, monkeypatch):
+    # the recording has no /monitor/ok: the checker cannot vouch for any action
+    monkeypatch.chdir(tmp_path)
+    bag = record(tmp_path / "bag")
+    trace = tmp_path / "trace.jsonl"
+    assert main(["run", str(VETOED), "--replay", str(bag), "--trace", str(trace)]) == 1
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    dropped = [r for r in records if r.get("dropped")]
+    assert dropped and not any(r.get("executed") for r in records)
+    assert not any("recorded_action" in r for r in records)
+    assert all("veto property monitor_ok not judged yet: no value for a verdict on /monitor/ok"
+               in r["explanation"] for r in dropped)
+
+
+def test_a_false_verdict_from_a_foreign_monitor_vetoes_over_zenoh(peers, tmp_path):
+    from rasm.testing.servers import free_port
+
+    port = free_port()
+    monitor = [{"topic": "/monitor/ok", "type": "std_msgs/msg/Bool", "messages": [{"data": False}]}]
+    robot = peers({"middleware": "zenoh", "role": "pub", "listen": f"tcp/127.0.0.1:{port}",
+                   "repeat": True, "topics": ROBOT + monitor})
+    robot.wait_for(lambda p: p.events, what="the robot peer to listen")
+    trace = tmp_path / "trace.jsonl"
+    run = rasm_run(VETOED, f"zenoh://127.0.0.1:{port}", tmp_path, "--duration", "4",
+                   "--trace", str(trace))
+    robot.wait_ready()
+    code, output = finish(run)
+    assert code == 1, output
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    dropped = [r for r in records if r.get("dropped")]
+    assert dropped and not any(r.get("executed") for r in records), output
+    assert any("veto property monitor_ok violated" in r["explanation"] for r in dropped)
+
+
+def test_verdicts_go_out_on_mqtt_as_the_public_checker_sends_them(tmp_path):
+    broker = start_mosquitto(tmp_path)
+    try:
+        url = f"mqtt://127.0.0.1:{broker.port}"
+        listener = open_transport(url)
+        got: queue.Queue = queue.Queue()
+        listener.connect()
+        listener.subscribe("temperature_band", lambda m: got.put(m.payload))
+        platform = Platform(HOTBOX, transport=url, clock="wall", state_dir=tmp_path / "state",
+                            knowledge="memory")
+        platform.run(1.5)
+        listener.close()
+    finally:
+        broker.stop()
+    payload = got.get(timeout=5)
+    assert set(payload) == {"value", "time"} and isinstance(payload["value"], bool)
+    assert platform.verdicts_published > 0
+
+
+@pytest.mark.parametrize("flag, published", [(None, False), (True, True), (False, False)])
+def test_publish_verdicts_says_whether_they_go_out(tmp_path, flag, published):
+    manifest = load_manifest(HOTBOX)
+    manifest.publish_verdicts = flag  # None: only on a network transport
+    bus = []
+    platform = Platform(manifest, clock="simulated", state_dir=tmp_path, knowledge="memory")
+    platform.build()
+    platform.transport.subscribe("#", bus.append)
+    platform.run(3)
+    names = {m.topic for m in bus}
+    assert ("temperature_band" in names) is published
+    assert (platform.verdicts_published > 0) is published
