@@ -147,7 +147,9 @@ class ZenohTransport(RosTransport):
 
     ``url`` is ``zenoh://HOST:PORT[?domain=N]``: the Zenoh router or peer to connect to.
     ``listen`` adds endpoints this session listens on (``["tcp/127.0.0.1:7448"]``), so that
-    other peers can connect to it. ``config_file`` starts from a Zenoh JSON5 configuration
+    other peers can connect to it; listening on the URL's own ``tcp/HOST:PORT`` makes this
+    session the meeting point the others connect to (as rmw_zenoh's router is), connecting
+    to nothing itself. ``config_file`` starts from a Zenoh JSON5 configuration
     (rmw_zenoh's ``ZENOH_SESSION_CONFIG_URI`` files work); mode, endpoints and multicast
     scouting are then set as described. ``connect()`` fails with :class:`CommError` if nothing
     answers at ``HOST:PORT`` within ``connect_timeout`` seconds. The other keywords are
@@ -183,9 +185,11 @@ class ZenohTransport(RosTransport):
     def _open_wire(self) -> None:
         config = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
         host = f"[{self.host}]" if ":" in self.host else self.host
+        endpoint = f"tcp/{host}:{self.port}"
         settings = {
             "mode": "peer",
-            "connect/endpoints": [f"tcp/{host}:{self.port}"],
+            # a session listening on HOST:PORT itself is the meeting point others connect to
+            "connect/endpoints": [] if endpoint in self.listen else [endpoint],
             "listen/endpoints": self.listen,
             "scouting/multicast/enabled": False,
             "connect/timeout_ms": int(self.connect_timeout * 1000),
