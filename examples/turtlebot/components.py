@@ -30,6 +30,7 @@ from tb4.spin import mask_of, required_rotation, spin_plan  # noqa: E402
 
 __all__ = [
     "OcclusionAnalyse",
+    "RosSpinLegitimate",
     "ScanMonitor",
     "SpinExecute",
     "SpinLegitimate",
@@ -41,14 +42,15 @@ MARGIN_RAYS = 5  # a sector counts as seen when a ray at least this far from the
 
 
 class ScanMonitor:
-    """The scans are in knowledge (Telegraf stores ``/safe-scan``); Monitor adds two signals of
-    the latest scan for the trace: how many rays came back empty and the nearest echo."""
+    """The scans are in knowledge (Telegraf stores ``/safe-scan``, or ``/scan`` over ROS 2);
+    Monitor adds two signals of the latest scan for the trace: how many rays came back empty
+    and the nearest echo."""
 
     def monitor(self, ctx):
         ranges = ctx.knowledge.read_knowledge("ranges")
         if not ranges:
             return None
-        valid = [r for r in ranges if r is not None]
+        valid = [r for r in ranges if r is not None and r < math.inf]  # inf: ROS's "no echo"
         return {
             "invalid_rays": len(ranges) - len(valid),
             "nearest": min(valid) if valid else -1.0,
@@ -145,6 +147,41 @@ class SpinLegitimate:
             math.radians(k.read_knowledge("yaw", 0.0)),
         )
         return simulate_spin(dict(ctx.plan.values), pose, k.read_knowledge("velocity", 0.0), points)
+
+
+class RosSpinLegitimate(SpinLegitimate):
+    """:class:`SpinLegitimate` for the robot on ROS 2 (``ros2.yaml``): a LaserScan carries no
+    pose, so each scan is placed at the odometry pose of its time stamp (both are stamped by
+    the robot's clock), the heading taken from the orientation quaternion."""
+
+    def legitimate(self, ctx):
+        k = ctx.knowledge
+        poses = _odometry(k)
+        if not poses:
+            return False, "no odometry yet: the robot's pose is unknown"
+        scans = k.history("ranges", last=self.SCANS)
+        points = map_points([s.value for s in scans], [_pose_at(poses, s.time) for s in scans])
+        pose = _pose_at(poses, math.inf)
+        return simulate_spin(dict(ctx.plan.values), pose, k.read_knowledge("velocity", 0.0), points)
+
+
+def _odometry(k):
+    """[(time, (x, y, yaw in radians))] of the recent odometry, oldest first: the times at
+    which all of x, y and the quaternion's z and w were stored (one /odom message each)."""
+    series = [{s.time: s.value for s in k.history(key, last=100)} for key in ("x", "y", "qz", "qw")]
+    xs, ys, qzs, qws = series
+    times = sorted(set(xs).intersection(ys, qzs, qws))
+    return [(t, (xs[t], ys[t], 2.0 * math.atan2(qzs[t], qws[t]))) for t in times]
+
+
+def _pose_at(poses, time):
+    """The pose of the last odometry at or before ``time`` (the first one if none is)."""
+    chosen = poses[0][1]
+    for at, pose in poses:
+        if at > time + 1e-9:
+            break
+        chosen = pose
+    return chosen
 
 
 class SpinExecute:

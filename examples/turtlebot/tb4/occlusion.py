@@ -1,14 +1,15 @@
 """Analyse's model of the occlusion: how likely each ray is blocked, judged over
 a sliding window of recent scans, thresholded and clustered into windows of adjacent rays.
 
-A ray is *invalid* in a scan when it returned nothing (``None``) or less than the scanner's
-minimum range. Open space within the scanner's range returns an echo, and random dropouts are
-rare, so a ray that stays invalid scan after scan while the robot moves and turns is blocked by
-something on the robot itself.
+A ray is *invalid* in a scan when it returned nothing (``None`` on the local bus, ``inf``
+in a ROS 2 LaserScan) or less than the scanner's minimum range. Open space within the
+scanner's range returns an echo, and random dropouts are rare, so a ray that stays invalid
+scan after scan while the robot moves and turns is blocked by something on the robot itself.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -41,7 +42,8 @@ def occlusion_probability(scans: Sequence[Sequence[float | None]]) -> list[float
         return []
     n = len(scans)
     return [
-        sum(1 for r in ray if r is None or r < RANGE_MIN) / n for ray in zip(*scans, strict=True)
+        sum(1 for r in ray if r is None or not RANGE_MIN <= r < math.inf) / n
+        for ray in zip(*scans, strict=True)
     ]
 
 

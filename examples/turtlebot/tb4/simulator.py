@@ -1,6 +1,7 @@
 """The managed system: a simulated TurtleBot 4 following waypoints with a LiDAR that debris
 occludes. It publishes ``/safe-scan``, ``/odom`` and ``/collision`` and accepts spin plans on
-``/spin_config`` (see ``app.yaml``). Deterministic for a seed.
+``/spin_config`` (see ``app.yaml``); as a ROS 2 robot (``robot.py``) it also takes velocity
+commands, as a base controller takes ``/cmd_vel``. Deterministic for a seed.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ class TurtleBotSimulator:
         self.collisions = 0
         self.in_contact = False
         self.next_scan = 0.0
+        # a velocity command (v m/s, w rad/s, until when) overriding the local planner
+        self.command: tuple[float, float, float] | None = None
         self.mask_key: tuple = ()
         self.mask = [False] * self.lidar.rays
 
@@ -93,6 +96,9 @@ class TurtleBotSimulator:
         lim = self.limits
         if self.arrived_at is not None:
             v_cmd, w_cmd = 0.0, 0.0
+        elif self.command is not None and time < self.command[2]:
+            v_cmd = min(max(self.command[0], 0.0), lim.cruise)
+            w_cmd = min(max(self.command[1], -lim.turn_rate), lim.turn_rate)
         elif self.spin.spinning:
             v_cmd = 0.0
             w_cmd = self.spin.turn(self.yaw, dt) if self.v == 0.0 else 0.0
@@ -134,7 +140,14 @@ class TurtleBotSimulator:
             self.collisions += 1
         return new
 
+    COMMAND_TIMEOUT = 0.5  # s a velocity command holds, as a base controller's cmd_vel timeout
+
     def apply(self, effector: str, payload: dict[str, Any], time: float) -> None:
-        """An action from the Trustworthiness Checker: only ``spin_config`` is known."""
+        """An action from the Trustworthiness Checker (``spin_config``), or a velocity command
+        (``cmd_vel``: ``velocity`` m/s and ``yaw_rate`` rad/s, within the robot's limits) that
+        overrides the local planner for :data:`COMMAND_TIMEOUT` seconds."""
         if effector == "spin_config":
             self.spin.configure(payload, self.yaw)
+        elif effector == "cmd_vel":
+            until = time + self.COMMAND_TIMEOUT
+            self.command = (float(payload["velocity"]), float(payload["yaw_rate"]), until)
