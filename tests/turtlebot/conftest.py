@@ -8,3 +8,6 @@ from pathlib import Path
 APP = Path(__file__).resolve().parents[2] / "examples" / "turtlebot"
 if str(APP) not in sys.path:
     sys.path.insert(0, str(APP))
+
+# the ROS 2 tests' foreign peers (tests/ros2/peer.py), for the demonstrator over ROS 2
+from tests.ros2.conftest import peers  # noqa: E402, F401
