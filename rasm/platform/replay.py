@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 from collections import Counter
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,10 +36,11 @@ _log = logging.getLogger("rasm.replay")
 
 
 def _seconds(time_ns: int) -> Seconds:
-    """Nanoseconds as exact seconds (the monitors compare them to the nanosecond)."""
-    sign = "-" if time_ns < 0 else ""
-    whole, part = divmod(abs(time_ns), NS_PER_SECOND)
-    return Seconds(f"{sign}{whole}.{part:09d}")
+    """Nanoseconds as exact seconds: the float nearest them, carrying them exactly for the
+    monitors (what :class:`Seconds` makes of their decimal text, without parsing it)."""
+    seconds = float.__new__(Seconds, time_ns / NS_PER_SECOND)  # int / int: correctly rounded
+    seconds.ns = time_ns
+    return seconds
 
 
 class Recording:
@@ -50,7 +51,14 @@ class Recording:
     ``absent`` lists the probes' topics the recording does not have.
     """
 
-    def __init__(self, path: str | Path, probes: list[Probe], store: TypeStore | None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        probes: list[Probe],
+        store: TypeStore | None,
+        *,
+        objects: bool = False,
+    ) -> None:
         from rasm.ros2 import BagError, BagReader, normalize_type
 
         self.path = Path(path)
@@ -71,7 +79,11 @@ class Recording:
                     f"probe reads {declared}"
                 )
         self.types = {topic: recorded[topic] for topic in self.topics}
-        self.reader: BagReader = BagReader(self.path, topics=self.topics, store=store)
+        self.store = store
+        # objects: rosbags' message objects, for reading a few fields of each message fast
+        self.reader: BagReader = BagReader(
+            self.path, topics=self.topics, store=store, objects=objects
+        )
 
     @property
     def rejected(self) -> int:
@@ -80,13 +92,6 @@ class Recording:
 
     def __iter__(self) -> Iterator[tuple[int, str, dict[str, Any]]]:
         return iter(self.reader)
-
-
-def _probe_reader(probe: Probe) -> Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]]:
-    """How a probe's signals are read out of a decoded message (by field path)."""
-    from rasm.platform.messages import MessageReader
-
-    return MessageReader(probe).read
 
 
 @dataclass
@@ -126,10 +131,21 @@ def recorded_trace(
     properties read: a message giving none of them is no record. Values are checked against
     their probe's declared types (a misfit is left out of its record and counted).
     """
-    from rasm.platform.messages import header_stamp
+    from rasm.platform.messages import MessageReader
 
-    recording = Recording(path, probes, store)
-    readers = {topic: _probe_reader(recording.probes[topic]) for topic in recording.topics}
+    if signals is not None:  # a topic giving none of the signals read is not even decoded
+        probes = [
+            replace(p, signals={k: v for k, v in p.signals.items() if k in signals})
+            for p in probes
+        ]
+        probes = [p for p in probes if p.signals]
+        if not probes:  # the properties read no probe's signal: the records are the loop's
+            return RecordedTrace([])
+    recording = Recording(path, probes, store, objects=True)
+    readers = {
+        topic: MessageReader(recording.probes[topic], store).read_object
+        for topic in recording.topics
+    }
     out = RecordedTrace([], absent=recording.absent)
     last_ns = None
     for time_ns, topic, message in recording:
@@ -140,8 +156,6 @@ def recorded_trace(
             out.refused["no such field in this message"] += 1
         record: dict[str, Any] = {}
         for key, value in raw.items():
-            if signals is not None and key not in signals:
-                continue
             signal = probe.signals[key]
             try:
                 record[key] = fit(
@@ -152,12 +166,9 @@ def recorded_trace(
                 out.refused[f"{topic} {key}: {misfit.reason}"] += 1
         if not record:
             continue
-        if probe.stamp == "header":
-            stamp = header_stamp(message)
-            if stamp is None:
-                out.refused[f"{topic}: no header.stamp"] += 1
-                continue
-            time_ns = min(time_ns, _stamp_ns(message))
+        if probe.stamp == "header":  # the manifest checked the type has a header
+            stamp = message.header.stamp
+            time_ns = min(time_ns, stamp.sec * NS_PER_SECOND + stamp.nanosec)
         if last_ns is not None and time_ns < last_ns:
             out.out_of_order += 1
             continue
@@ -165,11 +176,6 @@ def recorded_trace(
         out.records.append((_seconds(time_ns), record))
     out.undecoded = recording.rejected
     return out
-
-
-def _stamp_ns(message: Mapping[str, Any]) -> int:
-    stamp = message["header"]["stamp"]
-    return stamp["sec"] * NS_PER_SECOND + stamp["nanosec"]
 
 
 class Replay:

@@ -96,6 +96,8 @@ class BagReader:
 
     ``topics`` limits the reading to those topics (default: all). ``store`` is the type store
     (default: the standard interfaces); the bag's own definitions fill in the types it lacks.
+    With ``objects``, each message is rosbags' message object instead of a dict
+    (:meth:`MessageCodec.decode_object`: for reading a few fields of many messages).
     :attr:`topics` maps every recorded topic to its type; :attr:`message_count` counts the
     messages of the selected topics.
     """
@@ -106,8 +108,10 @@ class BagReader:
         *,
         topics: Iterable[str] | None = None,
         store: TypeStore | None = None,
+        objects: bool = False,
     ) -> None:
         self.path = Path(path)
+        self.objects = objects
         self.store = store if store is not None else default_store()
         self.rejected = 0
         self._files = storage_files(self.path)
@@ -166,7 +170,9 @@ class BagReader:
 
     def __iter__(self) -> Iterator[BagRecord]:
         streams = [self._records(file) for file in self._files]
-        yield from heapq.merge(*streams, key=lambda record: record.time_ns)
+        if len(streams) == 1:  # one storage file is in log-time order already
+            return streams[0]
+        return heapq.merge(*streams, key=lambda record: record.time_ns)
 
     def _records(self, file: Path) -> Iterator[BagRecord]:
         with _opened(file) as reader:
@@ -179,7 +185,7 @@ class BagReader:
             for connection, time_ns, data in reader.messages(connections=connections):
                 codec = self._codecs[(connection.msgtype, connection.digest or "")]
                 try:
-                    message = codec.decode(data)
+                    message = codec.decode_object(data) if self.objects else codec.decode(data)
                 except MalformedMessage as exc:
                     self._reject(connection.topic, time_ns, str(exc))
                     continue

@@ -86,10 +86,22 @@ class MessageCodec:
 
         Raises :class:`MalformedMessage` for anything that is not a valid encoding of this type.
         """
+        return self._to_dict(self.decode_object(data))
+
+    def decode_object(self, data: bytes | memoryview) -> Any:
+        """The message in ``data`` as rosbags' message object (attributes, numpy arrays), not
+        converted to a dict: for reading a few fields of many messages, where the conversion
+        of the rest would cost more than the decoding. :meth:`as_dict` converts one.
+
+        Raises :class:`MalformedMessage` as :meth:`decode` does.
+        """
         try:
-            message = self._rosbags.deserialize_cdr(data, self.typename)
+            return self._rosbags.deserialize_cdr(data, self.typename)
         except _DECODE_ERRORS as exc:
             raise MalformedMessage(f"not a valid {self.typename}: {exc}") from None
+
+    def as_dict(self, message: Any) -> dict[str, Any]:
+        """A message object of this type (:meth:`decode_object`) as :meth:`decode`'s dict."""
         return self._to_dict(message)
 
     def encode(self, message: Mapping[str, Any]) -> bytes:
