@@ -1,4 +1,5 @@
-"""ROS 2 speed: ingest of /odom-sized messages over Zenoh and DDS, and rosbag2 decoding.
+"""ROS 2 speed: ingest of /odom-sized messages over Zenoh and DDS, rosbag2 decoding, the
+detect-to-act latency of a loop managing a ROS 2 robot over Zenoh, and `rasm check` on a bag.
 
 Ingest: a publisher process (eclipse-zenoh or cyclonedds with rosbags, no rasm) sends N
 nav_msgs/msg/Odometry messages (724 bytes of CDR) as fast as it can, on loopback. In this
@@ -11,8 +12,19 @@ the rate is messages received per second, first to last. Each case runs 3 times;
 counts. Bag: a bag of N Odometry messages (MCAP) is read and decoded by rosbags' AnyReader and
 by rasm's BagReader.
 
-Run: ``.venv/bin/python benchmarks/ros2.py [--count N]``. The ratios print last. Figures are
-recorded in docs/ros2.md.
+Latency: a robot process (eclipse-zenoh and rosbags, no rasm) publishes Odometry at 200
+messages/s, with a burst of fast ones four times a second; a platform in this process (`rasm
+run`'s, on the wall clock, over ZenohTransport) finds each burst in Analyse and sends a Twist,
+which the robot timestamps on receipt. Detect-to-act is from the platform's ``anomaly`` record
+to that receipt (one machine, one wall clock), as benchmarks/latency_loop.py measures it over
+MQTT.
+
+Check: ``rasm check`` (the property file of the latency app, the app's probes) on an MCAP bag
+of N Odometry messages, against rosbags' own decode of the same bag (AnyReader +
+deserialize), both in messages/s.
+
+Run: ``.venv/bin/python benchmarks/ros2.py [--count N] [--seconds S]``. The ratios print
+last. Figures are recorded in docs/ros2.md.
 """
 
 from __future__ import annotations
@@ -244,14 +256,228 @@ def bag_rates(count: int) -> tuple[float, float]:
     return statistics.median(theirs), statistics.median(ours)
 
 
+# -- detect-to-act latency over Zenoh ---------------------------------------------------------
+LATENCY_RATE = 200.0  # Odometry messages/s the robot publishes
+BURSTS_PER_S = 4.0  # fast stretches per second, each a few messages long
+
+APP_YAML = """\
+name: latency
+components:
+  monitor: components:Quiet
+  analyse: components:Bursts
+  plan:
+    component: components:Stop
+    produces: {speed: float, turn: float}
+  execute: components:Drive
+probes:
+  - topic: /odom
+    type: nav_msgs/msg/Odometry
+    qos: {depth: 50}
+    signals:
+      speed: {field: twist.twist.linear.x, type: float}
+effectors:
+  drive:
+    topic: /cmd_vel
+    type: geometry_msgs/msg/Twist
+    fields: {linear.x: speed, angular.z: turn}
+properties: [speed.rv]
+knowledge: memory
+timing: off
+loop:
+  period: 0.01
+"""
+PROPS = "input speed: float\n\nproperty speed_limit:\n    always (speed <= 1.0)\n"
+COMPONENTS = """\
+from rasm import Action, Anomaly, Plan
+
+
+class Quiet:
+    def monitor(self, ctx):
+        return None
+
+
+class Bursts:
+    # one anomaly per burst of fast odometry; its number rides in the Twist's angular.z
+    def __init__(self):
+        self.n = 0
+        self.armed = True
+
+    def analyse(self, ctx):
+        fast = (ctx.knowledge.read_knowledge("speed") or 0.0) > 0.5
+        if not fast:
+            self.armed = True
+            return None
+        if not self.armed:
+            return None
+        self.armed = False
+        self.n += 1
+        return Anomaly(f"burst {self.n}", {"n": self.n})
+
+
+class Stop:
+    def plan(self, ctx):
+        return Plan({"speed": 0.0, "turn": float(ctx.anomaly.data["n"])})
+
+
+class Drive:
+    def execute(self, ctx):
+        return Action("drive", {"speed": ctx.plan["speed"], "turn": ctx.plan["turn"]})
+"""
+
+
+def write_latency_app(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "app.yaml").write_text(APP_YAML)
+    (folder / "components.py").write_text(COMPONENTS)
+    (folder / "speed.rv").write_text(PROPS)
+    return folder
+
+
+def robot(port: str, seconds: float) -> None:
+    """The robot process: Odometry at LATENCY_RATE with bursts; prints each Twist's receipt."""
+    import struct
+
+    import zenoh
+    from rosbags.typesys import Stores, get_typestore
+
+    from rasm.ros2 import TypeStore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    codec = TypeStore().codec(TYPE)
+    slow, fast = (codec.encode({"twist": {"twist": {"linear": {"x": v}}}}) for v in (0.2, 0.8))
+    config = zenoh.Config()
+    config.insert_json5("mode", '"peer"')
+    config.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(config)
+    twist = "geometry_msgs/msg/Twist"
+
+    def on_twist(sample) -> None:
+        received = time.time()
+        message = store.deserialize_cdr(sample.payload.to_bytes(), twist)
+        print(json.dumps({"n": message.angular.z, "t": received}), flush=True)
+
+    session.declare_subscriber(
+        f"0/cmd_vel/geometry_msgs::msg::dds_::Twist_/{store.hash_rihs01(twist)}", on_twist)
+    publisher = session.declare_publisher(
+        f"0/odom/nav_msgs::msg::dds_::Odometry_/{store.hash_rihs01(TYPE)}")
+    print("listening", flush=True)
+    while not publisher.matching_status.matching:
+        time.sleep(0.01)
+    period, burst = 1.0 / LATENCY_RATE, int(LATENCY_RATE / BURSTS_PER_S)
+    start = time.monotonic()
+    for i in range(int(seconds * LATENCY_RATE)):
+        data = fast if i % burst < 4 else slow
+        publisher.put(data, attachment=struct.pack("<qqB16s", i + 1, time.time_ns(), 16,
+                                                   bytes(16)))
+        time.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))
+    time.sleep(0.5)  # the last Twists
+    session.close()
+
+
+def latency(seconds: float) -> list[float]:
+    """Detect-to-act latencies (ms) of a loop managing the robot process over Zenoh."""
+    import re
+
+    from rasm import Platform
+    from rasm.testing.servers import free_port
+
+    port = str(free_port())
+    process = subprocess.Popen(
+        [sys.executable, __file__, "robot", port, str(seconds)],
+        stdout=subprocess.PIPE, text=True,
+    )
+    assert process.stdout is not None
+    process.stdout.readline()  # "listening"
+    detected: dict[int, float] = {}
+
+    def on_record(_time: float, record: dict) -> None:
+        if record.get("anomaly"):
+            detected[int(re.findall(r"\d+", record["explanation"])[0])] = time.time()
+
+    with tempfile.TemporaryDirectory() as tmp:
+        app = write_latency_app(Path(tmp) / "latency")
+        platform = Platform(app, transport=f"zenoh://127.0.0.1:{port}", clock="wall",
+                            state_dir=Path(tmp) / "state", low_latency=True)
+        platform.on_record.append(on_record)
+        platform.run(seconds + 1.0)
+    out, _ = process.communicate(timeout=30)
+    acted = {int(item["n"]): item["t"] for item in map(json.loads, out.splitlines())}
+    return [(acted[n] - t) * 1000 for n, t in detected.items() if n in acted]
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[max(0, min(len(ordered) - 1, -(-len(ordered) * q // 100) - 1))]
+
+
+# -- rasm check on a bag ------------------------------------------------------------------------
+def check_rates(count: int) -> tuple[float, float]:
+    """(rosbags decode, rasm check) messages/s on one MCAP bag of ``count`` Odometry."""
+    import contextlib
+    import io
+
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from rasm.cli import main as rasm_main
+    from rasm.ros2 import TypeStore
+
+    codec = TypeStore().codec(TYPE)
+    with tempfile.TemporaryDirectory() as tmp:
+        app = write_latency_app(Path(tmp) / "latency")
+        bag = Path(tmp) / "bag"
+        with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            connection = writer.add_connection(TOPIC, TYPE, typestore=TypeStore().rosbags)
+            for i in range(count):
+                speed = 0.8 if i % 50 < 4 else 0.2
+                data = codec.encode({"header": {"stamp": {"sec": i // 1000}},
+                                     "pose": {"covariance": [0.01] * 36},
+                                     "twist": {"twist": {"linear": {"x": speed}}}})
+                writer.write(connection, 1_700_000_000_000_000_000 + i * 5_000_000, data)
+        theirs, ours = [], []
+        for _ in range(RUNS):
+            start = time.perf_counter()
+            with AnyReader([bag]) as reader:
+                n = sum(1 for c, _, raw in reader.messages() if reader.deserialize(raw, c.msgtype))
+            theirs.append(n / (time.perf_counter() - start))
+            start = time.perf_counter()
+            with contextlib.redirect_stdout(io.StringIO()):
+                code = rasm_main(["check", str(app / "speed.rv"), str(bag), "--app", str(app),
+                                  "--format", "json"])
+            assert code == 0
+            ours.append(count / (time.perf_counter() - start))
+    return statistics.median(theirs), statistics.median(ours)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args[:1] == ["publish"]:
         publish(args[1], args[2], int(args[3]))
         return 0
+    if args[:1] == ["robot"]:
+        robot(args[1], float(args[2]))
+        return 0
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=20_000, help="messages per run")
+    parser.add_argument("--seconds", type=float, default=30.0, help="latency run length")
+    parser.add_argument("--only", choices=["ingest", "latency", "check"], default=None)
     options = parser.parse_args(args)
+    if options.only in (None, "latency"):
+        delays = latency(options.seconds)
+        print(f"\nDetect-to-act over Zenoh at {LATENCY_RATE:.0f} records/s, ms "
+              f"({len(delays)} adaptations)")
+        for q in (50, 90, 99):
+            print(f"p{q:<27} {percentile(delays, q):>10.2f}")
+        print(f"latency_p99_ms     {percentile(delays, 99):.2f}   (goal < 5)")
+    if options.only in (None, "check"):
+        decode, check = check_rates(options.count)
+        print(f"\nrasm check on a bag ({options.count} {TYPE}, MCAP), messages/s")
+        print(f"{'rosbags AnyReader':<28} {decode:>10,.0f}")
+        print(f"{'rasm check --app':<28} {check:>10,.0f}")
+        print(f"check_ratio        {check / decode:.2f}   (goal >= 0.70)")
+    if options.only not in (None, "ingest"):
+        return 0
     rows = {}
     for middleware in ("zenoh", "dds"):
         for rasm in (False, True):
