@@ -13,8 +13,10 @@
 
 :class:`InfluxWriter` sends lines from a background thread in batches (``POST /write``), so the
 loop never waits for the network: :meth:`~InfluxWriter.write` only appends to a bounded queue,
-and what does not fit is dropped and counted. :meth:`InfluxWriter.to_file` writes the same lines
-to a file instead (``influx write``/``curl --data-binary @FILE`` load it later).
+and what does not fit is dropped and counted. :meth:`~InfluxWriter.write_record` queues the
+record itself: the writer's thread formats its lines with the rest of the batch.
+:meth:`InfluxWriter.to_file` writes the same lines to a file instead (``influx write``/``curl
+--data-binary @FILE`` load it later).
 
 Numbers are written as floats (``1`` as ``1.0``): InfluxDB refuses a field that changes type, and
 a knowledge key may be ``0`` once and ``0.5`` later. NaN and infinities are left out.
@@ -56,6 +58,9 @@ _log = logging.getLogger("rasm.comm.influx")
 ADAPTATION_EVENTS = ("anomaly", "planned", "legitimate", "rejected", "trusted", "executed")
 """The trace's event keys that become ``adaptation`` points."""
 
+_EVENTS = frozenset(ADAPTATION_EVENTS)
+Entry = str | tuple[float, Mapping[str, Any]]
+"""What the writer queues: a line, or a trace record whose lines it formats with its batch."""
 _NOT_KNOWLEDGE = frozenset(
     ("time", "stage", "duration", "plan", "broken_rules", "explanation", *ADAPTATION_EVENTS)
 )
@@ -119,30 +124,11 @@ def _line(
     return f"{','.join(parts)} {','.join(encoded)} {stamp}"
 
 
-def record_to_points(
-    time: float, record: Mapping[str, Any], *, precision: str = "u"
-) -> list[str]:
-    """The line-protocol lines of one trace record at ``time`` seconds (see the module doc).
-
-    ``precision`` is the timestamp unit (``s``, ``ms``, ``u``, ``ns``) the lines are written in;
-    :class:`InfluxWriter` passes its own.
-    """
-    if precision not in _PRECISION:
-        raise CommError(f"unknown precision {precision!r}: use one of {', '.join(_PRECISION)}")
-    stamp = _stamp(time, precision)
-    lines: list[str | None] = []
-    stage = record.get("stage")
-    if isinstance(stage, str) and stage:
-        lines.append(
-            _line(
-                "maple_stage",
-                {"stage": stage},
-                {"start": float(time), "duration": record.get("duration")},
-                stamp,
-            )
-        )
+def _adaptation_lines(record: Mapping[str, Any], stamp: int) -> list[str | None]:
+    """The ``adaptation`` points of a record on which some event is true."""
     plan = record.get("plan")
     plan_tag = "" if plan is None or isinstance(plan, bool) else _clean(str(plan))
+    lines = []
     for event in ADAPTATION_EVENTS:
         if record.get(event) is True:
             fields: dict[str, Any] = {"value": True}
@@ -155,10 +141,50 @@ def record_to_points(
             if isinstance(explanation, str) and explanation:
                 fields["explanation"] = explanation
             lines.append(_line("adaptation", {"event": event, "plan": plan_tag}, fields, stamp))
-    knowledge = {k: v for k, v in record.items() if k not in _NOT_KNOWLEDGE}
-    if knowledge:
-        lines.append(_line("knowledge", {}, knowledge, stamp))
-    return [line for line in lines if line is not None]
+    return lines
+
+
+def _entry_lines(entries: Iterable[Entry], factor: int) -> list[str]:
+    """The lines of a batch: a line as it is, a ``(time, record)`` as :func:`record_to_points`
+    gives it, timestamps in ``1 / factor`` seconds. One loop for the batch: a record of plain
+    knowledge (nearly every one) costs one line's formatting."""
+    lines: list[str] = []
+    for entry in entries:
+        if isinstance(entry, str):
+            lines.append(entry)
+            continue
+        time, record = entry
+        stamp = round(time * factor)
+        stage = record.get("stage")
+        if isinstance(stage, str) and stage:
+            fields = {"start": float(time), "duration": record.get("duration")}
+            line = _line("maple_stage", {"stage": stage}, fields, stamp)
+            if line is not None:
+                lines.append(line)
+        if not _EVENTS.isdisjoint(record):
+            lines.extend(line for line in _adaptation_lines(record, stamp) if line is not None)
+        knowledge = []
+        for key, value in record.items():
+            if key not in _NOT_KNOWLEDGE and key:
+                text = field_value(value)
+                if text is not None:
+                    knowledge.append(f"{escape_key(key)}={text}")
+        if knowledge:
+            lines.append(f"knowledge {','.join(knowledge)} {stamp}")
+    return lines
+
+
+def record_to_points(
+    time: float, record: Mapping[str, Any], *, precision: str = "u"
+) -> list[str]:
+    """The line-protocol lines of one trace record at ``time`` seconds (see the module doc).
+
+    ``precision`` is the timestamp unit (``s``, ``ms``, ``u``, ``ns``) the lines are written in;
+    :class:`InfluxWriter` passes its own.
+    """
+    if precision not in _PRECISION:
+        raise CommError(f"unknown precision {precision!r}: use one of {', '.join(_PRECISION)}")
+    return _entry_lines([(time, record)], _PRECISION[precision])
 
 
 def verdict_to_point(
@@ -324,7 +350,7 @@ class InfluxWriter:
         self.max_queue = max_queue
         self.stats = WriterStats()
         self._sink: _Sink = _sink or _HttpSink(url, database, precision, timeout)
-        self._queue: deque[str] = deque()
+        self._queue: deque[Entry] = deque()
         self._cond = threading.Condition()
         self._accepted = 0  # lines ever queued
         self._done = 0  # lines ever taken off the queue and sent (or failed)
@@ -351,15 +377,24 @@ class InfluxWriter:
     # -- feeding --------------------------------------------------------------------------------
     def write(self, lines: Iterable[str]) -> int:
         """Queue line-protocol lines; returns how many were queued (the rest were dropped)."""
+        return self._put(lines)
+
+    def write_record(self, time: float, record: Mapping[str, Any]) -> int:
+        """Queue one trace record; its points (see :func:`record_to_points`) are formatted with
+        the batch it goes out in, off the caller's thread. Returns 1, or 0 if it was dropped
+        (a record counts as one entry of the queue)."""
+        return self._put([(time, dict(record))])  # a copy: the caller may reuse its dict
+
+    def _put(self, entries: Iterable[Entry]) -> int:
         if self._closing:
             raise CommError(f"the InfluxDB writer for {self.url} is closed")
         queued = 0
         with self._cond:
-            for line in lines:
+            for entry in entries:
                 if len(self._queue) >= self.max_queue:
                     self.stats.dropped += 1
                     continue
-                self._queue.append(line)
+                self._queue.append(entry)
                 queued += 1
             self._accepted += queued
             if len(self._queue) >= self.batch_size:
@@ -367,10 +402,6 @@ class InfluxWriter:
             elif queued and len(self._queue) == queued:
                 self._cond.notify_all()  # the first lines of a batch start its timer
         return queued
-
-    def write_record(self, time: float, record: Mapping[str, Any]) -> int:
-        """Queue the points of one trace record (see :func:`record_to_points`)."""
-        return self.write(record_to_points(time, record, precision=self.precision))
 
     def write_verdict(self, verdict: Any) -> int:
         """Queue one verdict (anything with ``property``, ``index``, ``time``, ``value``)."""
@@ -416,7 +447,7 @@ class InfluxWriter:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _take(self) -> list[str] | None:
+    def _take(self) -> list[Entry] | None:
         with self._cond:
             while not self._queue:
                 if self._closing:
@@ -433,25 +464,30 @@ class InfluxWriter:
             return [self._queue.popleft() for _ in range(count)]
 
     def _run(self) -> None:
+        factor = _PRECISION[self.precision]
         while True:
             batch = self._take()
             if batch is None:
                 return
+            lines: list[str] = []
             try:
-                self._sink.send(batch)
+                lines = _entry_lines(batch, factor)
+                if lines:
+                    self._sink.send(lines)
                 ok = True
             except (CommError, OSError) as exc:
                 ok = False
-                _log.warning("%d point(s) not written: %s", len(batch), exc)
+                _log.warning("%d point(s) not written: %s", len(lines), exc)
             except Exception:  # a bug must not kill the thread silently: log and go on
                 ok = False
                 _log.exception("InfluxDB writer failed on a batch")
             with self._cond:
                 if ok:
-                    self.stats.written += len(batch)
-                    self.stats.batches += 1
-                else:
-                    self.stats.failed += len(batch)
+                    self.stats.written += len(lines)
+                    if lines:
+                        self.stats.batches += 1
+                else:  # not sent; a batch that could not even be formatted counts its entries
+                    self.stats.failed += len(lines) or len(batch)
                 self._done += len(batch)
                 if not self._queue:
                     self._urgent = False

@@ -518,9 +518,9 @@ class RedisStorage(Storage):
 
     def register_knowledge_update(self, key: str, sample: Sample) -> None:
         """Count one sample as persisted (its knowledge base already wrote it to Redis)."""
-        self._buffer(key, sample)
+        self.buffer(key, sample)
 
-    def _buffer(self, key: str, sample: Sample) -> None:
+    def buffer(self, key: str, sample: Sample) -> None:
         with self._count_lock:
             self._count += 1
 

@@ -20,12 +20,20 @@ import sqlite3
 import sys
 import threading
 from collections import deque
+from itertools import repeat
 from pathlib import Path
 
 from rasm.errors import KnowledgeError
 from rasm.knowledge.base import KnowledgeBase, Sample
 from rasm.knowledge.storage import Storage
-from rasm.knowledge.values import Declaration, decode, encode, infer_type, make_check
+from rasm.knowledge.values import (
+    Declaration,
+    decode,
+    encode,
+    encode_all,
+    infer_type,
+    make_check,
+)
 
 _log = logging.getLogger("rasm.knowledge")
 
@@ -131,7 +139,8 @@ class SqliteStorage(Storage):
 
     # -- buffering ------------------------------------------------------------------------------
 
-    def _buffer(self, key: str, sample: Sample) -> None:
+    def buffer(self, key: str, sample: Sample) -> None:
+        """Buffer a sample a knowledge base already accepted (see :meth:`Storage.buffer`)."""
         with self._buf_lock:
             queue = self._pending.get(key)
             if queue is None:
@@ -142,7 +151,8 @@ class SqliteStorage(Storage):
         """Buffer one sample of ``key``, checked against its declaration (the attached knowledge
         base's, else the stored one, else inferred from this value) and its last time.
 
-        An attached knowledge base buffers its registrations itself, through a cheaper path.
+        An attached knowledge base, or the Storage Manager, buffers what a knowledge base
+        accepted through the cheaper :meth:`buffer`.
         """
         if self._db is None:
             raise KnowledgeError(f"knowledge file {self.path} is closed")
@@ -174,8 +184,9 @@ class SqliteStorage(Storage):
         """Write every buffered sample and changed declaration in ONE transaction, prune each
         key to ``keep`` rows, and return how many samples were written.
 
-        On a failure nothing is written, the samples go back to the buffer and
-        :class:`KnowledgeError` says why.
+        The batch goes to SQLite as one ``executemany`` per table, its values encoded key by
+        key in one call of the JSON encoder each. On a failure nothing is written, the samples
+        go back to the buffer and :class:`KnowledgeError` says why.
         """
         with self._db_lock:
             db = self._open_db()
@@ -188,15 +199,22 @@ class SqliteStorage(Storage):
             kb = self._kb
             if kb is not None:
                 known.update(kb.declarations())
+            for key, queue in batch.items():
+                if key not in known:  # buffered without a declaration: its first value's type
+                    known[key] = Declaration(key, infer_type(queue[0].value))
             changed = [d for key, d in known.items() if self._written.get(key) != d]
             if not batch and not changed:
                 return 0
             rows: list[tuple[str, float, str, str]] = []
             counts: dict[str, int] = {}
             for key, queue in batch.items():
-                decl = known.get(key) or Declaration(key, infer_type(queue[0].value))
-                rows.extend((key, s.time, decl.type, encode(s.value)) for s in queue)
+                times, values = zip(*queue, strict=True)
+                kind = known[key].type
+                rows.extend(zip(repeat(key), times, repeat(kind), encode_all(values)))
                 counts[key] = self._counts.get(key, 0) + len(queue)
+            # the oldest rows of each key beyond `keep` (the index on (key, seq) finds them)
+            pruned = [(key, count - self.keep) for key, count in counts.items()
+                      if count > self.keep]
             try:
                 db.execute("BEGIN IMMEDIATE")
                 db.executemany(
@@ -206,15 +224,11 @@ class SqliteStorage(Storage):
                 db.executemany(
                     "INSERT INTO samples (key, time, type, value) VALUES (?, ?, ?, ?)", rows
                 )
-                for key, count in counts.items():
-                    if count > self.keep:
-                        # the index on (key, seq) makes this O(log n + pruned rows)
-                        db.execute(
-                            "DELETE FROM samples WHERE seq IN (SELECT seq FROM samples "
-                            "WHERE key = ? ORDER BY seq LIMIT ?)",
-                            (key, count - self.keep),
-                        )
-                        counts[key] = self.keep
+                db.executemany(
+                    "DELETE FROM samples WHERE seq IN (SELECT seq FROM samples "
+                    "WHERE key = ? ORDER BY seq LIMIT ?)",
+                    pruned,
+                )
                 db.execute("COMMIT")
             except sqlite3.Error as exc:
                 if db.in_transaction:
@@ -222,6 +236,7 @@ class SqliteStorage(Storage):
                 self._unbuffer(batch)
                 raise KnowledgeError(f"cannot write knowledge to {self.path}: {exc}") from exc
             self._counts.update(counts)
+            self._counts.update((key, self.keep) for key, _ in pruned)
             for decl in changed:
                 self._written[decl.key] = decl
             with self._buf_lock:

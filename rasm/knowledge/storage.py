@@ -2,7 +2,8 @@
 
 The seed names two operations: ``registerKnowledgeUpdate`` (prepare data for pushing) and
 ``updatePersistency`` (push it). Here the first only buffers, so it is cheap enough to run on
-every registration; the second writes what was buffered. Engines (SQLite today, Redis later)
+every registration (:meth:`Storage.buffer` skips its checks for values a knowledge base already
+accepted); the second writes what was buffered, as one batch. Engines (SQLite today, Redis later)
 subclass :class:`Storage`.
 """
 
@@ -40,8 +41,9 @@ class Storage(ABC):
         """
 
     @abstractmethod
-    def _buffer(self, key: str, sample: Sample) -> None:
-        """Buffer a sample the attached knowledge base already checked (the cheap path)."""
+    def buffer(self, key: str, sample: Sample) -> None:
+        """Buffer a sample a knowledge base already accepted: checked against its declaration,
+        not older than the key's last. The cheap path, taken for every value stored."""
 
     @abstractmethod
     def _close(self) -> None:
@@ -60,7 +62,7 @@ class Storage(ABC):
             if self._kb is not None:
                 raise KnowledgeError("this storage is already attached to another knowledge base")
             self._kb = kb
-            self._subscription = kb.subscribe(self._buffer)
+            self._subscription = kb.subscribe(self.buffer)
 
     def detach(self) -> None:
         """Stop buffering the attached knowledge base's registrations."""

@@ -33,7 +33,7 @@ class StorageManager(Block):
     def register_knowledge_update(self, key: str, sample: Sample) -> None:
         if self.storage is None:
             return
-        self.storage.register_knowledge_update(key, sample)
+        self.storage.buffer(key, sample)  # the knowledge base checked it
         if self._idle:
             self._idle = False
             self.send("update_registered")

@@ -13,8 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.knowledge import Declaration, KnowledgeBase, KnowledgeError, Sample, SqliteStorage
+from rasm.knowledge.values import encode, encode_all
 
-from .support import VALUES, same
+from .support import VALUES, json_values, same
 
 SETTINGS = settings(max_examples=60, deadline=None)
 
@@ -190,6 +191,30 @@ def test_register_knowledge_update_checks_type_and_time_then_persists():
             with pytest.raises(KnowledgeError, match="expected int"):
                 storage.register_knowledge_update("v", Sample(3.0, True))
         assert restored(path).history("v") == [Sample(1.0, 2), Sample(2.0, 3)]
+
+
+def test_samples_a_knowledge_base_accepted_are_buffered_as_they_are(tmp_path):
+    # the Storage Manager's path: the storage is not attached, the knowledge base checked them
+    path = tmp_path / "k.db"
+    kb = KnowledgeBase()
+    kb.declare("speed", "float", history=20)
+    with SqliteStorage(path) as storage:
+        kb.subscribe(storage.buffer)
+        for i in range(5):
+            kb.register_knowledge("speed", i, i / 10)  # ints: the knowledge base keeps floats
+        kb.register_knowledge("mode", "a, b", 0.5)  # undeclared: its type is its first value's
+        assert storage.update_persistency() == 6
+    assert rows(path, "speed") == [(i / 10, f"{float(i)}") for i in range(5)]
+    assert rows(path, "mode") == [(0.5, '"a, b"')]
+    back = restored(path)
+    assert back.declaration("mode") == Declaration("mode", "str")
+    assert [s.value for s in back.history("speed")] == [0.0, 1.0, 2.0, 3.0, 4.0]
+
+
+@SETTINGS
+@given(st.lists(json_values, max_size=12))
+def test_a_batch_is_encoded_as_each_value_alone(values):
+    assert encode_all(values) == [encode(value) for value in values]
 
 
 # -- restore rules --------------------------------------------------------------------------------
