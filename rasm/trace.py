@@ -1,8 +1,9 @@
 """The adaptation trace: JSON lines, one record a line, ``time`` first, then what it updates.
 
-Written by :class:`TraceWriter` (``rasm run --trace``), read by :func:`read_trace` and
-:func:`parse_trace` (``rasm check``, ``rasm report``), held in memory as a :class:`Trace` of
-records (``run_app``). A record in memory is what :func:`trace_line` gives: the record as it
+Written by :class:`TraceWriter` (``rasm run --trace``), read whole by :func:`read_trace` and
+:func:`parse_trace` (``rasm report``) or record by record by :func:`read_records` and
+:func:`parse_records` (``rasm check``), held in memory as a :class:`Trace` of records
+(``run_app``). A record in memory is what :func:`trace_line` gives: the record as it
 reads back from its line, so a trace in memory and the same trace read from its file are equal.
 
 A line holds ``time`` rounded to the nanosecond and every other value as JSON has it; a
@@ -23,10 +24,11 @@ import math
 import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from json.scanner import make_scanner
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from rasm.errors import Location, Misfit, SourceError, SourceErrors, read_utf8
+from rasm.errors import Location, Misfit, RasmError, SourceError, SourceErrors, read_utf8
 from rasm.jsontext import JsonProblem, parse_json
 from rasm.properties.times import FAST, Seconds, nanoseconds
 from rasm.values import fit, wanted
@@ -35,8 +37,8 @@ if TYPE_CHECKING:
     from rasm.platform.runtime import RunSummary
 
 __all__ = [
-    "MAX_REPORTED", "Trace", "TraceWriter", "format_line", "parse_trace", "read_trace",
-    "trace_line",
+    "MAX_REPORTED", "MalformedTrace", "Trace", "TraceWriter", "format_line", "parse_records",
+    "parse_trace", "read_records", "read_trace", "scan_records", "trace_line",
 ]
 
 
@@ -189,20 +191,43 @@ def _column(line: str, key: str) -> int:
     return position + 1 if position >= 0 else 1
 
 
-def parse_trace(
+# the classes a JSON value that fits each kind has (``fit`` decides for any other class)
+_FITTING = {
+    "float": (int, float),  # an int for a float is kept exact; NaN is a number here
+    "int": (int,),
+    "bool": (bool,),
+    "str": (str,),
+    "any": (bool, int, float, str),
+}
+# json.loads without its per-call wrapping: the C scanner JSONDecoder itself calls
+_scan = make_scanner(json.JSONDecoder())
+
+
+def _decode_plain(line: str) -> object:
+    """The JSON value of a line that is one JSON text and its line break, else None (then the
+    full parser reads the line and says what is wrong with it)."""
+    try:
+        value, end = _scan(line, 0)
+    except (StopIteration, ValueError, RecursionError):
+        return None
+    return None if line[end:].strip(" \t\n\r") else value
+
+
+def parse_records(
     lines: Iterable[str],
     signals: Mapping[str, str] | None = None,
     *,
     source: str = "<trace>",
-) -> list[tuple[float, dict]]:
-    """Parse trace lines into ``(time, values)`` records, checking them against ``signals``.
+) -> Iterator[tuple[float, dict]]:
+    """Parse trace lines into ``(time, values)`` records one by one, checking them against
+    ``signals``: what :func:`parse_trace` gives, without holding the trace.
 
     ``signals`` maps signal names to float | int | bool | str | any (a monitor's
-    ``spec.signals``); other keys are kept unchecked. Raises :class:`SourceErrors` listing every
-    malformed record (at most :data:`MAX_REPORTED`).
+    ``spec.signals``); other keys are kept unchecked. A malformed record is not given; once the
+    lines are read, :class:`SourceErrors` lists every one (at most :data:`MAX_REPORTED`).
     """
     signals = signals or {}
-    records: list[tuple[float, dict]] = []
+    fitting = {name: _FITTING.get(kind, ()) for name, kind in signals.items()}
     errors: list[SourceError] = []
     hidden = 0
     last_time = -math.inf
@@ -216,29 +241,36 @@ def parse_trace(
             hidden += 1
 
     for number, line in enumerate(lines, start=1):
-        if not line.strip():
-            continue
-        try:
-            record = parse_json(line.rstrip("\r\n"))
-        except JsonProblem as exc:
-            fail(exc.message, number, exc.column)
-            continue
+        record = _decode_plain(line)
+        if record is None:
+            if not line.strip():
+                continue
+            try:
+                record = parse_json(line.rstrip("\r\n"))
+            except JsonProblem as exc:
+                fail(exc.message, number, exc.column)
+                continue
         if not isinstance(record, dict):
             fail(f"a record must be a JSON object, not {type(record).__name__}", number)
             continue
         time = record.pop("time", None)
-        if time is None:
-            fail("record without 'time' (seconds, a number)", number)
-            continue
-        if isinstance(time, bool) or not isinstance(time, int | float) or time != time:
-            fail(f"'time' must be a number, not {json.dumps(time)}", number, _column(line, "time"))
-            continue
-        if isinstance(time, float) and math.isinf(time):
-            fail(f"'time' must be finite, not {json.dumps(time)}", number, _column(line, "time"))
-            continue
-        if isinstance(time, float) and not -FAST < time < FAST:
-            time = _exact_time(line, time)
-        ns = nanoseconds(time)
+        if isinstance(time, float) and -FAST < time < FAST:
+            ns = round(time * 1e9)  # nanoseconds(time), written out for the common case
+        else:
+            if time is None:
+                fail("record without 'time' (seconds, a number)", number)
+                continue
+            if isinstance(time, bool) or not isinstance(time, int | float) or time != time:
+                fail(f"'time' must be a number, not {json.dumps(time)}", number,
+                     _column(line, "time"))
+                continue
+            if isinstance(time, float) and math.isinf(time):
+                fail(f"'time' must be finite, not {json.dumps(time)}", number,
+                     _column(line, "time"))
+                continue
+            if isinstance(time, float):
+                time = _exact_time(line, time)
+            ns = nanoseconds(time)
         if ns < last_ns:
             fail(
                 f"time {time} goes back in time (the previous record has {last_time})",
@@ -248,10 +280,13 @@ def parse_trace(
             continue
         bad = False
         for key, value in record.items():
-            kind = signals.get(key)
-            if kind is not None and not _fits(value, kind):
+            classes = fitting.get(key)
+            # the class test settles what JSON gives; fit() judges anything else
+            if classes is not None and value.__class__ not in classes and not _fits(
+                value, signals[key]
+            ):
                 fail(
-                    f"{key!r} must be {wanted(kind)}, not {json.dumps(value)}",
+                    f"{key!r} must be {wanted(signals[key])}, not {json.dumps(value)}",
                     number,
                     _column(line, key),
                 )
@@ -259,7 +294,7 @@ def parse_trace(
         if bad:
             continue
         last_time, last_ns = time, ns
-        records.append((time, record))
+        yield time, record
     if errors:
         if hidden:
             errors.append(SourceError(
@@ -267,18 +302,84 @@ def parse_trace(
                 Location(source),
             ))
         raise SourceErrors(errors)
-    return records
+
+
+class MalformedTrace(RasmError):
+    """A line :func:`scan_records` cannot pass on: :func:`parse_records` names every such line."""
+
+
+def scan_records(
+    lines: Iterable[str],
+    unchecked: Mapping[str, str] | None = None,
+    *,
+    source: str = "<trace>",
+) -> Iterator[tuple[float, dict]]:
+    """The records of trace lines, for a monitor that checks them as it goes: the fast reader
+    of ``rasm check``.
+
+    Each line is decoded and its ``time`` taken out (read exactly from the text where a float
+    loses digits); the values of ``unchecked`` signals (name -> kind) are checked. The rest of
+    :func:`parse_records`' checks, the time's type and order and the values of the signals a
+    property reads, are the monitor's, which refuses such a record (``Monitor.feed`` raises).
+    A line that is not a JSON object with a ``time``, or a value that does not fit, raises
+    :class:`MalformedTrace`. Either way, :func:`parse_records` then reports every malformed
+    line of the trace.
+    """
+    unchecked = unchecked or {}
+    for number, line in enumerate(lines, start=1):
+        record = _decode_plain(line)
+        if record is None:
+            if not line.strip():
+                continue
+            try:
+                record = parse_json(line.rstrip("\r\n"))
+            except JsonProblem:
+                raise MalformedTrace(f"{source}:{number}: not a JSON text") from None
+        if not isinstance(record, dict):
+            raise MalformedTrace(f"{source}:{number}: not a JSON object")
+        time = record.pop("time", None)
+        if time is None:
+            raise MalformedTrace(f"{source}:{number}: no 'time'")
+        if isinstance(time, float) and not -FAST < time < FAST and math.isfinite(time):
+            time = _exact_time(line, time)
+        if unchecked:
+            for key, kind in unchecked.items():
+                if key in record and not _fits(record[key], kind):
+                    raise MalformedTrace(f"{source}:{number}: {key!r} does not fit")
+        yield time, record
+
+
+def parse_trace(
+    lines: Iterable[str],
+    signals: Mapping[str, str] | None = None,
+    *,
+    source: str = "<trace>",
+) -> list[tuple[float, dict]]:
+    """Parse trace lines into ``(time, values)`` records, checking them against ``signals``.
+
+    ``signals`` maps signal names to float | int | bool | str | any (a monitor's
+    ``spec.signals``); other keys are kept unchecked. Raises :class:`SourceErrors` listing every
+    malformed record (at most :data:`MAX_REPORTED`).
+    """
+    return list(parse_records(lines, signals, source=source))
+
+
+def read_records(
+    path: str | Path, signals: Mapping[str, str] | None = None
+) -> Iterator[tuple[float, dict]]:
+    """Read a JSONL trace file record by record; see :func:`parse_records`."""
+    path = Path(path)
+    try:
+        with path.open(encoding="utf-8") as handle:
+            yield from parse_records(handle, signals, source=str(path))
+    except UnicodeDecodeError:
+        read_utf8(path)  # read whole, to name the line and column of the first bad byte
+        raise
 
 
 def read_trace(path: str | Path, signals: Mapping[str, str] | None = None) -> list:
     """Read a JSONL trace file; see :func:`parse_trace`."""
-    path = Path(path)
-    try:
-        with path.open(encoding="utf-8") as handle:
-            return parse_trace(handle, signals, source=str(path))
-    except UnicodeDecodeError:
-        read_utf8(path)  # read whole, to name the line and column of the first bad byte
-        raise
+    return list(read_records(path, signals))
 
 
 # ----------------------------------------------------------------------------- in memory

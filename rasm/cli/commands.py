@@ -79,36 +79,34 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes
-    from rasm.properties.check import check_records, format_json, format_text, format_verdicts
+    # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes.
+    # A JSONL trace is read record by record, never held whole (explaining the first
+    # violations reads it once more); a recording or an MCAP trace is decoded first.
+    from rasm.properties.check import check_file, check_stream, format_json, format_text
     from rasm.properties.loader import load_specification
-    from rasm.trace import parse_trace, read_trace
 
     if args.app is not None and args.topics is not None:
         raise UsageError("give a recording's topics by --app APP or by --topics MAP.yaml, not both")
     text = read_utf8(args.props)
     spec = load_specification(text, source=args.props)
-    if _is_recording(args.trace):
-        records = _recorded_records(args, spec.signals)
+    explain = args.format == "text" and not args.verdicts
+    named = args.format == "text" or args.verdicts
+    verdicts = sys.stdout if args.verdicts else None
+    if _is_recording(args.trace) or args.trace.endswith(".mcap"):
+        records = _recorded_or_mcap_records(args, spec.signals)
+        report = check_stream(spec, records, trace=args.trace,
+                              again=(lambda: records) if explain else None,
+                              named=named, verdicts=verdicts)
     elif args.app is not None or args.topics is not None:
         raise UsageError(
             f"{args.trace}: --app and --topics map a rosbag2 recording's topics to signals; a "
             "JSONL trace names its signals itself"
         )
-    elif args.trace.endswith(".mcap"):
-        from rasm.trace_mcap import read_mcap_trace
-
-        records = parse_trace(read_mcap_trace(args.trace), spec.signals, source=args.trace)
     else:
-        records = read_trace(args.trace, spec.signals)
-    explain = args.format == "text" and not args.verdicts
-    report = check_records(spec, records, trace=args.trace, explain_violations=explain)
-    if args.verdicts:
-        sys.stdout.write(format_verdicts(report))
-    elif args.format == "json":
-        sys.stdout.write(format_json(report))
-    else:
-        sys.stdout.write(format_text(report))
+        report = check_file(spec, args.trace, explain_violations=explain, named=named,
+                            verdicts=verdicts)
+    if not args.verdicts:
+        sys.stdout.write(format_json(report) if args.format == "json" else format_text(report))
     return EXIT_FAILED if report.failed else EXIT_OK
 
 
@@ -126,8 +124,19 @@ def _is_recording(path: str) -> bool:
     return not is_mcap_trace(target)
 
 
-def _recorded_records(args: argparse.Namespace, signals: dict[str, str]) -> list:
-    """The records of a rosbag2 recording, read with the probes of --app or --topics."""
+def _recorded_or_mcap_records(args: argparse.Namespace, signals: dict[str, str]) -> list:
+    """The records of a rasm MCAP trace, or of a rosbag2 recording read with the probes of
+    --app or --topics."""
+    if not _is_recording(args.trace):
+        if args.app is not None or args.topics is not None:
+            raise UsageError(
+                f"{args.trace}: --app and --topics map a rosbag2 recording's topics to "
+                "signals; a rasm trace names its signals itself"
+            )
+        from rasm.trace import parse_trace
+        from rasm.trace_mcap import read_mcap_trace
+
+        return parse_trace(read_mcap_trace(args.trace), signals, source=args.trace)
     from rasm.platform.replay import recorded_trace
 
     if args.app is not None:

@@ -8,10 +8,16 @@ violated, in error or not judged; satisfied and inconclusive alone exit 0.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import shutil
+import tempfile
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import islice
+from typing import TextIO
 
-from rasm.properties.ast import Specification
+from rasm.errors import SpecError
+from rasm.properties.ast import Expr, Future, Specification, Until, children
+from rasm.properties.codegen import checked_signals
 from rasm.properties.explain import Explanation, explain
 from rasm.properties.monitor import Monitor, PropertyRun
 from rasm.properties.outcome import (
@@ -23,26 +29,36 @@ from rasm.properties.outcome import (
     PropertyOutcome,
 )
 from rasm.properties.printer import format_value
+from rasm.properties.times import nanoseconds
 
-__all__ = ["CheckReport", "PropertyReport", "check_records", "format_json", "format_text",
-           "format_verdicts"]
+__all__ = ["CheckReport", "PropertyReport", "check_file", "check_records", "check_stream",
+           "format_json", "format_text", "format_verdicts"]
 
 # the order in which reports count the states: the failing ones first
 STATE_ORDER = (VIOLATED, ERROR, NOT_JUDGED, INCONCLUSIVE, SATISFIED)
 EXPLAINED = 5  # violations explained in full per property in the text report
 SUMMARISED = 100  # further violations explained in one line each
+NAMED = EXPLAINED + SUMMARISED + 20  # violations the text report names, explained or not
+ERRORS_NAMED = 25  # records in error the text report names
+CHUNK = 16_384  # records checked between two takes of the verdicts (check_stream)
 
 
 @dataclass
 class PropertyReport:
     """One property over one trace: its verdicts counted in ``outcome``, its violations and
-    errors by record."""
+    errors by record.
+
+    ``violations`` lists every violation, or, from a streamed check of the text report, the
+    ones it names (``outcome.violations`` counts them all); ``first_errors`` the first records
+    in error, with their times and why. ``run`` holds every verdict (None when streamed).
+    """
 
     name: str
     location: str
     outcome: PropertyOutcome
     violations: list[tuple[int, float]]  # (index, time) of each violation (errors apart)
-    run: PropertyRun
+    run: PropertyRun | None
+    first_errors: list[tuple[int, float, str]] = field(default_factory=list)
     explanations: list[Explanation] = field(default_factory=list)
 
     @classmethod
@@ -62,7 +78,8 @@ class PropertyReport:
             first_error=errors[min(errors)] if errors else None,
             missing=tuple(run.missing) if run.start is None else (),
         )
-        return cls(name, location, outcome, [(i, times[i]) for i in violated], run)
+        first_errors = [(i, times[i], errors[i]) for i in sorted(errors)[:ERRORS_NAMED]]
+        return cls(name, location, outcome, [(i, times[i]) for i in violated], run, first_errors)
 
     @property
     def verdict(self) -> str:
@@ -83,8 +100,11 @@ class PropertyReport:
 
     @property
     def errors(self) -> dict[int, str]:
-        """Record index -> why the property could not be evaluated there."""
-        return self.run.errors
+        """Record index -> why the property could not be evaluated there (the first ones only
+        when the check was streamed)."""
+        if self.run is not None:
+            return self.run.errors
+        return {index: why for index, _, why in self.first_errors}
 
     @property
     def missing(self) -> tuple[str, ...]:
@@ -137,6 +157,188 @@ def check_records(
     return CheckReport(spec.source, trace, len(records), reports, times)
 
 
+class _Times:
+    """The times of the records whose verdicts some property has still to give."""
+
+    def __init__(self) -> None:
+        self.held: list[float] = []
+        self.first = 0  # the index of held[0]
+
+    def __getitem__(self, index: int) -> float:
+        return self.held[index - self.first]
+
+    def forget_before(self, index: int) -> None:
+        del self.held[: index - self.first]
+        self.first = max(self.first, index)
+
+
+class _Tally:
+    """One property's verdicts counted as the monitor hands them out (see :meth:`add`)."""
+
+    def __init__(self, name: str, named: int | None, verdicts: TextIO | None) -> None:
+        self.outcome = PropertyOutcome(name)
+        self.named = named  # violations kept: None all, else the first ones
+        self.violations: list[tuple[int, float]] = []
+        self.first_errors: list[tuple[int, float, str]] = []
+        self.verdicts = verdicts
+        self.json_name = json.dumps(name)
+
+    def add(self, first: int, values: list, errors: dict[int, str], times: _Times) -> None:
+        """Count the verdicts of records ``first``, ``first + 1``, … (errors by index)."""
+        outcome = self.outcome
+        outcome.judged += len(values)
+        outcome.inconclusive += values.count(None)
+        violated = values.count(False) - len(errors)  # an error's value is False too
+        outcome.violations += violated
+        if violated and (self.named is None or len(self.violations) < self.named):
+            found = (first + k for k, v in enumerate(values) if v is False)
+            found = (j for j in found if j not in errors)
+            room = None if self.named is None else self.named - len(self.violations)
+            self.violations.extend((j, times[j]) for j in islice(found, room))
+        if errors:
+            outcome.errors += len(errors)
+            if outcome.first_error is None:
+                outcome.first_error = errors[min(errors)]
+            room = ERRORS_NAMED - len(self.first_errors)
+            self.first_errors.extend((j, times[j], errors[j]) for j in sorted(errors)[:room])
+        if self.verdicts is not None:
+            name, write = self.json_name, self.verdicts.write
+            for k, value in enumerate(values):
+                j = first + k
+                write(_verdict_line(name, j, times[j], value, errors.get(j)))
+
+
+def check_stream(
+    spec: Specification,
+    records: Iterable[tuple[float, Mapping[str, object]]],
+    *,
+    trace: str = "<trace>",
+    again: Callable[[], Iterable[tuple[float, Mapping[str, object]]]] | None = None,
+    named: bool = False,
+    verdicts: TextIO | None = None,
+) -> CheckReport:
+    """Check every property of ``spec`` on ``records`` read one by one, as :func:`check_records`
+    does on a list, holding no more of the trace than the properties' windows need.
+
+    ``again`` gives the records once more, to explain the first violations (from the start of
+    the trace to a little past the last one explained); without it nothing is explained.
+    ``named``: keep only the violations the text report names (``outcome`` counts them all).
+    ``verdicts``: write every verdict there, as :func:`format_verdicts` would.
+    """
+    monitor = Monitor(spec)
+    spools: list = []
+    if verdicts is not None:
+        # the lines go out property by property, and only for a trace read to its end without
+        # a malformed record: until then they wait in temporary files
+        spools = [tempfile.TemporaryFile("w+", encoding="utf-8") for _ in spec.properties]
+    outputs = spools or [None] * len(spec.properties)
+    limit = NAMED if named else None
+    tallies = [_Tally(p.name, limit, out) for p, out in zip(spec.properties, outputs, strict=True)]
+    times = _Times()
+    count = 0
+
+    def take() -> None:
+        for k, tally in enumerate(tallies):
+            first, values, errors = monitor.take(k)
+            tally.add(first, values, errors, times)
+        # a property not started yet gives its first verdict at a record still to come
+        owed = [s + monitor.verdicts_taken(k) for k, s in enumerate(monitor.starts)
+                if s is not None]
+        times.forget_before(min(owed, default=count))
+
+    try:
+        records = iter(records)
+        while chunk := list(islice(records, CHUNK)):
+            monitor.feed(chunk)
+            times.held.extend([t for t, _ in chunk])
+            count += len(chunk)
+            take()
+        monitor.settle()
+        take()
+        for spool in spools:
+            spool.seek(0)
+            shutil.copyfileobj(spool, verdicts)
+    finally:
+        for spool in spools:
+            spool.close()
+    reports = []
+    for k, (prop, tally) in enumerate(zip(spec.properties, tallies, strict=True)):
+        if monitor.starts[k] is None:
+            tally.outcome.missing = monitor.missing(prop.name)
+        reports.append(PropertyReport(prop.name, str(prop.location), tally.outcome,
+                                      tally.violations, None, tally.first_errors))
+    if again is not None:
+        _explain_first(spec, reports, again)
+    return CheckReport(spec.source, trace, count, reports)
+
+
+def check_file(
+    spec: Specification,
+    path: str,
+    *,
+    explain_violations: bool = True,
+    named: bool = False,
+    verdicts: TextIO | None = None,
+) -> CheckReport:
+    """``rasm check``: :func:`check_stream` of the JSONL trace ``path``, read line by line.
+
+    The lines are read by :func:`rasm.trace.scan_records`, whose records the monitor checks
+    as it goes (no value is checked twice). At a malformed record the check stops and the
+    trace is read again by :func:`rasm.trace.read_records`, whose :class:`SourceErrors` name
+    every malformed record, each at its line.
+    """
+    from rasm.trace import MalformedTrace, read_records, scan_records
+
+    checked = set(checked_signals(spec))
+    unchecked = {name: kind for name, kind in spec.signals.items() if name not in checked}
+    try:
+        with open(path, encoding="utf-8") as handle:
+            return check_stream(
+                spec,
+                scan_records(handle, unchecked, source=path),
+                trace=path,
+                again=(lambda: read_records(path, spec.signals)) if explain_violations else None,
+                named=named,
+                verdicts=verdicts,
+            )
+    except (MalformedTrace, SpecError, UnicodeDecodeError) as problem:
+        for _ in read_records(path, spec.signals):  # raises SourceErrors: every bad record
+            pass
+        # the full reader found nothing wrong: the fast one must not pass for it (fail closed)
+        raise SpecError(f"{path}: {problem}") from problem
+
+
+def _explain_first(spec: Specification, reports: list[PropertyReport],
+                   again: Callable[[], Iterable[tuple[float, Mapping[str, object]]]]) -> None:
+    """Explain each property's first violations from the trace read again, up to where the
+    explanations can look: past the last violation explained by twice the farthest any
+    property looks ahead (a sub-formula's value there may look that far again)."""
+    limit = EXPLAINED + SUMMARISED
+    wanted = {r.name: [i for i, _ in r.violations[:limit]] for r in reports if r.violations}
+    if not wanted:
+        return
+    last = max(i for indices in wanted.values() for i in indices)
+    reach = 2 * max(_lookahead(p.formula) for p in spec.properties)
+    prefix: list[tuple[float, Mapping[str, object]]] = []
+    end_ns = None
+    for record in again():
+        prefix.append(record)
+        ns = nanoseconds(record[0])
+        if len(prefix) == last + 1:
+            end_ns = ns + reach
+        elif end_ns is not None and ns > end_ns:
+            break  # this record closes every window the explanations look into
+    explanations = explain(spec, prefix, wanted)
+    for report in reports:
+        report.explanations = [explanations[(report.name, i)] for i in wanted.get(report.name, [])]
+
+
+def _lookahead(node: Expr) -> int:
+    """How far past a record (ns) the value of ``node`` there may depend on records."""
+    own = node.bound.high_ns if isinstance(node, (Future, Until)) else 0
+    return own + max((_lookahead(child) for child in children(node)), default=0)
+
+
 def format_json(report: CheckReport) -> str:
     """SPEC §6: one JSON object; ``verdict`` is one of the five states, ``errors`` counts the
     records where the property could not be evaluated (``first_error`` says why), ``missing``
@@ -166,15 +368,25 @@ def format_verdicts(report: CheckReport) -> str:
     the property could not be evaluated)."""
     lines = []
     for p in report.properties:
+        name = json.dumps(p.name)
         start = p.run.start or 0
         errors = p.run.errors
         for k, value in enumerate(p.run.values):
             index = start + k
-            line = {"property": p.name, "index": index, "time": report.times[index], "value": value}
-            if index in errors:
-                line["error"] = errors[index]
-            lines.append(json.dumps(line))
-    return "\n".join(lines) + ("\n" if lines else "")
+            lines.append(_verdict_line(name, index, report.times[index], value, errors.get(index)))
+    return "".join(lines)
+
+
+_VALUES = {True: "true", False: "false", None: "null"}
+
+
+def _verdict_line(name: str, index: int, time: float, value: bool | None,
+                  error: str | None) -> str:
+    """One line of ``--verdicts``, as ``json.dumps`` writes the record; ``name`` is JSON
+    already. A time is an int or a float, whose JSON is its ``repr``."""
+    tail = "}\n" if error is None else f", \"error\": {json.dumps(error)}}}\n"
+    return (f'{{"property": {name}, "index": {index}, "time": {time!r}, '
+            f'"value": {_VALUES[value]}{tail}')
 
 
 def _one_line(e: Explanation) -> str:
@@ -210,7 +422,7 @@ def format_text(report: CheckReport) -> str:
         if state == VIOLATED:
             first_index, first_time = p.violations[0]
             out.append(
-                f"  {p.name}: VIOLATED at {len(p.violations)} of {p.judged} judged records "
+                f"  {p.name}: VIOLATED at {p.outcome.violations} of {p.judged} judged records "
                 f"(first: record {first_index}, time {first_time:g})  [{p.location}]"
             )
             for e in p.explanations[:EXPLAINED]:
@@ -221,17 +433,17 @@ def format_text(report: CheckReport) -> str:
                     out.append(f"      signals: {values}")
             for e in p.explanations[EXPLAINED:]:
                 out.append(f"    at record {e.index} (time {e.time:g}): {_one_line(e)}")
-            hidden = len(p.violations) - len(p.explanations)
+            hidden = p.outcome.violations - len(p.explanations)
             if hidden > 0:
                 more = ", ".join(f"{i}" for i, _ in p.violations[len(p.explanations):][:20])
                 tail = ", …" if hidden > 20 else ""
                 out.append(f"    … and {hidden} more violations (records {more}{tail})")
-            if p.errors:
-                out.extend(_errors(p, report.times))
+            if p.outcome.errors:
+                out.extend(_errors(p))
         elif state == ERROR:
-            out.append(f"  {p.name}: ERROR at {len(p.errors)} of {p.judged} judged records: the "
+            out.append(f"  {p.name}: ERROR at {p.outcome.errors} of {p.judged} judged records: the "
                        f"checker could not evaluate it there  [{p.location}]")
-            out.extend(_errors(p, report.times))
+            out.extend(_errors(p))
         elif state == NOT_JUDGED:
             why = (f"no value for {', '.join(p.missing)} in any record" if p.missing
                    else "no record reached it")
@@ -245,14 +457,15 @@ def format_text(report: CheckReport) -> str:
     return "\n".join(out) + "\n"
 
 
-def _errors(p: PropertyReport, times: Sequence[float]) -> list[str]:
+def _errors(p: PropertyReport) -> list[str]:
     """The first records where ``p`` could not be evaluated, and why."""
-    indices = sorted(p.errors)
-    out = [f"    in error at record {i} (time {times[i]:g}): {p.errors[i]}" for i in indices[:5]]
-    if len(indices) > 5:
-        more = ", ".join(str(i) for i in indices[5:25])
-        tail = ", …" if len(indices) > 25 else ""
-        out.append(f"    … and in error at {len(indices) - 5} more records ({more}{tail})")
+    first = p.first_errors
+    out = [f"    in error at record {i} (time {t:g}): {why}" for i, t, why in first[:5]]
+    count = p.outcome.errors
+    if count > 5:
+        more = ", ".join(str(i) for i, _, _ in first[5:ERRORS_NAMED])
+        tail = ", …" if count > ERRORS_NAMED else ""
+        out.append(f"    … and in error at {count - 5} more records ({more}{tail})")
     return out
 
 

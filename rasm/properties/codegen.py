@@ -54,7 +54,7 @@ from rasm.properties.streams import (
 from rasm.properties.times import FAST
 from rasm.properties.types import TypeScope
 
-__all__ = ["Program", "generate"]
+__all__ = ["Program", "checked_signals", "generate"]
 
 
 @dataclass
@@ -635,7 +635,7 @@ def _render(line, mode: str) -> str | None:
 def _assemble(spec, gen: _Generator, blocks, finishes, events) -> str:
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure
-    used = _used(spec)
+    used = checked_signals(spec)
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     for name in used:
         if name not in events:
@@ -702,8 +702,9 @@ def _assemble(spec, gen: _Generator, blocks, finishes, events) -> str:
     return "\n".join(factory) + "\n"
 
 
-def _used(spec: Specification) -> list[str]:
-    # only the signals some property reads are held and checked: others cannot change a verdict
+def checked_signals(spec: Specification) -> list[str]:
+    """The signals the generated code reads, holds and checks the values of (with every
+    record's time): those some property reads; others cannot change a verdict."""
     used: dict[str, None] = {}
     for prop in spec.properties:
         for name in signals_of(prop.formula):

@@ -140,6 +140,7 @@ class Monitor:
         self.starts: list[int | None] = [None] * len(self.names)
         self.rejected: list[Rejection] = []
         self._values: list[list] = [[] for _ in self.names]
+        self._taken = [0] * len(self.names)  # offline: values handed out by take(), per property
         self._errors: list[dict[int, str]] = [{} for _ in self.names]
         # properties recovering from a fault, by number; offline, every reset of each
         self._recovering: dict[int, Recovery] = {}
@@ -269,12 +270,12 @@ class Monitor:
     def _fault_run(self, k: int, index: int, ns: int | None, exc: Exception) -> None:
         """:meth:`_fault` offline: values are in record order, so the property owes a value to
         every record from its last one to ``index``; ``ns`` None: while finishing."""
-        values, errors, start = self._values[k], self._errors[k], self.starts[k]
+        values, errors = self._values[k], self._errors[k]
         why = _why(exc, index if ns is not None else None)
         recovery = self._recovering.pop(k, None)
         if recovery is not None:
             recovery.until = index
-        for j in range(start + len(values), index + 1):
+        for j in range(self.starts[k] + self._taken[k] + len(values), index + 1):
             values.append(False)
             errors[j] = why
         if ns is not None:
@@ -310,30 +311,56 @@ class Monitor:
         line numbers). Returns each property's verdicts, in record order; where a property
         could not be evaluated, its value is False and ``errors`` says why.
         """
+        self.feed(records)
+        self.settle()
+        runs = []
+        for k, name in enumerate(self.names):
+            _, values, errors = self.take(k)
+            runs.append(
+                PropertyRun(name, self.starts[k], values, errors, missing=self.missing(name))
+            )
+        return runs
+
+    def feed(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> None:
+        """Check the next records of a trace offline, as :meth:`run` does; call it again with
+        the records that follow, then :meth:`settle`. :meth:`take` hands out the verdicts
+        decided so far, so a trace can be checked part by part without holding it."""
         if self._finished:
             raise SpecError("this monitor has finished; compile a new one for a new trace")
+        self.step = self._refuse  # a trace is checked offline or online, not both
         self._run(records)
+
+    def settle(self) -> None:
+        """The end of a trace fed offline: decide what is still open (``None``: inconclusive)."""
+        if self._finished:
+            raise SpecError("this monitor has finished; compile a new one for a new trace")
         self._finished = True
         self.step = self._refuse
         self._finish_run()
-        for k, resets in enumerate(self._resets_run):
-            values, errors, start = self._values[k], self._errors[k], self.starts[k]
-            for recovery in resets:
-                for j in range(recovery.reset + 1, start + len(values)):
-                    if recovery.tainted(j) and j not in errors:
-                        values[j - start] = False
-                        errors[j] = recovery.why
-        return [
-            PropertyRun(
-                name,
-                self.starts[k],
-                self._values[k],
-                dict(sorted(self._errors[k].items())),
-                missing=self.missing(name),
-            )
-            for k, name in enumerate(self.names)
-        ]
 
+    def verdicts_taken(self, k: int) -> int:
+        """How many of property ``k``'s verdicts :meth:`take` has handed out."""
+        return self._taken[k]
+
+    def take(self, k: int) -> tuple[int, list, dict[int, str]]:
+        """Property ``k``'s verdicts decided since the last take (offline): the index of the
+        first, the values in record order, and why, by index, where it could not be evaluated.
+        The monitor keeps none of them afterwards."""
+        values, errors = self._values[k], self._errors[k]
+        first = (self.starts[k] or 0) + self._taken[k]
+        end = first + len(values)
+        # a verdict that depends on records before a reset is an error; every record up to
+        # the last one fed has been noted by its recovery, so that is known for these
+        for recovery in self._resets_run[k]:
+            for j in range(max(recovery.reset + 1, first), end):
+                if recovery.tainted(j) and j not in errors:
+                    values[j - first] = False
+                    errors[j] = recovery.why
+        taken = {j: errors.pop(j) for j in sorted(errors) if j < end}
+        out = values.copy()
+        values.clear()  # in place: the generated code appends to this very list
+        self._taken[k] += len(out)
+        return first, out, taken
 
 def _why(exc: Exception, index: int | None) -> str:
     where = f"at record {index}" if index is not None else "at the end of the trace"
