@@ -216,6 +216,7 @@ def check_stream(
     again: Callable[[], Iterable[tuple[float, Mapping[str, object]]]] | None = None,
     named: bool = False,
     verdicts: TextIO | None = None,
+    chunk: int = CHUNK,
 ) -> CheckReport:
     """Check every property of ``spec`` on ``records`` read one by one, as :func:`check_records`
     does on a list, holding no more of the trace than the properties' windows need.
@@ -223,7 +224,8 @@ def check_stream(
     ``again`` gives the records once more, to explain the first violations (from the start of
     the trace to a little past the last one explained); without it nothing is explained.
     ``named``: keep only the violations the text report names (``outcome`` counts them all).
-    ``verdicts``: write every verdict there, as :func:`format_verdicts` would.
+    ``verdicts``: write every verdict there, as :func:`format_verdicts` would. ``chunk``: how
+    many records are checked between two counts of the verdicts.
     """
     monitor = Monitor(spec)
     spools: list = []
@@ -248,10 +250,10 @@ def check_stream(
 
     try:
         records = iter(records)
-        while chunk := list(islice(records, CHUNK)):
-            monitor.feed(chunk)
-            times.held.extend([t for t, _ in chunk])
-            count += len(chunk)
+        while part := list(islice(records, chunk)):
+            monitor.feed(part)
+            times.held.extend([t for t, _ in part])
+            count += len(part)
             take()
         monitor.settle()
         take()
@@ -279,6 +281,7 @@ def check_file(
     explain_violations: bool = True,
     named: bool = False,
     verdicts: TextIO | None = None,
+    chunk: int = CHUNK,
 ) -> CheckReport:
     """``rasm check``: :func:`check_stream` of the JSONL trace ``path``, read line by line.
 
@@ -300,6 +303,7 @@ def check_file(
                 again=(lambda: read_records(path, spec.signals)) if explain_violations else None,
                 named=named,
                 verdicts=verdicts,
+                chunk=chunk,
             )
     except (MalformedTrace, SpecError, UnicodeDecodeError) as problem:
         for _ in read_records(path, spec.signals):  # raises SourceErrors: every bad record
