@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import copy
 import pickle
-from pathlib import Path
 
 import pytest
 from sismic.exceptions import (
@@ -19,14 +18,8 @@ from sismic.io import import_from_yaml
 from sismic.model import Event, Transition
 
 from rasm.statechart.fast import FastInterpreter
-from tests.statechart_fast import harness
-
-CHARTS = Path(__file__).resolve().parents[2] / "statecharts"
-
-
-def chart(text: str):
-    return import_from_yaml(text)
-
+from tests.statechart.fast import harness
+from tests.statechart.fast.charts import STATECHARTS, chart, cycle, never_b_twice, toggle
 
 NON_DETERMINISTIC = chart("""
 statechart:
@@ -82,58 +75,9 @@ statechart:
       - {target: a, event: e, action: x += 1}
 """)
 
-PROPERTY = chart("""
-statechart:
-  name: never b twice
-  root state:
-    name: root
-    initial: idle
-    states:
-    - name: idle
-      transitions:
-      - {target: seen, event: state entered, guard: event.state == 'b'}
-    - name: seen
-      transitions:
-      - {target: fail, event: state entered, guard: event.state == 'b'}
-      - {target: idle, event: state entered, guard: event.state == 'c'}
-    - name: fail
-      type: final
-""")
-
-
-CYCLE = chart("""
-statechart:
-  name: cycle
-  root state:
-    name: root
-    initial: a
-    states:
-    - name: a
-      transitions:
-      - {target: b, event: n}
-    - name: b
-      transitions:
-      - {target: c, event: n}
-    - name: c
-      transitions:
-      - {target: a, event: n}
-""")
-
-
-TOGGLE = chart("""
-statechart:
-  name: toggle
-  root state:
-    name: root
-    initial: a
-    states:
-    - name: a
-      transitions:
-      - {target: b, event: n}
-    - name: b
-      transitions:
-      - {target: a, event: n}
-""")
+PROPERTY = never_b_twice()
+CYCLE = cycle()
+TOGGLE = toggle()
 
 
 def errors(klass, statechart, events, prop=None):
@@ -169,8 +113,8 @@ def test_same_error_type_and_message(statechart, events, prop, expected):
     assert fast == stock
 
 
-@pytest.mark.skipif(not CHARTS.is_dir(), reason="no shipped statecharts")
-@pytest.mark.parametrize("path", sorted(CHARTS.glob("*.yaml")), ids=lambda p: p.stem)
+@pytest.mark.skipif(not STATECHARTS.is_dir(), reason="no shipped statecharts")
+@pytest.mark.parametrize("path", sorted(STATECHARTS.glob("*.yaml")), ids=lambda p: p.stem)
 def test_shipped_charts_run_identically(path):
     statechart = import_from_yaml(filepath=str(path))
     names = statechart.events_for() + ["unknown"]

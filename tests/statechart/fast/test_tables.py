@@ -17,8 +17,8 @@ from sismic.model import BasicState, Statechart, Transition
 from rasm.errors import ExecutionError
 from rasm.statechart import Interpreter as PlatformInterpreter
 from rasm.statechart.fast import ChartEditedError, FastInterpreter
-from tests.statechart_fast import harness
-from tests.statechart_fast.strategies import charts, scripts
+from tests.statechart.fast import harness
+from tests.statechart.fast.strategies import charts, scripts
 
 CYCLE = """
 statechart:

@@ -15,8 +15,9 @@ from sismic.io import import_from_yaml
 from rasm.statechart.fast import FastInterpreter
 from rasm.statechart.interpreter import FastGuardEvaluator
 from rasm.statechart.interpreter import Interpreter as PlatformInterpreter
-from tests.statechart_fast import harness
-from tests.statechart_fast.strategies import charts, property_charts, scripts
+from tests.statechart.fast import harness
+from tests.statechart.fast.charts import MONITORS, STATECHARTS
+from tests.statechart.fast.strategies import charts, property_charts, scripts
 
 SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -182,11 +183,9 @@ ORCHESTRATOR_EVENTS = [
     )
 )
 def test_the_orchestrator_with_its_monitors_runs_as_stock(script):
-    # The platform's own setting: the MAPLE-K orchestrator with the three monitors/ property
+    # The platform's own setting: the MAPLE-K orchestrator with the monitors/ property
     # statecharts, driven in any order, timers firing or not.
-    from tests.statechart_fast.test_listener import CHARTS, MONITORS
-
-    orchestrator = import_from_yaml(filepath=str(CHARTS / "adaptation_orchestrator.yaml"))
+    orchestrator = import_from_yaml(filepath=str(STATECHARTS / "adaptation_orchestrator.yaml"))
     monitors = [import_from_yaml(filepath=str(p)) for p in sorted(MONITORS.glob("*.yaml"))]
     setup = [(0.1, name, {}) for name in ("configure", "configuration_done", "initialization_done")]
     expected = harness.run(Interpreter, orchestrator, setup + script, prop=monitors)

@@ -4,8 +4,6 @@ mid-step)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 from sismic.exceptions import PropertyStatechartError
 from sismic.interpreter import Interpreter
@@ -13,51 +11,11 @@ from sismic.io import import_from_yaml
 from sismic.model import Event
 
 from rasm.statechart.fast import FastInterpreter, PropertyListener
-from tests.statechart_fast import harness
+from tests.statechart.fast import harness
+from tests.statechart.fast.charts import MONITORS, STATECHARTS, chart, cycle, never_b_twice
 
-CHARTS = Path(__file__).resolve().parents[2] / "statecharts"
-
-
-def chart(text: str):
-    return import_from_yaml(text)
-
-
-PROPERTY = chart("""
-statechart:
-  name: never b twice
-  root state:
-    name: root
-    initial: idle
-    states:
-    - name: idle
-      transitions:
-      - {target: seen, event: state entered, guard: event.state == 'b'}
-    - name: seen
-      transitions:
-      - {target: fail, event: state entered, guard: event.state == 'b'}
-      - {target: idle, event: state entered, guard: event.state == 'c'}
-    - name: fail
-      type: final
-""")
-
-
-CYCLE = chart("""
-statechart:
-  name: cycle
-  root state:
-    name: root
-    initial: a
-    states:
-    - name: a
-      transitions:
-      - {target: b, event: n}
-    - name: b
-      transitions:
-      - {target: c, event: n}
-    - name: c
-      transitions:
-      - {target: a, event: n}
-""")
+PROPERTY = never_b_twice()
+CYCLE = cycle()
 
 
 def test_property_statechart_is_woken_only_when_it_can_react():
@@ -84,7 +42,6 @@ def test_property_statechart_is_woken_only_when_it_can_react():
     assert listener.interpreter.configuration == ["root", "idle"]
 
 
-MONITORS = Path(__file__).resolve().parents[2] / "monitors"
 SETUP = ["configure", "configuration_done", "initialization_done"]
 # adaptations, a replan, a rejection limit, quiet iterations, a failed stage, a tick while busy
 LOOP = [
@@ -103,7 +60,7 @@ def test_the_platform_monitors_watch_the_orchestrator_identically(monitor):
     # The orchestrator's MAPLE-K loop with one of the property statecharts the platform binds to
     # it, also through stage timeouts (the clock jumps past the stage budget mid-iteration):
     # here the listener decides most meta-events from the guards alone.
-    orchestrator = import_from_yaml(filepath=str(CHARTS / "adaptation_orchestrator.yaml"))
+    orchestrator = import_from_yaml(filepath=str(STATECHARTS / "adaptation_orchestrator.yaml"))
     prop = import_from_yaml(filepath=str(monitor))
     script = [(0.1, name, {}) for name in SETUP]
     for round_ in range(4):
