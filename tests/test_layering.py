@@ -133,3 +133,20 @@ def test_a_building_block_imports_no_other_block_and_only_the_assembly_imports_t
         "rasm.platform",
         "rasm",
     }
+
+
+# The bus, a shared store and the monitors attached to a live loop sit low: each imports nothing
+# built on it.
+BUILT_ON = {
+    "rasm.comm": ("rasm.platform", "rasm.knowledge", "rasm.properties"),
+    "rasm.knowledge.redis": ("rasm.platform", "rasm.properties", "rasm.comm"),
+    "rasm.knowledge.url": ("rasm.platform", "rasm.properties"),
+    "rasm.attach": ("rasm.platform", "rasm.knowledge"),
+}
+
+
+@pytest.mark.parametrize(("lower", "higher"), sorted(BUILT_ON.items()), ids=sorted(BUILT_ON))
+def test_a_low_layer_imports_nothing_built_on_it(lower: str, higher: tuple[str, ...]) -> None:
+    assert lower in MODULES
+    upward = {f"{m}: {h}" for h in higher for m in _importers(h) if _under(m, lower)}
+    assert upward == set()

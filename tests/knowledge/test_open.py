@@ -52,7 +52,7 @@ def test_a_relative_path_without_base_folder_is_taken_from_the_current_one(tmp_p
 
 
 def test_an_unreachable_redis_is_a_clear_error():
-    # port 1 on loopback: nothing listens there (the Redis store itself: tests/distribution)
+    # port 1 on loopback: nothing listens there (the Redis store itself: test_redis.py)
     with pytest.raises(KnowledgeError, match="cannot reach the Redis knowledge store"):
         open_knowledge("redis://127.0.0.1:1/0")
 

@@ -12,28 +12,14 @@ from hypothesis import strategies as st
 from rasm.comm import BoundSigner, Message, SignedEffector, UpdateReceiver, sign, verify
 from rasm.comm.signing import SIGNATURE, UPDATE_TOPICS, ReplayGuard, canonical
 from rasm.errors import CommError
-from rasm.rules import RuleSet
-from rasm.rules.loader import parse_rules
-from tests.distribution.conftest import Inbox
+from rasm.rules import RuleSet, parse_rules
+from tests.comm.strategies import JSON_VALUES
+from tests.comm.support import Inbox
 
 KEY = b"checker-key-0123456789abcdef"
 
-scalars = (
-    st.none()
-    | st.booleans()
-    | st.integers(min_value=-(2**63), max_value=2**63)
-    | st.floats(allow_nan=False, allow_infinity=False)
-    | st.text(max_size=20)
-)
-json_values = st.recursive(
-    scalars,
-    lambda inner: (
-        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4)
-    ),
-    max_leaves=12,
-)
 payloads = st.dictionaries(
-    st.text(max_size=10).filter(lambda k: k != SIGNATURE), json_values, min_size=1, max_size=6
+    st.text(max_size=10).filter(lambda k: k != SIGNATURE), JSON_VALUES, min_size=1, max_size=6
 )
 keys = st.binary(min_size=1, max_size=64)
 
@@ -68,14 +54,14 @@ def test_a_wrong_key_fails(payload, key, other):
 def test_any_change_of_any_field_fails(payload, key, data):
     signed = sign(payload, key)
     field = data.draw(st.sampled_from(sorted(payload)))
-    new = data.draw(json_values)
+    new = data.draw(JSON_VALUES)
     assume(canonical({field: new}) != canonical({field: payload[field]}))
     changed = dict(signed)
     changed[field] = new
     assert not verify(changed, key)
 
 
-@given(payloads, keys, st.text(min_size=1, max_size=10), json_values)
+@given(payloads, keys, st.text(min_size=1, max_size=10), JSON_VALUES)
 def test_an_added_or_removed_field_fails(payload, key, extra, value):
     signed = sign(payload, key)
     assume(extra not in signed)

@@ -12,7 +12,7 @@ import pytest
 
 from rasm.attach import Attachment, Source, default_topic_map, load_topic_map
 from rasm.errors import SourceError
-from tests.distribution.conftest import Inbox
+from tests.comm.support import Inbox
 
 PROPS = """
 input mode: str = "navigate"
