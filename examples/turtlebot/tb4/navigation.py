@@ -4,8 +4,8 @@ Like Nav2's local costmap, :class:`Costmap` only marks what the LiDAR saw nearby
 (``mark_range``) and forgets marks after ``decay`` seconds (an obstacle layer with observation
 persistence): what a ray blocked by debris does not see is not avoided. :class:`LocalPlanner`
 drives towards the next waypoint along the freest heading of a small fan, slowing down in front of
-marked obstacles. :class:`SpinController` is the seed's Nav2 controller plugin: it inserts the
-stops and rotations of a ``/spin_config`` plan into the motion.
+marked obstacles. :class:`SpinController` plays the Nav2 controller plugin of the RoboSAPIENS
+TurtleBot scenario: it inserts the stops and rotations of a ``/spin_config`` plan into the motion.
 """
 
 from __future__ import annotations
