@@ -1,7 +1,7 @@
 """``rasm monitor``: property monitors attached to a live loop from outside, over a message bus.
 
 An :class:`Attachment` subscribes to the topics the properties read, turns every message into
-one record (SPEC §4), steps a compiled monitor (SPEC §6) and publishes each verdict as
+one trace record, steps a compiled monitor and publishes each verdict as
 ``{"value": true|false, "time": t}`` on a topic named after the property — the convention of the
 public RoboSAPIENS Trustworthiness Checker, so its dashboards and subscribers work unchanged. A
 verdict the monitor could not evaluate is ``{"value": false, "time": t, "error": "why"}``.

@@ -34,7 +34,7 @@ from rasm.properties.times import FAST, Seconds, nanoseconds
 from rasm.values import fit, wanted
 
 if TYPE_CHECKING:
-    from rasm.platform.runtime import RunSummary
+    from rasm.platform.summary import RunSummary
 
 __all__ = [
     "MAX_REPORTED", "MalformedTrace", "Trace", "TraceWriter", "format_line", "parse_records",
@@ -389,7 +389,7 @@ class Trace(Sequence[dict[str, Any]]):
     """An adaptation trace in memory: a list of records, and how it was made.
 
     ``records`` is the list, each record as :func:`trace_line` gives it; ``summary`` the run's
-    :class:`~rasm.platform.runtime.RunSummary` (None for a trace that was not made by
+    :class:`~rasm.RunSummary` (None for a trace that was not made by
     :func:`rasm.testing.run_app`); ``seed``, ``scenario`` and ``duration`` say how to make it
     again.
     """

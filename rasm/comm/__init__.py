@@ -2,8 +2,9 @@
 
 ``open_transport("local")`` is the in-process bus; ``open_transport("mqtt://host:port")`` talks
 to an MQTT broker. Both take MQTT topic patterns (``+``, ``#``) and JSON-able dict payloads, and
-deliver :class:`Message` objects. :class:`CommunicationManager` adds the seed's operations:
-``create_publisher`` / ``publish_message`` and ``create_subscriber`` / ``get_queue_message``.
+deliver :class:`Message` objects. :class:`CommunicationManager` adds the Communication
+Manager's operations: ``create_publisher`` / ``publish_message`` and ``create_subscriber`` /
+``get_queue_message``.
 
 For a distributed loop: :class:`Presence` / :class:`PresenceTracker` (node start-up, heartbeats,
 shutdown, crash via :func:`presence_will`), :func:`sign` / :func:`verify` with

@@ -86,7 +86,7 @@ class Subscriber:
 
 
 class CommunicationManager:
-    """The seed's Communication Manager: publishers and queued subscribers over one transport.
+    """The Communication Manager: publishers and queued subscribers over one transport.
 
     It does not own the transport's life cycle: connect it before and close it after (closing
     the manager closes its subscribers only).

@@ -3,8 +3,8 @@
 Threads: paho's network thread only moves bytes (it hands each received message to a bounded
 inbox and returns); one dispatcher thread per transport decodes messages and runs callbacks. So a
 callback that publishes does so from the dispatcher, never from inside paho's network callback,
-and a slow callback delays other callbacks but never the socket (the public platform's hop grew
-from 1.8 ms to 60 ms at 200 msg/s by publishing from paho callbacks). Sockets get TCP_NODELAY so
+and a slow callback delays other callbacks but never the socket (publishing from inside paho's
+callbacks makes a hop slower as the message rate grows). Sockets get TCP_NODELAY so
 small messages are not held back by Nagle's algorithm.
 """
 

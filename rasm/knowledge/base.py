@@ -114,7 +114,7 @@ class Subscription:
 
 
 class KnowledgeBase:
-    """Typed knowledge with a bounded history per key (the seed's Knowledge Manager).
+    """Typed knowledge with a bounded history per key (the Knowledge Manager of the platform).
 
     ``default_history`` is the history of keys registered without a declaration.
     """

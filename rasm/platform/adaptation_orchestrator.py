@@ -148,7 +148,7 @@ class AdaptationOrchestrator(Block):
     # ------------------------------------------------------------------ driving
 
     def orchestration_loop(self) -> None:
-        """One loop iteration (the seed's ``orchestrationLoop``): a ``tick`` for the chart."""
+        """One loop iteration (the RoboSAPIENS ``orchestrationLoop``): a ``tick`` for the chart."""
         self.send("tick")
 
     def on_enter_idle(self) -> None:

@@ -89,7 +89,7 @@ class Action:
     effector: str
     payload: dict[str, Any]
     plan: str = ""
-    kind: str = "adaptation"  # or "diagnosis" (the seed's performDiagnosis)
+    kind: str = "adaptation"  # or "diagnosis" (the RoboSAPIENS performDiagnosis)
 
 
 @dataclass

@@ -70,7 +70,7 @@ def start_order(blocks: Iterable[Block]) -> list[Block]:
 
 class Core(Block):
     """The platform's entry point: ``initialize``, ``deinitialize``, ``abort``,
-    ``set_abort_handler`` (the seed's interface, in snake_case)."""
+    ``set_abort_handler`` (the RoboSAPIENS design's interface, in snake_case)."""
 
     chart_name = "core"
     short_name = "core"
@@ -83,7 +83,7 @@ class Core(Block):
         self._abort_handler: Callable[[str], object] | None = None
         super().__init__("core", clock=clock)
 
-    # ------------------------------------------------------------------ the seed's interface
+    # ---------------------------------------------------- the RoboSAPIENS design's interface
 
     def initialize(self) -> None:
         """Start every block, in dependency order; raise :class:`StartupError` on failure."""

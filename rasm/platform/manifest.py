@@ -1,4 +1,4 @@
-"""The application manifest, ``app.yaml`` (SPEC §2), read and validated with positions.
+"""The application manifest, ``app.yaml``, read and validated with positions.
 
 The shape is a JSON Schema (``app.schema.json`` beside this module, also the reference for editors);
 a value that breaks it is reported at its own line and column. Cross-checks the schema cannot

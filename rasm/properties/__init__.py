@@ -1,4 +1,4 @@
-"""rasm.properties: the temporal property language (SPEC §5, §6).
+"""rasm.properties: the temporal property language and its monitors.
 
 ``compile_properties(text)`` turns a property file into an incremental :class:`Monitor`;
 ``load_specification`` gives the checked syntax tree.

@@ -2,7 +2,7 @@
 
 Every node carries a ``location`` (keyword-only, ignored by ``==``) pointing into the user's
 file, so that type errors and explanations name the place. The expression nodes (``Literal`` to
-``Call``) are the sub-language shared with the legitimacy rules (SPEC §7); ``Time``, ``Prev``
+``Call``) are the sub-language shared with the legitimacy rules; ``Time``, ``Prev``
 and the temporal nodes exist only in property files.
 
 Operators are plain strings:

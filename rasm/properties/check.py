@@ -344,9 +344,9 @@ def _lookahead(node: Expr) -> int:
 
 
 def format_json(report: CheckReport) -> str:
-    """SPEC §6: one JSON object; ``verdict`` is one of the five states, ``errors`` counts the
-    records where the property could not be evaluated (``first_error`` says why), ``missing``
-    names the signals a property that was never judged waits for."""
+    """``--format json``: one JSON object; ``verdict`` is one of the five states, ``errors``
+    counts the records where the property could not be evaluated (``first_error`` says why),
+    ``missing`` names the signals a property that was never judged waits for."""
     return json.dumps(
         {
             "records": report.records,
@@ -368,7 +368,7 @@ def format_json(report: CheckReport) -> str:
 
 
 def format_verdicts(report: CheckReport) -> str:
-    """SPEC §6: JSONL, one line per judged record and property (``error`` on a record where
+    """``--verdicts``: JSONL, one line per judged record and property (``error`` on a record where
     the property could not be evaluated)."""
     lines = []
     for p in report.properties:

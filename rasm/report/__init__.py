@@ -1,4 +1,4 @@
-"""rasm.report: the transparency views (SPEC §3 ``rasm report``, ``rasm run --dashboard``).
+"""rasm.report: the transparency views (``rasm report``, ``rasm run --dashboard``).
 
 ``write_report(trace, output)`` writes one self-contained HTML page (plotly.js embedded): the
 MAPLE-K stages as a Gantt over time, each stage's duration distribution, every property's verdict

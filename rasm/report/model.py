@@ -1,4 +1,4 @@
-"""The data behind the report and the dashboard, built record by record from a trace (SPEC §4).
+"""The data behind the report and the dashboard, built record by record from a trace.
 
 :class:`TraceModel` is fed ``(time, record)`` pairs, in trace order, either from a trace file
 (``rasm report``) or from a running platform's ``on_record`` (``rasm run --dashboard``), and

@@ -1,6 +1,6 @@
 """rasm.rules: legitimacy rules, their z3 consistency proof and the run-time rule engine.
 
-``load_rules`` reads and checks a rules file (SPEC §7); ``verify`` proves what is wrong with it
+``load_rules`` reads and checks a rules file; ``verify`` proves what is wrong with it
 (dead, unsatisfiable, conflicting, redundant rules); ``RuleSet`` is the Legitimate stage's
 engine: rules compiled once, plans judged without z3, swaps refused unless consistent.
 """

@@ -1,4 +1,4 @@
-"""Read a rules file (SPEC §7) into :class:`~rasm.rules.model.Rules`, checking everything.
+"""Read a rules file into :class:`~rasm.rules.model.Rules`, checking everything.
 
 Every problem names the file, line and column where it is: YAML syntax, the file's shape,
 variable domains, duplicate rule names, expression syntax (the property language's own parser,

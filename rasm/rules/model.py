@@ -12,7 +12,7 @@ from typing import Any
 
 from rasm.errors import Location
 
-#: The variable types of a rules file (SPEC §7).
+#: The variable types of a rules file.
 TYPES = ("real", "int", "enum", "bool")
 
 

@@ -1,6 +1,6 @@
 """Minimal conflicting sets with z3: a MARCO-style enumeration with unsat-core shrinking.
 
-The question (SPEC §7): which *minimal* sets of rules have ``when`` conditions that can hold
+The question: which *minimal* sets of rules have ``when`` conditions that can hold
 together while their ``require`` conditions then cannot all hold? Writing ``B_i = W_i and R_i``,
 a set S conflicts iff the ``W_i`` of S are jointly satisfiable and the ``B_i`` of S are not. Any
 proper subset of such an S keeps satisfiable ``W``s, so S is a minimal conflict exactly when it is

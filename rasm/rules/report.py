@@ -32,7 +32,7 @@ class Violation:
 
 @dataclass
 class Report:
-    """The consistency report of SPEC §7.
+    """The consistency report of ``rasm verify-rules``.
 
     ``unsatisfiable_contexts`` maps each unsatisfiable rule to a context where its ``when`` holds
     (and so no plan is legitimate); ``implied_by`` maps each redundant rule to rules that together
@@ -51,7 +51,7 @@ class Report:
 
     @property
     def consistent(self) -> bool:
-        """False iff some rule is unsatisfiable or some rules conflict (SPEC §7)."""
+        """False iff some rule is unsatisfiable or some rules conflict."""
         return not self.unsatisfiable and not self.conflicts
 
     @property
@@ -67,7 +67,7 @@ class Report:
         return "; ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON object of SPEC §7 (plus ``against`` when properties were checked)."""
+        """The JSON object of ``--format json`` (plus ``against`` when properties were checked)."""
         data: dict[str, Any] = {
             "consistent": self.consistent,
             "unsatisfiable": list(self.unsatisfiable),

@@ -1,4 +1,4 @@
-"""``rasm verify-rules``: prove, before deployment, that a rule set makes sense (SPEC §7).
+"""``rasm verify-rules``: prove, before deployment, that a rule set makes sense.
 
 Definitions (over the declared domains; a rule *holds* at a point unless its ``when`` holds and
 its ``require`` does not):

@@ -1,6 +1,6 @@
 """Load a statechart from sismic's YAML format, with the validation sismic does not do.
 
-sismic's own checks are shallow (NOTES.md): a schema failure says only "mapping validation failed",
+sismic's own checks are shallow: a schema failure says only "mapping validation failed",
 YAML errors escape raw, code with syntax errors loads and fails on first use, a compound state
 without ``initial`` loads and then sits with no active child. Here every such problem is found at
 load time and reported as ``file:line:col: message`` from the YAML node's position.

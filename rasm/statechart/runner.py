@@ -2,7 +2,7 @@
 
 The runner sleeps on a condition variable until either :meth:`ChartRunner.send` queues an event or
 the interpreter's :meth:`~rasm.statechart.interpreter.Interpreter.next_deadline` is reached, so an
-idle chart costs no CPU (the public prototype's orchestrator busy-loops at 65-80 % of a core).
+idle chart costs no CPU: the runner never polls.
 """
 
 from __future__ import annotations

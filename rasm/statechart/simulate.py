@@ -237,7 +237,7 @@ def simulate(
 
 
 def format_steps(steps: list[SimulatedStep], fmt: str = "text") -> str:
-    """JSON lines (``fmt="json"``, the format of SPEC §3) or a readable table."""
+    """JSON lines (``fmt="json"``: what ``rasm simulate --format json`` prints) or a table."""
     if fmt == "json":  # failed (rolled-back) steps are not macro steps: the CLI reports them
         return "".join(json.dumps(step.as_dict()) + "\n" for step in steps if not step.error)
     out = []

@@ -1,6 +1,6 @@
 """Property-based testing of statecharts and adaptation traces (hypothesis + pytest).
 
-* :func:`traces` — a strategy of traces (SPEC §4) for the signals a property file reads;
+* :func:`traces` — a strategy of traces for the signals a property file reads;
 * :func:`statechart_machine` — a hypothesis state machine exploring a chart, checking its
   contracts, the property statecharts that apply and your invariant;
 * :func:`run_app` — run an application on the simulated clock and get its adaptation

@@ -1,4 +1,4 @@
-"""``traces(props)``: a hypothesis strategy of traces (SPEC §4) for a property file's signals.
+"""``traces(props)``: a hypothesis strategy of traces for a property file's signals.
 
 A trace is a list of records, ``{"time": t, "velocity": 0.3, "anomaly": True}``, with
 non-decreasing times starting at 0. What is generated follows the file:

@@ -1,4 +1,4 @@
-"""rasm.workflow: the engineering workflow (seed §8.2).
+"""rasm.workflow: the engineering workflow (model, generate, package, deploy).
 
 Architecture model (``model.yaml``) → lint (:func:`lint_model`) → application skeleton
 (:func:`new_app`, ``rasm new``) → deployment package (:func:`package_app`, ``rasm package``) →

@@ -1,4 +1,4 @@
-"""``rasm new``: an application folder (SPEC §2) generated from an architecture model.
+"""``rasm new``: an application folder generated from an architecture model.
 
 The files come from Jinja2 templates under ``templates/app``. Regenerating after a model change
 keeps every engineer's region (``# >>> rasm:user ID`` … ``# <<< rasm:user ID``); a region whose

@@ -1,4 +1,4 @@
-"""The architecture model, ``model.yaml`` (seed §8.2.1), read as plain data with positions.
+"""The architecture model, ``model.yaml``, read as plain data with positions.
 
 The shape is a JSON Schema (``model.schema.json`` beside this module); a value that breaks it is
 reported at its own line and column. The model is recognised by its top-level ``architecture``

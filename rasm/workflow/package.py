@@ -1,4 +1,4 @@
-"""``rasm package``: a deployment package in the seed's layout (§8.2.4).
+"""``rasm package``: a deployment package in the RoboSAPIENS layout.
 
 ::
 
