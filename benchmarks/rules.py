@@ -1,4 +1,4 @@
-"""verify-rules time on generated rule sets of 10, 100 and 500 rules (SPEC §8: a benchmark).
+"""verify-rules time on generated rule sets of 10, 100 and 500 rules.
 
 Two families, both seeded and reproducible:
 

@@ -1,4 +1,4 @@
-"""The TurtleBot occlusion demonstrator with and without its adaptation loop (issue 8).
+"""The TurtleBot occlusion demonstrator with and without its adaptation loop.
 
 Run:  .venv/bin/python benchmarks/turtlebot.py               (50 scenarios, the plot)
       .venv/bin/python benchmarks/turtlebot.py --seeds 10    (fewer)

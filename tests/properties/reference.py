@@ -1,4 +1,5 @@
-"""A reference evaluator written straight from SPEC §5: slow, quadratic, obviously correct.
+"""A reference evaluator written straight from the semantics in docs/properties.md: slow,
+quadratic, obviously correct.
 
 Values are three-valued: True, False, None (inconclusive: depends on records after the end).
 Numbers may be ``nan`` (undefined: prev at the first record, an empty window, x / 0).

@@ -280,7 +280,7 @@ def test_every_violation_is_explained(formula, records):
     st.data(),
 )
 def test_explanation_windows_are_the_semantic_ones(steps, low, width, data):
-    # the explainer finds windows by bisection; they must be exactly §5's windows, on the
+    # the explainer finds windows by bisection; they must be exactly the semantics' windows, on the
     # decimals the times stand for (0.3 - 0.1 is 0.2)
     from rasm.properties.ast import Bound, Name, Past
     from rasm.properties.explain import _Explainer

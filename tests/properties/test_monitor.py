@@ -1,4 +1,4 @@
-"""The Monitor API of SPEC §6: step, finish, warm-up, rejected records, timing of verdicts."""
+"""The Monitor API: step, finish, warm-up, rejected records, timing of verdicts."""
 
 from __future__ import annotations
 

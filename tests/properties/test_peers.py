@@ -2,8 +2,8 @@
 
 Both peers run in discrete time (a record per time unit), so rasm gets times 0, 1, 2, …; every
 record sets every proposition, so there is no warm-up. Zero-width windows are avoided for
-reelay (NOTES.md). rtamt's offline ``evaluate`` cuts windows at the end of the trace, so only
-the records where rasm's verdict is decided (not inconclusive) are compared.
+reelay (it handles them oddly). rtamt's offline ``evaluate`` cuts windows at the end of the
+trace, so only the records where rasm's verdict is decided (not inconclusive) are compared.
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ def to_rtamt(node) -> str:
         return f"({node[1]} >= 0.5)"
     if kind == "not":
         return f"(not {to_rtamt(node[1])})"
-    if kind == "implies":  # rtamt 0.4.10 mishandles ->, NOTES.md
+    if kind == "implies":  # rtamt 0.4.10's pastify() mishandles ->
         return f"((not {to_rtamt(node[1])}) or {to_rtamt(node[2])})"
     if kind in ("and", "or"):
         return f"({to_rtamt(node[1])} {kind} {to_rtamt(node[2])})"

@@ -89,7 +89,7 @@ def horizon(node) -> float:
 @settings(max_examples=150, deadline=None)
 @given(formulas(3), traces())
 def test_online_verdicts_come_no_later_than_the_horizon(formula, records):
-    # SPEC §5: a verdict for record i comes no later than the first record with time > ti + b
+    # a verdict for record i comes no later than the first record with time > ti + b
     text = HEADER + f"property p0: {formula}\n"
     b = horizon(load_specification(text).properties[0].formula)
     _, emitted_at = online(text, records)

@@ -36,7 +36,7 @@ def truth(expr, point) -> bool:
 
 @dataclass
 class Oracle:
-    """Every finding of SPEC §7, judged point by point."""
+    """Every finding of ``rasm verify-rules``, judged point by point."""
 
     rules: Rules
     dead: set[str] = field(default_factory=set)

@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[2]
 CHART_DIR = REPO / "statecharts"
 MONITOR_DIR = REPO / "monitors"
 
-#: The building blocks of the seed (§5), one chart each.
+#: The building blocks of the platform, one chart each.
 BLOCKS = (
     "core",
     "adaptation_manager",
