@@ -13,8 +13,8 @@ Cases, each at 10 and 200 records/s (percentiles p50/p90/p99 in milliseconds):
 
 Latency is measured with ``time.perf_counter()`` (CLOCK_MONOTONIC, shared by every process of
 the machine): the sender puts it in the record's ``time``, the verdict carries that time back.
-The detect-to-act path of a whole loop (anomaly -> executed over the broker) needs the runtime's
-MQTT roles and is not measured here.
+The detect-to-act path of a whole loop (anomaly -> executed over the broker) is measured by
+``benchmarks/latency_loop.py``.
 
 Run: ``.venv/bin/python benchmarks/latency.py [--quick] [--url mqtt://host:port]``. Without
 ``--url`` a mosquitto is started on a free loopback port. Figures are in docs/distribution.md.
