@@ -1,9 +1,9 @@
 """The Storage Manager's interface: knowledge pushed to non-volatile memory and restored from it.
 
-The seed names two operations: ``registerKnowledgeUpdate`` (prepare data for pushing) and
-``updatePersistency`` (push it). Here the first only buffers, so it is cheap enough to run on
-every registration (:meth:`Storage.buffer` skips its checks for values a knowledge base already
-accepted); the second writes what was buffered, as one batch. Engines (SQLite today, Redis later)
+The RoboSAPIENS design names two operations: ``registerKnowledgeUpdate`` (prepare data for
+pushing) and ``updatePersistency`` (push it). Here the first only buffers, so it is cheap enough
+to run on every registration (:meth:`Storage.buffer` skips its checks for values a knowledge base
+already accepted); the second writes what was buffered, as one batch. Engines (SQLite, Redis)
 subclass :class:`Storage`.
 """
 

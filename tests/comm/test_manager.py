@@ -1,4 +1,5 @@
-"""The seed's operations: create_publisher/publish_message, create_subscriber/get_queue_message."""
+"""The Communication Manager's operations: create_publisher/publish_message,
+create_subscriber/get_queue_message."""
 
 from __future__ import annotations
 

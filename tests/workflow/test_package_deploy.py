@@ -1,4 +1,4 @@
-"""rasm package / rasm deploy: the seed's layout, integrity, and a verified deployment.
+"""rasm package / rasm deploy: the RoboSAPIENS layout, integrity, and a verified deployment.
 
 One real package of the Hotbox is built per session (real wheels: ``pip wheel`` of rasm and of
 the app, ``pip download`` of rasm's dependencies; pip's cache makes later sessions quicker) and
