@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from sismic.io import import_from_yaml
-from sismic.model import Statechart
+from sismic.model import Statechart, Transition
 
 from rasm.resources import data_dir
 
@@ -15,9 +15,9 @@ def chart(text: str) -> Statechart:
     return import_from_yaml(text)
 
 
-def cycle() -> Statechart:
-    """a -> b -> c -> a, one step per event ``n``."""
-    return chart("""
+def cycle(*, shortcut: bool = False) -> Statechart:
+    """a -> b -> c -> a, one step per event ``n``; with ``shortcut``, a -> c on ``m`` too."""
+    statechart = chart("""
 statechart:
   name: cycle
   root state:
@@ -34,6 +34,9 @@ statechart:
       transitions:
       - {target: a, event: n}
 """)
+    if shortcut:
+        statechart.add_transition(Transition("a", "c", event="m"))
+    return statechart
 
 
 def toggle() -> Statechart:

@@ -18,26 +18,8 @@ from rasm.errors import ExecutionError
 from rasm.statechart import Interpreter as PlatformInterpreter
 from rasm.statechart.fast import ChartEditedError, FastInterpreter
 from tests.statechart.fast import harness
+from tests.statechart.fast.charts import cycle
 from tests.statechart.fast.strategies import charts, scripts
-
-CYCLE = """
-statechart:
-  name: cycle
-  root state:
-    name: root
-    initial: a
-    states:
-    - name: a
-      transitions:
-      - {target: b, event: n}
-      - {target: c, event: m}
-    - name: b
-      transitions:
-      - {target: c, event: n}
-    - name: c
-      transitions:
-      - {target: a, event: n}
-"""
 
 WATCHER = """
 statechart:
@@ -57,7 +39,7 @@ statechart:
 def test_a_chart_is_freed_with_its_last_interpreter(klass):
     charts_run = []
     for _ in range(100):
-        chart = import_from_yaml(CYCLE)
+        chart = cycle(shortcut=True)
         interp = klass(chart)
         interp.bind_property_statechart(import_from_yaml(WATCHER))
         interp.execute()
@@ -87,7 +69,7 @@ EDITS: dict[str, Callable[[Statechart], None]] = {
 @pytest.mark.parametrize("klass", [FastInterpreter, PlatformInterpreter])
 @pytest.mark.parametrize("edit", EDITS.values(), ids=EDITS.keys())
 def test_a_chart_edited_under_a_running_interpreter_raises(klass, edit):
-    chart = import_from_yaml(CYCLE)
+    chart = cycle(shortcut=True)
     interp = klass(chart)
     interp.execute()
     edit(chart)
@@ -142,7 +124,7 @@ def test_removing_any_transition_is_caught_and_the_edited_chart_runs_as_stock(
 )
 def test_a_condition_added_to_a_chart_without_contracts_is_evaluated(klass, kind, state):
     # what sismic's own contract tests do: append a condition to a loaded chart
-    chart = import_from_yaml(CYCLE)
+    chart = cycle(shortcut=True)
     interp = klass(chart)
     interp.execute()
     getattr(chart.state_for(state), kind).append("False")
