@@ -192,7 +192,7 @@ class HotboxTwin(DigitalTwin):
       loop hardly excites (k_closed and C together), where estimates wander without changing
       any prediction.
     * ``drift_delta`` (K), ``drift_threshold`` (K x records), ``drift_min_samples``: the
-      Page-Hinkley test on the residuals (see ``rasm.twin.drift``).
+      Page-Hinkley test on the residuals (``rasm.twin.PageHinkley``).
     * ``max_gap`` (s): records further apart than this restart the window (a restart, a lost
       probe): the twin warms up again rather than learn from a hole.
     """
