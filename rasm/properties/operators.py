@@ -50,8 +50,6 @@ _SCALE = 1 << _SCALE_BITS
 class OnceCore:
     """``once[a,b] v``: the latest matured witness time is all that matters."""
 
-    __slots__ = ("a", "b", "last", "pending")
-
     def __init__(self, a: int, b: int | float) -> None:
         self.a, self.b = a, b
         self.last = None  # latest witness j with t_i - t_j >= a
@@ -73,8 +71,6 @@ class OnceCore:
 
 class SinceCore:
     """``l since[a,b] r``: a false ``l`` forgets every witness before it."""
-
-    __slots__ = ("a", "b", "last", "pending")
 
     def __init__(self, a: int, b: int | float) -> None:
         self.a, self.b = a, b
@@ -109,10 +105,6 @@ class WindowCore:
     the exact sum or average is rounded once, to ±inf beyond the largest float; an infinite
     value makes the result infinite, and +inf with -inf makes it undefined.
     """
-
-    __slots__ = (
-        "op", "a", "b", "pending", "window", "total", "n", "nan", "none", "up", "down", "mono",
-    )
 
     def __init__(self, op: str, a: int, b: int | float) -> None:
         self.op, self.a, self.b = op, a, b
@@ -223,8 +215,6 @@ def _rounded(numerator: int, denominator: int) -> float:
 class EventuallyCore:
     """``eventually[a,b] v``: open records wait for a witness or for their window to pass."""
 
-    __slots__ = ("a", "b", "pending", "out")
-
     def __init__(self, a: int, b: int) -> None:
         self.a, self.b = a, b
         self.pending: deque = deque()  # (index, time, ns), oldest first
@@ -261,8 +251,6 @@ class EventuallyCore:
 
 class UntilCore:
     """``l until[a,b] r``: like eventually, and a false ``l`` closes every open record."""
-
-    __slots__ = ("a", "b", "pending", "out")
 
     def __init__(self, a: int, b: int) -> None:
         self.a, self.b = a, b
@@ -301,8 +289,6 @@ class Kleene:
     appear in ``out``. Until a ``None`` arrives a single core runs; the first ``None`` splits it
     into the pessimistic and the optimistic copy.
     """
-
-    __slots__ = ("core", "future", "low", "high", "out", "_low_out", "_high_out")
 
     def __init__(self, core) -> None:
         self.core = core

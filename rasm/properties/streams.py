@@ -28,16 +28,12 @@ __all__ = [
 class Source:
     """Anything with an ``out`` deque of decided ``(index, time, ns, value)`` tuples."""
 
-    __slots__ = ("out",)
-
     def __init__(self) -> None:
         self.out: deque = deque()
 
 
 class Stream:
     """Aligns its inputs by record and hands each complete record to :meth:`consume`."""
-
-    __slots__ = ("out", "buffers", "immediate")
 
     def __init__(self, inputs: list[Source | Stream | None]) -> None:
         self.out: deque = deque()
@@ -73,8 +69,6 @@ class Stream:
 class PointwiseStream(Stream):
     """A non-temporal operator applied record by record (three-valued)."""
 
-    __slots__ = ("function",)
-
     def __init__(self, inputs, function) -> None:
         super().__init__(inputs)
         self.function = function
@@ -85,8 +79,6 @@ class PointwiseStream(Stream):
 
 class PrevStream(Stream):
     """``prev(e)`` over a stream: the previous record's value (``undefined`` at the first)."""
-
-    __slots__ = ("previous",)
 
     def __init__(self, inputs, undefined) -> None:
         super().__init__(inputs)
@@ -103,8 +95,6 @@ class TemporalStream(Stream):
     A future operator also watches the records go by: its inputs may come late, but a window
     is over as soon as the first record whose value has not arrived yet lies beyond it.
     """
-
-    __slots__ = ("kleene", "waiting")
 
     def __init__(self, inputs, core) -> None:
         super().__init__(inputs)
@@ -136,8 +126,6 @@ class TemporalStream(Stream):
 
 class AggregateStream(Stream):
     """An aggregate over a stream (inconclusive while an inconclusive value is in its window)."""
-
-    __slots__ = ("core",)
 
     def __init__(self, inputs, op: str, a: int, b: int | float) -> None:
         super().__init__(inputs)
