@@ -1,0 +1,479 @@
+"""One property's code: the generator that turns a formula into generated lines.
+
+Sub-formulas that only look at the past are *immediate*: their value at record i is known at
+record i, and they become straight-line code with their state in closure variables (a last
+witness time, a deque of not-yet-old-enough witnesses). Anything above a future operator is a
+*stream* (``rasm.properties.streams``) whose values come late; the generated code feeds the
+streams their immediate inputs and reads the property's verdicts off the top stream.
+:mod:`rasm.properties.codegen` puts the properties' lines together into one program.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from rasm.properties.ast import (
+    INF,
+    Aggregate,
+    Binary,
+    Call,
+    Expr,
+    Future,
+    Literal,
+    Name,
+    Not,
+    Past,
+    Prev,
+    Since,
+    Specification,
+    Time,
+    Unary,
+    Until,
+)
+from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
+from rasm.properties.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
+from rasm.properties.streams import (
+    AggregateStream,
+    PointwiseStream,
+    PrevStream,
+    Source,
+    TemporalStream,
+    kleene_function,
+)
+from rasm.properties.types import TypeScope
+
+__all__ = ["FormulaGenerator", "normalise", "signal_variable"]
+
+
+def normalise(node: Expr) -> Expr:
+    """Rewrite historically/always via once/eventually: ``historically φ = not once not φ``."""
+    if isinstance(node, Past) and node.op == "historically":
+        inner = Past(
+            "once",
+            node.bound,
+            Not(normalise(node.operand), location=node.location),
+            location=node.location,
+        )
+        return Not(inner, location=node.location)
+    if isinstance(node, Future) and node.op == "always":
+        inner = Future(
+            "eventually",
+            node.bound,
+            Not(normalise(node.operand), location=node.location),
+            location=node.location,
+        )
+        return Not(inner, location=node.location)
+    if isinstance(node, (Unary, Not, Prev, Past, Future, Aggregate)):
+        return type(node)(**{**_fields(node), "operand": normalise(node.operand)})
+    if isinstance(node, (Binary, Since, Until)):
+        return type(node)(
+            **{**_fields(node), "left": normalise(node.left), "right": normalise(node.right)}
+        )
+    if isinstance(node, Call):
+        return Call(node.func, tuple(normalise(a) for a in node.args), location=node.location)
+    return node
+
+
+def _fields(node) -> dict:
+    return {name: getattr(node, name) for name in node.__dataclass_fields__}
+
+
+def _number(x: int | float) -> str:
+    """A bound (integer nanoseconds, or inf) as source."""
+    return "INF" if x == INF else repr(x)
+
+
+class FormulaGenerator:
+    """The lines of each property in turn, with the constants and closure variables they
+    read (shared by all properties of a specification)."""
+
+    def __init__(self, spec: Specification) -> None:
+        self.spec = spec
+        self.types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
+        self.constants: dict[str, object] = {"deque": deque, "INF": INF, "NAN": math.nan}
+        self.constants.update(HELPERS)
+        self.state: dict[str, object] = {}
+        self.count = 0
+        self.lines: list = []
+        self.finish_lines: list = []
+        self.root: Expr | None = None  # the property's formula being compiled
+        self.root_number = 0
+        self.owned: list[list[str]] = []  # per property: its constants and closure variables
+        # the root's deque of the records it owes a verdict (online): made by the root when it
+        # gives early verdicts (inline_pointwise), else by generate()
+        self.owed: str | None = None
+        # inline future windows by their Source (kept alive here, so never confused with a
+        # later one): (index of their first line, pending deque, upper bound), for the parent
+        # that may keep the records it decides out of them (online_skip)
+        self.windows: dict[Source, tuple[int, str, int]] = {}
+        self.prevs: dict[tuple[int, str], str] = {}  # (property, operand) -> its prev's value
+
+    def fresh(self, prefix: str) -> str:
+        self.count += 1
+        return f"{prefix}{self.count}"
+
+    def constant(self, prefix: str, value: object) -> str:
+        name = self.fresh(prefix)
+        self.constants[name] = value
+        self.owned[self.root_number].append(name)
+        return name
+
+    def variable(self, prefix: str, initial: object, *, owned: bool = True) -> str:
+        name = self.fresh(prefix)
+        self.state[name] = initial
+        if owned:
+            self.owned[self.root_number].append(name)
+        return name
+
+    # ----------------------------------------------------------------- nodes
+    def emit(self, node: Expr):
+        """Return ``("imm", python_expression)`` or ``("stream", Stream)`` for ``node``."""
+        if isinstance(node, Literal):
+            return "imm", repr(node.value)
+        if isinstance(node, Name):
+            return "imm", signal_variable(node.name)
+        if isinstance(node, Time):
+            return "imm", "t"
+        if isinstance(node, Future):  # only eventually, after normalise()
+            (kind, value) = self.emit(node.operand)
+            a, b = node.bound.low_ns, node.bound.high_ns
+            if kind == "imm":
+                return self.inline_future(a, b, None, value)
+            return self.stream(TemporalStream, [(kind, value)], EventuallyCore(a, b))
+        if isinstance(node, Until):
+            left, right = self.emit(node.left), self.emit(node.right)
+            a, b = node.bound.low_ns, node.bound.high_ns
+            if left[0] == right[0] == "imm":
+                return self.inline_future(a, b, left[1], right[1])
+            return self.stream(TemporalStream, [left, right], UntilCore(a, b))
+        parts = [self.emit(c) for c in _operands(node)]
+        streams = [k for k, (kind, _) in enumerate(parts) if kind == "stream"]
+        if len(streams) == 1 and isinstance(node, (Not, Unary, Binary, Call)):
+            return self.inline_pointwise(node, parts, streams[0])
+        if streams:
+            return self.stream_of(node, parts)
+        values = [value for _, value in parts]
+        if isinstance(node, Not):
+            return "imm", f"(not {values[0]})"
+        if isinstance(node, Unary):
+            return "imm", f"(-{values[0]})"
+        if isinstance(node, Binary):
+            return "imm", _binary(node.op, values[0], values[1], self.integers(node))
+        if isinstance(node, Call):
+            return "imm", f"{_call(node.func)}({', '.join(values)})"
+        if isinstance(node, Prev):
+            # the same prev(φ) twice in a property holds the same values (its lines run on the
+            # same records, and φ's text names the same values): one pair of lines serves both
+            key = (self.root_number, values[0])
+            if key not in self.prevs:
+                held = self.variable("p", self.undefined(node.operand))
+                out = self.fresh("v")
+                self.lines += [f"{out} = {held}", f"{held} = {values[0]}"]
+                self.prevs[key] = out
+            return "imm", self.prevs[key]
+        a, b = node.bound.low_ns, node.bound.high_ns
+        if isinstance(node, Past):  # once, after normalise()
+            return "imm", self.once(a, b, values[0])
+        if isinstance(node, Since):
+            return "imm", self.since(a, b, values[0], values[1])
+        if isinstance(node, Aggregate):
+            if node.op == "count" and a == 0:
+                return "imm", self.count_window(b, values[0])
+            core = self.constant("w", WindowCore(node.op, a, b))
+            out = self.fresh("v")
+            self.lines.append(f"{out} = {core}.push(tn, {values[0]})")
+            return "imm", out
+        raise TypeError(f"cannot compile {node!r}")
+
+    def undefined(self, node: Expr) -> object:
+        # prev(φ) at a property's first record: a boolean is false, anything else undefined
+        return False if self.types.check(node) == "bool" else math.nan
+
+    def integers(self, node: Binary) -> bool:
+        """Both operands are ints: plain Python arithmetic is exact and cannot raise."""
+        return self.types.check(node.left) == "int" and self.types.check(node.right) == "int"
+
+    def once(self, a: int, b: int | float, value: str) -> str:
+        if a == 0 and b == INF:  # once, unbounded: a flag
+            seen = self.variable("f", False)
+            self.lines.append(f"if {value}: {seen} = True")
+            return seen
+        last = self.variable("l", None)
+        out = self.fresh("v")
+        if a == 0:
+            self.lines.append(f"if {value}: {last} = tn")
+        else:
+            pending = self.constant("q", deque())
+            self.lines += [
+                f"if {value}: {pending}.append(tn)",
+                f"while {pending} and tn - {pending}[0] >= {_number(a)}: "
+                f"{last} = {pending}.popleft()",
+            ]
+        self.lines.append(f"{out} = {self.within(last, b)}")
+        return out
+
+    def count_window(self, b: int | float, value: str) -> str:
+        """``count[0,b](value)`` of a two-valued operand, written into the step function.
+
+        The same count as :class:`WindowCore`'s (the records whose value is true, from ``t - b``
+        to ``t``) without a call per record: only the times of the true records are kept.
+        """
+        if b == INF:  # nothing ever leaves the window: a counter
+            total = self.variable("n", 0)
+            self.lines.append(f"if {value}: {total} += 1")
+            return total
+        times = self.constant("q", deque())
+        out = self.fresh("v")
+        self.lines += [
+            f"if {value}: {times}.append(tn)",
+            f"while {times} and tn - {times}[0] > {_number(b)}: {times}.popleft()",
+            f"{out} = len({times})",
+        ]
+        return out
+
+    def since(self, a: int, b: int | float, left: str, right: str) -> str:
+        last = self.variable("l", None)
+        out = self.fresh("v")
+        if a == 0:
+            self.lines += [f"if not {left}: {last} = None", f"if {right}: {last} = tn"]
+        else:
+            pending = self.constant("q", deque())
+            self.lines += [
+                f"if not {left}:",
+                f"    {last} = None",
+                f"    {pending}.clear()",
+                f"if {right}: {pending}.append(tn)",
+                f"while {pending} and tn - {pending}[0] >= {_number(a)}: "
+                f"{last} = {pending}.popleft()",
+            ]
+        self.lines.append(f"{out} = {self.within(last, b)}")
+        return out
+
+    @staticmethod
+    def within(last: str, b: int | float) -> str:
+        if b == INF:
+            return f"{last} is not None"
+        return f"{last} is not None and tn - {last} <= {_number(b)}"
+
+    # ----------------------------------------------------------------- streams
+    def stream_of(self, node: Expr, parts):
+        if isinstance(node, Not):
+            return self.stream(PointwiseStream, parts, kleene_function("not", None))
+        if isinstance(node, Unary):
+            return self.stream(PointwiseStream, parts, kleene_function("-", lambda a: -a))
+        if isinstance(node, Binary):
+            plain = _ARITH.get(node.op) or _COMPARE.get(node.op)
+            return self.stream(PointwiseStream, parts, kleene_function(node.op, plain))
+        if isinstance(node, Call):
+            plain = {"abs": abs, "min": _min2, "max": _max2}[node.func]
+            return self.stream(PointwiseStream, parts, kleene_function(node.func, plain))
+        if isinstance(node, Prev):
+            return self.stream(PrevStream, parts, self.undefined(node.operand))
+        a, b = node.bound.low_ns, node.bound.high_ns
+        if isinstance(node, Past):
+            return self.stream(TemporalStream, parts, OnceCore(a, b))
+        if isinstance(node, Since):
+            return self.stream(TemporalStream, parts, SinceCore(a, b))
+        if isinstance(node, Aggregate):
+            return self.stream(AggregateStream, parts, node.op, a, b)
+        raise TypeError(f"cannot compile {node!r}")
+
+    def stream(self, cls, parts, *args):
+        inputs = [value if kind == "stream" else None for kind, value in parts]
+        stream = cls(inputs, *args)
+        name = self.constant("s", stream)
+        immediate = [value for kind, value in parts if kind == "imm"]
+        self.lines.append(f"{name}.step(i, t, tn{''.join(', ' + v for v in immediate)})")
+        self.finish_lines.append(f"{name}.finish()")
+        return "stream", stream
+
+    # ----------------------------------------------------------------- inline streams
+    def inline_future(self, a: int, b: int, left: str | None, right: str):
+        """``eventually[a,b] right`` (left None) or ``left until[a,b] right``, both immediate.
+
+        Same algorithm as :class:`EventuallyCore`/:class:`UntilCore`, written into the step
+        function: open records wait in ``pending``; decided ones go to the output queue.
+        """
+        source = Source()
+        out = self.constant("o", source.out)
+        pending = self.constant("w", deque())
+        lines = [
+            f"{pending}.append((i, t, tn))",
+            f"while tn - {pending}[0][2] > {_number(b)}:",
+            f"    _j, _tj, _tn = {pending}.popleft()",
+            f"    {out}.append((_j, _tj, _tn, False))",
+            f"if {right}:",
+        ]
+        if a == 0:
+            lines += [f"    while {pending}:"]
+        else:
+            lines += [f"    while {pending} and tn - {pending}[0][2] >= {_number(a)}:"]
+        lines += [
+            f"        _j, _tj, _tn = {pending}.popleft()",
+            f"        {out}.append((_j, _tj, _tn, True))",
+        ]
+        if left is not None:
+            lines += [
+                f"if not {left}:",
+                f"    while {pending}:",
+                f"        _j, _tj, _tn = {pending}.popleft()",
+                f"        {out}.append((_j, _tj, _tn, False))",
+            ]
+        self.windows[source] = (len(self.lines), pending, b)
+        self.lines += lines
+        # at the end of the trace the still-open windows are inconclusive
+        self.finish_lines += [
+            f"while {pending}:",
+            f"    _j, _tj, _tn = {pending}.popleft()",
+            f"    {out}.append((_j, _tj, _tn, None))",
+        ]
+        return "stream", source
+
+    def inline_pointwise(self, node: Expr, parts, position: int):
+        """A non-temporal operator over one stream and immediate values, in Kleene logic."""
+        source = Source()
+        out = self.constant("o", source.out)
+        child = self.constant("c", parts[position][1].out)
+        names = []
+        held = None
+        immediate = [value for kind, value in parts if kind == "imm"]
+        decides = _decider(node, position) if len(immediate) == 1 else None
+        early = None
+        if decides is not None and node is self.root:
+            early = decides[0].format(w=immediate[0])
+        if immediate:
+            held = self.constant("b", deque())
+            if len(immediate) == 1:
+                append = f"{held}.append({immediate[0]})"
+                if early is not None and self.online_skip(parts[position][1], position, early):
+                    append = ("ONLINE", f"if not ({early}): {append}", append)
+                self.lines.append(append)
+            else:
+                self.lines.append(f"{held}.append(({', '.join(immediate)},))")
+        k = 0
+        for kind, _ in parts:
+            if kind == "stream":
+                names.append("_v")
+            elif len(immediate) == 1:
+                names.append("_w")
+            else:
+                names.append(f"_w[{k}]")
+                k += 1
+        drain = [f"while {child}:", f"    _j, _tj, _tn, _v = {child}.popleft()"]
+        if held is not None:
+            drain.append(f"    _w = {held}.popleft()")
+        if early is not None:
+            # online, the immediate side alone may decide the verdict (a false trigger of
+            # "trigger -> eventually …"): say it now, and skip it when the stream catches up;
+            # any other record is owed a verdict by the stream
+            test, value = decides
+            self.owed = self.constant("owed", deque())
+            self.lines += [
+                ("ONLINE", f"if {early}:", None),
+                ("EMIT", self.root_number, "i", "t", value, "    ", True),
+                ("ONLINE", "else:", None),
+                ("ONLINE", f"    {self.owed}.append((i, t))", None),
+            ]
+            drain.append(("ONLINE", f"    if {test.format(w='_w')}: continue", None))
+        drain.append(f"    {out}.append((_j, _tj, _tn, {_kleene(node, names, position)}))")
+        self.lines += drain
+        self.finish_lines += drain
+        return "stream", source
+
+    def online_skip(self, child: Source, position: int, early: str) -> bool:
+        """Online, keep the records ``early`` decides out of the inline window ``child``.
+
+        Their verdict is given at once, so the window need not wait for their witness: the
+        step function then does no window work for them (most records: a trigger is rare).
+        Only for an inline window (a stream class is stepped every record) whose record is
+        decided by the operand before it (its lines, computing ``early``, come first). The
+        window and the held operand values skip the same records, so they stay aligned;
+        ``run()`` keeps every record (it gives no early verdicts).
+        """
+        window = self.windows.pop(child, None)
+        if window is None or position != 1:
+            return False
+        start, pending, b = window
+        append = self.lines[start]
+        self.lines[start] = ("ONLINE", f"if not ({early}): {append}", append)
+        # the window may now be empty: the current record is not always in it
+        self.lines[start + 1] = f"while {pending} and tn - {pending}[0][2] > {_number(b)}:"
+        return True
+
+
+def _decider(node: Expr, position: int) -> tuple[str, str] | None:
+    """When the immediate operand ``w`` alone decides ``node``: (test on w, verdict)."""
+    if not isinstance(node, Binary):
+        return None
+    if node.op == "and":
+        return "not {w}", "False"
+    if node.op == "or":
+        return "{w}", "True"
+    if node.op == "->":
+        return ("not {w}", "True") if position == 1 else ("{w}", "True")
+    return None
+
+
+def _kleene(node: Expr, names: list[str], position: int) -> str:
+    """Source of ``node`` over ``names`` where ``names[position]`` may be None (inconclusive).
+
+    Python's ``and``/``or`` are Kleene's when their left operand is two-valued, so the
+    immediate operand goes first.
+    """
+    v = names[position]
+    if isinstance(node, Not):
+        return f"(None if {v} is None else not {v})"
+    if isinstance(node, Binary) and node.op in ("and", "or"):
+        other = names[1 - position]
+        return f"({other} {node.op} {v})"
+    if isinstance(node, Binary) and node.op == "->":
+        if position == 1:
+            return f"((not {names[0]}) or {v})"
+        return f"({names[1]} or (None if {v} is None else not {v}))"
+    if isinstance(node, Unary):
+        plain = f"(-{v})"
+    elif isinstance(node, Binary):
+        plain = _binary(node.op, names[0], names[1])
+    else:
+        plain = f"{_call(node.func)}({', '.join(names)})"
+    return f"(None if {v} is None else {plain})"
+
+
+def _operands(node: Expr) -> list[Expr]:
+    if isinstance(node, (Unary, Not, Prev, Past, Aggregate)):
+        return [node.operand]
+    if isinstance(node, (Binary, Since)):
+        return [node.left, node.right]
+    if isinstance(node, Call):
+        return list(node.args)
+    return []
+
+
+def _binary(op: str, left: str, right: str, integers: bool = False) -> str:
+    """Source of ``left op right``; ``integers``: both operands are ints (exact arithmetic)."""
+    if op == "and":
+        return f"({left} and {right})"
+    if op == "or":
+        return f"({left} or {right})"
+    if op == "->":
+        return f"((not {left}) or {right})"
+    if op in _ARITH_NAMES and (op == "/" or not integers):
+        # IEEE-754 without exceptions (rasm.properties.expr): an int too large for a float meeting
+        # a float gives ±inf, x / 0 is undefined
+        return f"{_ARITH_NAMES[op]}({left}, {right})"
+    if op == "!=":
+        if left.isidentifier() and right.isidentifier():
+            # _ne's body inline: two variables are cheap to read twice, a call is not
+            return f"({left} == {left} and {right} == {right} and {left} != {right})"
+        return f"_ne({left}, {right})"
+    return f"({left} {op} {right})"
+
+
+def _call(func: str) -> str:
+    return {"abs": "abs", "min": "_min2", "max": "_max2"}[func]
+
+
+def signal_variable(name: str) -> str:
+    """The generated code's variable holding signal ``name``'s current value."""
+    return f"g_{name}"
