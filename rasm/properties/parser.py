@@ -8,7 +8,9 @@ another file (a YAML scalar of a rules file) reports places in that file.
 from __future__ import annotations
 
 import ast as python_ast
+import hashlib
 import math
+import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -65,7 +67,36 @@ _TOKEN_NAMES = {
 @lru_cache(maxsize=2)
 def _parser(start: str) -> Lark:
     grammar = (Path(__file__).with_name("grammar.lark")).read_text(encoding="utf-8")
-    return Lark(grammar, parser="lalr", start=start, propagate_positions=True)
+    return Lark(grammar, parser="lalr", start=start, propagate_positions=True,
+                cache=_cache_file(grammar, start))
+
+
+def _cache_file(grammar: str, start: str) -> str | bool:
+    """Where lark keeps the parser it built: building its tables takes longer than the rest of
+    ``rasm lint`` on a small file. A file in the user's cache folder, which lark rebuilds when
+    the grammar, lark or Python changed; False (no cache) where there is none to trust."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    folder = Path(base) / "rasm"
+    digest = hashlib.sha256(grammar.encode("utf-8")).hexdigest()[:16]
+    path = folder / f"properties-{start}-{digest}.lark"
+    try:
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        if not _trusted(folder.stat()):
+            return False
+        if path.exists() and not _trusted(path.stat()):
+            return False
+    except OSError:  # no home, a read-only one: build the parser each time
+        return False
+    return str(path)
+
+
+def _trusted(info: os.stat_result) -> bool:
+    """Whether a cache file or folder with this status may be read back: lark unpickles the
+    file, which runs code, so only what this user owns and no one else can write."""
+    getuid = getattr(os, "getuid", None)
+    if getuid is None:  # no owners to compare: no cache
+        return False
+    return info.st_uid == getuid() and not info.st_mode & 0o022
 
 
 class _Place:
