@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
 import rasm
@@ -80,8 +80,8 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes.
-    # A JSONL trace is read record by record, never held whole (explaining the first
-    # violations reads it once more); a recording or an MCAP trace is decoded first.
+    # A trace or a recording is read record by record, never held whole (explaining the first
+    # violations reads it once more).
     from rasm.properties.check import check_file, check_stream, format_json, format_text
     from rasm.properties.loader import load_specification
 
@@ -93,10 +93,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
     named = args.format == "text" or args.verdicts
     verdicts = sys.stdout if args.verdicts else None
     if _is_recording(args.trace) or args.trace.endswith(".mcap"):
-        records = _recorded_or_mcap_records(args, spec.signals)
-        report = check_stream(spec, records, trace=args.trace,
-                              again=(lambda: records) if explain else None,
+        records, notes = _recorded_or_mcap_records(args, spec.signals)
+        report = check_stream(spec, records(), trace=args.trace,
+                              again=records if explain else None,
                               named=named, verdicts=verdicts)
+        for note in notes():
+            print(f"rasm: note: {args.trace}: {note}", file=sys.stderr)
     elif args.app is not None or args.topics is not None:
         raise UsageError(
             f"{args.trace}: --app and --topics map a rosbag2 recording's topics to signals; a "
@@ -124,19 +126,25 @@ def _is_recording(path: str) -> bool:
     return not is_mcap_trace(target)
 
 
-def _recorded_or_mcap_records(args: argparse.Namespace, signals: dict[str, str]) -> list:
-    """The records of a rasm MCAP trace, or of a rosbag2 recording read with the probes of
-    --app or --topics."""
+def _recorded_or_mcap_records(
+    args: argparse.Namespace, signals: dict[str, str]
+) -> tuple[Callable[[], Iterable[tuple[float, dict]]], Callable[[], list[str]]]:
+    """How to read the records of a rasm MCAP trace, or of a rosbag2 recording with the probes
+    of --app or --topics, each call reading them anew one by one; and what the first whole
+    reading left out (notes for standard error)."""
     if not _is_recording(args.trace):
         if args.app is not None or args.topics is not None:
             raise UsageError(
                 f"{args.trace}: --app and --topics map a rosbag2 recording's topics to "
                 "signals; a rasm trace names its signals itself"
             )
-        from rasm.trace import parse_trace
+        from rasm.trace import parse_records
         from rasm.trace_mcap import read_mcap_trace
 
-        return parse_trace(read_mcap_trace(args.trace), signals, source=args.trace)
+        def trace_records() -> Iterable[tuple[float, dict]]:
+            return parse_records(read_mcap_trace(args.trace), signals, source=args.trace)
+
+        return trace_records, list
     from rasm.platform.replay import recorded_trace
 
     if args.app is not None:
@@ -154,9 +162,7 @@ def _recorded_or_mcap_records(args: argparse.Namespace, signals: dict[str, str])
             "--app APP (its probes) or --topics MAP.yaml (a 'probes:' list as in app.yaml)"
         )
     recorded = recorded_trace(args.trace, probes, store, signals)
-    for note in recorded.notes():
-        print(f"rasm: note: {args.trace}: {note}", file=sys.stderr)
-    return recorded.records
+    return lambda: recorded, recorded.notes
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:

@@ -5,7 +5,8 @@ manifest's probes: each message of a probe's topic is one record of that probe's
 by field path as Telegraf reads a live message. A record's time is the message's log time in
 seconds, or with ``stamp: header`` its ``header.stamp`` (never later than its log time).
 
-- :func:`recorded_trace` turns a recording into the records ``rasm check`` judges;
+- :func:`recorded_trace` turns a recording into the records ``rasm check`` judges, one
+  by one;
 - :class:`Replay` feeds it to a running platform on the simulated clock, message by message
   at its recorded time (``rasm run APP --replay BAG``).
 
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
     from rasm.platform.scheduler import Scheduler
     from rasm.ros2 import BagReader, TypeStore
 
-__all__ = ["Recording", "RecordedTrace", "Replay", "recorded_trace"]
+__all__ = ["LeftOut", "Recording", "RecordedTrace", "Replay", "recorded_trace"]
 
 _log = logging.getLogger("rasm.replay")
 
@@ -59,10 +60,10 @@ class Recording:
         *,
         objects: bool = False,
     ) -> None:
-        from rasm.ros2 import BagError, BagReader, normalize_type
+        from rasm.ros2 import BagError, BagReader, normalize_type, recorded_topics
 
         self.path = Path(path)
-        recorded = BagReader(self.path, store=store).topics
+        recorded = recorded_topics(self.path)
         self.probes = {p.topic: p for p in probes}
         self.topics = [p.topic for p in probes if p.topic in recorded]
         self.absent = [p.topic for p in probes if p.topic not in recorded]
@@ -95,11 +96,9 @@ class Recording:
 
 
 @dataclass
-class RecordedTrace:
-    """A recording read as a trace: ``records`` for the monitors, and what was left out."""
+class LeftOut:
+    """What a pass over a recording left out of its records."""
 
-    records: list[tuple[float, dict[str, Any]]]
-    messages: int = 0
     refused: Counter[str] = field(default_factory=Counter)
     out_of_order: int = 0
     undecoded: int = 0
@@ -119,20 +118,81 @@ class RecordedTrace:
         return out
 
 
+class RecordedTrace:
+    """A recording read as a trace: iterating gives its ``(time, record)`` items one by one,
+    reading the recording message by message (each pass reads it anew, holding nothing).
+
+    ``messages`` and ``left_out`` describe the first pass read to its end (None before).
+    """
+
+    def __init__(self, recording: Recording | None, probes: Mapping[str, Probe]) -> None:
+        from rasm.platform.messages import MessageReader
+
+        self.recording = recording
+        self.messages: int | None = None
+        self.left_out: LeftOut | None = None
+        self._readers = {} if recording is None else {
+            topic: (probes[topic], MessageReader(probes[topic], recording.store).read_object)
+            for topic in recording.topics
+        }
+
+    def notes(self) -> list[str]:
+        """What the first whole pass left out, one line each."""
+        return [] if self.left_out is None else self.left_out.notes()
+
+    def __iter__(self) -> Iterator[tuple[Seconds, dict[str, Any]]]:
+        if self.recording is None:  # the properties read no probe's signal
+            self.messages, self.left_out = 0, LeftOut()
+            return
+        left = LeftOut(absent=self.recording.absent)
+        undecoded = self.recording.rejected
+        readers = self._readers
+        messages = 0
+        last_ns = None
+        for time_ns, topic, message in self.recording:
+            messages += 1
+            probe, read = readers[topic]
+            raw, missing = read(message)
+            for _ in missing:
+                left.refused["no such field in this message"] += 1
+            record: dict[str, Any] = {}
+            for key, value in raw.items():
+                signal = probe.signals[key]
+                try:
+                    record[key] = fit(
+                        value, signal.type, minimum=signal.minimum, maximum=signal.maximum,
+                        int_as_float=False,
+                    )
+                except Misfit as misfit:
+                    left.refused[f"{topic} {key}: {misfit.reason}"] += 1
+            if not record:
+                continue
+            if probe.stamp == "header":  # the manifest checked the type has a header
+                stamp = message.header.stamp
+                time_ns = min(time_ns, stamp.sec * NS_PER_SECOND + stamp.nanosec)
+            if last_ns is not None and time_ns < last_ns:
+                left.out_of_order += 1
+                continue
+            last_ns = time_ns
+            yield _seconds(time_ns), record
+        left.undecoded = self.recording.rejected - undecoded
+        if self.left_out is None:
+            self.messages, self.left_out = messages, left
+
+
 def recorded_trace(
     path: str | Path,
     probes: list[Probe],
     store: TypeStore | None,
     signals: Mapping[str, str] | None = None,
 ) -> RecordedTrace:
-    """The records of a recording, as ``rasm check`` judges them.
+    """The records of a recording, as ``rasm check`` judges them, streamed (see
+    :class:`RecordedTrace`); a recording that cannot be read raises :class:`BagError` now.
 
     ``signals`` (a property file's ``spec.signals``) limits the records to the signals the
     properties read: a message giving none of them is no record. Values are checked against
     their probe's declared types (a misfit is left out of its record and counted).
     """
-    from rasm.platform.messages import MessageReader
-
     if signals is not None:  # a topic giving none of the signals read is not even decoded
         probes = [
             replace(p, signals={k: v for k, v in p.signals.items() if k in signals})
@@ -140,42 +200,9 @@ def recorded_trace(
         ]
         probes = [p for p in probes if p.signals]
         if not probes:  # the properties read no probe's signal: the records are the loop's
-            return RecordedTrace([])
+            return RecordedTrace(None, {})
     recording = Recording(path, probes, store, objects=True)
-    readers = {
-        topic: MessageReader(recording.probes[topic], store).read_object
-        for topic in recording.topics
-    }
-    out = RecordedTrace([], absent=recording.absent)
-    last_ns = None
-    for time_ns, topic, message in recording:
-        out.messages += 1
-        probe = recording.probes[topic]
-        raw, missing = readers[topic](message)
-        for _ in missing:
-            out.refused["no such field in this message"] += 1
-        record: dict[str, Any] = {}
-        for key, value in raw.items():
-            signal = probe.signals[key]
-            try:
-                record[key] = fit(
-                    value, signal.type, minimum=signal.minimum, maximum=signal.maximum,
-                    int_as_float=False,
-                )
-            except Misfit as misfit:
-                out.refused[f"{topic} {key}: {misfit.reason}"] += 1
-        if not record:
-            continue
-        if probe.stamp == "header":  # the manifest checked the type has a header
-            stamp = message.header.stamp
-            time_ns = min(time_ns, stamp.sec * NS_PER_SECOND + stamp.nanosec)
-        if last_ns is not None and time_ns < last_ns:
-            out.out_of_order += 1
-            continue
-        last_ns = time_ns
-        out.records.append((_seconds(time_ns), record))
-    out.undecoded = recording.rejected
-    return out
+    return RecordedTrace(recording, recording.probes)
 
 
 class Replay:

@@ -8,7 +8,7 @@
 - :func:`read_field`, :func:`set_fields`, :func:`field_type`: field paths such as
   ``pose.pose.position.x`` and ``ranges[3]``.
 - :class:`BagReader` / :func:`read_bag` and :class:`BagWriter`: rosbag2 recordings (MCAP,
-  SQLite3).
+  SQLite3); :func:`recorded_topics` lists a recording's topics and types.
 
 The transports and bags load their middleware libraries only when first used.
 """
@@ -49,6 +49,7 @@ __all__ = [
     "normalize_type",
     "read_bag",
     "read_field",
+    "recorded_topics",
     "set_fields",
 ]
 
@@ -59,6 +60,7 @@ _LAZY = {
     "BagRecord": "rasm.ros2.bags",
     "BagWriter": "rasm.ros2.bags",
     "read_bag": "rasm.ros2.bags",
+    "recorded_topics": "rasm.ros2.bags",
 }
 
 

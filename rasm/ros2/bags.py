@@ -31,7 +31,9 @@ from rasm.ros2.codec import MessageCodec
 from rasm.ros2.errors import BagError, MalformedMessage, RosError
 from rasm.ros2.types import TypeStore, default_store
 
-__all__ = ["BagReader", "BagRecord", "BagWriter", "read_bag", "STORAGE_SUFFIXES"]
+__all__ = [
+    "BagReader", "BagRecord", "BagWriter", "read_bag", "recorded_topics", "STORAGE_SUFFIXES",
+]
 
 _log = logging.getLogger("rasm.ros2.bags")
 
@@ -94,12 +96,14 @@ def _listed_files(folder: Path) -> list[Path] | None:
 class BagReader:
     """Read a rosbag2 recording as :class:`BagRecord` items (iterate over the reader).
 
-    ``topics`` limits the reading to those topics (default: all). ``store`` is the type store
-    (default: the standard interfaces); the bag's own definitions fill in the types it lacks.
-    With ``objects``, each message is rosbags' message object instead of a dict
-    (:meth:`MessageCodec.decode_object`: for reading a few fields of many messages).
-    :attr:`topics` maps every recorded topic to its type; :attr:`message_count` counts the
-    messages of the selected topics.
+    ``topics`` limits the reading to those topics (default: all); a selected topic whose type
+    cannot be decoded (no definition in the store or the bag) raises :class:`BagError`, while
+    reading all topics leaves such a topic out (listed in :attr:`undecodable`, logged once):
+    rosbag2's service-event topics, say. ``store`` is the type store (default: the standard
+    interfaces); the bag's own definitions fill in the types it lacks. With ``objects``, each
+    message is rosbags' message object instead of a dict (:meth:`MessageCodec.decode_object`:
+    for reading a few fields of many messages). :attr:`topics` maps every recorded topic to its
+    type; :attr:`message_count` counts the messages of the selected topics.
     """
 
     def __init__(
@@ -118,12 +122,11 @@ class BagReader:
         self._wanted = None if topics is None else set(topics)
         self._reported: set[str] = set()
         self.topics: dict[str, str] = {}
+        self.undecodable: dict[str, str] = {}  # topic -> why (reading all topics only)
         self.message_count = 0
         self._codecs: dict[tuple[str, str], MessageCodec] = {}
-        with _opened(self._files[0]) as first:
-            self._scan(first)
-        for extra in self._files[1:]:
-            with _opened(extra) as reader:
+        for file in self._files:
+            with _opened(file) as reader:
                 self._scan(reader)
         if self._wanted is not None:
             absent = sorted(self._wanted - set(self.topics))
@@ -136,15 +139,27 @@ class BagReader:
     def _scan(self, reader: Reader) -> None:
         for connection in reader.connections:
             known = self.topics.setdefault(connection.topic, connection.msgtype)
-            if self._wanted is not None and connection.topic not in self._wanted:
+            if not self._selects(connection.topic):
                 continue
             if known != connection.msgtype:
                 raise BagError(
                     f"{self.path}: topic {connection.topic} is recorded with two types, "
                     f"{known} and {connection.msgtype}"
                 )
+            try:
+                self._codec(connection)
+            except BagError as exc:
+                if self._wanted is not None:
+                    raise
+                self.undecodable[connection.topic] = str(exc)
+                _log.warning("%s (the topic is not read)", exc)
+                continue
             self.message_count += connection.msgcount
-            self._codec(connection)
+
+    def _selects(self, topic: str) -> bool:
+        if self._wanted is None:
+            return topic not in self.undecodable
+        return topic in self._wanted
 
     def _codec(self, connection: Connection) -> MessageCodec:
         key = (connection.msgtype, connection.digest or "")
@@ -176,10 +191,7 @@ class BagReader:
 
     def _records(self, file: Path) -> Iterator[BagRecord]:
         with _opened(file) as reader:
-            connections = [
-                c for c in reader.connections
-                if self._wanted is None or c.topic in self._wanted
-            ]
+            connections = [c for c in reader.connections if self._selects(c.topic)]
             if not connections:
                 return
             for connection, time_ns, data in reader.messages(connections=connections):
@@ -199,6 +211,16 @@ class BagReader:
                 "%s: skipped a message on %s at %d ns: %s (further ones on %s are only counted)",
                 self.path, topic, time_ns, reason, topic,
             )
+
+
+def recorded_topics(path: str | Path) -> dict[str, str]:
+    """Every topic of a recording and its type, without looking at the types' definitions."""
+    topics: dict[str, str] = {}
+    for file in storage_files(path):
+        with _opened(file) as reader:
+            for connection in reader.connections:
+                topics.setdefault(connection.topic, connection.msgtype)
+    return topics
 
 
 def read_bag(

@@ -156,3 +156,23 @@ def test_bags_written_by_rasm_are_read_by_rosbags(tmp_path, storage):
             channels = {channel.topic: schema.name for schema, channel, _ in
                         make_reader(stream).iter_messages()}
         assert channels == {"/cmd_vel": "geometry_msgs/msg/Twist", "/flag": "std_msgs/msg/Bool"}
+
+
+def test_a_topic_without_a_definition_is_left_out_unless_asked_for(tmp_path, caplog):
+    # rosbag2 records service events as topics whose definitions rosbags cannot read; a
+    # recording of them is read for its other topics
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        flag = writer.add_connection("/flag", "std_msgs/msg/Bool", typestore=STORE.rosbags)
+        event = writer.add_connection("/add/_service_event", "demo_srvs/srv/Add_Event",
+                                      msgdef="int64 a\n---\nint64 sum\n", rihs01="RIHS01_00")
+        for i in range(3):
+            writer.write(flag, 10 * i, STORE.codec("std_msgs/msg/Bool").encode({"data": True}))
+            writer.write(event, 10 * i + 1, b"\x00\x01\x00\x00" + bytes(16))
+    reader = BagReader(bag)
+    assert [r.topic for r in reader] == ["/flag"] * 3
+    assert set(reader.undecodable) == {"/add/_service_event"}
+    assert "demo_srvs/srv/Add_Event" in caplog.text
+    assert BagReader(bag, topics=["/flag"]).message_count == 3
+    with pytest.raises(BagError, match="cannot decode topic /add/_service_event"):
+        BagReader(bag, topics=["/add/_service_event"])
