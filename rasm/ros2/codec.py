@@ -47,7 +47,7 @@ _INT_RANGES = {
 }
 _FLOATS = {"float32", "float64"}
 _DTYPES = {
-    "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "uint8": np.uint8, "int8": np.int8,
+    "bool": np.bool_, "byte": np.int8, "char": np.uint8, "uint8": np.uint8, "int8": np.int8,
     "uint16": np.uint16, "int16": np.int16, "uint32": np.uint32, "int32": np.int32,
     "uint64": np.uint64, "int64": np.int64, "float32": np.float32, "float64": np.float64,
 }
@@ -152,11 +152,21 @@ def _value_converter(store: TypeStore, ftype: FieldType, made: dict) -> Callable
         if ftype.array:
             return lambda values: [nested(v) for v in values]
         return nested
+    if ftype.base == "byte":  # rosbags reads a byte as int8; ROS 2's byte is 0..255
+        return _bytes_to_list if ftype.array else _unsigned_byte
     if ftype.array:
         if ftype.base == "string":
             return list
         return _to_list  # rosbags gives numpy arrays for primitive arrays and sequences
     return None
+
+
+def _unsigned_byte(value: int) -> int:
+    return value & 0xFF
+
+
+def _bytes_to_list(values: Any) -> list:
+    return np.asarray(values, dtype=np.int8).view(np.uint8).tolist()
 
 
 def _to_list(values: Any) -> list:
@@ -301,6 +311,8 @@ def _element_encoder(store: TypeStore, ftype: FieldType, made: dict) -> Encoder:
                 path,
                 f"{value} is out of range for {base} ({low}..{high})"
             )
+        if base == "byte" and value > 127:  # rosbags writes a byte as int8: the same octet
+            return int(value) - 256
         return int(value)
     return encode_int
 
