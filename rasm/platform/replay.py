@@ -58,7 +58,7 @@ class Recording:
         probes: list[Probe],
         store: TypeStore | None,
         *,
-        objects: bool = False,
+        fields: Mapping[str, list[str]] | None = None,
     ) -> None:
         from rasm.ros2 import BagError, BagReader, normalize_type, recorded_topics
 
@@ -81,9 +81,9 @@ class Recording:
                 )
         self.types = {topic: recorded[topic] for topic in self.topics}
         self.store = store
-        # objects: rosbags' message objects, for reading a few fields of each message fast
+        # fields: a topic's messages are the values of these field paths, read from the CDR
         self.reader: BagReader = BagReader(
-            self.path, topics=self.topics, store=store, objects=objects
+            self.path, topics=self.topics, store=store, fields=fields
         )
 
     @property
@@ -120,44 +120,48 @@ class LeftOut:
 
 class RecordedTrace:
     """A recording read as a trace: iterating gives its ``(time, record)`` items one by one,
-    reading the recording message by message (each pass reads it anew, holding nothing).
+    reading the recording message by message (each pass reads it anew, holding nothing). Only
+    the fields the probes' signals name (and ``header.stamp`` with ``stamp: header``) are read
+    out of each message; the rest is not decoded.
 
     ``messages`` and ``left_out`` describe the first pass read to its end (None before).
     """
 
-    def __init__(self, recording: Recording | None, probes: Mapping[str, Probe]) -> None:
-        from rasm.platform.messages import MessageReader
-
-        self.recording = recording
+    def __init__(self, path: str | Path | None, probes: list[Probe],
+                 store: TypeStore | None) -> None:
         self.messages: int | None = None
         self.left_out: LeftOut | None = None
-        self._readers = {} if recording is None else {
-            topic: (probes[topic], MessageReader(probes[topic], recording.store).read_object)
-            for topic in recording.topics
-        }
+        self.probes = {p.topic: p for p in probes}
+        fields = {}
+        for probe in probes:
+            fields[probe.topic] = [s.field or name for name, s in probe.signals.items()]
+            if probe.stamp == "header":  # the manifest checked the type has a header
+                fields[probe.topic] += ["header.stamp.sec", "header.stamp.nanosec"]
+        self.recording = None if path is None else Recording(path, probes, store, fields=fields)
 
     def notes(self) -> list[str]:
         """What the first whole pass left out, one line each."""
         return [] if self.left_out is None else self.left_out.notes()
 
     def __iter__(self) -> Iterator[tuple[Seconds, dict[str, Any]]]:
+        from rasm.ros2.fieldread import MISSING
+
         if self.recording is None:  # the properties read no probe's signal
             self.messages, self.left_out = 0, LeftOut()
             return
         left = LeftOut(absent=self.recording.absent)
         undecoded = self.recording.rejected
-        readers = self._readers
+        signals = {topic: list(p.signals.items()) for topic, p in self.probes.items()}
+        stamped = {topic for topic, p in self.probes.items() if p.stamp == "header"}
         messages = 0
         last_ns = None
-        for time_ns, topic, message in self.recording:
+        for time_ns, topic, values in self.recording:
             messages += 1
-            probe, read = readers[topic]
-            raw, missing = read(message)
-            for _ in missing:
-                left.refused["no such field in this message"] += 1
             record: dict[str, Any] = {}
-            for key, value in raw.items():
-                signal = probe.signals[key]
+            for (key, signal), value in zip(signals[topic], values, strict=False):
+                if value is MISSING:
+                    left.refused["no such field in this message"] += 1
+                    continue
                 try:
                     record[key] = fit(
                         value, signal.type, minimum=signal.minimum, maximum=signal.maximum,
@@ -167,9 +171,9 @@ class RecordedTrace:
                     left.refused[f"{topic} {key}: {misfit.reason}"] += 1
             if not record:
                 continue
-            if probe.stamp == "header":  # the manifest checked the type has a header
-                stamp = message.header.stamp
-                time_ns = min(time_ns, stamp.sec * NS_PER_SECOND + stamp.nanosec)
+            if topic in stamped:
+                sec, nanosec = values[-2:]
+                time_ns = min(time_ns, sec * NS_PER_SECOND + nanosec)
             if last_ns is not None and time_ns < last_ns:
                 left.out_of_order += 1
                 continue
@@ -200,9 +204,8 @@ def recorded_trace(
         ]
         probes = [p for p in probes if p.signals]
         if not probes:  # the properties read no probe's signal: the records are the loop's
-            return RecordedTrace(None, {})
-    recording = Recording(path, probes, store, objects=True)
-    return RecordedTrace(recording, recording.probes)
+            return RecordedTrace(None, [], store)
+    return RecordedTrace(path, probes, store)
 
 
 class Replay:

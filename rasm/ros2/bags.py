@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import heapq
 import logging
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -29,6 +29,7 @@ from ruamel.yaml import YAML, YAMLError
 
 from rasm.ros2.codec import MessageCodec
 from rasm.ros2.errors import BagError, MalformedMessage, RosError
+from rasm.ros2.fieldread import field_reader
 from rasm.ros2.types import TypeStore, default_store
 
 __all__ = [
@@ -45,7 +46,7 @@ class BagRecord(NamedTuple):
 
     time_ns: int
     topic: str
-    message: dict[str, Any]
+    message: Any  # a dict; with BagReader(objects=) or (fields=) a message object or values
 
 
 def storage_files(path: str | Path) -> list[Path]:
@@ -101,9 +102,11 @@ class BagReader:
     reading all topics leaves such a topic out (listed in :attr:`undecodable`, logged once):
     rosbag2's service-event topics, say. ``store`` is the type store (default: the standard
     interfaces); the bag's own definitions fill in the types it lacks. With ``objects``, each
-    message is rosbags' message object instead of a dict (:meth:`MessageCodec.decode_object`:
-    for reading a few fields of many messages). :attr:`topics` maps every recorded topic to its
-    type; :attr:`message_count` counts the messages of the selected topics.
+    message is rosbags' message object instead of a dict (:meth:`MessageCodec.decode_object`).
+    ``fields`` maps topics to field paths: a message of such a topic is the list of those
+    fields' values instead (:func:`rasm.ros2.fieldread.field_reader`: read from the CDR
+    without decoding the rest). :attr:`topics` maps every recorded topic to its type;
+    :attr:`message_count` counts the messages of the selected topics.
     """
 
     def __init__(
@@ -113,9 +116,11 @@ class BagReader:
         topics: Iterable[str] | None = None,
         store: TypeStore | None = None,
         objects: bool = False,
+        fields: Mapping[str, Sequence[str]] | None = None,
     ) -> None:
         self.path = Path(path)
         self.objects = objects
+        self.fields = dict(fields or {})
         self.store = store if store is not None else default_store()
         self.rejected = 0
         self._files = storage_files(self.path)
@@ -124,7 +129,8 @@ class BagReader:
         self.topics: dict[str, str] = {}
         self.undecodable: dict[str, str] = {}  # topic -> why (reading all topics only)
         self.message_count = 0
-        self._codecs: dict[tuple[str, str], MessageCodec] = {}
+        # (topic, type, hash) -> how its messages are decoded
+        self._decoders: dict[tuple[str, str, str], Callable[[bytes], Any]] = {}
         for file in self._files:
             with _opened(file) as reader:
                 self._scan(reader)
@@ -147,7 +153,7 @@ class BagReader:
                     f"{known} and {connection.msgtype}"
                 )
             try:
-                self._codec(connection)
+                self._decoder(connection)
             except BagError as exc:
                 if self._wanted is not None:
                     raise
@@ -161,27 +167,32 @@ class BagReader:
             return topic not in self.undecodable
         return topic in self._wanted
 
-    def _codec(self, connection: Connection) -> MessageCodec:
-        key = (connection.msgtype, connection.digest or "")
-        codec = self._codecs.get(key)
-        if codec is not None:
-            return codec
+    def _decoder(self, connection: Connection) -> Callable[[bytes], Any]:
+        key = (connection.topic, connection.msgtype, connection.digest or "")
+        decoder = self._decoders.get(key)
+        if decoder is not None:
+            return decoder
         try:
             if connection.msgtype in self.store and (
                 not connection.digest or connection.digest == self.store.type_hash(
                     connection.msgtype
                 )
             ):
-                codec = self.store.codec(connection.msgtype)
+                store = self.store
             else:
-                codec = _recorded_store(connection).codec(connection.msgtype)
+                store = _recorded_store(connection)
+            codec = store.codec(connection.msgtype)
+            if connection.topic in self.fields:
+                decoder = field_reader(store, connection.msgtype, self.fields[connection.topic])
+            else:
+                decoder = codec.decode_object if self.objects else codec.decode
         except (RosError, TypesysError, KeyError, ValueError) as exc:
             raise BagError(
                 f"{self.path}: cannot decode topic {connection.topic} ({connection.msgtype}): "
                 f"{exc}"
             ) from None
-        self._codecs[key] = codec
-        return codec
+        self._decoders[key] = decoder
+        return decoder
 
     def __iter__(self) -> Iterator[BagRecord]:
         streams = [self._records(file) for file in self._files]
@@ -195,9 +206,11 @@ class BagReader:
             if not connections:
                 return
             for connection, time_ns, data in reader.messages(connections=connections):
-                codec = self._codecs[(connection.msgtype, connection.digest or "")]
+                decode = self._decoders[
+                    (connection.topic, connection.msgtype, connection.digest or "")
+                ]
                 try:
-                    message = codec.decode_object(data) if self.objects else codec.decode(data)
+                    message = decode(data)
                 except MalformedMessage as exc:
                     self._reject(connection.topic, time_ns, str(exc))
                     continue
