@@ -65,12 +65,11 @@ class _Planner:
     fields were passed; ``aligned`` is what the run-time position is known to be a multiple of.
     """
 
-    def __init__(self, store: TypeStore, max_sequence: int) -> None:
-        self.fielddefs = store.rosbags.fielddefs
-        self.max_sequence = max_sequence
+    def __init__(self, fielddefs: dict, aligned: int = 8) -> None:
+        self.fielddefs = fielddefs
         self.steps: list[tuple] = []
         self.offset = 0
-        self.aligned = 8  # the start of the message
+        self.aligned = aligned  # 8 at the start of the message
 
     def align(self, size: int) -> None:
         if size <= self.aligned:
@@ -155,9 +154,7 @@ class _Planner:
     def repeat(self, sequence: bool, length: int, element: tuple) -> None:
         if sequence:
             self.align(4)
-        inner = _Planner.__new__(_Planner)
-        inner.fielddefs, inner.max_sequence = self.fielddefs, self.max_sequence
-        inner.steps, inner.offset, inner.aligned = [], 0, 1
+        inner = _Planner(self.fielddefs, aligned=1)  # one element, wherever it starts
         inner.field(element, {})
         if inner.offset:
             inner.steps.append((ALIGN, inner.offset, 1))
@@ -299,7 +296,7 @@ def _plan(
     wanted = {path.steps: slot for slot, path in enumerate(paths)}
     if len(wanted) != len(paths):
         return None  # a path twice: the whole message serves
-    planner = _Planner(store, store.rosbags.max_sequence_length)
+    planner = _Planner(store.rosbags.fielddefs)
     try:
         planner.message(typename, wanted)
     except _Unserved:
