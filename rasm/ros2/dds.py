@@ -7,6 +7,11 @@
 - A publisher of another type on one of our topics never matches (DDS matches by type name);
   discovery still sees it, and it is counted once as ``type_conflict`` (or ``unknown_type``).
 - QoS: reliability, durability, history and depth map to the DDS policies of the same names.
+- The ROS graph: as rmw_cyclonedds does, the participant publishes its node (namespace, name)
+  and the GIDs (DDS GUIDs) of its readers and writers as an
+  ``rmw_dds_common/msg/ParticipantEntitiesInfo`` on ``ros_discovery_info`` (reliable,
+  transient local, keep last 1), again whenever they change; so ``ros2 node list`` and
+  ``ros2 node info`` on the DDS network show rasm's node.
 
 The network is configured the standard Cyclone way, by ``CYCLONEDDS_URI`` (or ``config=``).
 On loopback only, for tests::
@@ -51,6 +56,8 @@ ACCEPTED_FORM = "'dds://' or 'dds://?domain=N'"
 _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
 _TAKE_BATCH = 64
 _TYPEHASH = re.compile(rb"typehash=([^;]*);")
+GRAPH_TOPIC = "ros_discovery_info"  # where rmw_cyclonedds publishes each participant's nodes
+GRAPH_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
 
 _PRIMITIVES: dict[str, Any] = {
     "bool": bool, "byte": idl.byte, "char": idl.uint8, "uint8": idl.uint8, "int8": idl.int8,
@@ -124,6 +131,14 @@ def _qos(profile: QosProfile, type_hash: str) -> Qos:
     )
 
 
+_GRAPH_QOS = Qos(
+    Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
+    Policy.Durability.TransientLocal,
+    Policy.History.KeepLast(1),
+    Policy.DataRepresentation(use_cdrv0_representation=True),
+)
+
+
 class DdsTransport(RosTransport):
     """ROS 2 topics over Cyclone DDS (see the module docstring).
 
@@ -150,6 +165,7 @@ class DdsTransport(RosTransport):
         self._publications: dict[int, str | None] = {}  # handle -> why rejected (None: fine)
         self._foreign: set[Any] = set()  # publications of another type already counted
         self._discovery: BuiltinDataReader | None = None
+        self._graph: DataWriter | None = None
 
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
@@ -161,6 +177,10 @@ class DdsTransport(RosTransport):
                 self._participant, BuiltinTopicDcpsPublication,
                 listener=Listener(on_data_available=lambda _: self._on_publications()),
             )
+            if GRAPH_TYPE in self.store:
+                graph = Topic(self._participant, GRAPH_TOPIC, idl_struct(self.store, GRAPH_TYPE))
+                self._graph = DataWriter(self._participant, graph, qos=_GRAPH_QOS)
+                self._announce()
         except DDSException as exc:
             self._delete_all()
             raise CommError(
@@ -177,7 +197,7 @@ class DdsTransport(RosTransport):
         self._readers.clear()
         self._writers.clear()
         self._dds_topics.clear()
-        self._discovery = self._participant = self._domain = None
+        self._discovery = self._participant = self._domain = self._graph = None
         for entity in entities:
             if entity is not None:
                 entity.__del__()
@@ -198,6 +218,7 @@ class DdsTransport(RosTransport):
                 self._participant, self._dds_topic(topic),
                 qos=_qos(topic.qos, topic.codec.type_hash),
             )
+            self._announce()
         return writer
 
     def _wire_send(self, topic: RosTopic, data: bytes) -> None:
@@ -223,6 +244,7 @@ class DdsTransport(RosTransport):
             qos=_qos(topic.qos, topic.codec.type_hash),
             listener=Listener(on_data_available=lambda _: self._on_data(topic)),
         )
+        self._announce()
         # Data can arrive while the reader is being made (a latched message), before Cyclone's
         # Python layer knows the reader: the listener then gets None; take what is there now.
         self._on_data(topic, reader)
@@ -231,6 +253,32 @@ class DdsTransport(RosTransport):
         reader = self._readers.pop(topic.name, None)
         if reader is not None:
             reader.__del__()  # as in _delete_all: stop receiving now, not at collection
+            self._announce()
+
+    def _announce(self) -> None:
+        """Publish this participant's node and its readers' and writers' GIDs on
+        ``ros_discovery_info``, as rmw_cyclonedds does."""
+        if self._graph is None or self._participant is None:
+            return
+        codec = self.store.codec(GRAPH_TYPE)
+        size = self.store.fields("rmw_dds_common/msg/Gid")["data"].length  # 16; Humble: 24
+
+        def gid(entity: Any) -> dict[str, list[int]]:
+            data = entity.guid.bytes  # the 16-byte DDS GUID, as rmw_cyclonedds takes it
+            return {"data": list(data.ljust(size, b"\0"))}
+
+        info = {
+            "gid": gid(self._participant),
+            "node_entities_info_seq": [{
+                "node_namespace": self.namespace,
+                "node_name": self.node_name,
+                "reader_gid_seq": [gid(r) for r in self._readers.values()],
+                "writer_gid_seq": [gid(w) for w in self._writers.values()],
+            }],
+        }
+        data = codec.encode(info)
+        if ddspy_write(self._graph._ref, data + b"\0" * (-len(data) % 4)) < 0:
+            _log.warning("could not publish rasm's node on %s", GRAPH_TOPIC)
 
     # -- receiving (on Cyclone's threads: never raise) ------------------------------------------
     def _on_data(self, topic: RosTopic, reader: DataReader | None = None) -> None:

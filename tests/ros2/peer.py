@@ -4,9 +4,13 @@ subprocess by the tests: it stands for a ROS 2 node on the other side of the wir
 Usage: ``python peer.py CONFIG_JSON``. It prints JSON lines on stdout:
 ``{"event": "ready"}`` once its entities exist, ``{"event": "message", ...}`` per message
 received, ``{"event": "published", "n": N}`` after each round of publishing, and
-``{"event": "token", "key": ...}`` per liveliness token seen. It stops when stdin closes.
+``{"event": "token", "key": ...}`` per liveliness token seen (Zenoh graph), ``{"event":
+"graph", "gid", "nodes"}`` per ros_discovery_info sample and ``{"event": "endpoint", "kind",
+"topic", "key", "participant"}`` per endpoint discovered (DDS graph). It stops when stdin
+closes.
 
-CONFIG keys: ``middleware`` (zenoh | dds), ``role`` (pub | sub | graph), ``listen`` (Zenoh
+CONFIG keys: ``middleware`` (zenoh | dds), ``role`` (pub | sub | graph: the liveliness tokens
+over Zenoh, ``ros_discovery_info`` and the endpoints discovered over DDS), ``listen`` (Zenoh
 endpoint), ``connect`` (Zenoh endpoints to connect to as well), ``domain``, ``repeat``
 (publish again and again until stdin closes), ``msg`` (``[[file, package], ...]`` custom
 .msg files) and ``topics``: a list of ``{"topic", "type",
@@ -233,6 +237,9 @@ def dds_main(config):
     participant = DomainParticipant(config.get("domain", 0))
     done = stdin_closed()
     mask = SampleState.Any | ViewState.Any | InstanceState.Any
+    if config["role"] == "graph":
+        dds_graph(participant, struct_of, done)
+        return
     endpoints = []
     for entry in config["topics"]:
         qos = Qos(
@@ -276,6 +283,46 @@ def dds_main(config):
         if not config.get("repeat") or done.wait(0.05):
             break
     done.wait()
+
+
+def dds_graph(participant, struct_of, done):
+    """What `ros2 node list` reads over DDS: the ParticipantEntitiesInfo samples on
+    ros_discovery_info, and the endpoints DDS discovery announces (their GUIDs)."""
+    from cyclonedds.builtin import (
+        BuiltinDataReader,
+        BuiltinTopicDcpsPublication,
+        BuiltinTopicDcpsSubscription,
+    )
+    from cyclonedds.qos import Policy, Qos
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    graph_type = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+    qos = Qos(Policy.Reliability.Reliable(10**8), Policy.Durability.TransientLocal,
+              Policy.History.KeepLast(1),
+              Policy.DataRepresentation(use_cdrv0_representation=True))
+    topic = Topic(participant, "ros_discovery_info", struct_of(graph_type), qos=qos)
+    info = DataReader(participant, topic, qos=qos)
+    builtin = [(kind, BuiltinDataReader(participant, what)) for kind, what in
+               (("writer", BuiltinTopicDcpsPublication), ("reader", BuiltinTopicDcpsSubscription))]
+    say(event="ready")
+
+    def gid(g):
+        return bytes(g.data).hex()
+
+    while not done.is_set():
+        for sample in info.take(64):
+            say(event="graph", gid=gid(sample.gid), nodes=[
+                {"namespace": n.node_namespace, "name": n.node_name,
+                 "readers": [gid(g) for g in n.reader_gid_seq],
+                 "writers": [gid(g) for g in n.writer_gid_seq]}
+                for n in sample.node_entities_info_seq
+            ])
+        for kind, reader in builtin:
+            for sample in reader.take(64):
+                say(event="endpoint", kind=kind, topic=sample.topic_name,
+                    key=sample.key.bytes.hex(), participant=sample.participant_key.bytes.hex())
+        done.wait(0.01)  # poll: this peer has no listener thread of its own
 
 
 def main():

@@ -187,3 +187,38 @@ def test_hostile_samples_never_escape_the_transport(peers, dds_domain, payloads)
         peer.stop()
     assert delivered == decodable
     assert transport.stats.errors == 0
+
+
+def test_the_node_and_its_endpoints_are_on_ros_discovery_info(peers, transports, dds_domain):
+    # what `ros2 node list` / `ros2 node info` read over rmw_cyclonedds
+    peer = _peer(peers, dds_domain, "graph", [])
+    peer.wait_ready()
+    transport = transports(DdsTransport(
+        f"dds://?domain={dds_domain}", node_name="monitor", namespace="/robot1",
+        types={"/odom": "nav_msgs/msg/Odometry", "/cmd_vel": "geometry_msgs/msg/Twist"},
+    ))
+    odom = transport.subscribe("/odom", lambda m: None)
+    transport.connect()
+    transport.advertise("/cmd_vel")
+
+    def endpoint(kind: str, topic: str) -> dict | None:
+        return next((e for e in peer.events if e["event"] == "endpoint" and e["kind"] == kind
+                     and e["topic"] == topic), None)
+
+    def node() -> tuple[dict, dict] | None:
+        for event in reversed(list(peer.events)):
+            for info in event.get("nodes", []) if event["event"] == "graph" else []:
+                if info["name"] == "monitor" and info["writers"]:
+                    return event, info
+        return None
+
+    writer = peer.wait_for(lambda p: endpoint("writer", "rt/cmd_vel"), what="the Twist writer")
+    reader = peer.wait_for(lambda p: endpoint("reader", "rt/odom"), what="the Odometry reader")
+    event, info = peer.wait_for(lambda p: node(), what="the node with its writer")
+    assert info["namespace"] == "/robot1"
+    # GIDs are the DDS GUIDs discovery announces, padded to the Gid's size
+    assert event["gid"].startswith(writer["participant"])
+    assert [g[:32] for g in info["writers"]] == [writer["key"]]
+    assert [g[:32] for g in info["readers"]] == [reader["key"]]
+    odom.cancel()
+    peer.wait_for(lambda p: node()[1]["readers"] == [], what="the reader gone from the node")
