@@ -120,7 +120,7 @@ class HotboxAnalyse:
                 "temperature falling out of the band",
                 {"mean": mean, "trend": trend, "want": "boost"},
             )
-        if mode == "boost" and not k.read_knowledge("lid_open", False) and mean >= 37.0:
+        if mode == "boost" and not k.read_knowledge("lid_open", False) and mean >= 36.5:
             return Anomaly(
                 "boost no longer needed: lid closed and temperature back",
                 {"mean": mean, "want": "normal"},

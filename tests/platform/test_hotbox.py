@@ -50,6 +50,37 @@ def test_simulated_run_adapts_to_every_lid_opening(hotbox, tmp_path):
     assert summary.stats.executed >= 3 and summary.stats.failed_stages == {}
 
 
+def test_every_lid_opening_is_met_by_boost_and_followed_by_normal_mode(hotbox, tmp_path):
+    trace_file = tmp_path / "trace.jsonl"
+    summary = Platform(hotbox, clock="simulated", seed=1, trace=trace_file, knowledge="memory").run(
+        300
+    )
+    trace = read_trace(trace_file)
+    openings = lid_openings(trace)
+    assert openings == [8.0 + 30.0 * i for i in range(10)]
+    switches = [(r["time"], _mode_of(trace, r)) for r in trace if r.get("executed")]
+    # between two openings the heater goes to boost once and back to normal once, every time
+    for start, end in zip(openings, [*openings[1:], 300.0], strict=True):
+        modes = [mode for t, mode in switches if start <= t < end]
+        assert modes == ["boost", "normal"], (start, switches)
+    assert summary.verdicts["boost_while_open"] == "satisfied"
+    assert summary.verdicts["back_to_normal"] == "satisfied"
+
+
+def test_a_heater_left_in_boost_violates_back_to_normal(hotbox):
+    class BoostOnly:
+        """Plans boost, never normal: the behaviour back_to_normal rules out."""
+
+        def plan(self, ctx):
+            return {"mode": "boost", "setpoint": 38.5, "power_limit": 100.0}
+
+    summary = Platform(
+        hotbox, clock="simulated", seed=1, knowledge="memory", components={"plan": BoostOnly()}
+    ).run(90)
+    assert summary.verdicts["back_to_normal"] == "violated"
+    assert summary.verdicts["boost_while_open"] == "satisfied"
+
+
 def _mode_of(trace, executed):
     plan = executed["plan"]
     return next(r["mode"] for r in trace if r.get("planned") and r["plan"] == plan)
@@ -62,7 +93,7 @@ def test_without_the_loop_the_band_is_violated(hotbox, tmp_path):
 
     summary = Platform(
         hotbox, clock="simulated", seed=7, knowledge="memory", components={"plan": NoPlan()}
-    ).run(40)
+    ).run(70)  # the second opening starts from a box still cool from the first
     assert summary.stats.executed == 0
     assert summary.verdicts["temperature_band"] == "violated"
     assert summary.verdicts["timely_adaptation"] == "violated"
@@ -106,6 +137,8 @@ def test_rasm_run_and_rasm_check_agree(tmp_path, capsys, monkeypatch):
         "temperature_band": "satisfied",
         "heater_rating": "satisfied",
         "timely_adaptation": "satisfied",
+        "boost_while_open": "satisfied",
+        "back_to_normal": "satisfied",
     }
 
 

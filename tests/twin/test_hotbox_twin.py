@@ -226,10 +226,12 @@ def test_an_unsafe_plan_is_seen_leaving_the_band():
     over = {"mode": "boost", "setpoint": 39.0, "power_limit": 150.0}
     cold = {**closed, "temperature": 30.0}
     assert "heater_rating" in PROPERTIES.violations(twin.simulate(over, cold, 20.0, 0.5))
-    # normal mode with the lid open: the light content cools out of the band
+    # normal mode with the lid open: the light content cools out of the band (and a lid open
+    # for 5 s without boost breaks boost_while_open)
     opened = {**closed, "lid_open": True}
     assert PROPERTIES.violations(twin.simulate(components.NORMAL, opened, 20.0, 0.5)) == [
-        "temperature_band"
+        "temperature_band",
+        "boost_while_open",
     ]
     # the boost plan with the lid closed is safe
     assert PROPERTIES.violations(twin.simulate(components.BOOST, closed, 20.0, 0.5)) == []
@@ -245,7 +247,7 @@ def test_against_doing_nothing_only_plans_that_make_things_worse_are_rejected():
     boosting = {**opened, "heater_mode": "boost", "setpoint": 38.5}
     worse = worse_than_baseline(twin, PROPERTIES, components.NORMAL, boosting, 20.0, 0.5)
     assert (
-        list(worse) == ["temperature_band"]
+        list(worse) == ["temperature_band", "boost_while_open"]
         and "earlier than without it" in worse["temperature_band"]
     )
 
