@@ -111,6 +111,12 @@ class PropertyReport:
         """The signals that never had a value (when the property was never judged)."""
         return self.outcome.missing
 
+    def __repr__(self) -> str:
+        # the run holds one verdict per record: thousands of them are no help in a REPL
+        counts = f"{self.outcome.violations} violations, " if self.outcome.violations else ""
+        return (f"<PropertyReport {self.name}: {self.verdict}, {counts}"
+                f"{self.judged} records judged>")
+
 
 @dataclass
 class CheckReport:
@@ -130,6 +136,11 @@ class CheckReport:
     def failed(self) -> list[PropertyReport]:
         """The properties that do not pass: violated, in error or not judged."""
         return [p for p in self.properties if not p.passed]
+
+    def __repr__(self) -> str:
+        verdicts = ", ".join(f"{p.name}: {p.verdict}" for p in self.properties)
+        return (f"<CheckReport {self.source} over {self.records} records of {self.trace}: "
+                f"{_tally_line(self)} ({verdicts})>")
 
 
 def check_records(

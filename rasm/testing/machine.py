@@ -43,7 +43,11 @@ MAX_STEPS_PER_EVENT = 1000  # eventless transitions that never settle are a bug 
 
 @dataclass(frozen=True)
 class ChartState:
-    """What an invariant sees after a macro step."""
+    """What an invariant sees after a macro step.
+
+    ``events`` are the events sent so far as the lines of the events file: ``{"time", "event"
+    [, "data"]}`` dicts, not names (``[e["event"] for e in state.events]`` gives the names).
+    """
 
     configuration: frozenset[str]
     context: Mapping[str, Any]

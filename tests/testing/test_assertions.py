@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rasm.cli import main
 from rasm.errors import SourceErrors
@@ -159,3 +161,16 @@ def test_the_headline_names_every_failing_property_by_state():
     assert str(caught.value).startswith(
         "violated: velocity_limit; not judged: typo (no value for velocty)\n"
     )
+
+
+@settings(max_examples=20, deadline=None)
+@given(length=st.integers(1, 5000), limit=st.floats(0.0, 2.0))
+def test_a_report_prints_as_one_short_line_however_long_the_trace(length, limit):
+    records = [{"time": i * 0.1, "velocity": 1.0} for i in range(length)]
+    report = check_trace(f"property slow: always (velocity <= {limit})", records)
+    verdict = "satisfied" if limit >= 1.0 else "violated"
+    shown = repr(report)
+    assert "\n" not in shown and len(shown) < 200, shown
+    assert f"over {length} records" in shown and f"slow: {verdict}" in shown
+    assert repr(report.properties[0]).startswith(f"<PropertyReport slow: {verdict}")
+    assert len(repr(report.properties[0])) < 100

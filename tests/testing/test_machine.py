@@ -87,6 +87,23 @@ def test_door_bug_is_found_with_its_two_event_sequence_and_replays(tmp_path, cap
     assert [s["event"] for s in steps] == [None, "open", "bolt"]
 
 
+def test_an_invariant_sees_the_events_sent_as_events_file_lines(tmp_path):
+    chart = write(tmp_path, "door", charts.DOOR_FIXED)
+    seen = []
+
+    def bolt_is_never_sent(state):
+        seen.append(state.events)
+        return "bolt" not in [e["event"] for e in state.events]
+
+    failure = run(statechart_machine(chart, invariant=bolt_is_never_sent))
+    assert failure is not None and sequence(failure) == ["bolt"]
+    # each sent event is a dict with its time and name, in the order sent
+    sent = [events for events in seen if events]
+    assert sent and all(set(e) >= {"time", "event"} for events in sent for e in events)
+    assert all(events[i]["time"] <= events[i + 1]["time"]
+               for events in sent for i in range(len(events) - 1))
+
+
 def test_door_fixed_gives_no_false_alarm(tmp_path):
     chart = write(tmp_path, "door", charts.DOOR_FIXED)
     assert run(statechart_machine(chart, invariant=never_open_and_bolted)) is None
