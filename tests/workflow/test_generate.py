@@ -262,3 +262,30 @@ def test_regeneration_refuses_broken_markers(tmp_path: Path) -> None:
 
 def test_the_generated_tests_use_the_running_rasm() -> None:
     assert os.path.isfile(ROOT / "rasm" / "workflow" / "templates" / "app" / "test_app.py.j2")
+
+
+def test_the_generated_readme_regenerates_from_inside_the_app_and_nesting_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["new", "hb", "--from", str(HOTBOX_MODEL)]) == 0
+    app = tmp_path / "hb"
+    readme = (app / "README.md").read_text()
+    assert "$ rasm new .  " in readme and "--from model.yaml" not in readme
+    # as the README says, from the app folder: regenerated in place, the user's code kept
+    components = app / "components.py"
+    components.write_text(
+        components.read_text().replace(
+            "# >>> rasm:user imports\n", "# >>> rasm:user imports\nMARK = 1\n"
+        )
+    )
+    monkeypatch.chdir(app)
+    capsys.readouterr()
+    assert main(["new", "."]) == 0
+    assert "MARK = 1" in components.read_text()
+    # what the old README said, typed in the app folder: refused, nothing nested
+    assert main(["new", "hb", "--from", "model.yaml"]) == 2
+    err = capsys.readouterr().err
+    assert "is an app folder" in err and "rasm new ." in err and "Traceback" not in err
+    assert not (app / "hb").exists()
+    with pytest.raises(GenerateError, match="will not create the app hb inside it"):
+        new_app("hb")
