@@ -6,17 +6,19 @@ one trace record, steps a compiled monitor and publishes each verdict as
 public RoboSAPIENS Trustworthiness Checker, so its dashboards and subscribers work unchanged. A
 verdict the monitor could not evaluate is ``{"value": false, "time": t, "error": "why"}``.
 
-Where a signal comes from (a :class:`TopicMap`): by default signal ``x`` is read from topic
-``x``, from the payload's ``value`` field, or, if there is none, from its field ``x``. A
-``--topics`` YAML file maps signals elsewhere::
+Where a signal comes from (a :class:`TopicMap`): by default from a rasm loop's trace topic,
+``rasm/trace`` (field ``x`` of each trace record), and from topic ``x`` (the payload's ``value``
+field, or, if there is none, its field ``x``). A ``--topics`` YAML file maps signals elsewhere::
 
     velocity: robot/odometry                 # field "value", else "velocity"
     mode: {topic: robot/state, field: mode}  # an explicit field
     anomaly: {topic: robot/state, field: alarm}  # several signals may share one topic
     "*": rasm/trace                          # every other signal: this topic, field of its name
 
-A message's time is its ``time`` field (seconds), else the sender's envelope timestamp, else the
-time it arrived. A message that gives no mapped signal, a bad ``time``, or a record the monitor
+Every message on the trace topic (``"*"``) is one record, stepped even when it sets none of the
+properties' signals (a stage record), exactly as ``rasm check`` reads the trace file. A message's
+time is its ``time`` field (seconds), else the sender's envelope timestamp, else the time it
+arrived. A message elsewhere that gives no mapped signal, a bad ``time``, or a record the monitor
 refuses (time going back, a value of the wrong type) is counted and logged, never fatal.
 """
 
@@ -76,6 +78,7 @@ TopicMap = dict[str, Source]
 """Signal name -> :class:`Source`; the key ``*`` names the topic of every unmapped signal."""
 
 ALL = "*"
+TRACE_TOPIC = "rasm/trace"  # where a rasm loop on a broker publishes every trace record
 
 
 def default_topic_map(signals: list[str]) -> TopicMap:
@@ -255,8 +258,14 @@ class Attachment:
         self.spec = load_specification(text, source=source)
         self.monitor = Monitor(self.spec)
         self.signals = list(self.spec.signals)
+        # no map: a rasm loop's trace topic, and each signal's own topic besides
+        self._default = topics is None
         self.topics: TopicMap = dict(topics) if topics is not None else {}
-        self._everything = self.topics.pop(ALL, None)
+        self._everything = (
+            Source(ALL, TRACE_TOPIC) if self._default else self.topics.pop(ALL, None)
+        )
+        if self._default:
+            self.topics = default_topic_map(self.signals)
         for signal in self.signals:
             self.topics.setdefault(signal, _fallback(signal, self._everything))
         for name in self.monitor.properties:
@@ -266,9 +275,7 @@ class Attachment:
         self.on_verdict = on_verdict
         self.qos = qos
         self.summary = MonitorSummary(properties=self.monitor.properties)
-        self._by_topic: dict[str, list[Source]] = defaultdict(list)
-        for src in self.topics.values():
-            self._by_topic[src.topic].append(src)
+        self._by_topic = self._route(self.signals)
         self._lock = threading.Lock()
         self._subscriptions: dict[str, Subscription] = {}
         self._started = 0.0
@@ -278,6 +285,24 @@ class Attachment:
     @property
     def subscribed_topics(self) -> list[str]:
         return sorted(self._by_topic)
+
+    @property
+    def trace_topic(self) -> str | None:
+        """The topic whose every message is a trace record (``"*"``; ``rasm/trace`` by default)."""
+        return self._everything.topic if self._everything is not None else None
+
+    def _route(self, signals: list[str]) -> dict[str, list[Source]]:
+        """Topic -> the sources of ``signals`` read from it (the trace topic always listed)."""
+        by_topic: dict[str, list[Source]] = defaultdict(list)
+        trace = self.trace_topic
+        if trace is not None:
+            by_topic[trace] = []
+        for signal in signals:
+            src = self.topics[signal]
+            by_topic[src.topic].append(src)
+            if self._default and src.topic != trace:
+                by_topic[trace].append(Source(signal, trace, signal))
+        return by_topic
 
     def start(self) -> Attachment:
         """Subscribe to every mapped topic (returns once the broker confirmed); returns self."""
@@ -317,10 +342,9 @@ class Attachment:
             return False, f"properties kept: the new file does not load: {exc}"
         signals = list(spec.signals)
         for signal in signals:
-            self.topics.setdefault(signal, _fallback(signal, self._everything))
-        by_topic: dict[str, list[Source]] = defaultdict(list)
-        for signal in signals:
-            by_topic[self.topics[signal].topic].append(self.topics[signal])
+            default = Source(signal, signal) if self._default else None
+            self.topics.setdefault(signal, default or _fallback(signal, self._everything))
+        by_topic = self._route(signals)
         self._subscribe(sorted(by_topic))  # before the swap: no record of the new set is missed
         with self._lock:
             if self._stopped:
@@ -353,7 +377,7 @@ class Attachment:
                 found, value = src.extract(payload)
                 if found:
                     record[src.signal] = value
-            if not record:
+            if not record and message.topic != self.trace_topic:
                 self._malformed(message, "it carries none of the mapped signals")
                 return
             stamp = payload.get("time", message.timestamp)

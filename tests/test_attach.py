@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
 import sys
+import time as clock
+from pathlib import Path
 
 import paho.mqtt.publish as paho_publish
 import pytest
@@ -30,7 +33,7 @@ def test_verdicts_are_published_on_topics_named_after_the_properties(mqtt):
     robot.subscribe("velocity_limit", limit, qos=1)
     robot.subscribe("timely_adaptation", timely, qos=1)
     attachment = Attachment(PROPS, bus, qos=1).start()
-    assert attachment.subscribed_topics == ["adapted", "anomaly", "mode", "velocity"]
+    assert attachment.subscribed_topics == ["adapted", "anomaly", "mode", "rasm/trace", "velocity"]
 
     robot.publish("velocity", {"value": 0.3, "time": 1.0}, qos=1)
     assert limit.get().payload == {"value": True, "time": 1.0}
@@ -150,7 +153,7 @@ def test_the_command_runs_until_interrupted_and_summarises(broker, mqtt, tmp_pat
     )
     try:
         ready = process.stderr.readline()
-        assert ready.startswith("rasm monitor: 2 properties on 4 topic(s)"), ready
+        assert ready.startswith("rasm monitor: 2 properties on 5 topic(s)"), ready
         robot = mqtt()
         limit = Inbox()
         robot.subscribe("velocity_limit", limit, qos=1)
@@ -244,7 +247,7 @@ def test_signed_property_updates_replace_the_monitors(mqtt):
     operator.publish("rasm/update/properties", sign({"spec": NEW_PROPS}, key), qos=1)
     accepted = results.get().payload
     assert accepted["accepted"] is True and accepted["reason"].endswith(": slow")
-    assert attachment.subscribed_topics == ["speed"]
+    assert attachment.subscribed_topics == ["rasm/trace", "speed"]
     operator.publish("speed", {"value": 3, "time": 2.0}, qos=1)
     assert slow.get().payload == {"value": False, "time": 2.0}
     summary = attachment.stop()
@@ -425,3 +428,36 @@ def test_two_readings_of_1e308_never_give_a_satisfied_budget_and_the_monitor_rec
     assert calms[-1] == {"value": True, "time": 8.0}
     assert summary.outcome("budget").state in ("violated", "error")
     assert "budget" in summary.failed
+
+
+def test_with_no_topic_map_a_rasm_loop_is_monitored_from_its_trace_topic(broker, mqtt, tmp_path):
+    """A rasm loop on a broker publishes its trace on rasm/trace: an attachment with no topic
+    map (what `rasm monitor` builds without --topics) reads it, every record counts (stage
+    records too, none malformed), and the verdicts are those of `rasm check` on the file."""
+    root = Path(__file__).resolve().parents[1]
+    props = root / "examples" / "hotbox" / "properties" / "hotbox.rv"
+    attachment = Attachment(props.read_text(), mqtt(), source=str(props), qos=1).start()
+    assert "rasm/trace" in attachment.subscribed_topics
+    trace = tmp_path / "trace.jsonl"
+    run = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "run", str(root / "examples" / "hotbox"),
+         "--transport", broker.url, "--clock", "simulated", "--seed", "1",
+         "--duration", "20", "--trace", str(trace)],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stdout + run.stderr
+    records = len(trace.read_text().splitlines())
+    deadline = clock.monotonic() + 30
+    while attachment.summary.messages < records and clock.monotonic() < deadline:
+        clock.sleep(0.05)  # waiting for a condition: the messages the loop published to arrive
+    summary = attachment.stop()
+    assert (summary.messages, summary.records) == (records, records)
+    assert summary.malformed == 0 and summary.rejected == 0
+    checked = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "check", str(props), str(trace), "--format", "json"],
+        capture_output=True, text=True, timeout=60,
+    )
+    offline = {p["name"]: (p["verdict"], p["judged"]) for p in json.loads(checked.stdout)[
+        "properties"]}
+    online = {name: (o.state, o.judged) for name, o in summary.outcomes.items()}
+    assert online == offline and set(online) >= {"temperature_band", "back_to_normal"}
