@@ -345,7 +345,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
 
-    from rasm.cli.console import LiveView, print_summary
+    from rasm.cli.console import LiveView, print_summary, timeline_note
     from rasm.platform.manifest import load_manifest
     from rasm.platform.platform import Platform
 
@@ -378,6 +378,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     try:
         with _stop_on_signals(platform):
             platform.build()
+            if platform.restored_from is not None:
+                console.print(timeline_note(platform), highlight=False, soft_wrap=True)
             if args.dashboard is not None:
                 from rasm.report.dashboard import serve
 

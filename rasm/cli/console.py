@@ -16,7 +16,7 @@ from rasm.platform.summary import RunSummary
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PASSING
 
-__all__ = ["LiveView", "print_summary"]
+__all__ = ["LiveView", "print_summary", "timeline_note"]
 
 _STYLE = {
     "satisfied": "green",
@@ -64,12 +64,17 @@ class LiveView:
     def render(self, time: float) -> Group:
         p = self.platform
         stats = p.ao.stats
+        start = p.timeline_start
         head = Text.assemble(
             (f"{p.manifest.name}", "bold"),
-            f"  t={time:7.2f}s / {self.duration:g}s  ",
+            f"  t={time - start:7.2f}s / {self.duration:g}s  ",
             f"iteration {stats.iterations}  stage {self.stage}  ",
             f"anomalies {stats.anomalies}  executed {stats.executed}  rejected {stats.rejected}",
         )
+        lines: list[Any] = [head]
+        if p.restored_from is not None:
+            # the trace's times go on from the persisted knowledge: say so, or t looks wrong
+            lines.append(Text(timeline_note(p, time), style="dim"))
         modes = Table(show_header=True, header_style="bold", box=None)
         modes.add_column("block")
         modes.add_column("mode")
@@ -83,7 +88,17 @@ class LiveView:
             verdicts.add_row(name, Text(word, style=style))
         grid = Table.grid(padding=(0, 4))
         grid.add_row(modes, verdicts)
-        return Group(head, grid)
+        return Group(*lines, grid)
+
+
+def timeline_note(platform: Platform, time: float | None = None) -> str:
+    """Where a live run's timeline comes from, when it continues persisted knowledge."""
+    start = platform.timeline_start
+    now = f"; trace time now {time:.2f} s" if time is not None else ""
+    return (
+        f"timeline continued from {platform.restored_from} (knowledge up to t={start:.2f} s): "
+        f"this run's trace times start at {start:.2f} s{now}"
+    )
 
 
 def _now(verdict: Verdict | None) -> tuple[str, str]:

@@ -70,7 +70,12 @@ class SqliteStorage(Storage):
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], *, keep: int = DEFAULT_KEEP, durable: bool = False
+        self,
+        path: str | os.PathLike[str],
+        *,
+        keep: int = DEFAULT_KEEP,
+        durable: bool = False,
+        fresh: bool = False,
     ) -> None:
         super().__init__()
         if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
@@ -89,6 +94,9 @@ class SqliteStorage(Storage):
         self._counts: dict[str, int] = {}  # rows on disk per key (we are the only writer)
         self._lock_fd = _take_lock(self.path)
         try:
+            if fresh:  # only once the lock is ours: never under another run's open file
+                for suffix in ("", "-wal", "-shm"):
+                    Path(f"{self.path}{suffix}").unlink(missing_ok=True)
             self._db: sqlite3.Connection | None = self._connect()
         except BaseException:
             _release_lock(self._lock_fd)
@@ -394,11 +402,18 @@ def _take_lock(path: Path) -> int | None:
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:
-        os.close(fd)
+        try:
+            owner = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+        finally:
+            os.close(fd)
+        who = f"pid {owner}" if owner.isdigit() else "another process"
         raise KnowledgeError(
-            f"knowledge file {path} is in use by another storage (another rasm run of the same "
-            "application?): stop it, or give this one another sqlite: path"
+            f"knowledge file {path} is in use by {who} (another rasm run of this app): wait "
+            "for it to end or stop it, or give this run another store (knowledge: sqlite:PATH)"
         ) from exc
+    # the lock file names its holder, for the message a second run gets
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, str(os.getpid()).encode("ascii"), 0)
     return fd
 
 

@@ -20,7 +20,7 @@ _FORMS = "memory, sqlite:PATH or redis://HOST:PORT"
 
 
 def open_knowledge(
-    url: str, *, base_dir: str | os.PathLike[str] | None = None
+    url: str, *, base_dir: str | os.PathLike[str] | None = None, fresh: bool = False
 ) -> tuple[KnowledgeBase, Storage | None]:
     """Open the knowledge store ``url`` names: a knowledge base and its storage (or None).
 
@@ -29,7 +29,8 @@ def open_knowledge(
     and the storage attached, so every registration is buffered for ``update_persistency``.
     ``redis://`` gives a :class:`~rasm.knowledge.redis.RedisKnowledgeBase` and its
     :class:`~rasm.knowledge.redis.RedisStorage` (nothing to restore: the knowledge is read from
-    Redis directly).
+    Redis directly). ``fresh=True`` starts a SQLite file empty (what it held is deleted once
+    its lock is taken).
     """
     if not isinstance(url, str):
         raise KnowledgeError(f"knowledge store must be text ({_FORMS}), got {url!r}")
@@ -39,14 +40,14 @@ def open_knowledge(
     if text.lower() == "memory":
         return KnowledgeBase(), None
     if colon and scheme == "sqlite":
-        return _open_sqlite(rest, base_dir, url)
+        return _open_sqlite(rest, base_dir, url, fresh)
     if colon and scheme in ("redis", "rediss"):
         return _open_redis(text)
     raise KnowledgeError(f"unknown knowledge store {url!r}: expected {_FORMS}")
 
 
 def _open_sqlite(
-    rest: str, base_dir: str | os.PathLike[str] | None, url: str
+    rest: str, base_dir: str | os.PathLike[str] | None, url: str, fresh: bool
 ) -> tuple[KnowledgeBase, Storage]:
     if not rest.strip():
         raise KnowledgeError(f"knowledge store {url!r} names no file: write sqlite:PATH")
@@ -65,7 +66,7 @@ def _open_sqlite(
             f"knowledge store {url!r}: cannot create {path.parent}: {exc}"
         ) from exc
     kb = KnowledgeBase()
-    storage = SqliteStorage(path)
+    storage = SqliteStorage(path, fresh=fresh)
     try:
         storage.restore(kb)
         storage.attach(kb)

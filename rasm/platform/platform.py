@@ -17,6 +17,7 @@ callables it reports through); none receives the platform.
 from __future__ import annotations
 
 import gc
+import hashlib
 import logging
 import math
 import random
@@ -78,9 +79,23 @@ def _is_ros(url: str) -> bool:
     return url.strip().startswith(("zenoh://", "dds://"))
 
 
-def _remove_sqlite(path: Path) -> None:
-    for suffix in ("", "-wal", "-shm"):
-        Path(f"{path}{suffix}").unlink(missing_ok=True)
+APP_CLAIM = "app"  # in a state folder: the app folder whose state it holds
+
+
+def _state_dir(manifest: AppManifest) -> Path:
+    """``.rasm/<app name>``, unless another app of that name has it: then
+    ``.rasm/<app name>-<hash of the app folder>``, so two apps never share knowledge."""
+    base = Path(".rasm") / manifest.name
+    claim = base / APP_CLAIM
+    folder = str(manifest.folder.resolve())
+    try:
+        owner = claim.read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        return base
+    if owner in ("", folder):
+        return base
+    digest = hashlib.sha256(folder.encode("utf-8")).hexdigest()[:10]
+    return Path(".rasm") / f"{manifest.name}-{digest}"
 
 
 class Platform:
@@ -155,7 +170,8 @@ class Platform:
             self.trace: TraceWriter = McapTraceWriter(trace)
         else:
             self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
-        self.state_dir = Path(state_dir) if state_dir else Path(".rasm") / manifest.name
+        self.state_dir = Path(state_dir) if state_dir else _state_dir(manifest)
+        self._claims_state_dir = not state_dir
         self.scenario = manifest.scenario if scenario is None else scenario
         self.transport_url = transport or manifest.transport
         self.replay_path = Path(replay) if replay is not None else None
@@ -186,6 +202,8 @@ class Platform:
         self._built = False
         self._started_at = 0.0
         self._timeline_start = 0.0
+        # the store a live run's timeline continues from (None: it starts at 0)
+        self.restored_from: str | None = None
         self.twin: DigitalTwin | None = None
         self._twin_inputs: frozenset[str] = frozenset()
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
@@ -303,6 +321,20 @@ class Platform:
             "node_name": f"rasm_{node}",
         }
 
+    @property
+    def timeline_start(self) -> float:
+        """Where this run's clock starts: 0, or after the newest sample a live run restored
+        from :attr:`restored_from`."""
+        return self._timeline_start
+
+    def _claim_state_dir(self) -> None:
+        """Mark the default state folder as this app's (see :func:`_state_dir`)."""
+        if self._claims_state_dir:
+            self.state_dir.mkdir(parents=True, exist_ok=True)
+            claim = self.state_dir / APP_CLAIM
+            if not claim.exists():
+                claim.write_text(f"{self.manifest.folder.resolve()}\n", encoding="utf-8")
+
     def _open_knowledge(self) -> Storage | None:
         """Open (and restore) the knowledge store; returns its storage, if persistent."""
         from rasm.knowledge import open_knowledge
@@ -311,11 +343,12 @@ class Platform:
         if url == "sqlite":
             name = "simulated.sqlite" if self.clock_kind == "simulated" else "knowledge.sqlite"
             url = f"sqlite:{self.state_dir / name}"
-        if url.startswith("sqlite:") and self.clock_kind == "simulated":
-            # a simulation is a fresh world: no knowledge from an earlier run
-            _remove_sqlite(Path(url[len("sqlite:") :]))
+        if self.knowledge_url == "sqlite":
+            self._claim_state_dir()
         self.kb: KnowledgeBase
-        self.kb, storage = open_knowledge(url, base_dir=Path.cwd())
+        # a simulation is a fresh world: no knowledge from an earlier run
+        fresh = self.clock_kind == "simulated"
+        self.kb, storage = open_knowledge(url, base_dir=Path.cwd(), fresh=fresh)
         if url.startswith(("redis://", "rediss://")) and self.clock_kind == "simulated":
             self.kb.clear()  # a simulation is a fresh world here too
         if storage is not None:
@@ -325,6 +358,7 @@ class Platform:
         if restored:
             # a restarted managing system continues its timeline after what it restored
             self._timeline_start = max(sample.time for sample in restored)
+            self.restored_from = url
         for signal in self.manifest.signals.values():
             self.kb.declare(
                 signal.key,

@@ -76,7 +76,27 @@ def test_anything_else_is_refused_with_the_forms_that_work(url, message):
 def test_a_file_in_use_is_refused_and_the_first_user_keeps_it(tmp_path):
     _, first = open_knowledge("sqlite:k.db", base_dir=tmp_path)
     try:
-        with pytest.raises(KnowledgeError, match="in use by another storage"):
+        with pytest.raises(KnowledgeError, match=f"in use by pid {os.getpid()} "):
             open_knowledge("sqlite:k.db", base_dir=tmp_path)
+        # a fresh open waits for the lock too: it never deletes a file another run has open
+        with pytest.raises(KnowledgeError, match="in use by pid"):
+            open_knowledge("sqlite:k.db", base_dir=tmp_path, fresh=True)
+        assert (tmp_path / "k.db").exists()
     finally:
         first.close()
+
+
+def test_a_fresh_open_starts_empty_and_a_plain_one_restores(tmp_path):
+    kb, storage = open_knowledge("sqlite:k.db", base_dir=tmp_path)
+    kb.declare("x", "float")
+    kb.register_knowledge("x", 1.0, 1.0)
+    storage.close()
+    kb, storage = open_knowledge("sqlite:k.db", base_dir=tmp_path)
+    storage.close()
+    assert kb.read_knowledge("x") == 1.0
+    kb, storage = open_knowledge("sqlite:k.db", base_dir=tmp_path, fresh=True)
+    storage.close()
+    assert list(kb.keys()) == []
+    kb, storage = open_knowledge("sqlite:k.db", base_dir=tmp_path)
+    storage.close()
+    assert list(kb.keys()) == []

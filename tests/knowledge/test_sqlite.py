@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import sqlite3
 import tempfile
 import threading
@@ -339,7 +340,7 @@ def test_another_applications_database_is_refused(tmp_path):
 def test_one_storage_at_a_time_writes_a_file(tmp_path):
     path = tmp_path / "k.db"
     first = SqliteStorage(path)
-    with pytest.raises(KnowledgeError, match="in use by another storage"):
+    with pytest.raises(KnowledgeError, match=f"in use by pid {os.getpid()} "):
         SqliteStorage(path)
     first.close()
     SqliteStorage(path).close()  # free again once closed
