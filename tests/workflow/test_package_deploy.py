@@ -309,3 +309,29 @@ def test_package_into_a_folder_is_bad_input_and_leaves_nothing_behind(
         f"rasm: {out} is a folder: give the path of the zip to write (app.zip)\n"
     )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_no_deps_package_deploys_with_the_wheels_the_guide_says_to_provide(
+    hotbox_zip: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    bare = tmp_path / "bare.zip"
+    monkeypatch.delenv("RASM_PACKAGE_KEY", raising=False)
+    report = package_app(ROOT / "examples" / "hotbox", bare, dependencies=False)
+    assert not [n for n in names(bare) if n.count("/") > 1 and n.startswith("01_Binaries/")]
+    # without the dependencies, install says what to give it, and nothing is validated
+    monkeypatch.delenv("RASM_WHEELS", raising=False)
+    monkeypatch.delenv("RASM_PIP_INDEX", raising=False)
+    report = deploy_package(bare, "local", tmp_path / "none")
+    assert not report.ok and [s.action for s in report.steps] == ["install"]
+    assert "(built with --no-deps): set RASM_WHEELS=DIR" in report.steps[0].output
+    # a folder of the dependencies' wheels (here: those the full package carries), no index
+    wheels = tmp_path / "wheels"
+    with zipfile.ZipFile(hotbox_zip) as archive:
+        for name in archive.namelist():
+            parts = name.split("/")
+            if parts[0] == "01_Binaries" and len(parts) == 3 and name.endswith(".whl"):
+                (wheels / parts[2]).parent.mkdir(parents=True, exist_ok=True)
+                (wheels / parts[2]).write_bytes(archive.read(name))
+    report = deploy_package(bare, "local", tmp_path / "unit", env={"RASM_WHEELS": str(wheels)})
+    assert report.ok, "\n".join(s.output for s in report.steps)
+    assert [s.action for s in report.steps] == ["install", "validate"]
