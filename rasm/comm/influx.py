@@ -14,7 +14,9 @@
 :class:`InfluxWriter` sends lines from a background thread in batches (``POST /write``), so the
 loop never waits for the network: :meth:`~InfluxWriter.write` only appends to a bounded queue,
 and what does not fit is dropped and counted. :meth:`~InfluxWriter.write_record` queues the
-record itself: the writer's thread formats its lines with the rest of the batch.
+record itself: its lines are formatted with the rest of its batch, by the writer that fills the
+batch (one loop, no second thread competing for the interpreter meanwhile), or by the writer's
+thread for a batch that goes out unfilled at its deadline.
 :meth:`InfluxWriter.to_file` writes the same lines to a file instead (``influx write``/``curl
 --data-binary @FILE`` load it later).
 
@@ -351,6 +353,9 @@ class InfluxWriter:
         self.stats = WriterStats()
         self._sink: _Sink = _sink or _HttpSink(url, database, precision, timeout)
         self._queue: deque[Entry] = deque()
+        # full batches formatted by the writer that filled them, in order: (entries, lines)
+        self._ready: deque[tuple[int, list[str] | None]] = deque()
+        self._held = 0  # entries in _ready
         self._cond = threading.Condition()
         self._accepted = 0  # lines ever queued
         self._done = 0  # lines ever taken off the queue and sent (or failed)
@@ -391,17 +396,35 @@ class InfluxWriter:
         queued = 0
         with self._cond:
             for entry in entries:
-                if len(self._queue) >= self.max_queue:
+                if len(self._queue) + self._held >= self.max_queue:
                     self.stats.dropped += 1
                     continue
                 self._queue.append(entry)
                 queued += 1
+                if len(self._queue) >= self.batch_size:
+                    # formatted here: in the writer's thread it would cost more CPU, the two
+                    # threads taking turns at the interpreter while the loop runs
+                    batch = self._batch()
+                    self._ready.append((len(batch), self._format(batch)))
+                    self._held += len(batch)
+                    self._cond.notify_all()
             self._accepted += queued
-            if len(self._queue) >= self.batch_size:
-                self._cond.notify_all()
-            elif queued and len(self._queue) == queued:
+            if queued and len(self._queue) == queued:
                 self._cond.notify_all()  # the first lines of a batch start its timer
         return queued
+
+    def _batch(self) -> list[Entry]:
+        """The oldest entries of the queue, at most a batch (the lock is held)."""
+        count = min(len(self._queue), self.batch_size)
+        return [self._queue.popleft() for _ in range(count)]
+
+    def _format(self, batch: list[Entry]) -> list[str] | None:
+        """The lines of a batch; None (counted as failed when sent) if formatting failed."""
+        try:
+            return _entry_lines(batch, _PRECISION[self.precision])
+        except Exception:  # a bug must not reach the loop, nor stop the writer: log, go on
+            _log.exception("InfluxDB writer failed to format a batch")
+            return None
 
     def write_verdict(self, verdict: Any) -> int:
         """Queue one verdict (anything with ``property``, ``index``, ``time``, ``value``)."""
@@ -428,7 +451,7 @@ class InfluxWriter:
     def pending(self) -> int:
         """Lines queued and not yet sent."""
         with self._cond:
-            return len(self._queue)
+            return len(self._queue) + self._held
 
     def close(self, timeout: float = 10.0) -> None:
         """Send what is queued (at most ``timeout`` seconds), stop the thread, close the sink."""
@@ -447,37 +470,41 @@ class InfluxWriter:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _take(self) -> list[Entry] | None:
+    def _take(self) -> tuple[int, list[str] | None] | None:
+        """The next batch to send, as (entries, lines), or None once closing with none left."""
         with self._cond:
-            while not self._queue:
+            while not self._queue and not self._ready:
                 if self._closing:
                     return None
                 self._urgent = False
                 self._cond.wait()
-            deadline = _time.monotonic() + self.flush_interval
-            while len(self._queue) < self.batch_size and not self._urgent and not self._closing:
-                left = deadline - _time.monotonic()
-                if left <= 0:
-                    break
-                self._cond.wait(left)
-            count = min(len(self._queue), self.batch_size)
-            return [self._queue.popleft() for _ in range(count)]
+            if not self._ready:
+                deadline = _time.monotonic() + self.flush_interval
+                while not self._ready and not self._urgent and not self._closing:
+                    left = deadline - _time.monotonic()
+                    if left <= 0:
+                        break
+                    self._cond.wait(left)
+            if self._ready:  # taken from the queue before what is left in it
+                count, lines = self._ready.popleft()
+                self._held -= count
+                return count, lines
+            batch = self._batch()
+            return len(batch), self._format(batch)
 
     def _run(self) -> None:
-        factor = _PRECISION[self.precision]
         while True:
-            batch = self._take()
-            if batch is None:
+            taken = self._take()
+            if taken is None:
                 return
-            lines: list[str] = []
+            count, lines = taken
             try:
-                lines = _entry_lines(batch, factor)
                 if lines:
                     self._sink.send(lines)
-                ok = True
+                ok = lines is not None
             except (CommError, OSError) as exc:
                 ok = False
-                _log.warning("%d point(s) not written: %s", len(lines), exc)
+                _log.warning("%d point(s) not written: %s", len(lines or ()), exc)
             except Exception:  # a bug must not kill the thread silently: log and go on
                 ok = False
                 _log.exception("InfluxDB writer failed on a batch")
@@ -487,9 +514,9 @@ class InfluxWriter:
                     if lines:
                         self.stats.batches += 1
                 else:  # not sent; a batch that could not even be formatted counts its entries
-                    self.stats.failed += len(lines) or len(batch)
-                self._done += len(batch)
-                if not self._queue:
+                    self.stats.failed += len(lines or ()) or count
+                self._done += count
+                if not self._queue and not self._ready:
                     self._urgent = False
                 self._cond.notify_all()
 

@@ -252,6 +252,60 @@ def test_to_file_writes_the_same_lines(tmp_path):
         writer.write(["m x=1 1"])
 
 
+_records = st.lists(
+    st.one_of(
+        st.tuples(st.just("line"), st.integers(0, 99)),
+        st.tuples(st.just("record"), st.integers(0, 99)),
+        st.tuples(st.just("flush"), st.just(0)),
+    ),
+    max_size=40,
+)
+
+
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(steps=_records, batch_size=st.integers(1, 5))
+def test_the_file_has_every_line_in_the_order_written(tmp_path, steps, batch_size):
+    # full batches are formatted by the writer that fills them, the rest by the writer's
+    # thread at their deadline or on flush(): the file has the lines as written, in order
+    path = tmp_path / f"order-{batch_size}-{len(steps)}.lp"
+    expected: list[str] = []
+    with InfluxWriter.to_file(path, append=False, batch_size=batch_size,
+                              flush_interval=0.01) as writer:
+        for kind, i in steps:
+            if kind == "line":
+                writer.write([f"m x={i} {i}"])
+                expected.append(f"m x={i} {i}")
+            elif kind == "record":
+                record = {"stage": "plan", "duration": i / 10} if i % 2 else {"speed": i}
+                writer.write_record(float(i), record)
+                expected.extend(record_to_points(float(i), record))
+            else:
+                assert writer.flush(timeout=10)
+    assert path.read_text().splitlines() == expected
+    assert writer.stats.written == len(expected) and writer.stats.failed == 0
+
+
+def test_formatted_batches_waiting_for_the_server_count_in_the_bounded_queue():
+    server = _HeldServer()
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}"
+        writer = InfluxWriter(url, "db", batch_size=2, max_queue=10)
+        writer.write(["m x=1 1", "m x=2 2"])  # a full batch, taken and held by the server
+        assert server.arrived.wait(10)
+        accepted = sum(writer.write([f"m x={i} {i}"]) for i in range(3, 33))
+        assert (accepted, writer.stats.dropped, writer.pending) == (10, 20, 10)
+        server.release.set()
+        writer.close()
+        assert writer.stats.written == 12
+    finally:
+        server.release.set()
+        server.shutdown()
+        server.server_close()
+
+
 def test_bad_configuration_is_refused():
     with pytest.raises(CommError, match="http://HOST:PORT"):
         InfluxWriter("influx://somewhere", "db")
