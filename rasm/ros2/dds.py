@@ -4,8 +4,10 @@
   a final struct with the message's fields (built from the type store), in XCDR1 (plain CDR).
 - Endpoints carry ``typehash=RIHS01_...;`` in their USER_DATA, as ROS 2 (Iron and later) does;
   samples from a publisher that announces another hash are rejected as ``wrong_hash``.
-- A publisher of another type on one of our topics never matches (DDS matches by type name);
-  discovery still sees it, and it is counted once as ``type_conflict`` (or ``unknown_type``).
+- A publisher of another type on one of our topics is refused: discovery sees it (also one
+  that came before our reader) and counts it once as ``type_conflict`` (or ``unknown_type``);
+  should Cyclone match it (a type of the same shape: Cyclone matches types by structure), its
+  samples are refused and counted too.
 - QoS: reliability, durability, history and depth map to the DDS policies of the same names.
 - The ROS graph: as rmw_cyclonedds does, the participant publishes its node (namespace, name)
   and the GIDs (DDS GUIDs) of its readers and writers as an
@@ -55,6 +57,7 @@ _log = logging.getLogger("rasm.ros2.dds")
 ACCEPTED_FORM = "'dds://' or 'dds://?domain=N'"
 _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
 _TAKE_BATCH = 64
+_MAX_SEEN = 10_000  # publications remembered from discovery
 _TYPEHASH = re.compile(rb"typehash=([^;]*);")
 GRAPH_TOPIC = "ros_discovery_info"  # where rmw_cyclonedds publishes each participant's nodes
 GRAPH_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
@@ -162,8 +165,11 @@ class DdsTransport(RosTransport):
         self._dds_topics: dict[str, Topic] = {}
         self._writers: dict[str, DataWriter] = {}
         self._readers: dict[str, DataReader] = {}
-        self._publications: dict[int, str | None] = {}  # handle -> why rejected (None: fine)
+        # publication handle -> (reason, why) its samples are refused, or None: fine
+        self._publications: dict[int, tuple[str, str] | None] = {}
         self._foreign: set[Any] = set()  # publications of another type already counted
+        # DDS topic -> {publication key: type name}: what discovery saw, also before we read
+        self._seen: dict[str, dict[Any, str]] = {}
         self._discovery: BuiltinDataReader | None = None
         self._graph: DataWriter | None = None
 
@@ -245,6 +251,9 @@ class DdsTransport(RosTransport):
             listener=Listener(on_data_available=lambda _: self._on_data(topic)),
         )
         self._announce()
+        # publishers discovered before this reader existed are judged now
+        for key, type_name in dict(self._seen.get(dds_topic_name(topic.name), {})).items():
+            self._judge(topic, key, type_name)
         # Data can arrive while the reader is being made (a latched message), before Cyclone's
         # Python layer knows the reader: the listener then gets None; take what is there now.
         self._on_data(topic, reader)
@@ -293,38 +302,57 @@ class DdsTransport(RosTransport):
                 for data, info in samples:
                     if not info.valid_data:
                         continue  # a writer left or disposed: no message
-                    why = self._publication_check(topic, reader, info.publication_handle)
-                    if why is None:
+                    refused = self._publication_check(topic, reader, info.publication_handle)
+                    if refused is None:
                         self._received(topic, data, None, info.source_timestamp / 1e9)
                     else:
-                        self._reject(topic.name, "wrong_hash", why)
+                        self._reject(topic.name, *refused)
         except Exception:
             _log.exception("error receiving a message on %s", topic.name)
 
-    def _publication_check(self, topic: RosTopic, reader: DataReader, handle: int) -> str | None:
-        """None if samples of publication ``handle`` may be delivered, else why not."""
+    def _publication_check(
+        self, topic: RosTopic, reader: DataReader, handle: int
+    ) -> tuple[str, str] | None:
+        """None if samples of publication ``handle`` may be delivered, else the reason and why
+        not. A writer of another type name can match when its type has the same shape (Cyclone
+        matches by XTypes assignability): it is refused all the same."""
         if handle in self._publications:
             return self._publications[handle]
-        why = None
+        refused = None
         try:
             endpoint = reader.get_matched_publication_data(handle)
         except DDSException:
             endpoint = None
-        if endpoint is not None:
+        if endpoint is not None and endpoint.type_name != topic.codec.dds_name:
+            refused = self._other_type(topic, endpoint.type_name)
+        elif endpoint is not None:
             qos = endpoint.qos
             userdata = qos[Policy.Userdata] if qos is not None and Policy.Userdata in qos else None
             found = _TYPEHASH.search(userdata.data) if userdata is not None else None
             announced = found.group(1).decode("ascii", "replace") if found else None
             if announced and announced != topic.codec.type_hash:
-                why = (
+                refused = "wrong_hash", (
                     f"its publisher announces type hash {announced[:80]}, not "
                     f"{topic.codec.type_hash} ({topic.typename} in this type store, "
                     f"{self.store.distro}); the definitions differ"
                 )
         if len(self._publications) > 10_000:
             self._publications.clear()  # bounded memory; verdicts are cheap to recompute
-        self._publications[handle] = why
-        return why
+        self._publications[handle] = refused
+        return refused
+
+    def _other_type(self, topic: RosTopic, type_name: str) -> tuple[str, str]:
+        """Why a publisher of ``type_name`` on ``topic`` is refused: unknown_type or
+        type_conflict."""
+        ros_name = ros_type_name(type_name)
+        if ros_name is None or ros_name not in self.store:
+            return "unknown_type", (
+                f"a publisher of the unknown type {type_name[:80]!r} (declared type: "
+                f"{topic.typename})"
+            )
+        return "type_conflict", (
+            f"a publisher of {ros_name} (declared type: {topic.typename})"
+        )
 
     def _on_publications(self) -> None:
         """Count publishers of another type on our topics (DDS never matches them)."""
@@ -342,22 +370,17 @@ class DdsTransport(RosTransport):
             if not getattr(endpoint.sample_info, "valid_data", True):
                 continue
             name = endpoint.topic_name
-            topic = self._topics.get(name[2:]) if name.startswith("rt/") else None
-            if topic is None or name[2:] not in self._readers:
+            if not name.startswith("rt/"):
                 continue
-            if endpoint.type_name == topic.codec.dds_name or endpoint.key in self._foreign:
-                continue
-            self._foreign.add(endpoint.key)
-            ros_name = ros_type_name(endpoint.type_name)
-            if ros_name is None or ros_name not in self.store:
-                self._reject(
-                    topic.name, "unknown_type",
-                    f"a publisher of the unknown type {endpoint.type_name[:80]!r} "
-                    f"(declared type: {topic.typename}) is never matched",
-                )
-            else:
-                self._reject(
-                    topic.name, "type_conflict",
-                    f"a publisher of {ros_name} (declared type: {topic.typename}) is "
-                    "never matched",
-                )
+            if sum(map(len, self._seen.values())) < _MAX_SEEN:  # bounded memory
+                self._seen.setdefault(name, {})[endpoint.key] = endpoint.type_name
+            topic = self._topics.get(name[2:])
+            if topic is not None and name[2:] in self._readers:
+                self._judge(topic, endpoint.key, endpoint.type_name)
+
+    def _judge(self, topic: RosTopic, key: Any, type_name: str) -> None:
+        """Count a publisher of ``topic`` with another type, once."""
+        if type_name == topic.codec.dds_name or key in self._foreign:
+            return
+        self._foreign.add(key)
+        self._reject(topic.name, *self._other_type(topic, type_name))

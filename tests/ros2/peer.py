@@ -17,7 +17,8 @@ endpoint), ``connect`` (Zenoh endpoints to connect to as well), ``domain``, ``re
 "messages"}`` (dicts to publish), where ``raw`` (hex payloads sent as they are), ``key`` (a
 Zenoh key expression), ``type_name`` (a DDS type name) and ``type_hash`` (announced in DDS
 user data) override what the peer would send, and ``stamp`` (true) sets the messages'
-``header.stamp`` to the time each round is sent.
+``header.stamp`` to the time each round is sent; ``"wait": false`` publishes without
+waiting for a DDS reader to match (one of another type never does).
 """
 
 from __future__ import annotations
@@ -268,8 +269,9 @@ def dds_main(config):
             if idle:
                 done.wait(0.005)  # poll: this peer has no listener thread of its own
         return
-    for _, writer in endpoints:
-        while not writer.get_matched_subscriptions() and not done.is_set():
+    for entry, writer in endpoints:
+        while entry.get("wait", True) and not writer.get_matched_subscriptions() \
+                and not done.is_set():
             done.wait(0.01)
     say(event="ready")
     written = 0

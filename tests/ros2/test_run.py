@@ -104,3 +104,81 @@ def test_rasm_run_reads_the_robots_topics_and_sends_actions_and_verdicts(
     assert any(r.get("ahead") == pytest.approx(0.4) for r in records)
     assert any(r.get("bumped") is False for r in records)
     assert any(r.get("executed") for r in records)
+
+
+ZERO_HASH = "RIHS01_" + "0" * 64
+
+
+def _bad_utf8_scan() -> str:
+    """A LaserScan whose frame_id is no UTF-8: well-formed CDR to Cyclone, malformed to ROS."""
+    from rasm.ros2 import TypeStore
+
+    data = TypeStore().codec("sensor_msgs/msg/LaserScan").encode(
+        {"header": {"frame_id": "ab"}, "ranges": [0.1]})
+    return data.replace(b"ab\0", b"\xff\xfe\0").hex()
+
+
+FAST = {"twist": {"twist": {"linear": {"x": 9.0}}}}  # would show in the trace if taken
+
+
+def hostile(middleware: str) -> tuple[list[dict], list[dict]]:
+    """Two foreign publishers' topics: malformed CDR on /scan, Odometry with a wrong type hash
+    on /odom and a type nobody knows on /bumper; a String on /scan (a topic with two types)."""
+    if middleware == "zenoh":
+        first = [
+            {"topic": "/scan", "type": "sensor_msgs/msg/LaserScan", "raw": [_bad_utf8_scan()]},
+            {"topic": "/odom", "type": "nav_msgs/msg/Odometry", "messages": [FAST],
+             "key": f"0/odom/nav_msgs::msg::dds_::Odometry_/{ZERO_HASH}"},
+            {"topic": "/bumper", "type": "std_msgs/msg/Bool", "messages": [{"data": True}],
+             "key": f"0/bumper/foo_msgs::msg::dds_::Bar_/{ZERO_HASH}"},
+        ]
+    else:
+        first = [
+            {"topic": "/scan", "type": "sensor_msgs/msg/LaserScan", "raw": [_bad_utf8_scan()]},
+            {"topic": "/odom", "type": "nav_msgs/msg/Odometry", "messages": [FAST],
+             "type_hash": ZERO_HASH},
+            {"topic": "/bumper", "type": "std_msgs/msg/Bool", "messages": [{"data": True}],
+             "type_name": "foo_msgs::msg::dds_::Bar_", "wait": False},
+        ]
+    second = [{"topic": "/scan", "type": "std_msgs/msg/String", "messages": [{"data": "hi"}],
+               "wait": False}]
+    return first, second
+
+
+@pytest.mark.parametrize("middleware", ["zenoh", "dds"])
+def test_bad_input_on_the_wire_is_counted_logged_once_and_never_stored(
+    peers, tmp_path, middleware
+):
+    robot, _, url = network(peers, middleware)
+    first, second = hostile(middleware)
+    if middleware == "zenoh":
+        meet = [f"tcp/127.0.0.1:{url.rsplit(':', 1)[1]}"]
+        bad = [peers({"middleware": "zenoh", "role": "pub", "repeat": True, "connect": meet,
+                      "listen": f"tcp/127.0.0.1:{free_port()}", "topics": topics})
+               for topics in (first, second)]
+    else:
+        domain = int(url.rsplit("=", 1)[1])
+        bad = [peers({"middleware": "dds", "role": "pub", "domain": domain, "repeat": True,
+                      "topics": topics}) for topics in (first, second)]
+    trace = tmp_path / "trace.jsonl"
+    run = rasm_run(GUARD, url, tmp_path, "--duration", "6", "--trace", str(trace))
+    robot.wait_ready()
+    for peer in bad:
+        peer.wait_for(lambda p: sum(e["event"] == "published" for e in p.events) >= 5,
+                      timeout=30, what="five rounds of bad input")
+    code, output = finish(run)
+    assert code in (0, 1) and "Traceback" not in output, output
+    assert "'malformed messages':" in output  # counted in the run's summary
+    # logged once per topic and reason, however often it came
+    for topic, reason in [("/scan", "malformed"), ("/odom", "wrong hash"),
+                          ("/bumper", "unknown type"), ("/scan", "type conflict")]:
+        said = [line for line in output.splitlines()
+                if f"ignored a message on {topic} ({reason})" in line]
+        assert len(said) == 1, (topic, reason, output)
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    # the robot's own messages went in; none of the bad ones did
+    assert any(r.get("speed") == 0.8 for r in records)
+    assert not any(r.get("speed") == 9.0 for r in records)
+    assert not any(r.get("bumped") is True for r in records)
+    assert [r["ahead"] for r in records if "ahead" in r] == pytest.approx([0.4] * len(
+        [r for r in records if "ahead" in r]))
