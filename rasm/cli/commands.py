@@ -154,8 +154,12 @@ def _recorded_or_mcap_records(
         probes, store = manifest.probes, manifest.types
     elif args.topics is not None:
         from rasm.platform.manifest import load_topic_map
+        from rasm.ros2 import TypeStore, recorded_types
 
-        probes, store = load_topic_map(args.topics)
+        # a topic map may name the types the recording itself defines
+        known = TypeStore()
+        recorded_types(args.trace, known)
+        probes, store = load_topic_map(args.topics, known)
     else:
         raise UsageError(
             f"{args.trace} is a rosbag2 recording: say which topics give which signals, with "

@@ -296,6 +296,7 @@ def _check_messages(
     effectors: dict[str, Effector],
     external: dict[str, ExternalVerdict],
     problems: list[SourceError],
+    base: Any = None,
 ) -> tuple[Any, dict[str, Effector]]:
     """Check what the manifest says about messages: untyped topics carry JSON, typed ones a
     ROS 2 interface whose field paths must exist and fit their signals. Returns the app's type
@@ -355,7 +356,7 @@ def _check_messages(
         ))
         return None, effectors
     try:
-        store = app_type_store(folder)
+        store = app_type_store(folder, base)
     except SourceError as exc:
         problems.append(exc)
         return None, effectors
@@ -514,10 +515,11 @@ def manifest_location(manifest: AppManifest, path: list[Any]) -> Location:
         return Location(str(manifest.file))
 
 
-def load_topic_map(path: str | Path) -> tuple[list[Probe], Any]:
+def load_topic_map(path: str | Path, known: Any = None) -> tuple[list[Probe], Any]:
     """The probes of a topic map file (a ``probes:`` list, as in ``app.yaml``) and the type
-    store their ROS 2 types need (the standard interfaces and ``msg/*.msg`` beside the file;
-    None when no probe has a type). Raises :class:`SourceErrors` at the place of a problem."""
+    store their ROS 2 types need (``known``, default the standard interfaces, and ``msg/*.msg``
+    beside the file; None when no probe has a type). Raises :class:`SourceErrors` at the place
+    of a problem."""
     file = Path(path)
     if not file.is_file():
         raise SourceErrors([SourceError("no such topic map file", Location(str(file)))])
@@ -537,7 +539,7 @@ def load_topic_map(path: str | Path) -> tuple[list[Probe], Any]:
     probes = _probes(src, problems)
     types = None
     if not problems:
-        types, _ = _check_messages(src, file.parent, probes, {}, {}, problems)
+        types, _ = _check_messages(src, file.parent, probes, {}, {}, problems, known)
     if problems:
         raise SourceErrors(problems)
     return probes, types

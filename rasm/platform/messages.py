@@ -75,12 +75,13 @@ def takes(signal_type: str, field_type: str) -> bool:
     return field_type in _TAKES.get(signal_type, set())
 
 
-def app_type_store(folder: Path) -> TypeStore:
-    """The standard interfaces plus the app's own ``msg/*.msg`` files (package: the app
-    folder's name). A definition that does not parse raises :class:`SourceError` at its place."""
+def app_type_store(folder: Path, base: TypeStore | None = None) -> TypeStore:
+    """The standard interfaces (or ``base``, which gets them added) plus the app's own
+    ``msg/*.msg`` files (package: the app folder's name). A definition that does not parse
+    raises :class:`SourceError` at its place."""
     from rasm.ros2 import TypeStore
 
-    store = TypeStore()
+    store = base if base is not None else TypeStore()
     msg = folder / "msg"
     if msg.is_dir() and any(msg.glob("*.msg")):
         store.add_msg_dir(msg, package=_package(folder))

@@ -8,7 +8,8 @@
 - :func:`read_field`, :func:`set_fields`, :func:`field_type`: field paths such as
   ``pose.pose.position.x`` and ``ranges[3]``.
 - :class:`BagReader` / :func:`read_bag` and :class:`BagWriter`: rosbag2 recordings (MCAP,
-  SQLite3); :func:`recorded_topics` lists a recording's topics and types.
+  SQLite3); :func:`recorded_topics` lists a recording's topics and types,
+  :func:`recorded_types` adds the types it defines to a store.
 
 The transports and bags load their middleware libraries only when first used.
 """
@@ -50,6 +51,7 @@ __all__ = [
     "read_bag",
     "read_field",
     "recorded_topics",
+    "recorded_types",
     "set_fields",
 ]
 
@@ -61,6 +63,7 @@ _LAZY = {
     "BagWriter": "rasm.ros2.bags",
     "read_bag": "rasm.ros2.bags",
     "recorded_topics": "rasm.ros2.bags",
+    "recorded_types": "rasm.ros2.bags",
 }
 
 

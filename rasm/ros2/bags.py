@@ -33,7 +33,8 @@ from rasm.ros2.fieldread import field_reader
 from rasm.ros2.types import TypeStore, default_store
 
 __all__ = [
-    "BagReader", "BagRecord", "BagWriter", "read_bag", "recorded_topics", "STORAGE_SUFFIXES",
+    "BagReader", "BagRecord", "BagWriter", "read_bag", "recorded_topics", "recorded_types",
+    "STORAGE_SUFFIXES",
 ]
 
 _log = logging.getLogger("rasm.ros2.bags")
@@ -267,23 +268,8 @@ class _opened:
 
 def _recorded_store(connection: Connection) -> TypeStore:
     """A type store holding the definition the bag recorded for ``connection``'s type."""
-    definition = connection.msgdef
-    if definition.format == MessageDefinitionFormat.MSG and definition.data:
-        types = get_types_from_msg(definition.data, connection.msgtype)
-    elif definition.format == MessageDefinitionFormat.IDL and definition.data:
-        types = {}
-        separator = "=" * 80 + "\n"
-        for part in definition.data.split(separator):
-            text = part.split("\n", 1)[1] if part.startswith("IDL: ") else part
-            if text.strip():
-                types.update(get_types_from_idl(text))
-    else:
-        raise BagError(
-            f"the bag has no definition of {connection.msgtype}, and the type store does not "
-            "hold it (add the package's .msg files)"
-        )
     store = TypeStore("empty")
-    store.register(types)
+    store.register(_recorded_definitions(connection))
     digest = connection.digest
     if digest and digest.startswith("RIHS01_") and store.type_hash(connection.msgtype) != digest:
         raise BagError(
@@ -291,6 +277,47 @@ def _recorded_store(connection: Connection) -> TypeStore:
             f"type hash {digest}"
         )
     return store
+
+
+def _recorded_definitions(connection: Connection) -> dict[str, tuple]:
+    """The rosbags definitions of ``connection``'s type (and the types it uses) the bag
+    recorded."""
+    definition = connection.msgdef
+    if definition.format == MessageDefinitionFormat.MSG and definition.data:
+        return get_types_from_msg(definition.data, connection.msgtype)
+    if definition.format == MessageDefinitionFormat.IDL and definition.data:
+        types = {}
+        separator = "=" * 80 + "\n"
+        for part in definition.data.split(separator):
+            text = part.split("\n", 1)[1] if part.startswith("IDL: ") else part
+            if text.strip():
+                types.update(get_types_from_idl(text))
+        return types
+    raise BagError(
+        f"the bag has no definition of {connection.msgtype}, and the type store does not "
+        "hold it (add the package's .msg files)"
+    )
+
+
+def recorded_types(path: str | Path, store: TypeStore) -> list[str]:
+    """Add to ``store`` the types a recording defines and the store lacks (what a topic map
+    may then name); returns their names. A definition that does not parse is left out: reading
+    its topic reports it."""
+    added = []
+    for file in storage_files(path):
+        with _opened(file) as reader:
+            for connection in reader.connections:
+                if connection.msgtype in store:
+                    continue
+                try:
+                    definitions = _recorded_definitions(connection)
+                except (BagError, TypesysError, KeyError, ValueError):
+                    continue
+                store.register(
+                    {name: d for name, d in definitions.items() if name not in store}
+                )
+                added.append(connection.msgtype)
+    return added
 
 
 class BagWriter:

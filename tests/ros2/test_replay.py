@@ -6,17 +6,19 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from rasm.cli import main
 from rasm.platform.manifest import load_manifest
 from rasm.platform.replay import recorded_trace
 from tests.ros2 import peer
-from tests.ros2.conftest import DATA
+from tests.ros2.conftest import CUSTOM_MSG_DIR, DATA
 
 GUARD = DATA / "guard"
 PROPS = GUARD / "properties" / "guard.rv"
@@ -110,6 +112,33 @@ def test_a_recording_without_its_probes_or_with_other_types_is_refused(tmp_path,
     assert main(["check", str(PROPS), str(bag), "--topics", str(topics)]) == 2
     assert ("topic /odom is recorded as nav_msgs/msg/Odometry, but its probe reads "
             "geometry_msgs/msg/Twist") in capsys.readouterr().err
+
+
+def test_a_topic_map_may_name_a_type_only_the_recording_defines(tmp_path, capsys):
+    # a robot's own message type: its definition travels in the bag, no .msg file here
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    typestore.register(get_types_from_msg((CUSTOM_MSG_DIR / "SpinPlan.msg").read_text(),
+                                          "rasm_demo/msg/SpinPlan"))
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        plan = writer.add_connection("/spin_plan", "rasm_demo/msg/SpinPlan", typestore=typestore)
+        for i, rate in enumerate([0.5, 0.75, 2.5]):
+            message = typestore.types["rasm_demo/msg/SpinPlan"](
+                header=typestore.types["std_msgs/msg/Header"](
+                    stamp=typestore.types["builtin_interfaces/msg/Time"](sec=0, nanosec=0),
+                    frame_id=""),
+                turn_rate=rate, steps=i, reason="", skip_sectors=np.array([], dtype=bool))
+            writer.write(plan, T0 + i, bytes(typestore.serialize_cdr(message,
+                                                                     "rasm_demo/msg/SpinPlan")))
+    props = tmp_path / "spin.rv"
+    props.write_text("input rate: float\nproperty gentle: always (rate <= 1.0)\n")
+    topics = tmp_path / "topics.yaml"
+    topics.write_text("probes:\n  - topic: /spin_plan\n    type: rasm_demo/msg/SpinPlan\n"
+                      "    signals:\n      rate: {field: turn_rate, type: float}\n")
+    code = main(["check", str(props), str(bag), "--topics", str(topics), "--format", "json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1 and report["records"] == 3
+    assert report["properties"][0]["violations"][0]["time"] == pytest.approx((T0 + 2) / 1e9)
 
 
 def read_mcap(path: Path) -> list[dict]:
