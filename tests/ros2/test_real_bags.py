@@ -69,3 +69,76 @@ def test_service_events_are_left_out_of_a_whole_reading():
     assert set(reader.undecodable) == {"/add_two_ints/_service_event",
                                        "/add_two_ints2/_service_event"}
     assert {r.topic for r in reader} == {"/parameter_events"}
+
+
+APP = """\
+name: talk
+components:
+  monitor: components:Quiet
+  analyse: components:Heard
+  plan:
+    component: components:Answer
+    produces: {turn: float}
+  execute: components:Drive
+probes:
+  - topic: /topic
+    type: std_msgs/msg/String
+    signals:
+      said: {field: data, type: str}
+effectors:
+  drive:
+    topic: /cmd_vel
+    type: geometry_msgs/msg/Twist
+    fields: {angular.z: turn}
+knowledge: memory
+timing: off
+loop:
+  period: 0.1
+"""
+COMPONENTS = """\
+from rasm import Action, Anomaly, Plan
+
+
+class Quiet:
+    def monitor(self, ctx):
+        return None
+
+
+class Heard:
+    # one anomaly per new sentence
+    def __init__(self):
+        self.last = None
+
+    def analyse(self, ctx):
+        said = ctx.knowledge.read_knowledge("said")
+        if said is None or said == self.last:
+            return None
+        self.last = said
+        return Anomaly(said, {"n": int(said.rsplit(" ", 1)[1])})
+
+
+class Answer:
+    def plan(self, ctx):
+        return Plan({"turn": float(ctx.anomaly.data["n"])})
+
+
+class Drive:
+    def execute(self, ctx):
+        return Action("drive", {"turn": ctx.plan["turn"]})
+"""
+
+
+@pytest.mark.parametrize("bag", TALKER[:2])
+def test_a_replay_of_the_talker_records_an_answer_to_each_sentence(tmp_path, monkeypatch, bag):
+    monkeypatch.chdir(tmp_path)
+    app = tmp_path / "talk"
+    app.mkdir()
+    write(app / "app.yaml", APP)
+    write(app / "components.py", COMPONENTS)
+    trace = tmp_path / "replay.jsonl"
+    # (an answer every half second is oscillation to the loop's own properties: exit 1)
+    assert main(["run", str(app), "--replay", str(ROOT / bag), "--trace", str(trace)]) in (0, 1)
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    turns = [r["recorded_action"]["payload"]["angular"]["z"] for r in records
+             if "recorded_action" in r]
+    assert turns == [float(i) for i in range(10)]
