@@ -179,6 +179,7 @@ class Platform:
         self.ros = _is_ros(self.transport_url)
         self.external = ExternalVerdicts(manifest.external_verdicts)
         self.verdicts_published = 0
+        self._verdicts_sent: dict[str, bool] = {}  # over ROS 2: the last value per property
         self.knowledge_url = knowledge or manifest.knowledge
         self._component_overrides = components or {}
         # live runs isolate user stages on a worker thread so an overrun can be walked away
@@ -474,8 +475,11 @@ class Platform:
         if self._publishes_verdicts():
             names = [n for mon in monitors if mon is not self.external for n in mon.properties]
             if self.ros:
+                # a verdict topic holds the property's state: latched, sent when it changes
+                latched = {"durability": "transient_local", "depth": 1}
                 for name in names:
-                    self.transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool")
+                    self.transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool",
+                                           qos=latched)
             self.on_verdict.append(self._publish_verdict)
         return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
 
@@ -600,15 +604,21 @@ class Platform:
         return stamp
 
     def _publish_verdict(self, verdict: Verdict) -> None:
-        """One verdict out: ``std_msgs/msg/Bool`` on ``/rasm/verdict/<property>`` over ROS 2,
-        ``{"value": …, "time": …}`` on the topic named after the property otherwise. An
-        undecided verdict is not sent; one in error goes out false."""
+        """One verdict out: ``std_msgs/msg/Bool`` on ``/rasm/verdict/<property>`` over ROS 2
+        when it differs from the last one sent (the topic is latched: a late subscriber gets
+        the current one), ``{"value": …, "time": …}`` on the topic named after the property
+        otherwise, each one. An undecided verdict is not sent; one in error goes out false."""
         if verdict.value is None or verdict.property in self.external.sources:
             return
         value = bool(verdict.value) and verdict.error is None
         try:
             if self.ros:
+                # per record and property at sensor rates, the same value again would outweigh
+                # the robot's own traffic
+                if self._verdicts_sent.get(verdict.property) == value:
+                    return
                 self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
+                self._verdicts_sent[verdict.property] = value
             else:
                 self.transport.publish(verdict.property, {"value": value, "time": verdict.time})
             self.verdicts_published += 1

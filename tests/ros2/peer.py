@@ -18,7 +18,8 @@ endpoint), ``connect`` (Zenoh endpoints to connect to as well), ``domain``, ``re
 Zenoh key expression), ``type_name`` (a DDS type name) and ``type_hash`` (announced in DDS
 user data) override what the peer would send, and ``stamp`` (true) sets the messages'
 ``header.stamp`` to the time each round is sent; ``"wait": false`` publishes without
-waiting for a DDS reader to match (one of another type never does).
+waiting for a DDS reader to match (one of another type never does); ``"latched": true`` makes
+a DDS reader or writer transient local.
 """
 
 from __future__ import annotations
@@ -245,6 +246,8 @@ def dds_main(config):
     for entry in config["topics"]:
         qos = Qos(
             Policy.Reliability.Reliable(10**8), Policy.History.KeepLast(100),
+            Policy.Durability.TransientLocal if entry.get("latched")
+            else Policy.Durability.Volatile,
             Policy.DataRepresentation(use_cdrv0_representation=True),
             *([Policy.Userdata(f"typehash={entry['type_hash']};".encode())]
               if entry.get("type_hash") else []),

@@ -182,3 +182,23 @@ def test_bad_input_on_the_wire_is_counted_logged_once_and_never_stored(
     assert not any(r.get("bumped") is True for r in records)
     assert [r["ahead"] for r in records if "ahead" in r] == pytest.approx([0.4] * len(
         [r for r in records if "ahead" in r]))
+
+
+def test_verdicts_go_out_when_they_change_and_a_late_subscriber_gets_the_current_one(
+    peers, tmp_path
+):
+    robot, watcher, url = network(peers, "dds")
+    watcher.wait_ready()
+    run = rasm_run(GUARD, url, tmp_path, "--duration", "5")
+    robot.wait_ready()
+    watcher.wait_for(lambda p: p.messages("/rasm/verdict/slow_near_obstacles"), timeout=30,
+                     what="a verdict")
+    domain = int(url.rsplit("=", 1)[1])
+    late = peers({"middleware": "dds", "role": "sub", "domain": domain, "topics": [
+        {"topic": "/rasm/verdict/speed_limit", "type": "std_msgs/msg/Bool", "latched": True}]})
+    late.wait_for(lambda p: p.messages(), timeout=30, what="the latched verdict")
+    code, output = finish(run)
+    assert code == 1, output
+    # some 50 records judged at 0.8 m/s: speed_limit held throughout, said once
+    assert [m["data"]["data"] for m in watcher.messages("/rasm/verdict/speed_limit")] == [True]
+    assert [m["data"]["data"] for m in late.messages()] == [True]
