@@ -1,0 +1,174 @@
+"""Every guide runs as written: each command and Python block of README.md and docs/*.md, in order,
+in a copy of the repository with this venv's ``rasm`` on the PATH, each shown output compared.
+
+The blocks of one guide share its folder (a file an early block writes is there for a later one),
+as they would for a reader going down the page. A block that cannot be run says why, in the
+guide (``<!-- not run: … -->``); :mod:`tests.docs.guides` has the conventions. The well-known
+ports the guides use (1883, 6379, 8086) are those of real servers started on free loopback ports
+for the guides that use them.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from .guides import Block, console_commands, output_matches, read_blocks
+
+ROOT = Path(__file__).resolve().parents[2]
+HARNESS = Path(__file__).with_name("harness.py")
+GUIDES = ["README.md"]
+COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
+COMMAND_TIMEOUT = 300  # seconds: the slowest guide command (a packaging) takes about a minute
+SEPARATOR = "\x1e"  # between the outputs of a console block's commands
+
+
+def workdir(tmp: Path) -> Path:
+    """A copy of the repository's user-facing folders, with ``.venv`` this test venv."""
+    folder = tmp / "rasm"
+    ignore = shutil.ignore_patterns(".rasm", "__pycache__", "*.pyc", ".hypothesis")
+    for name in COPIED:
+        shutil.copytree(ROOT / name, folder / name, ignore=ignore)
+    for name in ("README.md", "pyproject.toml"):
+        shutil.copy(ROOT / name, folder / name)
+    (folder / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)
+    return folder
+
+
+class Servers:
+    """Real servers on free loopback ports, started the first time a guide names their port."""
+
+    PORTS = {"1883": "shared_broker", "6379": "redis_server", "8086": "influx"}
+
+    def __init__(self, request: pytest.FixtureRequest) -> None:
+        self.request = request
+
+    def substitute(self, text: str) -> str:
+        for port, fixture in self.PORTS.items():
+            for host in ("127.0.0.1", "localhost"):
+                if f"{host}:{port}" in text:
+                    server = self.request.getfixturevalue(fixture)
+                    text = text.replace(f"{host}:{port}", f"127.0.0.1:{server.port}")
+        return text
+
+
+def environment(home: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_", "RASM_"))}
+    env.update(
+        PATH=f"{Path(sys.prefix) / 'bin'}{os.pathsep}{env.get('PATH', '')}",
+        VIRTUAL_ENV=sys.prefix,
+        COLUMNS="100",
+        NO_COLOR="1",
+        EDITOR="true",  # "$EDITOR file": the reader edits; the test leaves it as generated
+        PYTHONDONTWRITEBYTECODE="1",
+        RASM_WHEELHOUSE=os.environ.get(
+            "RASM_WHEELHOUSE", str(Path.home() / ".cache" / "rasm" / "wheelhouse")
+        ),
+    )
+    env.pop("PYTHONPATH", None)
+    env["TMPDIR"] = str(home)
+    return env
+
+
+def run_shell(block: Block, folder: Path, env: dict, servers: Servers) -> list[str]:
+    """Run a command block; the problems found (an empty list when it did what it shows)."""
+    problems = []
+    first = "\n".join(servers.substitute(c) for c in block.directives.get("run first", []))
+    if block.lang == "console":
+        commands = console_commands(block)
+        script = ["exec 2>&1", first]
+        for command in commands:
+            script.append(servers.substitute(command.command))
+            script.append(f'__rc=$?; printf "\\n{SEPARATOR}%d{SEPARATOR}\\n" $__rc; (exit $__rc)')
+        done = subprocess.run(
+            ["bash", "-c", "\n".join(script)], cwd=folder, env=env, capture_output=True,
+            text=True, timeout=COMMAND_TIMEOUT, stdin=subprocess.DEVNULL,
+        )
+        chunks = done.stdout.split(SEPARATOR)
+        outputs, codes = chunks[0:-1:2], [int(c) for c in chunks[1::2]]
+        if len(codes) != len(commands):
+            return [f"{block.where}: the block stopped after {len(codes)} of {len(commands)} "
+                    f"commands:\n{done.stdout}{done.stderr}"]
+        for i, (command, output, code) in enumerate(zip(commands, outputs, codes, strict=True)):
+            output = output.lstrip("\n") if i else output
+            next_shows_code = i + 1 < len(commands) and commands[i + 1].command == "echo $?"
+            if command.expected:
+                if not output_matches(command.expected, output):
+                    problems.append(
+                        f"{block.guide}:{command.line}: $ {command.command}\n--- the guide "
+                        "shows:\n" + "\n".join(command.expected) + f"\n--- it printed (exit "
+                        f"{code}):\n{output.rstrip()}"
+                    )
+            elif code != 0 and not next_shows_code:
+                problems.append(f"{block.guide}:{command.line}: $ {command.command}\nexit {code}:"
+                                f"\n{output.rstrip()}")
+    else:
+        done = subprocess.run(
+            ["bash", "-e", "-c", first + "\n" + servers.substitute(block.text)], cwd=folder,
+            env=env, capture_output=True, text=True, timeout=COMMAND_TIMEOUT,
+            stdin=subprocess.DEVNULL,
+        )
+        if done.returncode != 0:
+            problems.append(f"{block.where}: exit {done.returncode}\n{done.stdout}{done.stderr}")
+    return problems
+
+
+def run_python(block: Block, folder: Path, env: dict, servers: Servers) -> list[str]:
+    source = folder / ".guide_block.py"
+    source.write_text(servers.substitute(block.text), encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, str(HARNESS), str(source), str(block.line)], cwd=folder, env=env,
+        capture_output=True, text=True, timeout=COMMAND_TIMEOUT, stdin=subprocess.DEVNULL,
+    )
+    source.unlink()
+    if done.returncode != 0:
+        return [f"{block.where}: the Python block failed\n{done.stdout}{done.stderr}"]
+    return []
+
+
+def write_file(block: Block, folder: Path) -> None:
+    name, append = block.file
+    path = folder / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a" if append else "w", encoding="utf-8") as out:
+        out.write(block.text)
+
+
+@pytest.mark.parametrize("guide", GUIDES)
+def test_the_guide_runs_as_written(guide, tmp_path, request):
+    folder = workdir(tmp_path)
+    home = tmp_path / "tmp"
+    home.mkdir()
+    env = environment(home)
+    servers = Servers(request)
+    problems: list[str] = []
+    for block in read_blocks(ROOT, guide):
+        kind = block.kind
+        if kind == "file":
+            write_file(block, folder)
+        elif kind == "shell":
+            problems += run_shell(block, folder, env, servers)
+        elif kind == "python":
+            problems += run_python(block, folder, env, servers)
+    assert not problems, "\n\n".join(problems)
+
+
+def test_every_runnable_block_is_run_or_says_why_not():
+    """A command or Python block is run unless the guide gives a reason, and reasons are rare."""
+    skipped = []
+    for guide in GUIDES:
+        for block in read_blocks(ROOT, guide):
+            if block.lang in ("console", "bash", "sh", "shell", "python"):
+                if block.kind == "skip":
+                    assert block.skipped, f"{block.where}: 'not run' needs a reason"
+                    skipped.append(block.where)
+    runnable = sum(
+        1 for guide in GUIDES for block in read_blocks(ROOT, guide)
+        if block.lang in ("console", "bash", "sh", "shell", "python")
+    )
+    assert len(skipped) <= runnable // 3, skipped
