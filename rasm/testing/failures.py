@@ -6,7 +6,9 @@ directory unless ``RASM_FAILURES`` or the pytest option ``--rasm-failures`` says
 * ``<chart>-<hash>.jsonl``: an events file, replayed with ``rasm simulate CHART --events FILE``;
 * ``<props>-<hash>.jsonl``: a trace, checked with ``rasm check PROPS FILE``.
 
-The hash is that of the file's content, so the same failure found twice is one file. Inside a
+The hash is that of the file's content without the stages' measured ``duration`` values (wall
+time, different on every run), so the same failure found twice — a seeded run again — is one
+file, with the same name every time. Inside a
 hypothesis test a file is written only for the example hypothesis finally reports (the shortest
 it found), not for every failing example it tries while shrinking.
 """
@@ -51,8 +53,13 @@ def _slug(name: str) -> str:
 
 def save_jsonl(stem: str, lines: Iterable[Mapping[str, Any]]) -> Path:
     """Write ``lines`` as JSON lines to ``<failures dir>/<stem>-<hash>.jsonl``; return the path."""
-    text = "".join(json.dumps(dict(line)) + "\n" for line in lines)
-    digest = hashlib.sha256(text.encode("utf-8")).hexdigest()[:10]
+    records = [dict(line) for line in lines]
+    text = "".join(json.dumps(record) + "\n" for record in records)
+    timeless = "".join(
+        json.dumps({k: v for k, v in r.items() if not (k == "duration" and "stage" in r)}) + "\n"
+        for r in records
+    )
+    digest = hashlib.sha256(timeless.encode("utf-8")).hexdigest()[:10]
     folder = failures_dir()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{_slug(stem)}-{digest}.jsonl"

@@ -174,3 +174,24 @@ def test_a_report_prints_as_one_short_line_however_long_the_trace(length, limit)
     assert f"over {length} records" in shown and f"slow: {verdict}" in shown
     assert repr(report.properties[0]).startswith(f"<PropertyReport slow: {verdict}")
     assert len(repr(report.properties[0])) < 100
+
+
+def test_a_seeded_failure_is_saved_under_the_same_name_on_every_run():
+    """Two runs of one seed differ only in the stages' measured durations: the saved trace's name
+    is the same, so a guide (or a colleague) can name it."""
+    class Stalls:
+        def plan(self, ctx):
+            return None  # never adapts: the band is left
+
+    saved = []
+    for _ in range(2):
+        trace = run_app(HOTBOX, seed=3, duration=25, components={"plan": Stalls()},
+                        scenario={"openings": [[1.0, 15.0]]})
+        with pytest.raises(PropertyViolation) as caught:
+            assert_properties(HOTBOX_PROPS, trace, only=["temperature_band"])
+        saved.append(caught.value.saved)
+    durations = [
+        [r["duration"] for r in map(json.loads, path.read_text().splitlines()) if "stage" in r]
+        for path in saved
+    ]
+    assert saved[0] == saved[1] and durations[0]
