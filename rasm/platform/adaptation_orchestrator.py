@@ -22,6 +22,7 @@ from sismic.clock import SimulatedClock
 from rasm.errors import is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.platform.block import Block, shared_chart
+from rasm.platform.chart_stages import NoAnswer
 from rasm.platform.components import (
     Action,
     Plan,
@@ -171,18 +172,27 @@ class AdaptationOrchestrator(Block):
             outcome = self.runner.call(func, self.stage_budget, ctx)
         self.sm.record_stage(stage, start, outcome.duration)
         self.emit(start, {"stage": stage, "duration": round(outcome.duration, 9)})
-        if outcome.timed_out:
+        # a stage chart that sends no outcome has not answered: it fails as an overrun does
+        no_answer = isinstance(outcome.error, NoAnswer)
+        if outcome.timed_out or no_answer:
             self.stats.timeouts[stage] += 1
-            self.logs.log(
-                _log,
-                logging.WARNING,
-                f"{stage} stage overran its {self.stage_budget:.3g} s budget",
-                "%s stage overran its %.3g s budget (%.3g s): iteration cancelled",
-                stage,
-                self.stage_budget,
-                outcome.duration,
-            )
-            self.emit(start, {"explanation": f"{stage} stage overran its time budget"})
+            if no_answer:
+                self.logs.log(
+                    _log, logging.WARNING, f"{outcome.error}: iteration cancelled"
+                )
+                why = f"{stage} stage failed to answer: {outcome.error}"
+            else:
+                self.logs.log(
+                    _log,
+                    logging.WARNING,
+                    f"{stage} stage overran its {self.stage_budget:.3g} s budget",
+                    "%s stage overran its %.3g s budget (%.3g s): iteration cancelled",
+                    stage,
+                    self.stage_budget,
+                    outcome.duration,
+                )
+                why = f"{stage} stage overran its time budget"
+            self.emit(start, {"explanation": why})
             if isinstance(self.clock, SimulatedClock):
                 # an overrun costs the whole budget, so the chart's after() timer fires
                 self.clock.time = start + self.stage_budget

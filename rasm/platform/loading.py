@@ -17,7 +17,7 @@ from typing import Any
 from rasm.errors import Location, PlatformError, SourceError, is_interrupt
 from rasm.loop import STAGES
 from rasm.platform.components import missing_stage_method
-from rasm.platform.manifest import AppManifest, manifest_location
+from rasm.platform.manifest import AppManifest, is_chart_ref, manifest_location
 from rasm.twin import DigitalTwin
 
 __all__ = [
@@ -74,7 +74,12 @@ def load_component(
 
 
 def load_stage_component(m: AppManifest, stage: str, ref: str, package: str) -> object:
-    """The manifest's component ``ref`` for ``stage``; a problem names its place in app.yaml."""
+    """The manifest's component ``ref`` for ``stage`` (a chart for a path ending in .yaml); a
+    problem names its place in app.yaml (or, for a chart, in the chart)."""
+    if is_chart_ref(ref):
+        from rasm.platform.chart_stages import ChartStage
+
+        return ChartStage(m.folder / ref, stage)
     try:
         component = load_component(ref, m.folder, package=package)
     except PlatformError as exc:

@@ -26,6 +26,7 @@ __all__ = [
     "Effector",
     "ExternalVerdict",
     "Probe",
+    "is_chart_ref",
     "SCHEMA",
     "Signal",
     "load_manifest",
@@ -37,6 +38,12 @@ SCHEMA: dict[str, Any] = json.loads(
 )
 _REF = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def is_chart_ref(ref: str) -> bool:
+    """Whether a stage's component is a statechart (a path ending in .yaml) and not
+    ``module:Class``."""
+    return str(ref).endswith((".yaml", ".yml"))
 
 
 @dataclass(frozen=True)
@@ -108,6 +115,8 @@ class AppManifest:
     produces: dict[str, dict[str, str]] = field(default_factory=dict)
     simulator: str | None = None
     simulator_period: float = 0.1
+    # the managed system's modes chart (managed_system.modes), resolved against the app folder
+    modes: Path | None = None
     scenario: dict[str, Any] = field(default_factory=dict)
     probes: list[Probe] = field(default_factory=list)
     effectors: dict[str, Effector] = field(default_factory=dict)
@@ -595,7 +604,9 @@ def load_manifest(app: str | Path) -> AppManifest:
             produces[str(stage)] = {str(k): str(v) for k, v in entry.get("produces", {}).items()}
             entry = entry["component"]
         components[str(stage)] = str(entry)
-        if not _REF.match(str(entry)):
+        if is_chart_ref(str(entry)):
+            existing(ref_path, str(entry))
+        elif not _REF.match(str(entry)):
             problems.append(src.error(f"'{entry}' is not module:Class", src.at(ref_path)))
     twin = data.get("twin") or {}
     if "component" in twin and not _REF.match(str(twin["component"])):
@@ -606,6 +617,7 @@ def load_manifest(app: str | Path) -> AppManifest:
             )
         )
     managed = data.get("managed_system", {}) or {}
+    modes = existing(["managed_system", "modes"], managed["modes"]) if "modes" in managed else None
     probes = _probes(src, problems)
     problems.extend(_derived_signal_problems(src, produces.get("monitor", {}), probes))
     effectors = {}
@@ -654,6 +666,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         produces=produces,
         simulator=managed.get("simulator"),
         simulator_period=managed.get("period", 0.1),
+        modes=modes,
         scenario=plain(managed.get("scenario", {}) or {}),
         probes=probes,
         effectors=effectors,

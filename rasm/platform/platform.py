@@ -33,7 +33,7 @@ from rasm.logs import RepeatedLogs
 from rasm.loop import STAGES
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
-from rasm.platform.block import Block
+from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.components import Action, describe_failure
 from rasm.platform.core import Core
@@ -50,6 +50,7 @@ from rasm.platform.loading import (
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.managed_system import ManagedSystem, Simulator
 from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
+from rasm.platform.modes import ManagedSystemModes
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.state_manager import StateManager
@@ -206,6 +207,7 @@ class Platform:
         # the store a live run's timeline continues from (None: it starts at 0)
         self.restored_from: str | None = None
         self.twin: DigitalTwin | None = None
+        self.modes: ManagedSystemModes | None = None  # the app's modes chart, if it has one
         self._twin_inputs: frozenset[str] = frozenset()
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
@@ -407,6 +409,8 @@ class Platform:
                 defined[name] = path
         if self.external.sources:
             monitors.append(self.external)
+        # the managed system's modes chart, stepped by every batch of values stored
+        self.modes = ManagedSystemModes(shared_chart(m.modes), self.kb) if m.modes else None
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
@@ -512,6 +516,14 @@ class Platform:
         }
         if not self._twin_inputs.isdisjoint(values):
             self._observe_twin(time, stored)
+        if self.modes is not None:
+            # a change of the managed system's modes goes in the record that caused it
+            change = self.modes.observe(
+                time, {key: value for key, value in values.items() if key not in refused}
+            )
+            if change:
+                self._mode_changed(time, change)
+                stored.update(change)
         if stored:
             self._emit(time, stored)
 
@@ -565,8 +577,18 @@ class Platform:
         for observer in self.on_record:
             observer(time, record)
 
-    def _managed_system_mode(self) -> str | None:
-        """The managed system's mode, by which an effector is applicable or not."""
+    def _mode_changed(self, time: float, change: dict[str, Any]) -> None:
+        """The managed system's modes changed: ``mode`` in knowledge says which are active now,
+        for the stages (and rules) to read."""
+        refused = self.km.register_values({"mode": change["mode"]}, time)
+        for key, exc in refused.items():
+            self._refused(key, change["mode"], exc)
+
+    def _managed_system_mode(self) -> str | frozenset[str] | None:
+        """The managed system's mode, by which an effector is applicable or not: the active
+        states of the modes chart, or the mode signal's value."""
+        if self.modes is not None:
+            return self.modes.active
         signal = self.manifest.mode_signal
         return self.kb.read_knowledge(signal) if signal else None
 
@@ -676,6 +698,10 @@ class Platform:
             # a replay runs on the recording's time: its trace has the recording's times
             self.clock.time = max(self.clock.time, self.replay.first_time)
         self.core.initialize()
+        if self.managing and self.modes is not None:
+            initial = self.modes.start(self.clock.time)
+            self._mode_changed(self.clock.time, initial)
+            self._emit(self.clock.time, initial)
         if self.low_latency and not self._gc_frozen:
             gc.collect()
             gc.freeze()

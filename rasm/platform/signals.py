@@ -98,6 +98,8 @@ def provided(manifest: AppManifest) -> Provided:
             knowledge[key] = Provider(signal.type, f"probe {probe.topic}")
     for key, kind in manifest.produces.get("monitor", {}).items():
         knowledge.setdefault(key, Provider(kind, "components.monitor.produces"))
+    if manifest.modes is not None:
+        knowledge.setdefault("mode", Provider("str", "the modes chart"))
     if manifest.twin:
         for key, kind in _TWIN_KNOWLEDGE.items():
             knowledge[key] = Provider(kind, "the digital twin")
@@ -111,12 +113,27 @@ def provided(manifest: AppManifest) -> Provided:
             plan.setdefault(key, Provider(kind, f"effector {effector.name}'s fields"))
     # a loop key without a known type ("any") is provided but not type-checked
     trace = {key: Provider(kind, "the loop") for key, kind in LOOP_SIGNAL_TYPES.items()}
+    trace.update(_mode_signals(manifest))
     # the trace holds knowledge as registered (json values never: reading them is a type
     # error) and the planned record the plan's fields
     trace.update(knowledge)
     for key, provider in planned.items():
         trace.setdefault(key, provider)
     return Provided(trace, knowledge, plan)
+
+
+def _mode_signals(manifest: AppManifest) -> dict[str, Provider]:
+    """``mode`` and ``mode_<state>``, written in the trace by the app's modes chart."""
+    if manifest.modes is None:
+        return {}
+    from rasm.platform.modes import mode_signals
+    from rasm.statechart import load_statechart
+
+    try:
+        chart = load_statechart(manifest.modes)
+    except (OSError, SourceError, SourceErrors):
+        return {}  # the chart check reports it
+    return {key: Provider(kind, "the modes chart") for key, kind in mode_signals(chart).items()}
 
 
 def closest(name: str, candidates: Collection[str]) -> str | None:
@@ -163,7 +180,8 @@ def unprovided(spec: Any, names: Collection[str]) -> list[tuple[str, Location, s
 
 def app_problems(manifest: AppManifest) -> list[SourceError]:
     """Every name the app's property and rule files read that nothing provides, or provides
-    with a type they cannot take; and veto properties or a mode signal that do not exist.
+    with a type they cannot take; veto properties or a mode signal that do not exist; and the
+    problems of the charts the app brings (:mod:`rasm.platform.app_charts`).
     A file that does not parse is reported with its own errors."""
     have = provided(manifest)
     problems: list[SourceError] = []
@@ -178,7 +196,10 @@ def app_problems(manifest: AppManifest) -> list[SourceError]:
         if rules is not None:
             problems += _rule_problems(rules, have)
     found = _trustworthiness_problems(manifest, have, names)
-    return problems + sorted(found, key=lambda e: (e.location.line, e.location.col))
+    problems += sorted(found, key=lambda e: (e.location.line, e.location.col))
+    from rasm.platform.app_charts import app_chart_problems
+
+    return problems + app_chart_problems(manifest)
 
 
 def check_app(manifest: AppManifest) -> None:

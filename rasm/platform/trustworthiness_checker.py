@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Any, Protocol
 
 from rasm.platform.block import Block
@@ -39,11 +39,13 @@ class TrustworthinessChecker(Block):
     """Trustworthiness Checker (tc): ``register_action`` and the online property monitors.
 
     The only path to an effector: an action is sent when it is applicable in the managed
-    system's current mode (and its effector is known). The online monitors of the app's and the
-    platform's properties run over every record of the loop (:meth:`observe`): ``latest`` holds
-    each property's latest verdict, ``outcomes`` counts them all (its state is the property's
-    overall verdict so far). A monitor that raises on a record makes every property it checks
-    ``error`` for that record: the checker cannot vouch for them there, and says so.
+    system's current mode (and its effector is known). ``mode_of`` gives that mode: a value of
+    the mode signal, or the active states of the app's modes chart. The online monitors of the
+    app's and the platform's properties run over every record of the loop (:meth:`observe`):
+    ``latest`` holds each property's latest verdict, ``outcomes`` counts them all (its state is
+    the property's overall verdict so far). A monitor that raises on a record makes every
+    property it checks ``error`` for that record: the checker cannot vouch for them there, and
+    says so.
     """
 
     chart_name = "trustworthiness_checker"
@@ -55,7 +57,7 @@ class TrustworthinessChecker(Block):
         monitors: list[PropertyMonitor],
         effectors: dict[str, Effector],
         send: Callable[[Effector, Action], Any],
-        mode_of: Callable[[], str | None],
+        mode_of: Callable[[], str | Collection[str] | None],
         observers: list[Callable[[Verdict], Any]] | None = None,
         online: Callable[[], bool] = lambda: True,
         **kw: Any,
@@ -199,11 +201,20 @@ class TrustworthinessChecker(Block):
             self._outcome = (False, "the managed system is offline")
             self.post("action_refused")
             return
-        mode = self.mode_of()
-        if effector.modes is not None and mode not in effector.modes:
-            self._outcome = (False, f"not applicable in managed-system mode {mode!r}")
-            self.post("action_refused")
-            return
+        if effector.modes is not None:
+            mode = self.mode_of()
+            # a modes chart has several active states (a state and its ancestors, parallel
+            # regions); the simple mode signal has one value
+            active = {mode} if isinstance(mode, str) or mode is None else set(mode)
+            if not active.intersection(effector.modes):
+                now = ", ".join(sorted(repr(m) for m in active)) or "unknown"
+                self._outcome = (
+                    False,
+                    f"not applicable in managed-system mode {now} ({effector.name} applies "
+                    f"in {', '.join(effector.modes)})",
+                )
+                self.post("action_refused")
+                return
         try:
             note = self.send_to_effector(effector, action)
         except Exception as exc:

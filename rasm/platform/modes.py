@@ -1,0 +1,145 @@
+"""The managed system's operation modes as a statechart (``managed_system.modes`` in app.yaml).
+
+The app models its managed system with a sismic chart; the chart's active states are the managed
+system's modes. Each batch of values the platform stores in knowledge (a digested probe message,
+the Monitor's derived signals) reaches the chart as one ``record`` event whose data are those
+values; the chart's code reads them as ``event.data`` (``event.data.get('nav_mode')``) and the
+whole knowledge, read-only, as ``knowledge`` (``knowledge.get('velocity', 0.0)``). Timers
+(``after(2.0)``) measure the platform's clock and are looked at whenever a record arrives.
+
+An effector's ``modes:`` name states of this chart: the Trustworthiness Checker sends its actions
+only while one of them is active. Each change of the active states goes in the trace as ``mode``
+(the active leaf states, comma-separated) and ``mode_<state>`` (true for a state just entered,
+false for one just left), so properties read the modes like any signal.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sismic.model import Event, Statechart
+
+from rasm.errors import ExecutionError
+from rasm.statechart import Interpreter, SimulatedClock, load_statechart
+
+if TYPE_CHECKING:
+    from rasm.knowledge.base import KnowledgeBase
+
+__all__ = ["KnowledgeView", "ManagedSystemModes", "mode_signals"]
+
+_log = logging.getLogger("rasm.modes")
+_SCALARS = (int, float, bool, str)
+
+
+class KnowledgeView(Mapping[str, Any]):
+    """The knowledge as a chart reads it: the latest value of each key, never writable (a list
+    or dict value is a copy, so chart code cannot change what the platform stored)."""
+
+    def __init__(self, knowledge: KnowledgeBase) -> None:
+        self._knowledge = knowledge
+
+    def __getitem__(self, key: str) -> Any:
+        sample = self._knowledge.read_sample(key)
+        if sample is None:
+            raise KeyError(key)
+        value = sample.value
+        return value if isinstance(value, _SCALARS) or value is None else copy.deepcopy(value)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._knowledge.keys())
+
+    def __len__(self) -> int:
+        return len(self._knowledge.keys())
+
+    def __repr__(self) -> str:
+        return f"<knowledge, {len(self)} keys>"
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> KnowledgeView:
+        # a step's snapshot copies the chart's context: a view has nothing of its own to copy
+        return self
+
+
+def mode_signals(chart: Statechart) -> dict[str, str]:
+    """The trace keys a modes chart writes, with their types: ``mode`` and ``mode_<state>``."""
+    signals = {"mode": "str"}
+    for state in chart.states:
+        if state != chart.root:
+            signals[f"mode_{state}"] = "bool"
+    return signals
+
+
+class ManagedSystemModes:
+    """Runs the app's modes chart over the values stored in knowledge.
+
+    ``observe(time, values)`` steps it and returns the trace record of the change, if the
+    active states changed. The chart has a clock of its own set to each record's time, so it
+    behaves the same on the simulated and the wall clock.
+    """
+
+    def __init__(self, chart: str | Path | Statechart, knowledge: KnowledgeBase) -> None:
+        self.chart = chart if isinstance(chart, Statechart) else load_statechart(chart)
+        self.clock = SimulatedClock()
+        self.interpreter = Interpreter(
+            self.chart, clock=self.clock, initial_context={"knowledge": KnowledgeView(knowledge)}
+        )
+        self.failures = 0
+        self._active: frozenset[str] = frozenset()
+
+    @property
+    def active(self) -> frozenset[str]:
+        """Every active state of the chart but its root (leaf states and their ancestors)."""
+        return frozenset(self.interpreter.configuration) - {self.chart.root}
+
+    @property
+    def leaves(self) -> list[str]:
+        """The active leaf states, in the chart's order: the managed system's modes now."""
+        active = self.active
+        return [
+            name
+            for name in self.chart.states
+            if name in active and not any(c in active for c in self.chart.children_for(name))
+        ]
+
+    def start(self, time: float) -> dict[str, Any]:
+        """Enter the initial states; the trace record of the initial modes."""
+        self.clock.time = max(self.clock.time, time)
+        self._run()
+        return self._change() or {}
+
+    def observe(self, time: float, values: Mapping[str, Any]) -> dict[str, Any] | None:
+        """One ``record`` event with ``values``; the trace record of the mode change, or None."""
+        self.clock.time = max(self.clock.time, time)
+        event = Event("record")
+        event.data = dict(values)  # set directly: a signal may be called `name` or `data`
+        self.interpreter.queue(event)
+        self._run()
+        return self._change()
+
+    def _run(self) -> None:
+        while True:
+            try:
+                if self.interpreter.execute_once() is None:
+                    return
+            except ExecutionError as exc:
+                # the step is rolled back (the modes stay as they were) and its event dropped
+                self.failures += 1
+                if self.failures == 1:
+                    _log.error("the modes chart %s refused a step: %s", self.chart.name, exc)
+                failure = self.interpreter.last_failure
+                if failure is None or failure.event is None:
+                    return
+
+    def _change(self) -> dict[str, Any] | None:
+        active = self.active
+        if active == self._active:
+            return None
+        entered, left = active - self._active, self._active - active
+        self._active = active
+        record: dict[str, Any] = {"mode": ",".join(self.leaves)}
+        record.update({f"mode_{s}": True for s in sorted(entered)})
+        record.update({f"mode_{s}": False for s in sorted(left)})
+        return record
