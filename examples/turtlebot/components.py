@@ -16,7 +16,7 @@ import math
 import sys
 from pathlib import Path
 
-from rasm import Action, Anomaly, Plan
+from rasm import Action, Plan
 
 _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:  # the app folder holds the tb4 package
@@ -29,7 +29,6 @@ from tb4.simulator import TurtleBotSimulator  # noqa: E402
 from tb4.spin import mask_of, required_rotation, spin_plan  # noqa: E402
 
 __all__ = [
-    "OcclusionAnalyse",
     "RosSpinLegitimate",
     "ScanMonitor",
     "SpinExecute",
@@ -42,63 +41,55 @@ MARGIN_RAYS = 5  # a sector counts as seen when a ray at least this far from the
 
 
 class ScanMonitor:
-    """The scans are in knowledge (Telegraf stores ``/safe-scan``, or ``/scan`` over ROS 2);
-    Monitor adds two signals of the latest scan for the trace: how many rays came back empty
-    and the nearest echo."""
+    """The scans are in knowledge (Telegraf stores ``/safe-scan``, or ``/scan`` over ROS 2).
+    Monitor adds what the latest scans show: how many rays of the last scan came back empty,
+    the nearest echo, and the occlusion over the last ``WINDOW`` scans for the Analyse chart
+    (``statecharts/analyse.yaml``).
 
-    def monitor(self, ctx):
-        ranges = ctx.knowledge.read_knowledge("ranges")
-        if not ranges:
-            return None
-        valid = [r for r in ranges if r is not None and r < math.inf]  # inf: ROS's "no echo"
-        return {
-            "invalid_rays": len(ranges) - len(valid),
-            "nearest": min(valid) if valid else -1.0,
-        }
-
-
-class OcclusionAnalyse:
-    """Occlusion probability per ray over the last ``WINDOW`` scans, thresholded and clustered.
-
-    An anomaly when the windows found are not covered by the spin plan in force (the robot
-    echoes it as ``spin_rotation``), or when the occlusion is gone and a plan is still in force.
-    After raising one, Analyse waits ``SETTLE`` seconds for the robot to take the plan up.
+    The occlusion: the probability per ray that it is blocked, thresholded and clustered into
+    windows (``tb4.occlusion``). ``occlusion`` is ``unknown`` until ``WINDOW`` scans are in,
+    then ``clear`` (no window), ``covered`` (the spin plan in force, echoed by the robot as
+    ``spin_rotation``, already looks into every window) or ``uncovered``.
     """
 
     WINDOW = 10  # scans (2 s at 5 Hz)
     THRESHOLD = 0.7
     MIN_RAYS = 3
-    SETTLE = 1.0
 
-    def __init__(self) -> None:
-        self.raised_at = -math.inf
-
-    def analyse(self, ctx):
+    def monitor(self, ctx):
         k = ctx.knowledge
+        ranges = k.read_knowledge("ranges")
+        if not ranges:
+            return None
+        valid = [r for r in ranges if r is not None and r < math.inf]  # inf: ROS's "no echo"
+        signals = {
+            "invalid_rays": len(ranges) - len(valid),
+            "nearest": min(valid) if valid else -1.0,
+            "rays": len(ranges),
+        }
         scans = [s.value for s in k.history("ranges", last=self.WINDOW)]
-        if len(scans) < self.WINDOW or k.read_knowledge("nav_mode") == "arrived":
-            return None
-        if ctx.time - self.raised_at < self.SETTLE:
-            return None
-        rays = len(scans[-1])
+        if len(scans) < self.WINDOW:
+            return {**signals, "occlusion": "unknown", "occluded_windows": [],
+                    "occluded_sectors": ""}
         windows = detect(scans, self.THRESHOLD, self.MIN_RAYS)
-        active = float(k.read_knowledge("spin_rotation", 0.0))
-        data = {"windows": [[w.start, w.length] for w in windows], "rays": rays}
-        if not windows:
-            if active > 0.0:
-                self.raised_at = ctx.time
-                return Anomaly("the LiDAR is clear again: stop spinning", data)
-            return None
-        need = required_rotation(mask_of(windows, rays), MARGIN_RAYS)
-        if need is not None and active + 1e-9 >= need * 360.0 / rays:
-            return None  # the plan in force already covers every window
-        self.raised_at = ctx.time
-        described = []
-        for w in windows:
-            centre, width = w.degrees(rays)
-            described.append(f"{width:.0f} deg wide at {centre:.0f} deg")
-        sectors = ", ".join(described)
-        return Anomaly(f"LiDAR occluded: {sectors}", data)
+        signals["occluded_windows"] = [[w.start, w.length] for w in windows]
+        signals["occluded_sectors"] = ", ".join(
+            "{1:.0f} deg wide at {0:.0f} deg".format(*w.degrees(len(ranges))) for w in windows
+        )
+        signals["occlusion"] = _occlusion(windows, len(ranges), k.read_knowledge("spin_rotation"))
+        return signals
+
+
+def _occlusion(windows, rays, spin_rotation):
+    """``clear``, ``covered`` or ``uncovered``: whether the sweep in force (degrees) looks
+    into every window."""
+    if not windows:
+        return "clear"
+    need = required_rotation(mask_of(windows, rays), MARGIN_RAYS)
+    active = float(spin_rotation or 0.0)
+    if need is not None and active + 1e-9 >= need * 360.0 / rays:
+        return "covered"
+    return "uncovered"
 
 
 class SpinPlan:

@@ -1,4 +1,5 @@
-"""The MAPLE-K components on hand-made knowledge: when Analyse raises, what Plan makes of it."""
+"""The MAPLE-K components on hand-made knowledge: what Monitor sees in the scans, when the
+Analyse chart raises, what Plan makes of it."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import pytest
 from tb4.evaluation import APP
 
 from rasm.knowledge import KnowledgeBase
+from rasm.platform.chart_stages import ChartStage
 from rasm.platform.components import StageContext
 from rasm.platform.loading import load_component
 
@@ -15,6 +17,17 @@ CLEAR = [3.0] * 360
 
 def component(name):
     return load_component(f"components:{name}", APP, package="rasm_app_turtlebot")
+
+
+def analyse_chart():
+    return ChartStage(APP / "statecharts" / "analyse.yaml", "analyse")
+
+
+def monitored(kb, time):
+    """The Monitor's signals, stored as the platform stores them; the stage context."""
+    ctx = StageContext(kb, time, 1)
+    kb.register_values(component("ScanMonitor").monitor(ctx), time)
+    return ctx
 
 
 def knowledge(scan, spin_rotation=0.0, scans=10):
@@ -36,8 +49,9 @@ def knowledge(scan, spin_rotation=0.0, scans=10):
 
 def test_an_uncovered_occlusion_is_an_anomaly_and_the_plan_covers_it():
     kb = knowledge(FRONT)
-    ctx = StageContext(kb, 2.0, 1)
-    anomaly = component("OcclusionAnalyse").analyse(ctx)
+    ctx = monitored(kb, 2.0)
+    assert kb.read_knowledge("occlusion") == "uncovered"
+    anomaly = analyse_chart().analyse(ctx)
     assert anomaly is not None and anomaly.data["windows"] == [[300, 121]]
     assert "121 deg wide at 0 deg" in anomaly.reason
     ctx.anomaly = anomaly
@@ -56,40 +70,43 @@ def test_an_uncovered_occlusion_is_an_anomaly_and_the_plan_covers_it():
 
 
 def test_an_occlusion_the_plan_in_force_covers_is_no_anomaly():
-    assert (
-        component("OcclusionAnalyse").analyse(StageContext(knowledge(FRONT, 66.0), 2.0, 1)) is None
-    )
-    assert (
-        component("OcclusionAnalyse").analyse(StageContext(knowledge(FRONT, 65.0), 2.0, 1))
-        is not None
-    )
+    covered = knowledge(FRONT, 66.0)
+    assert analyse_chart().analyse(monitored(covered, 2.0)) is None
+    assert covered.read_knowledge("occlusion") == "covered"
+    short = knowledge(FRONT, 65.0)
+    assert analyse_chart().analyse(monitored(short, 2.0)) is not None
 
 
-def test_a_clear_lidar_with_a_plan_in_force_asks_to_stop_spinning():
-    kb = knowledge(CLEAR, spin_rotation=66.0)
-    ctx = StageContext(kb, 2.0, 1)
-    anomaly = component("OcclusionAnalyse").analyse(ctx)
+def test_a_clear_lidar_asks_to_stop_spinning_only_after_staying_clear():
+    analyse = analyse_chart()
+    kb = knowledge(FRONT)
+    assert analyse.analyse(monitored(kb, 2.0)) is not None
+    for k in range(10):  # the debris is gone; the robot still sweeps ±66 deg
+        kb.register_knowledge("ranges", CLEAR, 2.2 + k * 0.2)
+    kb.register_knowledge("spin_rotation", 66.0, 4.0)
+    assert analyse.analyse(monitored(kb, 4.0)) is None  # clear: recovering starts
+    assert analyse.analyse(monitored(kb, 4.6)) is None  # hysteresis: not clear for 1 s yet
+    anomaly = analyse.analyse(monitored(kb, 5.0))
     assert anomaly is not None and "clear again" in anomaly.reason
+    ctx = monitored(kb, 5.0)
     ctx.anomaly = anomaly
     assert component("SpinPlan").plan(ctx)["rotation"] == 0.0
-    assert component("OcclusionAnalyse").analyse(StageContext(knowledge(CLEAR), 2.0, 1)) is None
+    assert "clear" in analyse.interpreter.configuration
 
 
 def test_analyse_waits_for_a_full_window_and_settles_after_raising():
-    assert (
-        component("OcclusionAnalyse").analyse(StageContext(knowledge(FRONT, scans=9), 2.0, 1))
-        is None
-    )
-    analyse = component("OcclusionAnalyse")
+    assert analyse_chart().analyse(monitored(knowledge(FRONT, scans=9), 2.0)) is None
+    analyse = analyse_chart()
     kb = knowledge(FRONT)
-    assert analyse.analyse(StageContext(kb, 2.0, 1)) is not None
-    assert analyse.analyse(StageContext(kb, 2.8, 2)) is None  # waiting for the robot's echo
-    assert analyse.analyse(StageContext(kb, 3.0, 3)) is not None
+    assert analyse.analyse(monitored(kb, 2.0)) is not None
+    assert analyse.analyse(monitored(kb, 2.8)) is None  # waiting for the robot's echo
+    assert analyse.analyse(monitored(kb, 3.0)) is not None
 
 
 def test_after_a_rejection_the_plan_turns_more_gently():
-    ctx = StageContext(knowledge(FRONT), 2.0, 1)
-    ctx.anomaly = component("OcclusionAnalyse").analyse(ctx)
+    kb = knowledge(FRONT)
+    ctx = monitored(kb, 2.0)
+    ctx.anomaly = analyse_chart().analyse(ctx)
     first = component("SpinPlan").plan(ctx)
     ctx.rejections = [(first, ["application"], "too fast")]
     second = component("SpinPlan").plan(ctx)

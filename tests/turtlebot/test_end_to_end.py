@@ -17,6 +17,7 @@ APP_PROPERTIES = {
     "no_collision",
     "timely_spin_plan",
     "occlusion_compensated",
+    "nothing_after_arrival",
     "maple_stage_order",
 }
 

@@ -95,3 +95,9 @@ def test_new_debris_must_be_answered_within_four_seconds():
     ]
     assert violated(late) == {"occlusion_compensated"}
     assert violated(timely) == set()
+
+
+def test_a_spin_plan_executed_after_arrival_breaks_nothing_after_arrival():
+    arrived = [(1.0, {"mode": "arrived", "mode_arrived": True})]
+    assert violated([*arrived, *iteration(1.2, *FULL, anomaly=True)]) == {"nothing_after_arrival"}
+    assert violated([*iteration(0.8, *FULL, anomaly=True), *arrived]) == set()
