@@ -8,7 +8,9 @@ turns them into plain JSON-able data that ``assets/report.js`` draws:
 - each stage's duration distribution with the platform's nearest-rank percentiles;
 - the knowledge signals (every key that is not one of the loop's own keys);
 - the adaptations: anomaly, plan, legitimacy verdict with broken rules, trust check, outcome
-  (executed, dropped, cancelled, no plan) and the explanations given on the way.
+  (executed, dropped, cancelled, no plan) and the explanations given on the way;
+- the managed system's mode changes, when the app has a modes chart (``mode`` records; their
+  ``mode_<state>`` keys are not drawn as signals of their own).
 """
 
 from __future__ import annotations
@@ -81,6 +83,7 @@ class TraceModel:
         self.other_stages: set[str] = set()
         self.signals: dict[str, dict[str, Any]] = {}
         self.adaptations: list[Adaptation] = []
+        self.mode_changes: list[dict[str, Any]] = []  # {"time": t, "mode": active modes}
         self._open: Adaptation | None = None  # the adaptation the loop is working on
         self._anomaly: tuple[float, str | None] | None = None
         self._by_plan: dict[str, Adaptation] = {}
@@ -102,8 +105,12 @@ class TraceModel:
             self._note(time, str(record["explanation"]))
         if record.get("planned") is True:
             return  # the other keys of a plan record are the plan's parameters, not knowledge
+        changed = isinstance(record.get("mode"), str) and any(k.startswith("mode_") for k in record)
+        if changed:  # the modes chart's change: one row, not a signal per state
+            self.mode_changes.append({"time": time, "mode": record["mode"]})
+            self._trim(self.mode_changes)
         for key, value in record.items():
-            if key not in LOOP_KEYS:
+            if key not in LOOP_KEYS and not (changed and key.startswith("mode_")):
                 self._signal(time, key, value)
 
     def _stage(self, time: float, record: dict[str, Any]) -> None:
@@ -269,5 +276,6 @@ class TraceModel:
                 for name, s in self.signals.items()
             },
             "adaptations": [asdict(a) for a in self.adaptations],
+            "mode_changes": [dict(change) for change in self.mode_changes],
             "counts": self.counts(),
         }

@@ -103,3 +103,25 @@ def test_live_history_is_bounded() -> None:
         model.add(i, {"stage": "monitor", "duration": 0.001, "x": i})
     assert len(model.iterations) == 10 and len(model.signals["x"]["t"]) == 10
     assert model.signals["x"]["v"][-1] == 99
+
+
+def test_mode_changes_are_rows_and_their_state_keys_no_signals() -> None:
+    model = _model(
+        [
+            {"time": 0.0, "mode": "scanning", "mode_scanning": True},
+            {"time": 2.3, "motor_rpm": 600.0, "mode": "stale", "mode_stale": True,
+             "mode_scanning": False},
+            {"time": 2.6, "ranges": 360, "mode": "scanning", "mode_scanning": True,
+             "mode_stale": False},
+            {"time": 3.0, "mode_of_transport": "bus"},  # a signal that only looks like one
+        ]
+    )
+    data = model.to_dict()
+    assert data["mode_changes"] == [
+        {"time": 0.0, "mode": "scanning"},
+        {"time": 2.3, "mode": "stale"},
+        {"time": 2.6, "mode": "scanning"},
+    ]
+    assert data["signals"]["mode"]["v"] == ["scanning", "stale", "scanning"]
+    assert {"motor_rpm", "ranges", "mode_of_transport"} <= set(data["signals"])
+    assert not {"mode_scanning", "mode_stale"} & set(data["signals"])

@@ -204,3 +204,29 @@ def test_every_state_is_shown_in_words_and_only_satisfied_is_green(page, tmp_pat
     assert shown["budget"][0] == "error" and "OverflowError" in shown["budget"][2]
     assert {shown[name][1] for name in ("fast_enough", "typo", "budget")}.isdisjoint({green})
     assert not page.errors
+
+
+def test_mode_changes_are_listed_and_hidden_without_a_modes_chart(
+    page, hotbox_report: Path, tmp_path: Path
+) -> None:
+    _open(page, hotbox_report)  # the Hotbox has a mode signal, no modes chart
+    assert page.page.locator("#mode-changes").is_hidden()
+    trace = tmp_path / "modes.jsonl"
+    records = [
+        {"time": 0.0, "mode": "scanning", "mode_scanning": True},
+        {"time": 2.3, "motor_rpm": 600.0, "mode": "stale", "mode_stale": True,
+         "mode_scanning": False},
+        {"time": 2.4, "dropped": True, "plan": "p1",
+         "explanation": "not applicable in managed-system mode 'stale' "
+                        "(lidar applies in scanning)"},
+    ]
+    trace.write_text("".join(json.dumps(r) + "\n" for r in records))
+    out = tmp_path / "modes.html"
+    assert main(["report", str(trace), "-o", str(out)]) == 0
+    _open(page, out)
+    rows = page.page.locator("#mode-table tbody tr")
+    assert [rows.nth(i).inner_text().split() for i in range(rows.count())] == [
+        ["0.000", "s", "scanning"], ["2.300", "s", "stale"],
+    ]
+    assert "mode 'stale'" in page.page.inner_text("#adaptations")
+    assert page.errors == []

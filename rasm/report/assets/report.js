@@ -360,6 +360,16 @@
     if (state.focus !== null) highlight(state.focus);
   }
 
+  /* ------------------------------------------------------------------ managed-system modes */
+  function modeChanges(m) {
+    var list = m.mode_changes || [];
+    $("mode-changes").hidden = !list.length;
+    $("mode-table").querySelector("tbody").innerHTML = list.slice(-MAX_ROWS).map(function (c) {
+      return '<tr data-time="' + c.time + '"><td>' + goto(c.time) + "</td><td>" +
+        esc(c.mode) + "</td></tr>";
+    }).join("");
+  }
+
   /* ------------------------------------------------------------------ focus */
   function markers(m, id) {
     var shapes = [];
@@ -454,6 +464,7 @@
     verdicts(m);
     signals(m);
     adaptations(m);
+    modeChanges(m);
     document.body.dataset.records = String(m.records);
     document.body.dataset.rendered = "true";
   }
