@@ -147,3 +147,17 @@ def test_a_stage_chart_keeps_its_state_between_iterations_and_reads_the_context(
     kb.register_knowledge("mode", "scanning", 3.5)
     assert analyse.analyse(StageContext(kb, 4.0, 4)) is None
     assert set(analyse.interpreter.configuration) == {"analysing", "watching"}
+
+
+def test_a_stage_chart_over_its_budget_on_the_wall_clock_fails_its_stage(app, tmp_path):
+    edit(app / "app.yaml", "  period: 0.2\n", "  period: 0.2\n  stage_budget: 0.1\n")
+    edit(app / "app.yaml", "scenario: {jams: [2.0, 6.0]}", "scenario: {jams: [0.5]}")
+    edit(
+        app / "charts" / "plan.yaml",
+        "        action: |\n",
+        "        action: |\n          import time\n          time.sleep(0.3)\n",
+    )
+    summary, trace = run(app, tmp_path, "wall", 2.0)
+    assert summary.stats.timeouts["plan"] >= 1
+    assert summary.stats.executed == 0  # no plan ever came in time
+    assert any(r.get("explanation") == "plan stage overran its time budget" for r in trace)

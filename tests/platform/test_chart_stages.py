@@ -1,0 +1,91 @@
+"""A stage written as a chart: what it answers, and how it fails (as a Python stage would)."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rasm.knowledge import KnowledgeBase
+from rasm.platform.chart_stages import MAX_STEPS, ChartStage, NoAnswer
+from rasm.platform.components import Action, Anomaly, Plan, StageContext, StageError
+from rasm.statechart import load_statechart
+
+
+def chart(stage: str, action: str, guard: str = "True", preamble: str = "x = 0") -> ChartStage:
+    text = f"""statechart:
+  name: {stage}_chart
+  preamble: |
+    {preamble}
+  root state:
+    name: root
+    transitions:
+      - event: {stage}
+        guard: {guard}
+        action: |
+          {action}
+"""
+    return ChartStage(load_statechart(text=text), stage)
+
+
+def ctx(time: float = 1.0, **knowledge) -> StageContext:
+    kb = KnowledgeBase()
+    for key, value in knowledge.items():
+        kb.register_knowledge(key, value, 0.0)
+    return StageContext(kb, time, 1)
+
+
+def test_each_stage_answers_with_its_outcomes():
+    assert chart("monitor", "send('monitored', mean=2.5)").monitor(ctx()) == {"mean": 2.5}
+    assert chart("monitor", "send('monitored')").monitor(ctx()) is None
+    anomaly = chart("analyse", "send('anomaly', reason='hot', t=knowledge['t'])").analyse(
+        ctx(t=41.0)
+    )
+    assert anomaly == Anomaly("hot", {"t": 41.0})
+    assert chart("analyse", "send('no_anomaly')").analyse(ctx()) is None
+    plan = chart("plan", "send('planned', setpoint=37.0, explanation='cool')").plan(ctx())
+    assert plan == Plan({"setpoint": 37.0}, explanation="cool")
+    assert chart("legitimate", "send('accepted')").legitimate(ctx()) is True
+    assert chart("legitimate", "send('rejected', reason='too hot')").legitimate(ctx()) == (
+        False, "too hot")
+    two = "send('action', effector='a', payload={'v': 1}); send('action', effector='b')"
+    assert chart("execute", two).execute(ctx()) == [Action("a", {"v": 1}), Action("b", {})]
+    assert chart("execute", "send('no_action')").execute(ctx()) == []
+
+
+def test_the_context_is_the_iteration_and_the_knowledge_read_only():
+    stage = chart("plan", "send('planned', seen=[time, iteration, anomaly, rejections])")
+    c = ctx(3.5)
+    c.anomaly = Anomaly("cold", {"by": 2})
+    assert stage.plan(c)["seen"] == [3.5, 1, {"by": 2, "reason": "cold"}, 0]
+    kb_stage = chart("monitor", "knowledge['xs'].append(4); send('monitored')")
+    c = ctx(xs=[1, 2])
+    kb_stage.monitor(c)
+    assert c.knowledge.read_knowledge("xs") == [1, 2]  # the chart changed a copy
+
+
+def test_a_chart_without_an_answer_raises_no_answer():
+    with pytest.raises(NoAnswer, match="sent no outcome"):
+        chart("analyse", "x += 1").analyse(ctx())
+    with pytest.raises(NoAnswer):
+        chart("analyse", "send('no_anomaly')", guard="False").analyse(ctx())
+
+
+def test_two_answers_a_failing_step_and_a_chart_that_never_settles_fail_the_stage():
+    with pytest.raises(StageError, match="answered twice"):
+        chart("analyse", "send('anomaly'); send('no_anomaly')").analyse(ctx())
+    failing = chart("analyse", "x = 1 / 0")
+    with pytest.raises(StageError, match="division by zero"):
+        failing.analyse(ctx())
+    assert failing.interpreter.context["x"] == 0  # rolled back
+    looping = chart("analyse", "send('analyse')")
+    with pytest.raises(StageError, match=f"did not settle within {MAX_STEPS} steps"):
+        looping.analyse(ctx())
+
+
+@given(st.lists(st.floats(min_value=0, max_value=100, allow_nan=False), min_size=1, max_size=20))
+def test_the_chart_keeps_its_own_variables_between_iterations(temperatures):
+    """For any sequence of iterations, a counter the chart keeps counts them all."""
+    stage = chart("monitor", "x += 1\n          send('monitored', count=x)")
+    for i, value in enumerate(temperatures):
+        assert stage.monitor(ctx(float(i), temperature=value)) == {"count": i + 1}
