@@ -28,6 +28,9 @@ LOOP_SIGNAL_TYPES: dict[str, str] = {
     "drift": "bool",
     "recorded_action": "json",  # a replay's action, not sent: effector, topic, payload
     "twin_model_version": "int",
+    "fallback": "str",  # "engaged" | "released", on the record where the fallback switches
+    "repaired_from": "str",  # on a repaired plan's planned record: the rejected plan's id
+    "corrective": "bool",  # an action let through a veto as corrective (the twin's prediction)
 }
 """Every key the loop itself writes in trace records, with the type a property reads it as."""
 

@@ -117,6 +117,7 @@ BLOCKS = {
     "rasm.platform.trustworthiness_checker",
     "rasm.platform.adaptation_orchestrator",
     "rasm.platform.core",
+    "rasm.platform.fallback",
 }
 
 

@@ -249,13 +249,36 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 def _cmd_verify_rules(args: argparse.Namespace) -> int:
     from rasm.rules import format_json, format_text, load_rules, verify
     from rasm.rules.against import check_against
+    from rasm.rules.fallback import prove_fixed_plan
 
-    rules = load_rules(args.rules)
-    report = verify(rules)
-    if args.against:
-        report.against = check_against(rules, args.against)
-    sys.stdout.write(format_json(report) if args.format == "json" else format_text(report))
-    return EXIT_OK if report.consistent and not report.admits_violations else EXIT_FAILED
+    paths, fallback = _rules_of(args.rules)
+    failed = False
+    for path in paths:
+        rules = load_rules(path)
+        report = verify(rules)
+        if args.against:
+            report.against = check_against(rules, args.against)
+        if fallback is not None:
+            report.fallback = fallback
+            report.fallback_proof = prove_fixed_plan(rules, fallback)
+        sys.stdout.write(format_json(report) if args.format == "json" else format_text(report))
+        failed |= not report.consistent or report.admits_violations or report.fallback_refused
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def _rules_of(target: str) -> tuple[list, dict | None]:
+    """``verify-rules`` of a rules file, or of an app (its folder or app.yaml): every rules file
+    of the app, and its fallback actions as one plan to prove legitimate in every context."""
+    from pathlib import Path
+
+    from rasm.platform.manifest import load_manifest
+
+    path = Path(target)
+    if not (path.is_dir() or path.name == "app.yaml"):
+        return [path], None
+    manifest = load_manifest(path)
+    fallback = manifest.fallback.values if manifest.fallback is not None else None
+    return list(manifest.rules), fallback
 
 
 # --------------------------------------------------------------------------- platform
@@ -569,7 +592,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--verdicts", action="store_true", help="print every verdict as JSONL")
 
     p = command("verify-rules", _cmd_verify_rules, "check legitimacy rules for consistency")
-    p.add_argument("rules", help="rules file (YAML)")
+    p.add_argument("rules", help="rules file (YAML), or an app: its rules and fallback actions")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--against", default=None, metavar="PROPS.rv")
 

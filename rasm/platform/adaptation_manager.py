@@ -8,7 +8,7 @@ from typing import Any, Protocol
 from rasm.platform.block import Block
 from rasm.platform.components import Action
 
-__all__ = ["ActionGate", "AdaptationManager", "TrustJudge"]
+__all__ = ["ActionGate", "AdaptationManager", "Hold", "TrustJudge"]
 
 
 class TrustJudge(Protocol):
@@ -25,11 +25,19 @@ class ActionGate(Protocol):
         """(sent to its effector, why)."""
 
 
+class Hold(Protocol):
+    """What may hold the loop's actions back: the fallback switch while it holds the effectors."""
+
+    def holds(self, action: Action) -> str | None:
+        """Why ``action`` is held back, or None."""
+
+
 class AdaptationManager(Block):
     """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis``.
 
     Has the Trustworthiness Manager check the action; when trustworthy, registers it with the
     Trustworthiness Checker, which alone hands it to the effector. Otherwise the action is dropped.
+    While the fallback switch (``hold``) holds the effectors, only fallback actions go on.
     """
 
     chart_name = "adaptation_manager"
@@ -38,6 +46,7 @@ class AdaptationManager(Block):
     def __init__(self, tm: TrustJudge, tc: ActionGate, **kw: Any) -> None:
         self.tm = tm
         self.tc = tc
+        self.hold: Hold | None = None
         self._action: Action | None = None
         self._outcome: tuple[bool, str] = (False, "")
         self.last_trusted = False
@@ -59,6 +68,11 @@ class AdaptationManager(Block):
         )
 
     def on_enter_checking_trustworthiness(self) -> None:
+        held = self.hold.holds(self._action) if self.hold is not None else None
+        if held is not None:
+            self._outcome = (False, held)
+            self.post("untrustworthy")
+            return
         ok, why = self.tm.check_trustworthiness(self._action)
         self.last_trusted = ok
         self._outcome = (False, why)

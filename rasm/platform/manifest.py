@@ -25,6 +25,7 @@ __all__ = [
     "AppManifest",
     "Effector",
     "ExternalVerdict",
+    "Fallback",
     "Probe",
     "is_chart_ref",
     "SCHEMA",
@@ -102,6 +103,25 @@ class ExternalVerdict:
     hold: float = 1.0
 
 
+@dataclass(frozen=True)
+class Fallback:
+    """The safe fallback (``fallback:``): per effector the payload of its fallback action, the
+    triggers that engage it, and how long no trigger may hold before control is handed back."""
+
+    actions: dict[str, dict[str, Any]]
+    when: tuple[str, ...] = ("veto", "managed_system_lost", "stage_failures")
+    after_failures: int = 3
+    dwell: float = 5.0
+
+    @property
+    def values(self) -> dict[str, Any]:
+        """Every fallback action's payload in one: what the rules judge."""
+        merged: dict[str, Any] = {}
+        for payload in self.actions.values():
+            merged.update(payload)
+        return merged
+
+
 @dataclass
 class AppManifest:
     """A validated ``app.yaml``; paths are resolved against the app folder."""
@@ -140,6 +160,10 @@ class AppManifest:
     twin: str | None = None
     twin_horizon: float = 20.0
     twin_dt: float = 0.5
+    fallback: Fallback | None = None
+    repair: bool = False  # legitimate.repair: nearest
+    repair_weights: dict[str, float] = field(default_factory=dict)
+    corrective: bool = False  # trustworthiness.corrective
     raw: dict[str, Any] = field(default_factory=dict)
     # the ROS 2 types of the app (standard interfaces and its msg/*.msg), when it names any
     types: Any = None
@@ -508,6 +532,31 @@ def _check_effector(
     )
 
 
+def _fallback(
+    src: YamlSource, effectors: dict[str, Effector], problems: list[SourceError]
+) -> Fallback | None:
+    """The ``fallback:`` section; an action for an effector the app does not declare is refused."""
+    spec = src.data.get("fallback")
+    if spec is None:
+        return None
+    actions: dict[str, dict[str, Any]] = {}
+    for name, payload in spec["actions"].items():
+        if name not in effectors:
+            known = ", ".join(sorted(effectors)) or "none declared"
+            problems.append(src.error(
+                f"fallback action for unknown effector {name!r} (effectors: {known})",
+                src.key(spec["actions"], name),
+            ))
+            continue
+        actions[str(name)] = {str(k): v for k, v in plain(payload).items()}
+    return Fallback(
+        actions,
+        tuple(spec.get("when", Fallback.when)),
+        int(spec.get("after_failures", 3)),
+        float(spec.get("dwell", 5.0)),
+    )
+
+
 def _node_at(data: Any, path: list[Any]) -> Any:
     for step in path:
         data = data[step]
@@ -655,6 +704,8 @@ def load_manifest(app: str | Path) -> AppManifest:
         str(k): existing(["statecharts", k], v) for k, v in (data.get("statecharts") or {}).items()
     }
     loop = data.get("loop", {}) or {}
+    fallback = _fallback(src, effectors, problems)
+    legitimate = data.get("legitimate") or {}
     if problems:
         raise SourceErrors(problems)
     return AppManifest(
@@ -690,6 +741,10 @@ def load_manifest(app: str | Path) -> AppManifest:
         twin=(data.get("twin") or {}).get("component"),
         twin_horizon=float((data.get("twin") or {}).get("horizon", 20.0)),
         twin_dt=float((data.get("twin") or {}).get("dt", 0.5)),
+        fallback=fallback,
+        repair=legitimate.get("repair", "off") == "nearest",
+        repair_weights={str(k): float(v) for k, v in (legitimate.get("weights") or {}).items()},
+        corrective=bool(trust.get("corrective", False)),
         raw=plain(data),
         types=types,
     )

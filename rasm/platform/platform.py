@@ -39,6 +39,7 @@ from rasm.platform.components import Action, describe_failure
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution, DistributionHooks
 from rasm.platform.external_verdicts import ExternalVerdicts
+from rasm.platform.fallback import FallbackSwitch
 from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.loading import (
     check_components,
@@ -208,6 +209,7 @@ class Platform:
         self.restored_from: str | None = None
         self.twin: DigitalTwin | None = None
         self.modes: ManagedSystemModes | None = None  # the app's modes chart, if it has one
+        self.fb: FallbackSwitch | None = None  # the fallback switch, when the app declares one
         self._twin_inputs: frozenset[str] = frozenset()
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
@@ -476,6 +478,9 @@ class Platform:
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
         )
         self.trace.observers.append(self.tc.observe)
+        blocks: list[Block] = [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+        if m.fallback is not None:
+            blocks.append(self._fallback_switch())
         if self._publishes_verdicts():
             names = [n for mon in monitors if mon is not self.external for n in mon.properties]
             if self.ros:
@@ -485,7 +490,59 @@ class Platform:
                     self.transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool",
                                            qos=latched)
             self.on_verdict.append(self._publish_verdict)
-        return [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
+        return blocks
+
+    def _fallback_switch(self) -> FallbackSwitch:
+        """The fallback switch, once z3 proved every fallback action legitimate in every context
+        the rules admit (else the app is refused, at the action in app.yaml)."""
+        from rasm.platform.fallback import prove_fallback
+
+        m = self.manifest
+        assert m.fallback is not None
+        problems = [
+            SourceError(
+                f"the fallback actions are not legitimate in every context the rules of "
+                f"{rules.source} admit: {proof.explanation()}",
+                manifest_location(m, ["fallback", "actions"]),
+            )
+            for rules, proof in prove_fallback(m.fallback, [r.rules for r in self.rules])
+            if not proof.legitimate
+        ]
+        if problems:
+            raise SourceErrors(problems)
+        self.fb = FallbackSwitch(
+            spec=m.fallback,
+            am=self.am,
+            tm=self.tm,
+            vetoes=self.tm.vetoes,
+            online=lambda: self.dist.managed_online,
+            stats=lambda: self.ao.stats,
+            emit=self._emit,
+            plan_prefix="" if self.clock_kind == "simulated" else f"{self.dist.run}-",
+            chart=self._chart("fallback"),
+            clock=self.clock,
+            depends_on=("am", "tm", "ao"),
+        )
+        self.am.hold = self.fb
+        self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
+        self.on_verdict.append(self._veto_verdict)
+        return self.fb
+
+    def _veto_verdict(self, verdict: Verdict) -> None:
+        """A veto property that starts or stops vouching moves the fallback switch at once (on
+        the loop, after the job in hand) rather than at the next tick."""
+        name = verdict.property
+        if self.fb is not None and name in self.tm.veto_properties:
+            good = verdict.value is True and verdict.error is None
+            if self._veto_good.get(name) != good:
+                self._veto_good[name] = good
+                self.scheduler.submit(self.fb.evaluate)
+
+    def _tick(self) -> None:
+        """One loop period with a fallback: the switch reads its triggers, then the loop runs."""
+        if self.fb is not None:
+            self.fb.evaluate()
+        self.ao.orchestration_loop()
 
     def _publishes_verdicts(self) -> bool:
         """Whether verdicts go out on the transport: as the manifest says, else on a network
@@ -673,6 +730,8 @@ class Platform:
 
         def managed_system(event: str) -> None:
             self.scheduler.submit(lambda: self.ao.send(event))
+            if self.fb is not None:
+                self.scheduler.submit(self.fb.evaluate)
 
         def add_monitor(monitor: Monitor) -> None:
             self.scheduler.submit(lambda: self.tc.add_monitor(monitor))
@@ -728,7 +787,7 @@ class Platform:
             # a loop that overran skips the iterations it missed (Scheduler.missed)
             self.scheduler.every(
                 m.period,
-                self.ao.orchestration_loop,
+                self.ao.orchestration_loop if self.fb is None else self._tick,
                 start=self.clock.time + m.period,
                 skip_missed=True,
             )

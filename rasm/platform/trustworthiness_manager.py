@@ -98,15 +98,23 @@ class TrustworthinessManager(Block):
                 decision = rules.evaluate(sent, context)
                 if not decision.accepted:
                     return False, f"rules do not accept the action: {decision.explanation()}"
-        vetoes = [
-            self._veto(name, self.checker.latest_verdict(name)) for name in self.veto_properties
-        ]
-        vetoes = [why for why in vetoes if why is not None]
+        if action.kind == "fallback":
+            # the fallback is what runs while a veto holds: its actions were proved legitimate
+            # in every context before the run, and the rules have just accepted them again
+            return True, "fallback action: rules hold (vetoes do not stop the fallback)"
+        vetoes = self.vetoes()
         if vetoes:
             return False, "; ".join(vetoes)
         if self.veto_properties:
             return True, "plan accepted by Legitimate, rules hold, every veto property holds"
         return True, "plan accepted by Legitimate, rules hold"
+
+    def vetoes(self) -> list[str]:
+        """Why each veto property the checker cannot vouch for now stops actions."""
+        vetoes = [
+            self._veto(name, self.checker.latest_verdict(name)) for name in self.veto_properties
+        ]
+        return [why for why in vetoes if why is not None]
 
     def _veto(self, name: str, verdict: Verdict | None) -> str | None:
         """Why veto property ``name`` stops the action, or None when it holds."""

@@ -48,6 +48,10 @@ class Report:
     unsatisfiable_contexts: dict[str, dict[str, Any]] = field(default_factory=dict)
     implied_by: dict[str, list[str]] = field(default_factory=dict)
     against: list[Violation] | None = None
+    # an app's fallback actions (as one plan) and z3's proof that they are legitimate in every
+    # context the rules admit (``rasm verify-rules APP``)
+    fallback: dict[str, Any] | None = None
+    fallback_proof: Any = None  # a rasm.rules.fallback.FixedPlanProof
 
     @property
     def consistent(self) -> bool:
@@ -58,6 +62,11 @@ class Report:
     def admits_violations(self) -> bool:
         """Whether some checked property can be violated by a plan the rules admit."""
         return any(v.witness is not None for v in self.against or ())
+
+    @property
+    def fallback_refused(self) -> bool:
+        """Whether the app's fallback actions are not proved legitimate in every context."""
+        return self.fallback_proof is not None and not self.fallback_proof.legitimate
 
     def reason(self) -> str:
         """One line saying why the rules are inconsistent ('' when they are consistent)."""
@@ -90,6 +99,15 @@ class Report:
                 | ({"skipped": v.skipped} if v.skipped else {})
                 for v in self.against
             ]
+        if self.fallback is not None and self.fallback_proof is not None:
+            proof = self.fallback_proof
+            data["fallback"] = {
+                "actions": dict(self.fallback),
+                "legitimate": proof.legitimate,
+                "context": dict(proof.context) if not proof.legitimate else None,
+                "broken": list(proof.broken),
+                "reason": proof.explanation(),
+            }
         return data
 
 
@@ -141,6 +159,13 @@ def format_text(report: Report) -> str:
             lines.append(f"property {violation.property}: the rules admit a plan that violates "
                          f"{violation.expression}")
             lines.append(f"    e.g. {format_context(violation.witness)}")
+    if report.fallback is not None and report.fallback_proof is not None:
+        if report.fallback_proof.legitimate:
+            lines.append("fallback: legitimate in every context the rules admit: "
+                         + format_context(report.fallback))
+        else:
+            lines.append("fallback: NOT legitimate in every context: "
+                         + report.fallback_proof.explanation())
     verdict = "consistent" if report.consistent else "inconsistent"
     lines.append(f"{report.source}: {report.rule_count} rules, {verdict}: "
                  f"{len(report.unsatisfiable)} unsatisfiable, {len(report.conflicts)} conflicts, "

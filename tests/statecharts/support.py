@@ -34,6 +34,7 @@ BLOCKS = (
     "communication_manager",
     "telegraf",
     "storage_manager",
+    "fallback",
 )
 MONITORS = ("accepted_before_executing", "stage_outcome")
 

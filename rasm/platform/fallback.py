@@ -1,0 +1,235 @@
+"""The fallback switch: a Simplex-style safe fallback, run by its chart (fallback.yaml).
+
+The app declares per effector a fallback action, proved legitimate in every context the rules
+admit before the run starts (:func:`prove_fallback`). The switch watches its triggers — a veto
+property the checker cannot vouch for, the managed system lost, ``after_failures`` consecutive
+failed iterations — and tells its chart: ``trigger`` engages the fallback (its actions go out
+through the Adaptation Manager like any other, signed, traced and checked), ``clear`` starts the
+dwell after which control is handed back. While the chart is not ``nominal``, the Adaptation
+Manager holds back every other action (:meth:`FallbackSwitch.holds`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Protocol
+
+from rasm.platform.block import Block
+from rasm.platform.components import Action, Plan
+from rasm.platform.manifest import Fallback
+
+if TYPE_CHECKING:
+    from collections import Counter
+
+    from rasm.rules import Rules
+    from rasm.rules.fallback import FixedPlanProof
+
+__all__ = ["FallbackSwitch", "FailedIterations", "prove_fallback"]
+
+_log = logging.getLogger("rasm.fallback")
+
+
+class Sender(Protocol):
+    """What sends an action down the one path to the effectors: the Adaptation Manager."""
+
+    last_trusted: bool
+
+    def perform_adaptation(self, action: Action) -> tuple[bool, str]: ...
+
+
+class LoopStats(Protocol):
+    """The loop's counts the stage_failures trigger reads (the orchestrator's ``stats``)."""
+
+    iterations: int
+    anomalies: int
+    executed: int
+    dropped: int
+    cancelled: int
+    failed_stages: Counter[str]
+    timeouts: Counter[str]
+
+
+class PlanRegistry(Protocol):
+    """What holds the plans actions may come from: the Trustworthiness Manager."""
+
+    def accept_plan(self, plan: Plan) -> None: ...
+
+    def forget_plan(self, plan_id: str) -> None: ...
+
+
+def prove_fallback(
+    fallback: Fallback, rules: Sequence[Rules]
+) -> list[tuple[Rules, FixedPlanProof]]:
+    """The proof of the fallback actions against each rule set (together, as one plan: the
+    Trustworthiness Manager judges each action with the fallback plan's values)."""
+    from rasm.rules.fallback import prove_fixed_plan
+
+    return [(rule_set, prove_fixed_plan(rule_set, fallback.values)) for rule_set in rules]
+
+
+@dataclass
+class FailedIterations:
+    """Counts consecutive failed iterations from the loop's statistics, read between ticks.
+
+    An iteration failed when a stage failed or overran, the adaptation was cancelled after its
+    replans, or an anomaly got no plan; it succeeded otherwise (an action held back or refused
+    by a check is not a failure of the loop's stages)."""
+
+    consecutive: int = 0
+    _seen: tuple[int, int, int, int] = (0, 0, 0, 0)
+
+    def update(self, stats: LoopStats) -> None:
+        now = (
+            stats.iterations,
+            sum(stats.failed_stages.values()) + sum(stats.timeouts.values()) + stats.cancelled,
+            stats.anomalies,
+            stats.executed + stats.dropped,  # anomalies whose plan reached Execute
+        )
+        iterations, failed, anomalies, ended = (a - b for a, b in zip(now, self._seen, strict=True))
+        if not iterations:
+            return
+        self._seen = now
+        # an anomaly that neither failed nor reached Execute got no plan
+        if failed or anomalies > ended + failed:
+            self.consecutive += iterations
+        else:
+            self.consecutive = 0
+
+
+class FallbackSwitch(Block):
+    """Fallback switch (fb): :meth:`evaluate` the triggers, tell the chart, send the fallback."""
+
+    chart_name = "fallback"
+    short_name = "fb"
+
+    def __init__(
+        self,
+        *,
+        spec: Fallback,
+        am: Sender,
+        tm: PlanRegistry,
+        vetoes: Callable[[], list[str]],
+        online: Callable[[], bool],
+        stats: Callable[[], LoopStats],
+        emit: Callable[[float, dict[str, Any]], Any],
+        plan_prefix: str = "",
+        **kw: Any,
+    ) -> None:
+        self.spec = spec
+        self.am = am
+        self.tm = tm
+        self.vetoes = vetoes
+        self.online = online
+        self.stats = stats
+        self.emit = emit
+        self.plan_prefix = plan_prefix
+        self.failures = FailedIterations()
+        self.engagements = 0
+        self.pending: dict[str, dict[str, Any]] = {}  # fallback actions not delivered yet
+        self._plan: Plan | None = None
+        super().__init__(context={"dwell": spec.dwell}, **kw)
+
+    @property
+    def state(self) -> str:
+        """``nominal``, ``fallback`` or ``recovering`` (or the block's mode when not running)."""
+        for state in ("nominal", "fallback", "recovering"):
+            if state in self.configuration:
+                return state
+        return self.mode
+
+    def holds(self, action: Action) -> str | None:
+        """Why ``action`` is held back (the fallback holds the effectors), or None."""
+        if action.kind == "fallback":
+            return None
+        state = self.state
+        if state == "nominal":
+            return None
+        if state in ("fallback", "recovering"):
+            return f"the fallback holds the effectors ({state}): {self.trigger_reason()}"
+        return f"the fallback switch is {state}"  # fail closed: no switch, no action
+
+    def trigger_reason(self) -> str:
+        return str(self.interpreter.context.get("trigger_reason") or "no trigger")
+
+    def triggers(self) -> list[str]:
+        """The triggers that hold now, each with its reason."""
+        held: list[str] = []
+        when = self.spec.when
+        if "managed_system_lost" in when and not self.online():
+            held.append("managed system lost")
+        if "stage_failures" in when:
+            self.failures.update(self.stats())
+            n = self.failures.consecutive
+            if n >= self.spec.after_failures:
+                held.append(f"{n} consecutive failed iterations")
+        if "veto" in when:
+            held.extend(self.vetoes())
+        return held
+
+    def evaluate(self) -> None:
+        """Read the triggers and tell the chart; retry fallback actions not delivered yet."""
+        if self.mode != "initialized":
+            return
+        held = self.triggers()
+        state = self.state
+        if held and state in ("nominal", "recovering"):
+            self.send("trigger", reason="; ".join(held))
+        elif not held and state == "fallback":
+            self.send("clear")
+        if self.pending and self.state != "nominal":
+            self._deliver()
+
+    # ------------------------------------------------------------------ chart hooks
+
+    def on_enter_fallback(self) -> None:
+        if self._plan is None:  # engaged (not back from recovering): the actions go out
+            self.engagements += 1
+            self._plan = Plan(
+                self.spec.values,
+                id=f"{self.plan_prefix}f{self.engagements}",
+                explanation="the fallback actions",
+            )
+            self.pending = dict(self.spec.actions)
+            self.tm.accept_plan(self._plan)
+            self._deliver()
+
+    def on_enter_nominal(self) -> None:
+        if self._plan is not None:
+            self.tm.forget_plan(self._plan.id)
+        self._plan = None
+        self.pending = {}
+
+    def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
+        if name == "engaged":
+            reason = data.get("reason", "")
+            _log.warning("fallback engaged: %s", reason)
+            self.emit(
+                self.clock.time,
+                {"fallback": "engaged", "explanation": f"fallback engaged: {reason}"},
+            )
+        elif name == "released":
+            _log.warning("fallback released after %g s without a trigger", data.get("held_for"))
+            self.emit(
+                self.clock.time,
+                {
+                    "fallback": "released",
+                    "explanation": f"control handed back: no trigger for {data.get('held_for')} s",
+                },
+            )
+
+    def _deliver(self) -> None:
+        plan = self._plan
+        if plan is None:
+            return
+        for effector, payload in list(self.pending.items()):
+            action = Action(effector, dict(payload), plan.id, "fallback")
+            ok, why = self.am.perform_adaptation(action)
+            if self.am.last_trusted:
+                self.emit(self.clock.time, {"trusted": True, "plan": plan.id})
+            if ok:
+                del self.pending[effector]
+                self.emit(self.clock.time, {"executed": True, "plan": plan.id, "explanation": why})
+            else:
+                self.emit(self.clock.time, {"dropped": True, "plan": plan.id, "explanation": why})

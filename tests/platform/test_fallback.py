@@ -1,0 +1,246 @@
+"""The safe fallback (Simplex), end to end on the simulated clock: its triggers engage it within
+its deadline, nothing but its actions reaches an effector while it holds, it hands control back
+only after no trigger held for the dwell time, and an app whose fallback actions z3 cannot prove
+legitimate in every context is refused before it runs."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rasm import Platform
+from rasm.errors import SourceErrors
+from rasm.platform.components import Plan
+from rasm.testing import run_app
+
+from .guarded import write_guarded_app
+
+RULES = """variables:
+  level: {type: int, min: 0, max: 5}
+  speed: {type: real, min: 0, max: 10}
+rules:
+  - name: gentle
+    require: level <= 3
+  - name: calm_when_fast
+    when: speed > 1.0
+    require: level <= 1
+"""
+
+FALLBACK = """
+rules: rules/robot.yaml
+fallback:
+  actions: {{motor: {{level: {level}}}}}
+  when: [{when}]
+  after_failures: {after}
+  dwell: {dwell}
+"""
+
+PERIOD = 0.5
+
+
+def write_app(folder, *, level=0, when="veto, stage_failures", after=3, dwell=2.0, veto=("slow",)):
+    app = write_guarded_app(folder, period=PERIOD, veto=veto)
+    (app / "rules").mkdir(exist_ok=True)
+    (app / "rules" / "robot.yaml").write_text(RULES)
+    text = (app / "app.yaml").read_text().replace(
+        "plan: components:Level",
+        "plan: {component: components:Level, produces: {level: int}}",
+    )
+    (app / "app.yaml").write_text(
+        text + FALLBACK.format(level=level, when=when, after=after, dwell=dwell)
+    )
+    return app
+
+
+def switches(trace):
+    """(time, "engaged" | "released") of every switch of the fallback."""
+    return [(r["time"], r["fallback"]) for r in trace if "fallback" in r]
+
+
+def executed_plans(trace):
+    return [(r["time"], r["plan"]) for r in trace if r.get("executed")]
+
+
+def assert_only_fallback_while_engaged(trace):
+    """Between an engagement and its release, every executed action is a fallback action."""
+    engaged = False
+    for record in trace:
+        if record.get("fallback") == "engaged":
+            engaged = True
+        elif record.get("fallback") == "released":
+            engaged = False
+        if engaged and record.get("executed"):
+            assert record["plan"].startswith("f"), record
+
+
+# ---------------------------------------------------------------- a violated veto property
+
+
+def test_a_violated_veto_engages_the_fallback_at_once_and_hands_back_after_the_dwell(tmp_path):
+    app = write_app(tmp_path / "app", dwell=2.0)
+    trace = run_app(app, seed=1, duration=20, scenario={"fast": [[5.0, 9.0]]})
+    assert switches(trace) == [(5.0, "engaged"), (11.0, "released")]
+    # the first record with speed 2.0 is at t=5.0: engaged on it; the fallback action went out
+    assert ("f1" in {plan for _, plan in executed_plans(trace)})
+    fallback_sent = [t for t, plan in executed_plans(trace) if plan == "f1"]
+    assert fallback_sent == [5.0]
+    assert_only_fallback_while_engaged(trace)
+    # hand-back: the last fast record is before 9.0, then 2 s without a trigger (at the tick
+    # that found it clear, t=9.0) — never earlier
+    last_fast = max(r["time"] for r in trace if r.get("speed") == 2.0)
+    assert last_fast < 9.0 and 11.0 - 9.0 >= 2.0
+    # the loop's own actions come back after the release
+    assert any(t > 11.0 and not plan.startswith("f") for t, plan in executed_plans(trace))
+    # the fallback action was checked like any other
+    trusted = {(r["time"], r["plan"]) for r in trace if r.get("trusted")}
+    assert (5.0, "f1") in trusted
+
+
+def test_a_trigger_while_recovering_engages_again_without_handing_back(tmp_path):
+    app = write_app(tmp_path / "app", dwell=3.0)
+    trace = run_app(app, seed=1, duration=20, scenario={"fast": [[5.0, 6.0], [7.0, 8.0]]})
+    # 6.0..7.0 is shorter than the dwell: one engagement, one release after the second window
+    assert switches(trace) == [(5.0, "engaged"), (11.0, "released")]
+    assert_only_fallback_while_engaged(trace)
+
+
+# ---------------------------------------------------------------- faulty planners
+
+
+class Raises:
+    def plan(self, ctx):
+        raise RuntimeError("planner crashed")
+
+
+class Garbage:
+    def plan(self, ctx):
+        return 42
+
+
+class Nothing:
+    def plan(self, ctx):
+        return None
+
+
+class BreaksRules:
+    def plan(self, ctx):
+        return Plan({"level": 5})
+
+
+class Overruns:
+    def plan(self, ctx):
+        time.sleep(0.03)  # over the 0.02 s budget this test gives the stage
+        return Plan({"level": 1})
+
+
+FAULTS = {"raises": Raises, "garbage": Garbage, "nothing": Nothing, "breaks": BreaksRules}
+
+
+@settings(max_examples=12, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(fault=st.sampled_from(sorted(FAULTS)), after=st.integers(1, 4), start=st.integers(2, 10))
+def test_a_faulty_planner_always_ends_in_fallback_within_its_deadline(
+    tmp_path_factory, fault, after, start
+):
+    app = write_app(tmp_path_factory.mktemp("app"), when="stage_failures", after=after)
+
+    class TurnsFaulty(FAULTS[fault]):
+        def plan(self, ctx):
+            if ctx.time < start:
+                return Plan({"level": 1})
+            return super().plan(ctx)
+
+    trace = run_app(app, seed=1, duration=start + 10, components={"plan": TurnsFaulty()})
+    engaged = [t for t, what in switches(trace) if what == "engaged"]
+    assert engaged, f"{fault}: the fallback never engaged"
+    # the deadline: the tick after the after-th failed iteration, the first at or after start
+    first_faulty = min(t for t in (r["time"] for r in trace if r.get("stage") == "plan")
+                       if t >= start)
+    assert first_faulty <= engaged[0] <= first_faulty + after * PERIOD + 1e-9
+    assert switches(trace)[-1][1] == "engaged"  # still faulty: no hand-back
+    assert_only_fallback_while_engaged(trace)
+
+
+def test_a_planner_that_overruns_its_budget_ends_in_fallback(tmp_path):
+    app = write_app(tmp_path / "app", when="stage_failures", after=2)
+    trace = run_app(app, seed=1, duration=6, components={"plan": Overruns()}, stage_budget=0.02)
+    assert [what for _, what in switches(trace)] == ["engaged"]
+    assert switches(trace)[0][0] <= 3 * PERIOD + 1e-9
+    assert_only_fallback_while_engaged(trace)
+
+
+# ---------------------------------------------------------------- a lost managed system
+
+
+def test_a_lost_managed_system_engages_the_fallback_and_its_return_hands_back(tmp_path):
+    app = write_app(tmp_path / "app", when="managed_system_lost", dwell=1.0)
+    platform = Platform(app, clock="simulated", seed=1, knowledge="memory")
+    records = []
+    platform.on_record.append(lambda t, r: records.append({"time": t, **r}))
+    platform.build()
+    hooks = platform._hooks()
+
+    def presence(state, event):
+        # what the presence tracker does when the managed node's heartbeats stop / resume
+        platform.dist.managed_nodes["robot"] = state
+        hooks.managed_system(event)
+
+    platform.scheduler.at(4.2, lambda: presence("offline", "managed_system_lost"))
+    platform.scheduler.at(8.2, lambda: presence("online", "managed_system_back"))
+    platform.run(duration=12)
+    assert switches(records) == [(4.2, "engaged"), (9.2, "released")]
+    # offline, the fallback action cannot be delivered: it is retried until it is (at once
+    # when the managed system is back; the release waits the dwell after that)
+    f1 = [(r["time"], "executed" if r.get("executed") else "dropped")
+          for r in records if r.get("plan") == "f1" and ("executed" in r or "dropped" in r)]
+    assert f1[0] == (4.2, "dropped") and f1[-1] == (8.2, "executed")
+    assert_only_fallback_while_engaged(records)
+
+
+# ---------------------------------------------------------------- refused before it runs
+
+
+def test_a_fallback_the_rules_do_not_admit_in_every_context_is_refused_at_start(tmp_path):
+    app = write_app(tmp_path / "app", level=2)  # calm_when_fast breaks it when speed > 1
+    with pytest.raises(SourceErrors) as caught:
+        Platform(app, clock="simulated", seed=1, knowledge="memory").build()
+    message = str(caught.value)
+    assert "app.yaml:" in message and "fallback actions are not legitimate" in message
+    assert "calm_when_fast" in message and "speed ==" in message
+
+
+def test_rasm_run_and_verify_rules_refuse_such_a_fallback_with_the_place(tmp_path):
+    app = write_app(tmp_path / "app", level=2)
+    run = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "run", str(app), "--clock", "simulated",
+         "--duration", "2"], capture_output=True, text=True, timeout=120, cwd=tmp_path,
+    )
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert "app.yaml:" in run.stderr and "Traceback" not in run.stderr
+    verify = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "verify-rules", str(app)],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert verify.returncode == 1
+    assert "fallback: NOT legitimate in every context: breaks calm_when_fast" in verify.stdout
+    write_app(tmp_path / "good", level=0)
+    verify = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "verify-rules", str(tmp_path / "good")],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert verify.returncode == 0, verify.stdout
+    assert "fallback: legitimate in every context the rules admit: level == 0" in verify.stdout
+
+
+def test_a_fallback_for_an_unknown_effector_is_refused_at_its_line(tmp_path):
+    app = write_app(tmp_path / "app")
+    text = (app / "app.yaml").read_text().replace("{motor: {level: 0}}", "{wheel: {level: 0}}")
+    (app / "app.yaml").write_text(text)
+    with pytest.raises(SourceErrors) as caught:
+        Platform(app, clock="simulated")
+    assert "fallback action for unknown effector 'wheel' (effectors: motor)" in str(caught.value)
