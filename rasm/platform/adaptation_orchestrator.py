@@ -87,6 +87,8 @@ class StageTimer(Protocol):
 
 
 Register = Callable[[dict[str, Any], float], Any]
+# (rejected plan, knowledge snapshot) -> the nearest plan the rules accept, or None
+Repairer = Callable[[Plan, dict[str, Any]], Plan | None]
 Emit = Callable[[float, dict[str, Any]], Any]
 
 
@@ -116,8 +118,13 @@ class AdaptationOrchestrator(Block):
         twin_horizon: float = 20.0,
         twin_dt: float = 0.5,
         plan_prefix: str = "",
+        repair: Repairer | None = None,
         **kw: Any,
     ) -> None:
+        # legitimate.repair: after a rejection, the next plan is the nearest legitimate one
+        self.repair = repair
+        self._repaired_from: str | None = None  # the rejected plan the plan in hand repairs
+        self._repairs: set[str] = set()  # plans of this iteration that are repairs
         self.twin = twin
         self.twin_properties = list(twin_properties)
         if twin is not None:
@@ -154,18 +161,24 @@ class AdaptationOrchestrator(Block):
 
     def on_enter_idle(self) -> None:
         self.ctx = None
+        self._repairs.clear()
 
     def on_termination(self) -> None:
         self.runner.close()
 
     # ------------------------------------------------------------------ stages
 
-    def _stage(self, stage: str, body: Callable[[StageContext, Any], str]) -> None:
-        """Run the user's code for ``stage``, then ``body`` with its result; post the outcome
-        event ``body`` returns, or ``stage_failed``."""
+    def _stage(
+        self,
+        stage: str,
+        body: Callable[[StageContext, Any], str],
+        func: Callable[[StageContext], Any] | None = None,
+    ) -> None:
+        """Run the user's code for ``stage`` (or ``func``), then ``body`` with its result; post
+        the outcome event ``body`` returns, or ``stage_failed``."""
         ctx = self.ctx
         start = self.clock.time
-        func = getattr(self.components.get(stage), stage, None)
+        func = func or getattr(self.components.get(stage), stage, None)
         if func is None:
             outcome = StageOutcome(True, None)
         else:
@@ -250,7 +263,23 @@ class AdaptationOrchestrator(Block):
         return "anomaly"
 
     def on_enter_planning(self) -> None:
+        self._repaired_from = None
+        ctx = self.ctx
+        if self.repair is not None and ctx is not None and ctx.rejections:
+            rejected = ctx.rejections[-1][0]
+            if rejected.id not in self._repairs:  # a rejected repair goes back to the planner
+                self._stage("plan", self._planned, lambda c: self._repair_or_plan(c, rejected))
+                return
         self._stage("plan", self._planned)
+
+    def _repair_or_plan(self, ctx: StageContext, rejected: Plan) -> Any:
+        """The nearest legitimate plan to ``rejected``; the user's planner if there is none."""
+        repaired = self.repair(rejected, self.knowledge.snapshot())
+        if repaired is not None:
+            self._repaired_from = rejected.id
+            return repaired
+        planner = getattr(self.components.get("plan"), "plan", None)
+        return planner(ctx) if planner is not None else None
 
     def _planned(self, ctx: StageContext, result: Any) -> str:
         self._plans += 1
@@ -268,6 +297,9 @@ class AdaptationOrchestrator(Block):
                 if isinstance(v, int | float | str | bool) and k not in record
             }
         )
+        if self._repaired_from is not None:
+            record["repaired_from"] = self._repaired_from
+            self._repairs.add(plan.id)
         if plan.explanation:
             record["explanation"] = plan.explanation
         self.emit(self.clock.time, record)

@@ -35,7 +35,7 @@ from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
-from rasm.platform.components import Action, describe_failure
+from rasm.platform.components import Action, Plan, describe_failure
 from rasm.platform.core import Core
 from rasm.platform.distribution import Distribution, DistributionHooks
 from rasm.platform.external_verdicts import ExternalVerdicts
@@ -398,6 +398,7 @@ class Platform:
             depends_on=("km", "cm"),
         )
         self.rules = [RuleSet.load(path) for path in m.rules]
+        self._check_repair_weights()
         files = [*sorted(data_dir("properties").glob("*.rv")), *m.properties]
         monitors = [compile_properties(p.read_text(encoding="utf-8"), source=str(p)) for p in files]
         defined: dict[str, Path] = {}
@@ -473,6 +474,7 @@ class Platform:
             plan_prefix="" if self.clock_kind == "simulated" else f"{self.dist.run}-",
             max_replans=m.max_replans,
             max_actions=m.max_actions,
+            repair=self._repair if m.repair else None,
             isolate_stages=self.isolate_stages,
             clock=clock,
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
@@ -527,6 +529,45 @@ class Platform:
         self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
         self.on_verdict.append(self._veto_verdict)
         return self.fb
+
+    def _check_repair_weights(self) -> None:
+        """A repair weight for a name no rule reads is a typo: refused at its place."""
+        m = self.manifest
+        variables = {name for rule_set in self.rules for name in rule_set.rules.variables}
+        unknown = [name for name in m.repair_weights if name not in variables]
+        if unknown:
+            raise SourceErrors([
+                SourceError(
+                    f"repair weight for {name!r}, which is no rule variable "
+                    f"({', '.join(sorted(variables)) or 'the app has no rules'})",
+                    manifest_location(m, ["legitimate", "weights", name]),
+                )
+                for name in unknown
+            ])
+
+    def _repair(self, plan: Plan, context: dict[str, Any]) -> Plan | None:
+        """``legitimate.repair: nearest``: the plan nearest to ``plan`` that the rules (all the
+        app's rule sets, as one) accept in ``context``; None if z3 finds none in time."""
+        from rasm.rules import Rules
+        from rasm.rules.repair import nearest_plan
+
+        sets = [rule_set.rules for rule_set in self.rules]
+        if not sets:
+            return None
+        variables: dict[str, Any] = {}
+        for rules in sets:
+            for name, variable in rules.variables.items():
+                variables.setdefault(name, variable)
+        merged = Rules(variables, tuple(r for rules in sets for r in rules.rules), "rules")
+        repair = nearest_plan(merged, plan.values, context, self.manifest.repair_weights)
+        if repair is None or not repair.changed:
+            return None
+        if not all(rs.evaluate(repair.values, context).accepted for rs in self.rules):
+            return None
+        changes = ", ".join(f"{name} {plan.values[name]!r} -> {repair.values[name]!r}"
+                            for name in repair.changed)
+        why = f"the nearest legitimate plan to {plan.id}: {changes}"
+        return Plan(repair.values, explanation=why)
 
     def _veto_verdict(self, verdict: Verdict) -> None:
         """A veto property that starts or stops vouching moves the fallback switch at once (on
