@@ -266,6 +266,20 @@ def _cmd_verify_rules(args: argparse.Namespace) -> int:
     return EXIT_FAILED if failed else EXIT_OK
 
 
+def _is_manifest(path) -> bool:
+    """Whether a YAML file is an app manifest (it names components) rather than rules."""
+    from rasm.errors import RasmError
+    from rasm.yamltext import load_yaml
+
+    if path.name == "app.yaml":
+        return True
+    try:
+        data = load_yaml(path.read_text(encoding="utf-8"), str(path)).data
+    except (OSError, UnicodeDecodeError, RasmError):
+        return False  # load_rules reports what is wrong with it
+    return isinstance(data, dict) and "components" in data and "variables" not in data
+
+
 def _rules_of(target: str) -> tuple[list, dict | None]:
     """``verify-rules`` of a rules file, or of an app (its folder or app.yaml): every rules file
     of the app, and its fallback actions as one plan to prove legitimate in every context."""
@@ -274,7 +288,7 @@ def _rules_of(target: str) -> tuple[list, dict | None]:
     from rasm.platform.manifest import load_manifest
 
     path = Path(target)
-    if not (path.is_dir() or path.name == "app.yaml"):
+    if not (path.is_dir() or _is_manifest(path)):
         return [path], None
     manifest = load_manifest(path)
     fallback = manifest.fallback.values if manifest.fallback is not None else None

@@ -31,6 +31,9 @@ class Hold(Protocol):
     def holds(self, action: Action) -> str | None:
         """Why ``action`` is held back, or None."""
 
+    def correctable(self) -> bool:
+        """Whether a corrective action may pass the hold (only vetoes hold it)."""
+
 
 class AdaptationManager(Block):
     """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis``.
@@ -69,11 +72,13 @@ class AdaptationManager(Block):
 
     def on_enter_checking_trustworthiness(self) -> None:
         held = self.hold.holds(self._action) if self.hold is not None else None
-        if held is not None:
+        if held is not None and not self.hold.correctable():
             self._outcome = (False, held)
             self.post("untrustworthy")
             return
         ok, why = self.tm.check_trustworthiness(self._action)
+        if held is not None and not (ok and getattr(self.tm, "last_corrective", False)):
+            ok, why = False, held  # only a corrective action passes a hold of vetoes
         self.last_trusted = ok
         self._outcome = (False, why)
         self.post("trustworthy" if ok else "untrustworthy")

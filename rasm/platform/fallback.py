@@ -71,14 +71,24 @@ def prove_fallback(
 
 @dataclass
 class FailedIterations:
-    """Counts consecutive failed iterations from the loop's statistics, read between ticks.
+    """The stage_failures trigger, from the loop's statistics read between ticks.
 
     An iteration failed when a stage failed or overran, the adaptation was cancelled after its
-    replans, or an anomaly got no plan; it succeeded otherwise (an action held back or refused
-    by a check is not a failure of the loop's stages)."""
+    replans, or an anomaly got no plan. The trigger holds from the ``threshold``-th failed
+    iteration with no adaptation reaching Execute in between (an iteration without an anomaly
+    neither counts nor resets, so a planner that fails on every anomaly is caught however rare
+    anomalies are). It stops holding at an adaptation that reaches Execute (an action held
+    back or refused by a check is not a failure of the loop's stages) or after ``threshold``
+    iterations in a row without a failure."""
 
-    consecutive: int = 0
+    threshold: int = 3
+    consecutive: int = 0  # failed iterations since the last adaptation that reached Execute
+    clean: int = 0  # iterations without a failure since the last failed one
     _seen: tuple[int, int, int, int] = (0, 0, 0, 0)
+
+    @property
+    def holds(self) -> bool:
+        return self.consecutive >= self.threshold
 
     def update(self, stats: LoopStats) -> None:
         now = (
@@ -93,8 +103,11 @@ class FailedIterations:
         self._seen = now
         # an anomaly that neither failed nor reached Execute got no plan
         if failed or anomalies > ended + failed:
-            self.consecutive += iterations
-        else:
+            self.consecutive += max(failed, anomalies - ended, 1)
+            self.clean = 0
+            return
+        self.clean += iterations
+        if ended or (self.holds and self.clean >= self.threshold):
             self.consecutive = 0
 
 
@@ -125,7 +138,8 @@ class FallbackSwitch(Block):
         self.stats = stats
         self.emit = emit
         self.plan_prefix = plan_prefix
-        self.failures = FailedIterations()
+        self.failures = FailedIterations(spec.after_failures)
+        self.kinds: set[str] = set()  # the kinds of trigger that held at the last evaluation
         self.engagements = 0
         self.pending: dict[str, dict[str, Any]] = {}  # fallback actions not delivered yet
         self._plan: Plan | None = None
@@ -150,22 +164,34 @@ class FallbackSwitch(Block):
             return f"the fallback holds the effectors ({state}): {self.trigger_reason()}"
         return f"the fallback switch is {state}"  # fail closed: no switch, no action
 
+    def correctable(self) -> bool:
+        """Whether a corrective action may pass: the fallback holds for vetoes alone."""
+        return self.state == "fallback" and self.kinds == {"veto"}
+
     def trigger_reason(self) -> str:
         return str(self.interpreter.context.get("trigger_reason") or "no trigger")
 
     def triggers(self) -> list[str]:
         """The triggers that hold now, each with its reason."""
         held: list[str] = []
+        kinds: set[str] = set()
         when = self.spec.when
         if "managed_system_lost" in when and not self.online():
             held.append("managed system lost")
+            kinds.add("managed_system_lost")
         if "stage_failures" in when:
             self.failures.update(self.stats())
-            n = self.failures.consecutive
-            if n >= self.spec.after_failures:
-                held.append(f"{n} consecutive failed iterations")
+            if self.failures.holds:
+                held.append(
+                    f"{self.failures.consecutive} failed iterations since the last adaptation"
+                )
+                kinds.add("stage_failures")
         if "veto" in when:
-            held.extend(self.vetoes())
+            vetoes = self.vetoes()
+            held.extend(vetoes)
+            if vetoes:
+                kinds.add("veto")
+        self.kinds = kinds
         return held
 
     def evaluate(self) -> None:
@@ -185,6 +211,12 @@ class FallbackSwitch(Block):
 
     def on_enter_fallback(self) -> None:
         if self._plan is None:  # engaged (not back from recovering): the actions go out
+            reason = self.trigger_reason()
+            _log.warning("fallback engaged: %s", reason)
+            self.emit(
+                self.clock.time,
+                {"fallback": "engaged", "explanation": f"fallback engaged: {reason}"},
+            )
             self.engagements += 1
             self._plan = Plan(
                 self.spec.values,
@@ -202,14 +234,7 @@ class FallbackSwitch(Block):
         self.pending = {}
 
     def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
-        if name == "engaged":
-            reason = data.get("reason", "")
-            _log.warning("fallback engaged: %s", reason)
-            self.emit(
-                self.clock.time,
-                {"fallback": "engaged", "explanation": f"fallback engaged: {reason}"},
-            )
-        elif name == "released":
+        if name == "released":
             _log.warning("fallback released after %g s without a trigger", data.get("held_for"))
             self.emit(
                 self.clock.time,

@@ -432,6 +432,7 @@ class Platform:
             veto_properties=tuple(dict.fromkeys((*m.veto_properties, *self.external.sources))),
             checker=self.tc,
             context=self.kb.snapshot,
+            emit=self._emit,
             clock=clock,
             depends_on=("sm", "km", "tc"),
         )
@@ -455,6 +456,8 @@ class Platform:
         self.twin = load_twin(twin, self.kb.read_knowledge("twin_model"))
         if self.twin is not None:
             self._twin_inputs = frozenset(self.twin.inputs)
+        if m.corrective:
+            self.tm.corrective = self._corrective_check()
         self.ao = AdaptationOrchestrator(
             chart=self._chart("adaptation_orchestrator"),
             twin=self.twin,
@@ -529,6 +532,20 @@ class Platform:
         self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
         self.on_verdict.append(self._veto_verdict)
         return self.fb
+
+    def _corrective_check(self) -> Callable[..., str | None]:
+        """``trustworthiness.corrective``: the twin's predictions of the app's properties, or
+        an error at its place when the app has no twin to predict with."""
+        from rasm.platform.corrective import CorrectiveCheck
+
+        m = self.manifest
+        if self.twin is None:
+            raise SourceErrors([SourceError(
+                "corrective actions need a digital twin to predict with (twin: in app.yaml)",
+                manifest_location(m, ["trustworthiness", "corrective"]),
+            )])
+        texts = [(str(p), p.read_text(encoding="utf-8")) for p in m.properties]
+        return CorrectiveCheck(self.twin, texts, m.twin_horizon, m.twin_dt).check
 
     def _check_repair_weights(self) -> None:
         """A repair weight for a name no rule reads is a typo: refused at its place."""

@@ -12,7 +12,10 @@ from rasm.properties.monitor import Verdict
 if TYPE_CHECKING:
     from rasm.rules import RuleSet
 
-__all__ = ["TrustworthinessManager", "VerdictSource"]
+__all__ = ["Corrective", "TrustworthinessManager", "VerdictSource"]
+
+# (plan values, context, violated veto properties) -> why the plan is corrective, or None
+Corrective = Callable[[dict[str, Any], dict[str, Any], list[str]], "str | None"]
 
 
 class VerdictSource(Protocol):
@@ -46,8 +49,15 @@ class TrustworthinessManager(Block):
         veto_properties: tuple[str, ...],
         checker: VerdictSource,
         context: Callable[[], dict[str, Any]],
+        corrective: Corrective | None = None,
+        emit: Callable[[float, dict[str, Any]], Any] | None = None,
         **kw: Any,
     ) -> None:
+        # trustworthiness.corrective: while veto properties are violated, a plan the twin
+        # predicts brings them back sooner than doing nothing may still act
+        self.corrective = corrective
+        self.emit = emit
+        self.last_corrective = False
         self.rules = rules
         self.veto_properties = veto_properties
         self.checker = checker
@@ -69,6 +79,7 @@ class TrustworthinessManager(Block):
         """Return (trustworthy, explanation); fail closed when the block is not running."""
         if self.mode != "initialized":
             return False, f"trustworthiness manager is {self.mode}"
+        self.last_corrective = False
         self._evidence = (action, self._accepted_plans.get(action.plan))
         self._verdict = (False, "check did not complete in time")
         self.send("check_requested")
@@ -104,10 +115,35 @@ class TrustworthinessManager(Block):
             return True, "fallback action: rules hold (vetoes do not stop the fallback)"
         vetoes = self.vetoes()
         if vetoes:
+            why = self._corrective(plan, context)
+            if why is not None:
+                return True, f"corrective under a veto: {why}"
             return False, "; ".join(vetoes)
         if self.veto_properties:
             return True, "plan accepted by Legitimate, rules hold, every veto property holds"
         return True, "plan accepted by Legitimate, rules hold"
+
+    def _corrective(self, plan: Plan, context: dict[str, Any]) -> str | None:
+        """Why ``plan`` may act although veto properties stop actions, or None: every vetoing
+        property is violated (not in error, not unjudged) and the twin predicts the plan makes
+        each hold again sooner than doing nothing. Traced as a ``corrective`` record."""
+        if self.corrective is None:
+            return None
+        violated = []
+        for name in self.veto_properties:
+            verdict = self.checker.latest_verdict(name)
+            if verdict is None or verdict.error is not None or verdict.value is None:
+                return None  # the checker cannot say what is wrong: nothing corrects it
+            if verdict.value is False:
+                violated.append(name)
+        why = self.corrective(dict(plan.values), context, violated)
+        if why is not None:
+            self.last_corrective = True
+            if self.emit is not None:
+                self.emit(
+                    self.clock.time, {"corrective": True, "plan": plan.id, "explanation": why}
+                )
+        return why
 
     def vetoes(self) -> list[str]:
         """Why each veto property the checker cannot vouch for now stops actions."""

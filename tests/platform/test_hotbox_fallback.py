@@ -1,0 +1,40 @@
+"""The two Hotbox demonstrators (examples/hotbox/app.fallback.yaml and app.repair.yaml) do what
+docs/runtime.md says, seeded: the fallback engages and hands back with its guarantees satisfied,
+and a repaired plan is executed where the same app without repair cancels its adaptations."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rasm.testing import run_app
+
+HOTBOX = Path(__file__).resolve().parents[2] / "examples" / "hotbox"
+
+
+def test_the_fallback_engages_and_hands_back_with_its_guarantees():
+    trace = run_app(HOTBOX / "app.fallback.yaml", seed=1, duration=80)
+    switches = [(r["time"], r["fallback"]) for r in trace if "fallback" in r]
+    assert switches == [(15.6, "engaged"), (30.9, "released"), (55.3, "engaged"),
+                        (71.1, "released")]
+    assert [r["time"] for r in trace if r.get("corrective")] == [20.5, 60.5]
+    verdicts = trace.summary.verdicts
+    assert verdicts["fallback_in_time"] == "satisfied"
+    assert verdicts["hand_back_after_dwell"] == "satisfied"
+    assert verdicts["execute_only_legitimate_plans"] == "satisfied"
+    assert verdicts["temperature_band"] == "violated"  # the scenario: the lid stays open
+
+
+def test_a_repaired_plan_is_executed_instead_of_a_cancelled_adaptation():
+    trace = run_app(HOTBOX / "app.repair.yaml", seed=1, duration=40)
+    repaired = [r for r in trace if "repaired_from" in r]
+    assert [(r["time"], r["plan"], r["repaired_from"], r["power_limit"]) for r in repaired] == [
+        (15.0, "p2", "p1", 65.0)
+    ]
+    assert "p2" in {r["plan"] for r in trace if r.get("executed")}
+    stats = trace.summary.stats
+    assert (stats.anomalies, stats.executed, stats.cancelled) == (1, 1, 0)
+    assert trace.summary.ok
+    without = run_app(HOTBOX / "app.repair.yaml", seed=1, duration=40, repair=False)
+    stats = without.summary.stats
+    assert (stats.anomalies, stats.rejected, stats.executed, stats.cancelled) == (50, 100, 0, 50)
+    assert without.summary.verdicts["timely_adaptation"] == "violated"
