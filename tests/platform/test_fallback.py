@@ -244,3 +244,31 @@ def test_a_fallback_for_an_unknown_effector_is_refused_at_its_line(tmp_path):
     with pytest.raises(SourceErrors) as caught:
         Platform(app, clock="simulated")
     assert "fallback action for unknown effector 'wheel' (effectors: motor)" in str(caught.value)
+
+
+@settings(max_examples=15, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(windows=st.lists(
+    st.tuples(st.integers(2, 24), st.integers(1, 6)).map(lambda w: (w[0] / 2, w[1] / 2)),
+    min_size=1, max_size=3,
+))
+def test_while_a_veto_holds_nothing_but_the_fallback_acts(tmp_path_factory, windows):
+    """For any schedule of veto violations: the fallback holds from the first violating record,
+    only its actions go out until the release, and it never hands back within the dwell of a
+    violation."""
+    app = write_app(tmp_path_factory.mktemp("app"), when="veto", dwell=1.5)
+    fast = [[start, start + length] for start, length in windows]
+    trace = run_app(app, seed=1, duration=16, scenario={"fast": fast})
+    assert_only_fallback_while_engaged(trace)
+    engaged, last_fast = False, None
+    for record in trace:
+        if record.get("fallback") == "engaged":
+            engaged = True
+        elif record.get("fallback") == "released":
+            engaged = False
+            assert last_fast is not None and record["time"] - last_fast >= 1.5
+        if record.get("speed") == 2.0:
+            last_fast = record["time"]
+            # a violating record: the fallback holds by the end of that instant
+            same_instant = [r for r in trace if r["time"] == record["time"]]
+            assert engaged or any(r.get("fallback") == "engaged" for r in same_instant)
