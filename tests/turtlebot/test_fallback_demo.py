@@ -25,3 +25,21 @@ def test_the_crashing_planner_ends_in_the_fallback_which_hands_back():
     # the robot received the fallback's configuration and swept ±150 deg
     assert any(r.get("spin_plan") == "f1" and r.get("spin_rotation") == 150.0 for r in trace)
     assert trace.summary.verdicts["no_collision"] == "satisfied"
+
+
+REPAIR = APP.with_name("app.repair.yaml")
+
+
+def test_repaired_spin_plans_are_executed_where_cancelled_ones_end_in_a_collision():
+    trace = run_app(REPAIR, seed=1, duration=60)
+    repaired = [r for r in trace if "repaired_from" in r]
+    assert [(r["time"], r["plan"], r["repaired_from"], r["angular_velocity"]) for r in repaired] \
+        == [(2.4, "p2", "p1", 45.0), (15.4, "p4", "p3", 45.0)]
+    for r in repaired:  # the stop is lengthened just enough for the slower sweep to fit
+        assert abs(r["angular_velocity"] * r["spin_duration"] - 4 * r["rotation"]) < 1e-6
+    assert {"p2", "p4"} <= {r["plan"] for r in trace if r.get("executed")}
+    assert trace.summary.ok
+    without = run_app(REPAIR, seed=1, duration=60, repair=False)
+    stats = without.summary.stats
+    assert (stats.executed, stats.cancelled) == (0, 33)
+    assert without.summary.verdicts["no_collision"] == "violated"
