@@ -549,12 +549,46 @@ def _fallback(
             ))
             continue
         actions[str(name)] = {str(k): v for k, v in plain(payload).items()}
+        problems.extend(_fallback_payload_problems(src, effectors[name], actions[str(name)]))
     return Fallback(
         actions,
         tuple(spec.get("when", Fallback.when)),
         int(spec.get("after_failures", 3)),
         float(spec.get("dwell", 5.0)),
     )
+
+
+def _fallback_payload_problems(
+    src: YamlSource, effector: Effector, payload: dict[str, Any]
+) -> list[SourceError]:
+    """A fallback action must be sendable on its effector: every value fits the field's type and,
+    on a ROS 2 topic, the payload has exactly the keys the message fields take (else the
+    fallback would be refused exactly when it is needed)."""
+    from rasm.values import fit
+
+    where = ["fallback", "actions", effector.name]
+    problems: list[SourceError] = []
+    if effector.message_fields:
+        keys = set(effector.message_fields.values())
+        absent, extra = sorted(keys - set(payload)), sorted(set(payload) - keys)
+        if absent or extra:
+            what = f"lacks {', '.join(absent)}" if absent else f"has {', '.join(extra)}"
+            problems.append(src.error(
+                f"the fallback action for {effector.name} {what}: on {effector.type} it must "
+                f"give exactly {', '.join(sorted(keys))}",
+                src.at(where),
+            ))
+    for key, value in payload.items():
+        kind = effector.fields.get(key)
+        if kind is None:
+            continue
+        try:
+            fit(value, kind)
+        except RasmError as exc:
+            problems.append(src.error(
+                f"the fallback action for {effector.name}: {key}: {exc}", src.at([*where, key])
+            ))
+    return problems
 
 
 def _node_at(data: Any, path: list[Any]) -> Any:

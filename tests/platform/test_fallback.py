@@ -272,3 +272,16 @@ def test_while_a_veto_holds_nothing_but_the_fallback_acts(tmp_path_factory, wind
             # a violating record: the fallback holds by the end of that instant
             same_instant = [r for r in trace if r["time"] == record["time"]]
             assert engaged or any(r.get("fallback") == "engaged" for r in same_instant)
+
+
+def test_a_fallback_value_that_does_not_fit_its_effector_field_is_refused(tmp_path):
+    app = write_app(tmp_path / "app")
+    text = (app / "app.yaml").read_text()
+    text = text.replace("  motor:\n    topic: robot/motor\n",
+                        "  motor:\n    topic: robot/motor\n    fields: {level: int}\n")
+    (app / "app.yaml").write_text(text.replace("{motor: {level: 0}}", '{motor: {level: "low"}}'))
+    with pytest.raises(SourceErrors) as caught:
+        Platform(app, clock="simulated")
+    message = str(caught.value)
+    assert "app.yaml:" in message and "the fallback action for motor: level:" in message
+    assert "expected int, got str" in message
