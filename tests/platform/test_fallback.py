@@ -5,6 +5,7 @@ legitimate in every context is refused before it runs."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -235,6 +236,18 @@ def test_rasm_run_and_verify_rules_refuse_such_a_fallback_with_the_place(tmp_pat
     )
     assert verify.returncode == 0, verify.stdout
     assert "fallback: legitimate in every context the rules admit: level == 0" in verify.stdout
+    verify = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "verify-rules", str(app / "app.yaml"),
+         "--format", "json"], capture_output=True, text=True, timeout=120,
+    )
+    assert verify.returncode == 1
+    found = json.loads(verify.stdout)["fallback"]
+    speed = found["context"]["speed"]  # z3's witness: any speed where calm_when_fast applies
+    assert 1.0 < speed <= 10.0
+    assert found == {
+        "actions": {"level": 2}, "legitimate": False, "context": {"speed": speed},
+        "broken": ["calm_when_fast"], "reason": f"breaks calm_when_fast where speed == {speed}",
+    }
 
 
 def test_a_fallback_for_an_unknown_effector_is_refused_at_its_line(tmp_path):
