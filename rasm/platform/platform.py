@@ -566,7 +566,7 @@ class Platform:
         """``legitimate.repair: nearest``: the plan nearest to ``plan`` that the rules (all the
         app's rule sets, as one) accept in ``context``; None if z3 finds none in time."""
         from rasm.rules import Rules
-        from rasm.rules.repair import nearest_plan
+        from rasm.rules.repair import REPAIR_TIMEOUT_MS, nearest_plan
 
         sets = [rule_set.rules for rule_set in self.rules]
         if not sets:
@@ -576,7 +576,11 @@ class Platform:
             for name, variable in rules.variables.items():
                 variables.setdefault(name, variable)
         merged = Rules(variables, tuple(r for rules in sets for r in rules.rules), "rules")
-        repair = nearest_plan(merged, plan.values, context, self.manifest.repair_weights)
+        # z3 runs inside the plan stage: it may take half the stage's budget at most
+        budget_ms = max(1, int(min(REPAIR_TIMEOUT_MS, self.manifest.stage_budget * 500)))
+        repair = nearest_plan(
+            merged, plan.values, context, self.manifest.repair_weights, timeout_ms=budget_ms
+        )
         if repair is None or not repair.changed:
             return None
         if not all(rs.evaluate(repair.values, context).accepted for rs in self.rules):

@@ -19,7 +19,7 @@ from rasm.rules.engine import CompiledRules
 from rasm.rules.model import Rules, Variable
 from rasm.rules.smt import Encoder, _number
 
-__all__ = ["Repair", "nearest_plan", "repair_cost"]
+__all__ = ["REPAIR_TIMEOUT_MS", "Repair", "nearest_plan", "repair_cost"]
 
 #: How long z3 may look for the nearest plan (it runs inside the loop's plan stage).
 REPAIR_TIMEOUT_MS = 500
