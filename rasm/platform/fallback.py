@@ -2,11 +2,12 @@
 
 The app declares per effector a fallback action, proved legitimate in every context the rules
 admit before the run starts (:func:`prove_fallback`). The switch watches its triggers — a veto
-property the checker cannot vouch for, the managed system lost, ``after_failures`` consecutive
-failed iterations — and tells its chart: ``trigger`` engages the fallback (its actions go out
-through the Adaptation Manager like any other, signed, traced and checked), ``clear`` starts the
-dwell after which control is handed back. While the chart is not ``nominal``, the Adaptation
-Manager holds back every other action (:meth:`FallbackSwitch.holds`).
+property the checker cannot vouch for, the managed system lost, ``after_failures`` failed
+iterations with no adaptation reaching Execute (:class:`FailedIterations`) — and tells its
+chart: ``trigger`` engages the fallback (its actions go out through the Adaptation Manager like
+any other, signed, traced and checked), ``clear`` starts the dwell after which control is handed
+back. While the chart is not ``nominal``, the Adaptation Manager holds back every other action
+(:meth:`FallbackSwitch.holds`) but corrective ones.
 """
 
 from __future__ import annotations
