@@ -298,3 +298,41 @@ def test_a_fallback_value_that_does_not_fit_its_effector_field_is_refused(tmp_pa
     message = str(caught.value)
     assert "app.yaml:" in message and "the fallback action for motor: level:" in message
     assert "expected int, got str" in message
+
+
+OUTCOMES = st.sampled_from(["idle", "executed", "dropped", "failed", "timeout", "cancelled",
+                            "no_plan"])
+
+
+@given(st.lists(OUTCOMES, max_size=40), st.integers(1, 4))
+def test_the_stage_failures_trigger_follows_its_rule_for_any_run_of_iterations(outcomes, n):
+    """The trigger holds from the n-th failed iteration since the last adaptation that reached
+    Execute, until such an adaptation or n iterations in a row without a failure."""
+    from rasm.platform.adaptation_orchestrator import LoopStats
+    from rasm.platform.fallback import FailedIterations
+
+    stats, counter = LoopStats(), FailedIterations(n)
+    failures = clean = 0
+    holding = False
+    for outcome in outcomes:
+        stats.iterations += 1
+        if outcome != "idle":
+            stats.anomalies += 1
+        if outcome in ("executed", "dropped"):
+            setattr(stats, outcome, getattr(stats, outcome) + 1)
+        elif outcome == "failed":
+            stats.failed_stages["plan"] += 1
+        elif outcome == "timeout":
+            stats.timeouts["plan"] += 1
+        elif outcome == "cancelled":
+            stats.cancelled += 1
+        counter.update(stats)
+        # the model
+        if outcome in ("failed", "timeout", "cancelled", "no_plan"):
+            failures, clean = failures + 1, 0
+        else:
+            clean += 1
+            if outcome in ("executed", "dropped") or (holding and clean >= n):
+                failures = 0
+        holding = failures >= n
+        assert counter.holds == holding, (outcome, failures, clean)
