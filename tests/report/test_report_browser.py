@@ -73,7 +73,8 @@ def test_app_properties_are_drawn_with_props(page, hotbox_trace: Path, tmp_path:
     assert "temperature_band" in names and "heater_rating" in names
     assert "timely_adaptation" in names and "timely_response" in names
     signals = page.page.evaluate("document.getElementById('signals').data.map(d => d.name)")
-    assert signals[:2] == ["heater_power", "temperature"]  # read by properties: first
+    # the signals the properties read come first
+    assert signals[:4] == ["heater_mode", "heater_power", "lid_open", "temperature"]
     assert page.errors == []
 
 
@@ -102,8 +103,8 @@ def test_adaptation_links_move_the_timelines(page, hotbox_report: Path) -> None:
 
 
 def test_a_link_to_a_moment_opens_there(page, hotbox_report: Path) -> None:
-    page.page.goto(hotbox_report.as_uri() + "#t=38")
-    page.page.wait_for_selector("body[data-focus='38']")
+    page.page.goto(hotbox_report.as_uri() + "#t=23.5")  # the second adaptation's time
+    page.page.wait_for_selector("body[data-focus='23.5']")
     assert page.page.locator("#adaptation-2.selected").count() == 1
     assert page.errors == []
 
