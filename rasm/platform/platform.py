@@ -318,10 +318,19 @@ class Platform:
 
         types = {topic: typename for topic, (typename, _) in m.ros_topics.items()}
         qos = {topic: q for topic, (_, q) in m.ros_topics.items() if q}
+        # a probe's messages are decoded only as far as its signals (and stamp) read them
+        sources = {v.topic for v in m.external_verdicts.values()}
+        fields = {
+            p.topic: [s.field or key for key, s in p.signals.items()]
+            + (["header.stamp.sec", "header.stamp.nanosec"] if p.stamp == "header" else [])
+            for p in m.probes
+            if p.topic not in sources
+        }
         node = "".join(c if c.isalnum() or c == "_" else "_" for c in m.name)
         return {
             "types": types,
             "qos": qos,
+            "fields": fields,
             "store": m.types if m.types is not None else default_store(),
             "node_name": f"rasm_{node}",
         }

@@ -26,12 +26,12 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 
 from rasm.ros2.errors import MalformedMessage
-from rasm.ros2.fields import FieldPath
+from rasm.ros2.fields import FieldPath, field_type
 
 if TYPE_CHECKING:
     from rasm.ros2.types import TypeStore
 
-__all__ = ["MISSING", "field_reader", "serves"]
+__all__ = ["MISSING", "field_reader", "projection", "serves"]
 
 MISSING = object()  # the value of an element past the end of its sequence
 
@@ -252,10 +252,13 @@ def field_reader(
 
     It raises :class:`MalformedMessage` for bytes that are not a message of this type. When
     :func:`serves` the paths, it reads them from the bytes; otherwise (and for big-endian CDR,
-    which ROS 2 does not send) it decodes the whole message and reads them from that.
+    which ROS 2 does not send) it decodes the whole message and reads them from that. A path
+    the type does not have raises :class:`FieldPathError` now.
     """
     typename = store.resolve(typename)
     parsed = [FieldPath.parse(str(p)) for p in paths]
+    for path in parsed:
+        field_type(store, typename, path)  # FieldPathError for a path the type does not have
     whole = _whole_reader(store, typename, parsed)
     steps = _plan(store, typename, parsed)
     if steps is None:
@@ -321,3 +324,38 @@ def _whole_reader(store: TypeStore, typename: str, paths: list[FieldPath]):
         return out
 
     return read
+
+
+def projection(
+    store: TypeStore, typename: str, paths: Sequence[str | FieldPath]
+) -> Callable[[bytes | memoryview], dict[str, Any]]:
+    """A function from a message's CDR bytes to a dict holding only what ``paths`` need, nested
+    as the whole decoded message is: :func:`rasm.ros2.read_field` reads each of ``paths`` from
+    it as from the whole message. An indexed path (``ranges[3]``) takes its whole array, a
+    path into an array of messages the whole array. Raises :class:`MalformedMessage` as
+    :func:`field_reader`'s function does."""
+    kept: list[tuple[str, ...]] = []
+    for path in sorted({_names_before_index(p) for p in paths}, key=len):
+        if not any(path[:len(k)] == k for k in kept):  # a sub-message taken whole has it
+            kept.append(path)
+    read = field_reader(store, typename, [".".join(p) for p in kept])
+
+    def project(data: bytes | memoryview) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for path, value in zip(kept, read(data), strict=True):
+            inner = out
+            for name in path[:-1]:
+                inner = inner.setdefault(name, {})
+            inner[path[-1]] = value
+        return out
+
+    return project
+
+
+def _names_before_index(path: str | FieldPath) -> tuple[str, ...]:
+    names = []
+    for step in FieldPath.parse(str(path)).steps:
+        if isinstance(step, int):
+            break
+        names.append(step)
+    return tuple(names)

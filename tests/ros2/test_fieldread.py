@@ -6,12 +6,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rosbags.typesys import get_types_from_msg
 
 from rasm.ros2 import FieldPathError, MalformedMessage, TypeStore, read_field
-from rasm.ros2.fieldread import MISSING, field_reader, serves
+from rasm.ros2.fieldread import MISSING, field_reader, projection, serves
 from tests.ros2.samples import SAMPLES, app_store
 
 # every alignment case: 1-byte fields before 8-byte ones, strings before fixed blocks, bounded
@@ -101,6 +102,8 @@ def same(a: Any, b: Any) -> bool:
         return a == b or (math.isnan(a) and math.isnan(b))
     if isinstance(a, list) and isinstance(b, list):
         return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
     return a == b and type(a) is type(b)
 
 
@@ -163,3 +166,37 @@ def test_paths_into_arrays_of_messages_or_whole_sub_messages_are_read_from_the_m
     assert field_reader(STORE, "nav_msgs/msg/Odometry", ["pose.pose.position"])(odom) == [
         {"x": 1.5, "y": -2.25, "z": 0.0}]
     assert serves(STORE, "nav_msgs/msg/Odometry", ["twist.twist.linear.x", "header.stamp.sec"])
+
+
+def all_paths(store: TypeStore, typename: str, prefix: str = "") -> list[str]:
+    """Paths of every kind: leaves, whole arrays and sub-messages, elements of arrays of
+    messages and fields inside them."""
+    out = []
+    for name, ftype in store.fields(typename).items():
+        path = prefix + name
+        out.append(path)
+        if ftype.is_message and ftype.array is None:
+            out += all_paths(store, ftype.base, path + ".")
+        elif ftype.is_message:
+            out += [f"{path}[0]"] + all_paths(store, ftype.base, f"{path}[0].")[:3]
+        elif ftype.array:
+            out.append(f"{path}[1]")
+    return out
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_a_projection_holds_what_its_paths_read(data):
+    typename = data.draw(st.sampled_from([t for t in TYPES if STORE.fields(t)]))
+    message = data.draw(message_of(STORE, typename))
+    paths = data.draw(st.lists(st.sampled_from(all_paths(STORE, typename)), max_size=5))
+    encoded = STORE.codec(typename).encode(message)
+    whole = STORE.codec(typename).decode(encoded)
+    part = projection(STORE, typename, paths)(encoded)
+    for path in paths:
+        assert same(wanted(part, path), wanted(whole, path)), (path, part)
+
+
+def test_a_path_the_type_does_not_have_is_refused_when_the_reader_is_made():
+    with pytest.raises(FieldPathError, match="twist.twist.linear.w"):
+        field_reader(STORE, "nav_msgs/msg/Odometry", ["twist.twist.linear.w"])

@@ -62,7 +62,7 @@ def test_topics_are_declared_once_with_one_type():
         transport.declare("/odom", "std_msgs/msg/String")
     with pytest.raises(CommError, match="unknown message type 'nav_msgs/msg/Odom'"):
         transport.declare("/x", "nav_msgs/msg/Odom")
-    with pytest.raises(CommError, match="QoS given for '/scan'"):
+    with pytest.raises(CommError, match="QoS or fields given for '/scan'"):
         ZenohTransport("zenoh://h:1", qos={"/scan": {"depth": 3}})
     with pytest.raises(RosError, match="depth must be a positive integer"):
         transport.declare("/y", "std_msgs/msg/Bool", qos={"depth": 0})

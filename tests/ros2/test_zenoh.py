@@ -65,6 +65,26 @@ def test_messages_of_a_foreign_publisher_arrive_as_dicts(peers, transports, zeno
     assert transport.stats.malformed == 0
 
 
+def test_a_topic_declared_with_fields_delivers_only_those(peers, transports, zenoh_port):
+    topics = [{"topic": t, "type": SAMPLES[t][0], "messages": [SAMPLES[t][1]]}
+              for t in ("/odom", "/scan")]
+    peer = _peer(peers, zenoh_port, "pub", topics)
+    transport = transports(ZenohTransport(
+        f"zenoh://127.0.0.1:{zenoh_port}",
+        types={t: SAMPLES[t][0] for t in ("/odom", "/scan")},
+        fields={"/odom": ["twist.twist.angular.z", "header.stamp.sec"],
+                "/scan": ["ranges[1]"]},
+    ))
+    got = {}
+    transport.subscribe("#", lambda m: got.setdefault(m.topic, m.payload))
+    transport.connect()
+    peer.wait_ready()
+    wait_until(lambda: len(got) == 2, what="one message per topic")
+    assert got["/odom"] == {"twist": {"twist": {"angular": {"z": -0.5}}},
+                            "header": {"stamp": {"sec": 3}}}
+    assert got["/scan"] == {"ranges": [0.5, 1.25, float("inf"), 3.0]}
+
+
 def test_messages_published_reach_a_foreign_subscriber(peers, transports, zenoh_port):
     store = app_store()
     topics = [{"topic": t, "type": ty} for t, (ty, _) in SAMPLES.items()]
