@@ -166,7 +166,11 @@ def run_case(middleware: str, kind: str, count: int) -> tuple[float, int]:
         for close in cleanup:
             close()
         publisher.stdin.close()  # type: ignore[union-attr]
-        publisher.wait(10)
+        try:
+            publisher.wait(10)
+        except subprocess.TimeoutExpired:  # stuck sending to a receiver that failed
+            publisher.kill()
+            publisher.wait()
     return receiver.rate(), receiver.n
 
 
