@@ -60,3 +60,18 @@ def test_peak_memory_does_not_grow_with_the_recording(tmp_path):
     # five times the messages: the same memory, give or take the allocator; a check that
     # holds the records grows by some 60 MB per 100 000 messages
     assert peaks[1] - peaks[0] < 12, peaks
+
+
+def test_peak_memory_does_not_grow_with_an_mcap_trace(tmp_path):
+    from rasm.trace_mcap import McapTraceWriter
+
+    props = tmp_path / "speed.rv"
+    props.write_text("input speed: float\nproperty limit: always (speed <= 1.0)\n")
+    peaks = []
+    for count in (50_000, 250_000):
+        trace = McapTraceWriter(tmp_path / f"trace{count}.mcap")
+        for k in range(count):
+            trace.emit(k / 100, {"speed": 2.0 if k == 300 else 0.5})
+        trace.close()
+        peaks.append(peak_megabytes(props, trace.path))
+    assert peaks[1] - peaks[0] < 12, peaks  # 48 MB both, measured
