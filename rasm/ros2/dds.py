@@ -281,8 +281,9 @@ class DdsTransport(RosTransport):
             "node_entities_info_seq": [{
                 "node_namespace": self.namespace,
                 "node_name": self.node_name,
-                "reader_gid_seq": [gid(r) for r in self._readers.values()],
-                "writer_gid_seq": [gid(w) for w in self._writers.values()],
+                # copies: another thread may add a reader or writer meanwhile
+                "reader_gid_seq": [gid(r) for r in list(self._readers.values())],
+                "writer_gid_seq": [gid(w) for w in list(self._writers.values())],
             }],
         }
         data = codec.encode(info)
