@@ -11,13 +11,14 @@ hold again". A property the prediction cannot judge is not corrected (fail close
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
-from rasm.errors import is_interrupt
+from rasm.errors import SourceError, SourceErrors, is_interrupt
+from rasm.platform.manifest import AppManifest, manifest_location
 from rasm.properties import Monitor, load_specification
 
-__all__ = ["CorrectiveCheck", "recovery_times"]
+__all__ = ["CorrectiveCheck", "corrective_check", "recovery_times"]
 
 
 def recovery_times(
@@ -102,3 +103,14 @@ class CorrectiveCheck:
             )
         return "; ".join(reasons)
 
+
+def corrective_check(m: AppManifest, twin: Any) -> Callable[..., str | None]:
+    """``trustworthiness.corrective``: the twin's predictions of the app's properties, or
+    an error at its place when the app has no twin to predict with."""
+    if twin is None:
+        raise SourceErrors([SourceError(
+            "corrective actions need a digital twin to predict with (twin: in app.yaml)",
+            manifest_location(m, ["trustworthiness", "corrective"]),
+        )])
+    texts = [(str(p), p.read_text(encoding="utf-8")) for p in m.properties]
+    return CorrectiveCheck(twin, texts, m.twin_horizon, m.twin_dt).check

@@ -17,17 +17,18 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
+from rasm.errors import SourceError, SourceErrors
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
-from rasm.platform.manifest import Fallback
+from rasm.platform.manifest import AppManifest, Fallback, manifest_location
 
 if TYPE_CHECKING:
     from collections import Counter
 
-    from rasm.rules import Rules
+    from rasm.rules import Rules, RuleSet
     from rasm.rules.fallback import FixedPlanProof
 
-__all__ = ["FallbackSwitch", "FailedIterations", "prove_fallback"]
+__all__ = ["FallbackSwitch", "FailedIterations", "check_fallback_legitimate", "prove_fallback"]
 
 _log = logging.getLogger("rasm.fallback")
 
@@ -69,6 +70,23 @@ def prove_fallback(
 
     return [(rule_set, prove_fixed_plan(rule_set, fallback.values)) for rule_set in rules]
 
+
+
+def check_fallback_legitimate(m: AppManifest, rule_sets: Sequence[RuleSet]) -> None:
+    """Refuse the app (at its fallback actions in app.yaml) unless z3 proved every fallback
+    action legitimate in every context the rules admit."""
+    assert m.fallback is not None
+    problems = [
+        SourceError(
+            f"the fallback actions are not legitimate in every context the rules of "
+            f"{rules.source} admit: {proof.explanation()}",
+            manifest_location(m, ["fallback", "actions"]),
+        )
+        for rules, proof in prove_fallback(m.fallback, [r.rules for r in rule_sets])
+        if not proof.legitimate
+    ]
+    if problems:
+        raise SourceErrors(problems)
 
 @dataclass
 class FailedIterations:

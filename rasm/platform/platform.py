@@ -17,7 +17,6 @@ callables it reports through); none receives the platform.
 from __future__ import annotations
 
 import gc
-import hashlib
 import logging
 import math
 import random
@@ -26,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rasm.comm import Message, Transport
-from rasm.errors import PlatformError, RasmError, SourceError, SourceErrors, is_interrupt
+from rasm.errors import PlatformError, is_interrupt
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
@@ -35,11 +34,12 @@ from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
-from rasm.platform.components import Action, Plan, describe_failure
+from rasm.platform.components import Action, describe_failure
 from rasm.platform.core import Core
+from rasm.platform.corrective import corrective_check
 from rasm.platform.distribution import Distribution, DistributionHooks
 from rasm.platform.external_verdicts import ExternalVerdicts
-from rasm.platform.fallback import FallbackSwitch
+from rasm.platform.fallback import FallbackSwitch, check_fallback_legitimate
 from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.loading import (
     check_components,
@@ -50,16 +50,20 @@ from rasm.platform.loading import (
 )
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.managed_system import ManagedSystem, Simulator
-from rasm.platform.manifest import AppManifest, Effector, load_manifest, manifest_location
+from rasm.platform.manifest import AppManifest, Effector, load_manifest
 from rasm.platform.modes import ManagedSystemModes
+from rasm.platform.plan_repair import PlanRepair, check_repair_weights
+from rasm.platform.ros_wiring import ros_options
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
+from rasm.platform.state_dir import claim_state_dir, default_state_dir
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
 from rasm.platform.summary import RunSummary
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
+from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 
 if TYPE_CHECKING:
     from rasm.platform.replay import Replay
@@ -79,25 +83,6 @@ _SCALARS = (int, float, bool, str)
 def _is_ros(url: str) -> bool:
     """Whether a transport URL is a ROS 2 middleware's (zenoh://, dds://)."""
     return url.strip().startswith(("zenoh://", "dds://"))
-
-
-APP_CLAIM = "app"  # in a state folder: the app folder whose state it holds
-
-
-def _state_dir(manifest: AppManifest) -> Path:
-    """``.rasm/<app name>``, unless another app of that name has it: then
-    ``.rasm/<app name>-<hash of the app folder>``, so two apps never share knowledge."""
-    base = Path(".rasm") / manifest.name
-    claim = base / APP_CLAIM
-    folder = str(manifest.folder.resolve())
-    try:
-        owner = claim.read_text(encoding="utf-8").strip()
-    except (OSError, UnicodeDecodeError):
-        return base
-    if owner in ("", folder):
-        return base
-    digest = hashlib.sha256(folder.encode("utf-8")).hexdigest()[:10]
-    return Path(".rasm") / f"{manifest.name}-{digest}"
 
 
 class Platform:
@@ -172,7 +157,7 @@ class Platform:
             self.trace: TraceWriter = McapTraceWriter(trace)
         else:
             self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
-        self.state_dir = Path(state_dir) if state_dir else _state_dir(manifest)
+        self.state_dir = Path(state_dir) if state_dir else default_state_dir(manifest)
         self._claims_state_dir = not state_dir
         self.scenario = manifest.scenario if scenario is None else scenario
         self.transport_url = transport or manifest.transport
@@ -180,8 +165,7 @@ class Platform:
         self.replay: Replay | None = None
         self.ros = _is_ros(self.transport_url)
         self.external = ExternalVerdicts(manifest.external_verdicts)
-        self.verdicts_published = 0
-        self._verdicts_sent: dict[str, bool] = {}  # over ROS 2: the last value per property
+        self.verdicts_out: VerdictPublisher | None = None
         self.knowledge_url = knowledge or manifest.knowledge
         self._component_overrides = components or {}
         # live runs isolate user stages on a worker thread so an overrun can be walked away
@@ -245,7 +229,7 @@ class Platform:
         )
         options = self.dist.transport_options()
         if self.ros:
-            options.update(self._ros_options())
+            options.update(ros_options(m, self.transport_url))
         self.transport: Transport = open_transport(self.transport_url, **options)
         log = m.logging
         self.lt = LoggingAndTracking(
@@ -288,66 +272,16 @@ class Platform:
             block.logs = self.logs
         self._built = True
 
-    def _ros_options(self) -> dict[str, Any]:
-        """What a ROS 2 transport needs: every topic's type and QoS, the app's type store,
-        the node's name. A probe or effector without an interface type cannot be on ROS 2."""
-        m = self.manifest
-        untyped = [
-            (["probes", i, "topic"], f"probe {p.topic}")
-            for i, p in enumerate(m.probes)
-            if not p.type
-        ] + [
-            (["effectors", name, "topic"], f"effector {name}")
-            for name, e in m.effectors.items()
-            if not e.type
-        ] + [
-            (["trustworthiness", "external_verdicts", name, "topic"], f"external verdict {name}")
-            for name, v in m.external_verdicts.items()
-            if not v.type
-        ]
-        if untyped:
-            raise SourceErrors([
-                SourceError(
-                    f"{what} has no ROS 2 interface type, so it cannot be on "
-                    f"{self.transport_url}: give it one (type: pkg/msg/Name)",
-                    manifest_location(m, path),
-                )
-                for path, what in untyped
-            ])
-        from rasm.ros2.types import default_store
-
-        types = {topic: typename for topic, (typename, _) in m.ros_topics.items()}
-        qos = {topic: q for topic, (_, q) in m.ros_topics.items() if q}
-        # a probe's messages are decoded only as far as its signals (and stamp) read them
-        sources = {v.topic for v in m.external_verdicts.values()}
-        fields = {
-            p.topic: [s.field or key for key, s in p.signals.items()]
-            + (["header.stamp.sec", "header.stamp.nanosec"] if p.stamp == "header" else [])
-            for p in m.probes
-            if p.topic not in sources
-        }
-        node = "".join(c if c.isalnum() or c == "_" else "_" for c in m.name)
-        return {
-            "types": types,
-            "qos": qos,
-            "fields": fields,
-            "store": m.types if m.types is not None else default_store(),
-            "node_name": f"rasm_{node}",
-        }
+    @property
+    def verdicts_published(self) -> int:
+        """How many verdicts went out on the transport (see :mod:`rasm.platform.verdicts_out`)."""
+        return 0 if self.verdicts_out is None else self.verdicts_out.published
 
     @property
     def timeline_start(self) -> float:
         """Where this run's clock starts: 0, or after the newest sample a live run restored
         from :attr:`restored_from`."""
         return self._timeline_start
-
-    def _claim_state_dir(self) -> None:
-        """Mark the default state folder as this app's (see :func:`_state_dir`)."""
-        if self._claims_state_dir:
-            self.state_dir.mkdir(parents=True, exist_ok=True)
-            claim = self.state_dir / APP_CLAIM
-            if not claim.exists():
-                claim.write_text(f"{self.manifest.folder.resolve()}\n", encoding="utf-8")
 
     def _open_knowledge(self) -> Storage | None:
         """Open (and restore) the knowledge store; returns its storage, if persistent."""
@@ -357,8 +291,8 @@ class Platform:
         if url == "sqlite":
             name = "simulated.sqlite" if self.clock_kind == "simulated" else "knowledge.sqlite"
             url = f"sqlite:{self.state_dir / name}"
-        if self.knowledge_url == "sqlite":
-            self._claim_state_dir()
+        if self.knowledge_url == "sqlite" and self._claims_state_dir:
+            claim_state_dir(self.state_dir, self.manifest)
         self.kb: KnowledgeBase
         # a simulation is a fresh world: no knowledge from an earlier run
         fresh = self.clock_kind == "simulated"
@@ -407,7 +341,7 @@ class Platform:
             depends_on=("km", "cm"),
         )
         self.rules = [RuleSet.load(path) for path in m.rules]
-        self._check_repair_weights()
+        check_repair_weights(m, self.rules)
         files = [*sorted(data_dir("properties").glob("*.rv")), *m.properties]
         monitors = [compile_properties(p.read_text(encoding="utf-8"), source=str(p)) for p in files]
         defined: dict[str, Path] = {}
@@ -466,7 +400,7 @@ class Platform:
         if self.twin is not None:
             self._twin_inputs = frozenset(self.twin.inputs)
         if m.corrective:
-            self.tm.corrective = self._corrective_check()
+            self.tm.corrective = corrective_check(m, self.twin)
         self.ao = AdaptationOrchestrator(
             chart=self._chart("adaptation_orchestrator"),
             twin=self.twin,
@@ -486,7 +420,7 @@ class Platform:
             plan_prefix="" if self.clock_kind == "simulated" else f"{self.dist.run}-",
             max_replans=m.max_replans,
             max_actions=m.max_actions,
-            repair=self._repair if m.repair else None,
+            repair=PlanRepair(m, self.rules).repair if m.repair else None,
             isolate_stages=self.isolate_stages,
             clock=clock,
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
@@ -495,35 +429,19 @@ class Platform:
         blocks: list[Block] = [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
         if m.fallback is not None:
             blocks.append(self._fallback_switch())
-        if self._publishes_verdicts():
+        if publishes_verdicts(m, self.transport_url, replaying=self.replay_path is not None):
             names = [n for mon in monitors if mon is not self.external for n in mon.properties]
-            if self.ros:
-                # a verdict topic holds the property's state: latched, sent when it changes
-                latched = {"durability": "transient_local", "depth": 1}
-                for name in names:
-                    self.transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool",
-                                           qos=latched)
-            self.on_verdict.append(self._publish_verdict)
+            self.verdicts_out = VerdictPublisher(
+                self.transport, names, ros=self.ros, skip=self.external.sources, logs=self.logs
+            )
+            self.on_verdict.append(self.verdicts_out.publish)
         return blocks
 
     def _fallback_switch(self) -> FallbackSwitch:
         """The fallback switch, once z3 proved every fallback action legitimate in every context
         the rules admit (else the app is refused, at the action in app.yaml)."""
-        from rasm.platform.fallback import prove_fallback
-
         m = self.manifest
-        assert m.fallback is not None
-        problems = [
-            SourceError(
-                f"the fallback actions are not legitimate in every context the rules of "
-                f"{rules.source} admit: {proof.explanation()}",
-                manifest_location(m, ["fallback", "actions"]),
-            )
-            for rules, proof in prove_fallback(m.fallback, [r.rules for r in self.rules])
-            if not proof.legitimate
-        ]
-        if problems:
-            raise SourceErrors(problems)
+        check_fallback_legitimate(m, self.rules)
         self.fb = FallbackSwitch(
             spec=m.fallback,
             am=self.am,
@@ -542,63 +460,6 @@ class Platform:
         self.on_verdict.append(self._veto_verdict)
         return self.fb
 
-    def _corrective_check(self) -> Callable[..., str | None]:
-        """``trustworthiness.corrective``: the twin's predictions of the app's properties, or
-        an error at its place when the app has no twin to predict with."""
-        from rasm.platform.corrective import CorrectiveCheck
-
-        m = self.manifest
-        if self.twin is None:
-            raise SourceErrors([SourceError(
-                "corrective actions need a digital twin to predict with (twin: in app.yaml)",
-                manifest_location(m, ["trustworthiness", "corrective"]),
-            )])
-        texts = [(str(p), p.read_text(encoding="utf-8")) for p in m.properties]
-        return CorrectiveCheck(self.twin, texts, m.twin_horizon, m.twin_dt).check
-
-    def _check_repair_weights(self) -> None:
-        """A repair weight for a name no rule reads is a typo: refused at its place."""
-        m = self.manifest
-        variables = {name for rule_set in self.rules for name in rule_set.rules.variables}
-        unknown = [name for name in m.repair_weights if name not in variables]
-        if unknown:
-            raise SourceErrors([
-                SourceError(
-                    f"repair weight for {name!r}, which is no rule variable "
-                    f"({', '.join(sorted(variables)) or 'the app has no rules'})",
-                    manifest_location(m, ["legitimate", "weights", name]),
-                )
-                for name in unknown
-            ])
-
-    def _repair(self, plan: Plan, context: dict[str, Any]) -> Plan | None:
-        """``legitimate.repair: nearest``: the plan nearest to ``plan`` that the rules (all the
-        app's rule sets, as one) accept in ``context``; None if z3 finds none in time."""
-        from rasm.rules import Rules
-        from rasm.rules.repair import REPAIR_TIMEOUT_MS, nearest_plan
-
-        sets = [rule_set.rules for rule_set in self.rules]
-        if not sets:
-            return None
-        variables: dict[str, Any] = {}
-        for rules in sets:
-            for name, variable in rules.variables.items():
-                variables.setdefault(name, variable)
-        merged = Rules(variables, tuple(r for rules in sets for r in rules.rules), "rules")
-        # z3 runs inside the plan stage: it may take half the stage's budget at most
-        budget_ms = max(1, int(min(REPAIR_TIMEOUT_MS, self.manifest.stage_budget * 500)))
-        repair = nearest_plan(
-            merged, plan.values, context, self.manifest.repair_weights, timeout_ms=budget_ms
-        )
-        if repair is None or not repair.changed:
-            return None
-        if not all(rs.evaluate(repair.values, context).accepted for rs in self.rules):
-            return None
-        changes = ", ".join(f"{name} {plan.values[name]!r} -> {repair.values[name]!r}"
-                            for name in repair.changed)
-        why = f"the nearest legitimate plan to {plan.id}: {changes}"
-        return Plan(repair.values, explanation=why)
-
     def _veto_verdict(self, verdict: Verdict) -> None:
         """A veto property that starts or stops vouching moves the fallback switch at once (on
         the loop, after the job in hand) rather than at the next tick."""
@@ -614,14 +475,6 @@ class Platform:
         if self.fb is not None:
             self.fb.evaluate()
         self.ao.orchestration_loop()
-
-    def _publishes_verdicts(self) -> bool:
-        """Whether verdicts go out on the transport: as the manifest says, else on a network
-        transport (never in a replay, which sends nothing)."""
-        if self.replay_path is not None:
-            return False
-        wanted = self.manifest.publish_verdicts
-        return self.transport_url != "local" if wanted is None else wanted
 
     def _chart(self, name: str) -> Path | None:
         """The app's replacement for platform chart ``name`` (manifest ``statecharts:``)."""
@@ -752,29 +605,6 @@ class Platform:
         if self.clock_kind == "wall":
             return self.dist.platform_time(stamp)
         return stamp
-
-    def _publish_verdict(self, verdict: Verdict) -> None:
-        """One verdict out: ``std_msgs/msg/Bool`` on ``/rasm/verdict/<property>`` over ROS 2
-        when it differs from the last one sent (the topic is latched: a late subscriber gets
-        the current one), ``{"value": …, "time": …}`` on the topic named after the property
-        otherwise, each one. An undecided verdict is not sent; one in error goes out false."""
-        if verdict.value is None or verdict.property in self.external.sources:
-            return
-        value = bool(verdict.value) and verdict.error is None
-        try:
-            if self.ros:
-                # per record and property at sensor rates, the same value again would outweigh
-                # the robot's own traffic
-                if self._verdicts_sent.get(verdict.property) == value:
-                    return
-                self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
-                self._verdicts_sent[verdict.property] = value
-            else:
-                self.transport.publish(verdict.property, {"value": value, "time": verdict.time})
-            self.verdicts_published += 1
-        except RasmError as exc:  # the loop goes on; said once, then counted
-            what = f"verdict of {verdict.property} not published: {exc}"
-            self.logs.log(_log, logging.WARNING, what)
 
     def _on_external_verdict(self, name: str, message: Message) -> None:
         # on the transport's thread: the verdict is taken on the loop's, at the loop's time

@@ -1,0 +1,67 @@
+"""Verdicts out: each property's verdict on the transport, for tools outside the loop.
+
+Over ROS 2 a verdict is ``std_msgs/msg/Bool`` on ``/rasm/verdict/<property>``, a latched topic
+sent to when the value changes (a late subscriber gets the current one); elsewhere it is
+``{"value": …, "time": …}`` on the topic named after the property, every one.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Container, Iterable
+
+from rasm.comm import Transport
+from rasm.errors import RasmError
+from rasm.logs import RepeatedLogs
+from rasm.platform.manifest import AppManifest
+from rasm.properties.monitor import Verdict
+
+__all__ = ["VerdictPublisher", "publishes_verdicts"]
+
+_log = logging.getLogger("rasm.platform")
+
+
+def publishes_verdicts(m: AppManifest, transport_url: str, *, replaying: bool) -> bool:
+    """Whether verdicts go out on the transport: as the manifest says, else on a network
+    transport (never in a replay, which sends nothing)."""
+    if replaying:
+        return False
+    return transport_url != "local" if m.publish_verdicts is None else m.publish_verdicts
+
+
+class VerdictPublisher:
+    """Publishes the verdicts of ``names`` (not those of ``skip``: external monitors' own)."""
+
+    def __init__(self, transport: Transport, names: Iterable[str], *, ros: bool,
+                 skip: Container[str], logs: RepeatedLogs) -> None:
+        self.transport = transport
+        self.ros = ros
+        self.skip = skip
+        self.logs = logs
+        self.published = 0
+        self.last_sent: dict[str, bool] = {}  # over ROS 2: the last value per property
+        if ros:
+            # a verdict topic holds the property's state: latched, sent when it changes
+            latched = {"durability": "transient_local", "depth": 1}
+            for name in names:
+                transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool", qos=latched)
+
+    def publish(self, verdict: Verdict) -> None:
+        """One verdict out. An undecided verdict is not sent; one in error goes out false."""
+        if verdict.value is None or verdict.property in self.skip:
+            return
+        value = bool(verdict.value) and verdict.error is None
+        try:
+            if self.ros:
+                # per record and property at sensor rates, the same value again would outweigh
+                # the robot's own traffic
+                if self.last_sent.get(verdict.property) == value:
+                    return
+                self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
+                self.last_sent[verdict.property] = value
+            else:
+                self.transport.publish(verdict.property, {"value": value, "time": verdict.time})
+            self.published += 1
+        except RasmError as exc:  # the loop goes on; said once, then counted
+            what = f"verdict of {verdict.property} not published: {exc}"
+            self.logs.log(_log, logging.WARNING, what)
