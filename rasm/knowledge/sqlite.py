@@ -63,7 +63,8 @@ _BEFORE_ALL = -sys.float_info.max
 
 
 class SqliteStorage(Storage):
-    """Knowledge persisted in the SQLite file ``path``, at most ``keep`` samples per key.
+    """Knowledge persisted in the SQLite file ``path``: the newest ``keep`` samples of each key
+    (and at most a sixteenth more, pruned back to ``keep`` when there are).
 
     ``register_knowledge_update`` only buffers (at most ``keep`` per key: older ones would be
     pruned anyway); ``update_persistency`` writes the buffer in one transaction and prunes.
@@ -190,7 +191,8 @@ class SqliteStorage(Storage):
 
     def update_persistency(self) -> int:
         """Write every buffered sample and changed declaration in ONE transaction, prune each
-        key to ``keep`` rows, and return how many samples were written.
+        key that holds a sixteenth more than ``keep`` rows back to ``keep``, and return how
+        many samples were written.
 
         The batch goes to SQLite as one ``executemany`` per table, its values encoded key by
         key in one call of the JSON encoder each. On a failure nothing is written, the samples
@@ -220,9 +222,11 @@ class SqliteStorage(Storage):
                 kind = known[key].type
                 rows.extend(zip(repeat(key), times, repeat(kind), encode_all(values)))
                 counts[key] = self._counts.get(key, 0) + len(queue)
-            # the oldest rows of each key beyond `keep` (the index on (key, seq) finds them)
+            # the oldest rows of each key beyond `keep` (the index on (key, seq) finds them),
+            # once there are a sixteenth more: deleting them every flush dirtied the pages at
+            # each key's start in every transaction
             pruned = [(key, count - self.keep) for key, count in counts.items()
-                      if count > self.keep]
+                      if count > self.keep + self.keep // 16]
             try:
                 db.execute("BEGIN IMMEDIATE")
                 db.executemany(
