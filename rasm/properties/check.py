@@ -7,6 +7,7 @@ violated, in error or not judged; satisfied and inconclusive alone exit 0.
 
 from __future__ import annotations
 
+import gc
 import json
 import shutil
 import tempfile
@@ -259,6 +260,13 @@ def check_stream(
                 if s is not None]
         times.forget_before(min(owed, default=count))
 
+    # The records come and go by the million, and each one's tuple wakes the garbage
+    # collector now and then: its full passes need not rescan every object that was there
+    # before the check (the program, its libraries), so those are set aside meanwhile (unless
+    # the caller set some aside itself: then its choice stands).
+    ours = gc.get_freeze_count() == 0
+    if ours:
+        gc.freeze()
     try:
         records = iter(records)
         while part := list(islice(records, chunk)):
@@ -272,6 +280,8 @@ def check_stream(
             spool.seek(0)
             shutil.copyfileobj(spool, verdicts)
     finally:
+        if ours:
+            gc.unfreeze()
         for spool in spools:
             spool.close()
     reports = []

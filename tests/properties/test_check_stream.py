@@ -3,6 +3,7 @@ memory bounded by the properties' windows, not by the trace."""
 
 from __future__ import annotations
 
+import gc
 import io
 import json
 import subprocess
@@ -190,3 +191,20 @@ def test_peak_memory_does_not_grow_with_the_trace(tmp_path):
     # twenty times the records (about 15 MB more of trace): the same memory, give or take
     # the allocator; a checker that holds the trace needs some 100 MB more
     assert peaks[1] - peaks[0] < 12, peaks
+
+
+def test_the_check_leaves_the_garbage_collector_as_it_found_it(tmp_path):
+    # the objects from before the check are set aside from the collector's passes only while
+    # the records stream, and a caller's own choice stands
+    spec = load_specification("input x: float\nproperty p: x < 1\n")
+    path = write_trace(tmp_path, [(k, {"x": k / 10}) for k in range(20)])
+    assert gc.get_freeze_count() == 0
+    assert check_file(spec, path).failed
+    assert gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        assert check_file(spec, path).failed
+        assert gc.get_freeze_count() == frozen
+    finally:
+        gc.unfreeze()
