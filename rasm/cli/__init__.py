@@ -4,6 +4,6 @@ The screen of ``rasm run`` (a live view and the final summary, drawn with rich) 
 in :mod:`rasm.cli.console`: the platform itself never draws.
 """
 
-from rasm.cli.commands import main
+from rasm.cli.main import main
 
 __all__ = ["main"]

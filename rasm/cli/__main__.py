@@ -2,6 +2,6 @@
 
 import sys
 
-from rasm.cli.commands import main
+from rasm.cli.main import main
 
 sys.exit(main())
