@@ -121,7 +121,8 @@ def print_summary(summary: RunSummary, console: Console) -> None:
         f"[bold]{summary.app}[/bold]: {summary.duration:g} s on the {summary.clock} clock"
         f"{stopped}, "
         f"{s.iterations} loop iterations, {summary.records} trace records"
-        + (f" -> {summary.trace}" if summary.trace else "")
+        + (f" -> {summary.trace}" if summary.trace else ""),
+        soft_wrap=True,  # one line however long the trace's path: scripts and guides read it
     )
     counts = Table(title="adaptations", show_header=True, header_style="bold")
     for name in ("anomalies", "plans", "accepted", "rejected", "executed", "dropped", "cancelled"):

@@ -10,10 +10,13 @@ for the guides that use them.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -22,7 +25,17 @@ from .guides import Block, console_commands, output_matches, read_blocks
 
 ROOT = Path(__file__).resolve().parents[2]
 HARNESS = Path(__file__).with_name("harness.py")
-GUIDES = ["README.md"]
+GUIDES = ["README.md", *sorted(f"docs/{p.name}" for p in (ROOT / "docs").glob("*.md"))]
+# guides whose blocks are not yet made runnable, with why (RASM_DOCS_PENDING=1 runs them anyway)
+PENDING = {
+    "docs/distribution.md": "its API sketches name objects they do not create",
+    "docs/performance-monitors.md": "its benchmark commands take minutes each",
+    "docs/ros2.md": "its blocks need a Zenoh peer and recordings they do not create",
+    "docs/statecharts.md": "its lint step shows a chart the reader edits by hand",
+    "docs/testing.md": "its tutorial's outputs are being regenerated",
+    "docs/turtlebot.md": "its commands start servers and benchmarks",
+    "docs/workflow.md": "its deployment writes to /opt",
+}
 COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
 COMMAND_TIMEOUT = 300  # seconds: the slowest guide command (a packaging) takes about a minute
 SEPARATOR = "\x1e"  # between the outputs of a console block's commands
@@ -37,6 +50,10 @@ def workdir(tmp: Path) -> Path:
     for name in ("README.md", "pyproject.toml"):
         shutil.copy(ROOT / name, folder / name)
     (folder / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)
+    # .venv is this test venv: a guide block running setup.sh would reinstall rasm from the copy
+    (folder / "scripts" / "setup.sh").write_text(
+        "echo 'setup.sh is run by tests/docs/test_setup.py, not by a guide block' >&2; exit 1\n"
+    )
     return folder
 
 
@@ -62,7 +79,7 @@ def environment(home: Path) -> dict[str, str]:
     env.update(
         PATH=f"{Path(sys.prefix) / 'bin'}{os.pathsep}{env.get('PATH', '')}",
         VIRTUAL_ENV=sys.prefix,
-        COLUMNS="100",
+        COLUMNS="80",
         NO_COLOR="1",
         EDITOR="true",  # "$EDITOR file": the reader edits; the test leaves it as generated
         PYTHONDONTWRITEBYTECODE="1",
@@ -75,6 +92,26 @@ def environment(home: Path) -> dict[str, str]:
     return env
 
 
+def shell(args: list[str], folder: Path, env: dict) -> subprocess.CompletedProcess:
+    """Run a block's shell in a session of its own; what it left running in the background
+    (``command &``) is stopped when it ends, as closing the reader's terminal would."""
+    # files, not pipes: a background command keeps a pipe open after the shell has ended
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        process = subprocess.Popen(
+            args, cwd=folder, env=env, stdout=out, stderr=err, text=True,
+            stdin=subprocess.DEVNULL, start_new_session=True,
+        )
+        try:
+            process.wait(timeout=COMMAND_TIMEOUT)
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGTERM)
+            process.wait()
+        out.seek(0)
+        err.seek(0)
+        return subprocess.CompletedProcess(args, process.returncode, out.read(), err.read())
+
+
 def run_shell(block: Block, folder: Path, env: dict, servers: Servers) -> list[str]:
     """Run a command block; the problems found (an empty list when it did what it shows)."""
     problems = []
@@ -85,10 +122,7 @@ def run_shell(block: Block, folder: Path, env: dict, servers: Servers) -> list[s
         for command in commands:
             script.append(servers.substitute(command.command))
             script.append(f'__rc=$?; printf "\\n{SEPARATOR}%d{SEPARATOR}\\n" $__rc; (exit $__rc)')
-        done = subprocess.run(
-            ["bash", "-c", "\n".join(script)], cwd=folder, env=env, capture_output=True,
-            text=True, timeout=COMMAND_TIMEOUT, stdin=subprocess.DEVNULL,
-        )
+        done = shell(["bash", "-c", "\n".join(script)], folder, env)
         chunks = done.stdout.split(SEPARATOR)
         outputs, codes = chunks[0:-1:2], [int(c) for c in chunks[1::2]]
         if len(codes) != len(commands):
@@ -108,11 +142,8 @@ def run_shell(block: Block, folder: Path, env: dict, servers: Servers) -> list[s
                 problems.append(f"{block.guide}:{command.line}: $ {command.command}\nexit {code}:"
                                 f"\n{output.rstrip()}")
     else:
-        done = subprocess.run(
-            ["bash", "-e", "-c", first + "\n" + servers.substitute(block.text)], cwd=folder,
-            env=env, capture_output=True, text=True, timeout=COMMAND_TIMEOUT,
-            stdin=subprocess.DEVNULL,
-        )
+        done = shell(["bash", "-e", "-c", first + "\n" + servers.substitute(block.text)],
+                     folder, env)
         if done.returncode != 0:
             problems.append(f"{block.where}: exit {done.returncode}\n{done.stdout}{done.stderr}")
     return problems
@@ -141,6 +172,8 @@ def write_file(block: Block, folder: Path) -> None:
 
 @pytest.mark.parametrize("guide", GUIDES)
 def test_the_guide_runs_as_written(guide, tmp_path, request):
+    if guide in PENDING and not os.environ.get("RASM_DOCS_PENDING"):
+        pytest.skip(f"{guide}: {PENDING[guide]}")
     folder = workdir(tmp_path)
     home = tmp_path / "tmp"
     home.mkdir()
