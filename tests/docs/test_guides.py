@@ -28,11 +28,9 @@ HARNESS = Path(__file__).with_name("harness.py")
 GUIDES = ["README.md", *sorted(f"docs/{p.name}" for p in (ROOT / "docs").glob("*.md"))]
 # guides whose blocks are not yet made runnable, with why (RASM_DOCS_PENDING=1 runs them anyway)
 PENDING = {
-    "docs/distribution.md": "its API sketches name objects they do not create",
     "docs/performance-monitors.md": "its benchmark commands take minutes each",
     "docs/ros2.md": "its blocks need a Zenoh peer and recordings they do not create",
     "docs/turtlebot.md": "its commands start servers and benchmarks",
-    "docs/workflow.md": "its deployment writes to /opt",
 }
 COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
 COMMAND_TIMEOUT = 300  # seconds: the slowest guide command (a packaging) takes about a minute
