@@ -28,7 +28,6 @@ HARNESS = Path(__file__).with_name("harness.py")
 GUIDES = ["README.md", *sorted(f"docs/{p.name}" for p in (ROOT / "docs").glob("*.md"))]
 # guides whose blocks are not yet made runnable, with why (RASM_DOCS_PENDING=1 runs them anyway)
 PENDING = {
-    "docs/performance-monitors.md": "its benchmark commands take minutes each",
     "docs/ros2.md": "its blocks need a Zenoh peer and recordings they do not create",
     "docs/turtlebot.md": "its commands start servers and benchmarks",
 }
