@@ -270,7 +270,9 @@ def test_the_generated_readme_regenerates_from_inside_the_app_and_nesting_is_ref
     assert main(["new", "hb", "--from", str(HOTBOX_MODEL)]) == 0
     app = tmp_path / "hb"
     readme = (app / "README.md").read_text()
-    assert "$ rasm new .  " in readme and "--from model.yaml" not in readme
+    assert "$ rasm new .  " in readme
+    for name in ("README.md", "components.py", "app.yaml"):  # every file says the same
+        assert "--from model.yaml" not in (app / name).read_text(), name
     # as the README says, from the app folder: regenerated in place, the user's code kept
     components = app / "components.py"
     components.write_text(
