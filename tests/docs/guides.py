@@ -124,9 +124,11 @@ def console_commands(block: Block) -> list[Command]:
 def output_matches(expected: list[str], actual: str) -> bool:
     """Whether ``actual`` is what ``expected`` shows (``...`` elides; trailing blanks ignored)."""
     lines = [line.rstrip() for line in actual.rstrip().split("\n")] if actual.strip() else []
+    expected = [line.rstrip() for line in expected]
+    while expected and not expected[-1]:
+        expected.pop()
     pattern = []
     for line in expected:
-        line = line.rstrip()
         if line.strip() in ("...", "…"):
             pattern.append(r"(?:[^\n]*\n)*?")
             continue

@@ -76,7 +76,6 @@ def environment(home: Path) -> dict[str, str]:
         VIRTUAL_ENV=sys.prefix,
         COLUMNS="80",
         NO_COLOR="1",
-        EDITOR="true",  # "$EDITOR file": the reader edits; the test leaves it as generated
         PYTHONDONTWRITEBYTECODE="1",
         RASM_WHEELHOUSE=os.environ.get(
             "RASM_WHEELHOUSE", str(Path.home() / ".cache" / "rasm" / "wheelhouse")
