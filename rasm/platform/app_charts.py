@@ -35,6 +35,7 @@ from rasm.yamltext import YamlSource, load_yaml
 __all__ = [
     "ChartOutline",
     "app_chart_problems",
+    "check_charts",
     "interface_of",
     "interface_problems",
     "outline",
@@ -243,6 +244,13 @@ def app_chart_problems(manifest: AppManifest) -> list[SourceError]:
         elif _loaded(path, problems) is not None:
             problems += interface_problems(name, path)
     return problems
+
+
+def check_charts(manifest: AppManifest) -> None:
+    """Raise :class:`SourceErrors` with :func:`app_chart_problems`, if there are any."""
+    problems = app_chart_problems(manifest)
+    if problems:
+        raise SourceErrors(problems)
 
 
 def _loaded(path: Path, problems: list[SourceError]) -> Any:

@@ -10,7 +10,8 @@ whole knowledge, read-only, as ``knowledge`` (``knowledge.get('velocity', 0.0)``
 An effector's ``modes:`` name states of this chart: the Trustworthiness Checker sends its actions
 only while one of them is active. Each change of the active states goes in the trace as ``mode``
 (the active leaf states, comma-separated) and ``mode_<state>`` (true for a state just entered,
-false for one just left), so properties read the modes like any signal.
+false for one just left; the first record has every state), so properties read the modes like
+any signal (``in_mode("docking")`` reads ``mode_docking``).
 """
 
 from __future__ import annotations
@@ -87,6 +88,8 @@ class ManagedSystemModes:
             self.chart, clock=self.clock, initial_context={"knowledge": KnowledgeView(knowledge)}
         )
         self.failures = 0
+        # the last record's step failed: the chart's modes may be stale, so none is vouched for
+        self.failing = False
         self._active: frozenset[str] = frozenset()
 
     @property
@@ -105,10 +108,15 @@ class ManagedSystemModes:
         ]
 
     def start(self, time: float) -> dict[str, Any]:
-        """Enter the initial states; the trace record of the initial modes."""
+        """Enter the initial states; the trace record of the initial modes (``mode_<state>``
+        for every state, so that each has a value from the start)."""
         self.clock.time = max(self.clock.time, time)
         self._run()
-        return self._change() or {}
+        record = self._change() or {"mode": ",".join(self.leaves)}
+        for state in self.chart.states:
+            if state != self.chart.root:
+                record.setdefault(f"mode_{state}", False)
+        return record
 
     def observe(self, time: float, values: Mapping[str, Any]) -> dict[str, Any] | None:
         """One ``record`` event with ``values``; the trace record of the mode change, or None."""
@@ -120,12 +128,15 @@ class ManagedSystemModes:
         return self._change()
 
     def _run(self) -> None:
+        self.failing = False
         while True:
             try:
                 if self.interpreter.execute_once() is None:
                     return
             except ExecutionError as exc:
-                # the step is rolled back (the modes stay as they were) and its event dropped
+                # the step is rolled back and its event dropped: the chart may have missed a
+                # change of mode, so until a record goes through no mode is vouched for
+                self.failing = True
                 self.failures += 1
                 if self.failures == 1:
                     _log.error("the modes chart %s refused a step: %s", self.chart.name, exc)

@@ -32,6 +32,7 @@ from rasm.logs import RepeatedLogs
 from rasm.loop import STAGES
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.app_charts import check_charts
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.components import Action, describe_failure
@@ -134,6 +135,10 @@ class Platform:
         if check_signals and role != "managed":
             # a property or rule reading a name nothing provides: refused before anything runs
             check_app(manifest)
+        elif role != "managed":
+            # the app's charts are checked even when its signals are not: a replacement chart
+            # that lacks a stage state would run nothing, silently
+            check_charts(manifest)
         if clock not in (None, "simulated", "wall"):
             raise PlatformError(f"unknown clock {clock!r} (simulated or wall)")
         if components is not None:
@@ -569,7 +574,7 @@ class Platform:
         """The managed system's mode, by which an effector is applicable or not: the active
         states of the modes chart, or the mode signal's value."""
         if self.modes is not None:
-            return self.modes.active
+            return None if self.modes.failing else self.modes.active
         signal = self.manifest.mode_signal
         return self.kb.read_knowledge(signal) if signal else None
 

@@ -276,6 +276,11 @@ def _property_problems(spec: Any, have: Provided) -> list[SourceError]:
 def _not_provided(name: str, what: str, have: Mapping[str, Provider]) -> str:
     subject = "signal" if what == "read" else what
     message = f"{subject} '{name}' is not provided by any part of the app"
+    if name.startswith("mode_") and all(p.origin != "the modes chart" for p in have.values()):
+        return (
+            f"{message}: in_mode(\"{name.removeprefix('mode_')}\") and mode_<state> read the "
+            "managed system's modes chart, and the app has none (managed_system.modes)"
+        )
     suggestion = closest(name, have)
     if suggestion is not None:
         return f"{message}: did you mean '{suggestion}'?"

@@ -207,10 +207,11 @@ class TrustworthinessChecker(Block):
             # regions); the simple mode signal has one value
             active = {mode} if isinstance(mode, str) or mode is None else set(mode)
             if not active.intersection(effector.modes):
-                now = ", ".join(sorted(repr(m) for m in active)) or "unknown"
+                now = ", ".join(sorted(repr(m) for m in active if m is not None))
+                where = f"mode {now}" if now else "an unknown mode (nothing vouches for it)"
                 self._outcome = (
                     False,
-                    f"not applicable in managed-system mode {now} ({effector.name} applies "
+                    f"not applicable in managed-system {where} ({effector.name} applies "
                     f"in {', '.join(effector.modes)})",
                 )
                 self.post("action_refused")

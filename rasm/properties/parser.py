@@ -417,6 +417,19 @@ class _Build(Transformer):
             if len(args) != 1:
                 raise self._error(f"prev takes one argument, not {len(args)}", meta)
             return Prev(args[0], location=location)
+        if name == "in_mode":
+            # the managed system's modes chart writes mode_<state> (true while the state is
+            # active) in the trace: in_mode("docking") reads that signal
+            if len(args) != 1 or not (
+                isinstance(args[0], Literal)
+                and isinstance(args[0].value, str)
+                and args[0].value.isidentifier()
+            ):
+                raise self._error(
+                    'in_mode takes the name of a state of the modes chart, as in_mode("docking")',
+                    meta,
+                )
+            return Name(f"mode_{args[0].value}", location=location)
         if name in ("count", "sum", "avg") or (name in ("min", "max") and len(args) == 1):
             # an aggregate without a window ranges over the whole past: [0, inf]
             self._no_temporal(meta, name)

@@ -118,6 +118,8 @@ class FastGuardEvaluator(PythonEvaluator):
     every step), exposing only the names a guard uses: the same values, the same errors."""
 
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
+    #: The event a guard raised on (sismic looks at an event before it takes it from the queue).
+    failed_event: Any = None
     #: Called before any action, entry or exit code runs (the atomic layer saves the context
     #: there, once per step: a step that runs no code cannot change it).
     before_code: Any = None
@@ -168,10 +170,12 @@ class FastGuardEvaluator(PythonEvaluator):
         try:
             return bool(eval(code, exposed, self._context))
         except Exception as e:
+            self.failed_event = event
             raise CodeEvaluationError(f"'{e}' occurred while evaluating '{guard}'") from e
         except BaseException as e:
             if is_interrupt(e):
                 raise
+            self.failed_event = event
             raise _escaped(e, f"evaluating '{guard}'") from e
 
     def _evaluate_code(self, code, *, additional_context=None):
@@ -360,6 +364,8 @@ class AtomicStepMixin:
         deadlines = getattr(self._evaluator, "deadlines", None)
         if deadlines is not None:  # a DeadlineEvaluator: only this step's timers count
             deadlines.clear()
+        if getattr(self._evaluator, "failed_event", None) is not None:
+            self._evaluator.failed_event = None
         listeners = self._listeners
         eager = False
         if listeners:
@@ -391,6 +397,10 @@ class AtomicStepMixin:
                 # the rollback below is about to undo
                 exc._context = dict(exc.context)
             consumed = _consumed_from(light, self._internal_queue, self._external_queue)
+            guilty = getattr(self._evaluator, "failed_event", None)
+            if consumed is None and guilty is not None:
+                # a guard raised on the event at the head of a queue, before the step took it
+                consumed = next((q for q in light[3:5] if q and q[0][1] is guilty), None)
             if eager:
                 AtomicStepMixin._restore_state(self, inner)
                 for interp, snap in saved:

@@ -334,3 +334,32 @@ def test_a_contract_error_shows_the_context_at_the_failure_not_the_restored_one(
         assert error.context["x"] == 5
         assert " - x = 5" in str(error).splitlines()
     assert interp.context["x"] == 0  # rasm's step was rolled back
+
+
+GUARDED = """statechart:
+  name: guarded
+  root state:
+    name: root
+    initial: a
+    states:
+      - name: a
+        transitions:
+          - target: b
+            event: go
+            guard: 1 / event.data.get('n', 1) > 0
+      - name: b
+"""
+
+
+def test_an_event_whose_guard_raises_is_discarded_not_left_to_fail_every_later_step():
+    # sismic looks at an event before it takes it from the queue: a guard raising on it left
+    # it at the head, and every later step failed on it again
+    chart = Interpreter(load_statechart(text=GUARDED))
+    chart.execute()
+    chart.queue("go", n=0)
+    with pytest.raises(ExecutionError, match="division by zero"):
+        chart.execute_once()
+    assert chart.last_failure.event.name == "go" and chart.last_failure.event.data == {"n": 0}
+    chart.queue("go", n=2)
+    assert chart.execute_once() is not None
+    assert chart.configuration == ["root", "b"]
