@@ -52,8 +52,20 @@ class ChartOutline:
     root: str = ""
     root_location: Location | None = None
     states: dict[str, Location] = field(default_factory=dict)
+    parents: dict[str, str] = field(default_factory=dict)
     receives: dict[str, Location] = field(default_factory=dict)
+    # event -> the states with a transition on it
+    takers: dict[str, set[str]] = field(default_factory=dict)
     sends: dict[str, list[Location]] = field(default_factory=dict)
+
+    def takes(self, event: str, state: str) -> bool:
+        """Whether a transition on ``event`` leaves ``state`` or one of its ancestors."""
+        sources = self.takers.get(event, set())
+        while state:
+            if state in sources:
+                return True
+            state = self.parents.get(state, "")
+        return False
 
     @property
     def start(self) -> Location:
@@ -80,8 +92,9 @@ def outline(path: str | Path) -> ChartOutline:
 
 
 def _walk(src: YamlSource, state: dict[str, Any], found: ChartOutline) -> None:
+    name = str(state.get("name", ""))
     if "name" in state:
-        found.states.setdefault(str(state["name"]), src.value(state, "name"))
+        found.states.setdefault(name, src.value(state, "name"))
     for key in ("on entry", "on exit"):
         if isinstance(state.get(key), str):
             _sends(src, state, key, found)
@@ -89,12 +102,16 @@ def _walk(src: YamlSource, state: dict[str, Any], found: ChartOutline) -> None:
         if not isinstance(transition, dict):
             continue
         if "event" in transition:
-            found.receives.setdefault(str(transition["event"]), src.value(transition, "event"))
+            event = str(transition["event"])
+            found.receives.setdefault(event, src.value(transition, "event"))
+            found.takers.setdefault(event, set()).add(name)
         if isinstance(transition.get("action"), str):
             _sends(src, transition, "action", found)
     for key in ("states", "parallel states"):
         for child in state.get(key) or []:
             if isinstance(child, dict):
+                if "name" in child:
+                    found.parents.setdefault(str(child["name"]), name)
                 _walk(src, child, found)
 
 
@@ -125,13 +142,18 @@ def _interfaces() -> dict[str, Any]:
     return json.loads((data_dir("statecharts") / "interfaces.json").read_text(encoding="utf-8"))
 
 
-def interface_of(name: str) -> dict[str, list[str]]:
-    """What the platform relies on in its chart ``name``: ``states``, ``receives`` and
-    ``sends``, the lifecycle's included. KeyError for a name that is no platform chart."""
+def interface_of(name: str) -> dict[str, Any]:
+    """What the platform relies on in its chart ``name``, the lifecycle's included: ``states``
+    (a list), ``receives`` (event -> the states it must be taken in; empty: anywhere) and
+    ``sends`` (a list). KeyError for a name that is no platform chart."""
     interfaces = _interfaces()
     own = interfaces[name]
     common = interfaces["lifecycle"]
-    return {key: [*common[key], *own[key]] for key in ("states", "receives", "sends")}
+    return {
+        "states": [*common["states"], *own["states"]],
+        "receives": {**common["receives"], **own["receives"]},
+        "sends": [*common["sends"], *own["sends"]],
+    }
 
 
 def platform_chart_names() -> list[str]:
@@ -151,13 +173,23 @@ def interface_problems(name: str, path: str | Path) -> list[SourceError]:
                 f"{', '.join(interface['states'])})",
                 found.start,
             ))
-    for event in interface["receives"]:
+    for event, states in interface["receives"].items():
         if event not in found.receives:
             problems.append(_error(
                 f"this replacement for the platform's {name} chart has no transition on "
                 f"'{event}': the platform sends it that event, which would be ignored",
                 found.start,
             ))
+            continue
+        for state in states:
+            if state in found.states and not found.takes(event, state):
+                problems.append(_error(
+                    f"no transition on '{event}' leaves state '{state}' (nor a state around "
+                    f"it): the platform sends '{event}' to its {name} chart in '{state}', "
+                    "where it would be ignored",
+                    found.states[state],
+                    len(state),
+                ))
     for event in interface["sends"]:
         if event not in found.sends:
             problems.append(_error(

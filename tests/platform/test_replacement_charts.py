@@ -57,6 +57,25 @@ def test_the_interface_declares_every_state_the_driver_does_work_in(driver):
     assert posted <= set(interface_of(driver.chart_name)["receives"])
 
 
+def test_an_outcome_taken_in_the_wrong_state_is_refused_at_the_state(tmp_path):
+    # `accepted` still exists, but leaves `idle` instead of `legitimating`
+    app = app_with(tmp_path, "target: executing\n                event: accepted",
+                   "target: executing\n                event: accepted_elsewhere")
+    chart = (app / "my_orchestrator.yaml").read_text()
+    (app / "my_orchestrator.yaml").write_text(chart.replace(
+        "              - target: monitoring\n                event: tick",
+        "              - target: executing\n                event: accepted\n"
+        "              - target: monitoring\n                event: tick", 1))
+    lines = (app / "my_orchestrator.yaml").read_text().splitlines()
+    line = next(i for i, t in enumerate(lines, 1) if t.strip() == "- name: legitimating")
+    col = lines[line - 1].index("legitimating") + 1
+    assert lint_paths([str(app)]) == [
+        f"{app / 'my_orchestrator.yaml'}:{line}:{col}: no transition on 'accepted' leaves "
+        "state 'legitimating' (nor a state around it): the platform sends 'accepted' to its "
+        "adaptation_orchestrator chart in 'legitimating', where it would be ignored"
+    ]
+
+
 def app_with(tmp_path, old: str, new: str):
     """The Hotbox with an orchestrator chart in which ``old`` is written ``new``."""
     app = tmp_path / "app"
