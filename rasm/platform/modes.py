@@ -5,7 +5,8 @@ system's modes. Each batch of values the platform stores in knowledge (a digeste
 the Monitor's derived signals) reaches the chart as one ``record`` event whose data are those
 values; the chart's code reads them as ``event.data`` (``event.data.get('nav_mode')``) and the
 whole knowledge, read-only, as ``knowledge`` (``knowledge.get('velocity', 0.0)``). Timers
-(``after(2.0)``) measure the platform's clock and are looked at whenever a record arrives.
+(``after(2.0)``) measure the platform's clock: the platform steps the chart when one is due,
+records or not.
 
 An effector's ``modes:`` name states of this chart: the Trustworthiness Checker sends its actions
 only while one of them is active. Each change of the active states goes in the trace as ``mode``
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import logging
+import math
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -126,6 +128,26 @@ class ManagedSystemModes:
         self.interpreter.queue(event)
         self._run()
         return self._change()
+
+    def wake(self, time: float) -> dict[str, Any] | None:
+        """Step the chart at ``time`` with no record (a timer of its is due); the trace record
+        of the mode change, or None."""
+        self.clock.time = max(self.clock.time, time)
+        self._run()
+        # a timer compares as sismic does (now - delay >= entry), which can fall a rounding
+        # error short at the very deadline it reported: step again just past it
+        for _ in range(8):
+            due = self.interpreter.next_deadline()
+            if due is None or due > self.clock.time:
+                break
+            self.clock.time = math.nextafter(self.clock.time, math.inf)
+            self._run()
+        return self._change()
+
+    def next_deadline(self) -> float | None:
+        """When a timer of the chart (``after(...)``) is next due, if after its clock's now."""
+        due = self.interpreter.next_deadline()
+        return due if due is not None and due > self.clock.time else None
 
     def _run(self) -> None:
         self.failing = False

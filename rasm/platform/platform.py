@@ -199,6 +199,7 @@ class Platform:
         self.twin: DigitalTwin | None = None
         self.modes: ManagedSystemModes | None = None  # the app's modes chart, if it has one
         self.fb: FallbackSwitch | None = None  # the fallback switch, when the app declares one
+        self._modes_armed: float | None = None  # when the modes chart's next timer job runs
         self._twin_inputs: frozenset[str] = frozenset()
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
@@ -510,6 +511,7 @@ class Platform:
             if change:
                 self._mode_changed(time, change)
                 stored.update(change)
+            self._arm_modes()
         if stored:
             self._emit(time, stored)
 
@@ -562,6 +564,23 @@ class Platform:
         self.trace.emit(time, record)
         for observer in self.on_record:
             observer(time, record)
+
+    def _arm_modes(self) -> None:
+        """Have the scheduler step the modes chart when its next timer is due (once per
+        deadline: a record arriving first leaves the job to find nothing to do)."""
+        due = self.modes.next_deadline()
+        if due is not None and due != self._modes_armed:
+            self._modes_armed = due
+            self.scheduler.at(due, self._wake_modes)
+
+    def _wake_modes(self) -> None:
+        self._modes_armed = None
+        time = self.clock.time
+        change = self.modes.wake(time)
+        if change:
+            self._mode_changed(time, change)
+            self._emit(time, change)
+        self._arm_modes()
 
     def _mode_changed(self, time: float, change: dict[str, Any]) -> None:
         """The managed system's modes changed: ``mode`` in knowledge says which are active now,
@@ -667,6 +686,7 @@ class Platform:
             initial = self.modes.start(self.clock.time)
             self._mode_changed(self.clock.time, initial)
             self._emit(self.clock.time, initial)
+            self._arm_modes()
         if self.low_latency and not self._gc_frozen:
             gc.collect()
             gc.freeze()

@@ -161,3 +161,19 @@ def test_a_stage_chart_over_its_budget_on_the_wall_clock_fails_its_stage(app, tm
     assert summary.stats.timeouts["plan"] >= 1
     assert summary.stats.executed == 0  # no plan ever came in time
     assert any(r.get("explanation") == "plan stage overran its time budget" for r in trace)
+
+
+def test_the_modes_chart_timer_fires_when_no_record_comes_at_all(app, tmp_path):
+    # a jam now silences the whole LiDAR: nothing is stored, yet it goes stale on time
+    edit(
+        app / "simulator.py",
+        'readings = {"lidar/status": {"motor_rpm": 600.0}}',
+        'readings = {} if self.jammed else {"lidar/status": {"motor_rpm": 600.0}}',
+    )
+    summary, trace = run(app, tmp_path)
+    changes = [(r["time"], r["mode"]) for r in trace if "mode" in r]
+    assert changes[:3] == [(0, "scanning"), (2.3, "stale"), (2.6, "scanning")]
+    assert [r for r in trace if r["time"] == 2.3] == [
+        {"time": 2.3, "mode": "stale", "mode_stale": True, "mode_scanning": False}
+    ]
+    assert summary.stats.executed == 2

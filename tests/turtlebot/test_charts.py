@@ -43,17 +43,20 @@ TestNavigationModes = statechart_machine(
 TestNavigationModes.settings = settings(max_examples=60, stateful_step_count=25, deadline=None)
 
 
+def arrived_for_good(state) -> bool:
+    """Once a record saying arrived has been taken, the chart is in arrived. (The latest
+    event may still be waiting for a timer's step to be taken first.)"""
+    taken = state.events[:-1]
+    if any(e.get("data", {}).get("nav_mode") == "arrived" for e in taken):
+        return state.configuration & TOP == {"arrived"}
+    return True
+
+
 def test_arrived_is_for_good():
     """Whatever comes after arrival, the modes chart stays in arrived (spin_config never
     applies again)."""
     machine = statechart_machine(
-        MODES,
-        events={"record": RECORDS},
-        monitors=[],
-        initial_context={},
-        invariant=lambda s: not (s.events and any(
-            e.get("data", {}).get("nav_mode") == "arrived" for e in s.events
-        )) or s.configuration & TOP == {"arrived"},
+        MODES, events={"record": RECORDS}, monitors=[], invariant=arrived_for_good
     )
     test = machine.TestCase
     test.settings = settings(max_examples=40, stateful_step_count=20, deadline=None)
