@@ -57,6 +57,8 @@ class ChartOutline:
     # event -> the states with a transition on it
     takers: dict[str, set[str]] = field(default_factory=dict)
     sends: dict[str, list[Location]] = field(default_factory=dict)
+    # the effectors written out in send('action', effector='name', ...), with places
+    effectors: list[tuple[str, Location]] = field(default_factory=list)
 
     def takes(self, event: str, state: str) -> bool:
         """Whether a transition on ``event`` leaves ``state`` or one of its ancestors."""
@@ -132,6 +134,16 @@ def _sends(src: YamlSource, mapping: Any, key: str, found: ChartOutline) -> None
         ):
             where = src.code_location(mapping, key, node.lineno, node.col_offset + 1)
             found.sends.setdefault(node.args[0].value, []).append(where)
+            for keyword in node.keywords:
+                value = keyword.value
+                if (
+                    node.args[0].value == "action"
+                    and keyword.arg == "effector"
+                    and isinstance(value, ast.Constant)
+                    and isinstance(value.value, str)
+                ):
+                    place = src.code_location(mapping, key, value.lineno, value.col_offset + 1)
+                    found.effectors.append((value.value, place))
 
 
 # --------------------------------------------------------------------------- interfaces
@@ -266,6 +278,8 @@ def app_chart_problems(manifest: AppManifest) -> list[SourceError]:
             path = manifest.folder / ref
             if _loaded(path, problems) is not None:
                 problems += stage_chart_problems(stage, path)
+                if stage == "execute":
+                    problems += _unknown_effectors(manifest, path)
     known = platform_chart_names()
     for name, path in manifest.statecharts.items():
         if name not in known:
@@ -312,6 +326,22 @@ def _effector_mode_problems(manifest: AppManifest, states: set[str]) -> Iterator
                 yield SourceError(
                     message, manifest_location(manifest, ["effectors", name, "modes", i])
                 )
+
+
+def _unknown_effectors(manifest: AppManifest, path: Path) -> list[SourceError]:
+    """An Execute chart's actions for an effector the app does not declare would all be
+    dropped."""
+    from rasm.platform.signals import closest
+
+    problems = []
+    for name, where in outline(path).effectors:
+        if name not in manifest.effectors:
+            message = f"effector '{name}' is not an effector of the app"
+            suggestion = closest(name, manifest.effectors)
+            if suggestion is not None:
+                message += f": did you mean '{suggestion}'?"
+            problems.append(_error(message, where, len(name) + 2))
+    return problems
 
 
 def _mode_signal_clashes(manifest: AppManifest, written: dict[str, str]) -> Iterator[SourceError]:

@@ -177,3 +177,14 @@ def test_the_modes_chart_timer_fires_when_no_record_comes_at_all(app, tmp_path):
         {"time": 2.3, "mode": "stale", "mode_stale": True, "mode_scanning": False}
     ]
     assert summary.stats.executed == 2
+
+
+def test_lint_refuses_an_execute_chart_acting_on_an_effector_the_app_lacks(app):
+    chart = app / "charts" / "execute.yaml"
+    edit(chart, "effector='lidar'", "effector='lidr'")
+    line = next(i for i, t in enumerate(chart.read_text().splitlines(), 1) if "lidr" in t)
+    col = chart.read_text().splitlines()[line - 1].index("'lidr'") + 1
+    assert lint_paths([str(app)]) == [
+        f"{chart}:{line}:{col}: effector 'lidr' is not an effector of the app: did you mean "
+        "'lidar'?"
+    ]
