@@ -7,7 +7,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rasm.knowledge import KnowledgeBase
-from rasm.platform.chart_stages import MAX_STEPS, ChartStage, NoAnswer
+from rasm.platform.app_charts import stage_chart_problems
+from rasm.platform.chart_stages import MAX_STEPS, STAGE_OUTCOMES, ChartStage, NoAnswer
 from rasm.platform.components import Action, Anomaly, Plan, StageContext, StageError
 from rasm.statechart import load_statechart
 
@@ -89,3 +90,36 @@ def test_the_chart_keeps_its_own_variables_between_iterations(temperatures):
     stage = chart("monitor", "x += 1\n          send('monitored', count=x)")
     for i, value in enumerate(temperatures):
         assert stage.monitor(ctx(float(i), temperature=value)) == {"count": i + 1}
+
+
+OUTCOMES = sorted({o for outcomes in STAGE_OUTCOMES.values() for o in outcomes})
+
+
+@given(
+    st.sampled_from(sorted(STAGE_OUTCOMES)),
+    st.sampled_from([*OUTCOMES, "go_on", "tick", "stale"]),
+    st.booleans(),
+)
+def test_lint_refuses_exactly_the_sends_a_stage_does_not_allow(tmp_path_factory, stage, event,
+                                                               takes_it):
+    """For any stage and any event sent beside a proper answer: refused when it is no outcome
+    of the stage, unless it is no outcome at all and the chart takes it itself."""
+    answer = STAGE_OUTCOMES[stage][0]
+    extra = f"\n      - event: {event}" if takes_it else ""
+    text = f"""statechart:
+  name: s
+  root state:
+    name: root
+    transitions:
+      - event: {stage}
+        action: |
+          send('{event}')
+          send('{answer}'){extra}
+"""
+    path = tmp_path_factory.mktemp("chart") / "stage.yaml"
+    path.write_text(text)
+    problems = stage_chart_problems(stage, path)
+    allowed = event in STAGE_OUTCOMES[stage] or (takes_it and event not in OUTCOMES)
+    assert (problems == []) == allowed, problems
+    if not allowed:
+        assert [(p.location.line, p.location.col) for p in problems] == [(8, 11)]
