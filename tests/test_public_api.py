@@ -37,6 +37,7 @@ def test_rasm_platform_gives_its_public_names_and_no_others() -> None:
         "Action",
         "Anomaly",
         "AppManifest",
+        "ChartStage",
         "LoopStats",
         "Plan",
         "Platform",

@@ -15,6 +15,7 @@ _PUBLIC = {
     "Action": "rasm.platform.components",
     "Anomaly": "rasm.platform.components",
     "AppManifest": "rasm.platform.manifest",
+    "ChartStage": "rasm.platform.chart_stages",
     "LoopStats": "rasm.platform.adaptation_orchestrator",
     "Plan": "rasm.platform.components",
     "Platform": "rasm.platform.platform",
@@ -27,6 +28,7 @@ __all__ = [
     "Action",
     "Anomaly",
     "AppManifest",
+    "ChartStage",
     "LoopStats",
     "Plan",
     "Platform",
@@ -37,6 +39,7 @@ __all__ = [
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
     from rasm.platform.adaptation_orchestrator import LoopStats
+    from rasm.platform.chart_stages import ChartStage
     from rasm.platform.components import Action, Anomaly, Plan, StageContext
     from rasm.platform.manifest import AppManifest, load_manifest
     from rasm.platform.platform import Platform
