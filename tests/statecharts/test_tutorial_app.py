@@ -188,3 +188,9 @@ def test_lint_refuses_an_execute_chart_acting_on_an_effector_the_app_lacks(app):
         f"{chart}:{line}:{col}: effector 'lidr' is not an effector of the app: did you mean "
         "'lidar'?"
     ]
+
+
+def test_the_guides_stage_chart_test_runs_as_written(monkeypatch):
+    snippet = re.search(r"\*\*Testing a stage chart\.\*\*.*?```python\n(.*?)```", DOC, re.S)
+    monkeypatch.chdir(REPO)  # "run from the repository's root"
+    exec(compile(snippet.group(1), "statecharts.md", "exec"), {})
