@@ -4,7 +4,9 @@ Each file is recognised by its content (a YAML mapping with ``statechart``, ``ru
 or an ``app.yaml``) or its suffix (``.rv``); a folder is searched for such files. Every problem is
 one ``file:line:col: message`` line, reported once however the paths overlap. An app manifest
 also has the property and rule files it names checked against what the app provides
-(:mod:`rasm.platform.signals`).
+(:mod:`rasm.platform.signals`), and the charts it names against their places
+(:mod:`rasm.platform.app_charts`); a chart named like a platform chart is held to that chart's
+interface.
 """
 
 from __future__ import annotations
@@ -40,8 +42,21 @@ def _errors_of(exc: BaseException) -> list[str]:
 def _lint_statechart(path: Path, text: str) -> list[str]:
     from rasm.statechart.load import check_statechart
 
-    _, problems = check_statechart(text, str(path))
-    return [p.one_line() for p in problems]
+    chart, problems = check_statechart(text, str(path))
+    found = [p.one_line() for p in problems]
+    if chart is not None:
+        found += _lint_interface(path, chart.name)
+    return found
+
+
+def _lint_interface(path: Path, name: str) -> list[str]:
+    """A chart named like a platform chart (a copy to replace it) is held to that chart's
+    interface, as the app that names it would be."""
+    from rasm.platform.app_charts import interface_problems, platform_chart_names
+
+    if name not in platform_chart_names():
+        return []
+    return [_one_line(e) for e in interface_problems(name, path)]
 
 
 def _lint_properties(path: Path, text: str) -> list[str]:

@@ -148,3 +148,15 @@ def test_an_unknown_platform_chart_name_is_refused_at_its_key(tmp_path):
         and "'telegraff' is not a platform chart" in p
         for p in lint_paths([str(app)])
     )
+
+
+def test_a_copy_named_like_a_platform_chart_is_held_to_its_interface_when_linted_alone(tmp_path):
+    chart = platform_chart("adaptation_orchestrator").read_text()
+    copy = tmp_path / "my_orchestrator.yaml"
+    copy.write_text(chart.replace("event: no_plan", "event: nothing_planned"))
+    [problem] = lint_paths([str(copy)])
+    assert problem.endswith(
+        "this replacement for the platform's adaptation_orchestrator chart has no transition on "
+        "'no_plan': the platform sends it that event, which would be ignored"
+    )
+    assert lint_paths([str(data_dir("statecharts"))]) == []  # the shipped ones honour theirs
