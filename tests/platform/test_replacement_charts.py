@@ -160,3 +160,10 @@ def test_a_copy_named_like_a_platform_chart_is_held_to_its_interface_when_linted
         "'no_plan': the platform sends it that event, which would be ignored"
     )
     assert lint_paths([str(data_dir("statecharts"))]) == []  # the shipped ones honour theirs
+
+
+def test_a_replacement_without_the_stage_timeouts_is_refused(tmp_path):
+    # an overrunning stage ends its iteration only by the chart's timeout: without it the loop
+    # would sit in the stage for good
+    app = app_with(tmp_path, "send('stage_timeout'", "send('stage_over'")
+    assert any("never sends 'stage_timeout'" in p for p in lint_paths([str(app)]))
