@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, SourceError, SourceErrors, read_utf8
+from rasm.errors import Location, SourceError, SourceErrors, mark, read_utf8
 from rasm.platform.chart_stages import STAGE_OUTCOMES
 from rasm.platform.manifest import AppManifest, is_chart_ref, manifest_location
 from rasm.platform.modes import mode_signals
@@ -39,6 +39,7 @@ __all__ = [
     "interface_of",
     "interface_problems",
     "outline",
+    "platform_chart_names",
     "stage_chart_problems",
 ]
 
@@ -169,6 +170,7 @@ def interface_of(name: str) -> dict[str, Any]:
 
 
 def platform_chart_names() -> list[str]:
+    """The platform charts with a declared interface: the names ``statecharts:`` may replace."""
     return sorted(key for key in _interfaces() if key not in ("description", "lifecycle"))
 
 
@@ -366,6 +368,9 @@ def _mode_signal_clashes(manifest: AppManifest, written: dict[str, str]) -> Iter
 
 
 def _error(message: str, where: Location, width: int = 1) -> SourceError:
-    from rasm.platform.signals import _error as marked
-
-    return marked(message, where, width)
+    """A problem at ``where``, with the marked excerpt of its line when the file reads."""
+    try:
+        text = read_utf8(where.file)
+    except (OSError, SourceError):
+        return SourceError(message, where)
+    return SourceError(message, where, mark(text, where.line, where.col, width))
