@@ -213,6 +213,19 @@ def _decode_plain(line: str) -> object:
     return None if line[end:].strip(" \t\n\r") else value
 
 
+_BLANK = object()  # what _decode gives for a blank line
+
+
+def _decode(line: str) -> object:
+    """A trace line's JSON value, or _BLANK; raises JsonProblem where it is no JSON text."""
+    record = _decode_plain(line)
+    if record is None:
+        if not line.strip():
+            return _BLANK
+        record = parse_json(line.rstrip("\r\n"))
+    return record
+
+
 def parse_records(
     lines: Iterable[str],
     signals: Mapping[str, str] | None = None,
@@ -241,15 +254,13 @@ def parse_records(
             hidden += 1
 
     for number, line in enumerate(lines, start=1):
-        record = _decode_plain(line)
-        if record is None:
-            if not line.strip():
-                continue
-            try:
-                record = parse_json(line.rstrip("\r\n"))
-            except JsonProblem as exc:
-                fail(exc.message, number, exc.column)
-                continue
+        try:
+            record = _decode(line)
+        except JsonProblem as exc:
+            fail(exc.message, number, exc.column)
+            continue
+        if record is _BLANK:
+            continue
         if not isinstance(record, dict):
             fail(f"a record must be a JSON object, not {type(record).__name__}", number)
             continue
@@ -327,14 +338,12 @@ def scan_records(
     """
     unchecked = unchecked or {}
     for number, line in enumerate(lines, start=1):
-        record = _decode_plain(line)
-        if record is None:
-            if not line.strip():
-                continue
-            try:
-                record = parse_json(line.rstrip("\r\n"))
-            except JsonProblem:
-                raise MalformedTrace(f"{source}:{number}: not a JSON text") from None
+        try:
+            record = _decode(line)
+        except JsonProblem:
+            raise MalformedTrace(f"{source}:{number}: not a JSON text") from None
+        if record is _BLANK:
+            continue
         if not isinstance(record, dict):
             raise MalformedTrace(f"{source}:{number}: not a JSON object")
         time = record.pop("time", None)
