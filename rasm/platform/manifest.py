@@ -396,6 +396,18 @@ def manifest_location(manifest: AppManifest, path: list[Any]) -> Location:
         return Location(str(manifest.file))
 
 
+def _load_mapping(file: Path, what: str) -> YamlSource:
+    """A YAML file whose top level must be a mapping (``what`` says which, when it is not)."""
+    try:
+        text = file.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise not_utf8(str(file), exc) from None
+    src = load_yaml(text, str(file))
+    if not isinstance(src.data, dict):
+        raise SourceErrors([src.error(what, src.node(src.data))])
+    return src
+
+
 def load_topic_map(path: str | Path, known: Any = None) -> tuple[list[Probe], Any]:
     """The probes of a topic map file (a ``probes:`` list, as in ``app.yaml``) and the type
     store their ROS 2 types need (``known``, default the standard interfaces, and ``msg/*.msg``
@@ -404,15 +416,7 @@ def load_topic_map(path: str | Path, known: Any = None) -> tuple[list[Probe], An
     file = Path(path)
     if not file.is_file():
         raise SourceErrors([SourceError("no such topic map file", Location(str(file)))])
-    try:
-        text = file.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise not_utf8(str(file), exc) from None
-    src = load_yaml(text, str(file))
-    if not isinstance(src.data, dict):
-        raise SourceErrors(
-            [src.error("a topic map is a mapping with a 'probes:' list", src.node(src.data))]
-        )
+    src = _load_mapping(file, "a topic map is a mapping with a 'probes:' list")
     errors = _schema_errors(src, TOPIC_MAP_SCHEMA)
     if errors:
         raise SourceErrors(errors)
@@ -436,19 +440,7 @@ def load_manifest(app: str | Path) -> AppManifest:
         else:
             problem = f"no such app folder or manifest: {path}"
         raise SourceErrors([SourceError(problem, Location(str(file)))])
-    try:
-        text = file.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise not_utf8(str(file), exc) from None
-    src = load_yaml(text, str(file))
-    if not isinstance(src.data, dict):
-        raise SourceErrors(
-            [
-                src.error(
-                    "an app manifest is a mapping (name, components, ...)", src.node(src.data)
-                )
-            ]
-        )
+    src = _load_mapping(file, "an app manifest is a mapping (name, components, ...)")
     errors = _schema_errors(src)
     if errors:
         raise SourceErrors(errors)
