@@ -28,7 +28,7 @@ def test_a_repaired_plan_is_executed_instead_of_a_cancelled_adaptation():
     trace = run_app(HOTBOX / "app.repair.yaml", seed=1, duration=40)
     repaired = [r for r in trace if "repaired_from" in r]
     assert [(r["time"], r["plan"], r["repaired_from"], r["power_limit"]) for r in repaired] == [
-        (15.0, "p2", "p1", 65.0)
+        (11.0, "p2", "p1", 65.0)
     ]
     assert "p2" in {r["plan"] for r in trace if r.get("executed")}
     stats = trace.summary.stats
@@ -36,5 +36,5 @@ def test_a_repaired_plan_is_executed_instead_of_a_cancelled_adaptation():
     assert trace.summary.ok
     without = run_app(HOTBOX / "app.repair.yaml", seed=1, duration=40, repair=False)
     stats = without.summary.stats
-    assert (stats.anomalies, stats.rejected, stats.executed, stats.cancelled) == (50, 100, 0, 50)
+    assert (stats.anomalies, stats.rejected, stats.executed, stats.cancelled) == (58, 116, 0, 58)
     assert without.summary.verdicts["timely_adaptation"] == "violated"
