@@ -73,8 +73,8 @@ def test_app_properties_are_drawn_with_props(page, hotbox_trace: Path, tmp_path:
     assert "temperature_band" in names and "heater_rating" in names
     assert "timely_adaptation" in names and "timely_response" in names
     signals = page.page.evaluate("document.getElementById('signals').data.map(d => d.name)")
-    # the signals the properties read come first
-    assert signals[:4] == ["heater_mode", "heater_power", "lid_open", "temperature"]
+    read = ["heater_mode", "heater_power", "lid_open", "temperature"]
+    assert signals[:4] == read  # read by properties: first
     assert page.errors == []
 
 
@@ -103,9 +103,9 @@ def test_adaptation_links_move_the_timelines(page, hotbox_report: Path) -> None:
 
 
 def test_a_link_to_a_moment_opens_there(page, hotbox_report: Path) -> None:
-    page.page.goto(hotbox_report.as_uri() + "#t=23.5")  # the second adaptation's time
-    page.page.wait_for_selector("body[data-focus='23.5']")
-    assert page.page.locator("#adaptation-2.selected").count() == 1
+    page.page.goto(hotbox_report.as_uri() + "#t=39")  # the boost at the second lid opening
+    page.page.wait_for_selector("body[data-focus='39']")
+    assert page.page.locator("#adaptation-3.selected").count() == 1
     assert page.errors == []
 
 
@@ -205,29 +205,3 @@ def test_every_state_is_shown_in_words_and_only_satisfied_is_green(page, tmp_pat
     assert shown["budget"][0] == "error" and "OverflowError" in shown["budget"][2]
     assert {shown[name][1] for name in ("fast_enough", "typo", "budget")}.isdisjoint({green})
     assert not page.errors
-
-
-def test_mode_changes_are_listed_and_hidden_without_a_modes_chart(
-    page, hotbox_report: Path, tmp_path: Path
-) -> None:
-    _open(page, hotbox_report)  # the Hotbox has a mode signal, no modes chart
-    assert page.page.locator("#mode-changes").is_hidden()
-    trace = tmp_path / "modes.jsonl"
-    records = [
-        {"time": 0.0, "mode": "scanning", "mode_scanning": True},
-        {"time": 2.3, "motor_rpm": 600.0, "mode": "stale", "mode_stale": True,
-         "mode_scanning": False},
-        {"time": 2.4, "dropped": True, "plan": "p1",
-         "explanation": "not applicable in managed-system mode 'stale' "
-                        "(lidar applies in scanning)"},
-    ]
-    trace.write_text("".join(json.dumps(r) + "\n" for r in records))
-    out = tmp_path / "modes.html"
-    assert main(["report", str(trace), "-o", str(out)]) == 0
-    _open(page, out)
-    rows = page.page.locator("#mode-table tbody tr")
-    assert [rows.nth(i).inner_text().split() for i in range(rows.count())] == [
-        ["0.000", "s", "scanning"], ["2.300", "s", "stale"],
-    ]
-    assert "mode 'stale'" in page.page.inner_text("#adaptations")
-    assert page.errors == []
