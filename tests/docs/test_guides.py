@@ -29,7 +29,6 @@ GUIDES = ["README.md", *sorted(f"docs/{p.name}" for p in (ROOT / "docs").glob("*
 # guides whose blocks are not yet made runnable, with why (RASM_DOCS_PENDING=1 runs them anyway)
 PENDING = {
     "docs/ros2.md": "its blocks need a Zenoh peer and recordings they do not create",
-    "docs/turtlebot.md": "its commands start servers and benchmarks",
 }
 COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
 COMMAND_TIMEOUT = 300  # seconds: the slowest guide command (a packaging) takes about a minute
