@@ -86,6 +86,10 @@ def _out_of(value: object, reason: str) -> Misfit:
 
 def _number(value: Any, kind: str, int_as_float: bool) -> int | float:
     """``value`` as the int or float ``kind`` keeps, or :class:`Misfit`."""
+    if isinstance(value, float):  # the common case, without the slower checks of the ABCs
+        if kind == "int":
+            raise _misfit(kind, value)
+        return float(value)
     if _is_bool(value) or not isinstance(value, numbers.Real):
         raise _misfit(kind, value)
     integral = isinstance(value, numbers.Integral)

@@ -55,6 +55,13 @@ def test_a_float_fits_a_float_finite_or_not_unless_finite_is_asked(x):
         assert str(misfit) == f"{x!r} is not a finite number"
 
 
+@given(st.floats())
+def test_a_float_never_fits_an_int_even_when_whole(x):
+    assert refused(x, "int").reason == "expected int, got float"
+    assert refused(np.float64(x), "int").reason == "expected int, got float64"
+    assert type(fit(np.float64(x), "float")) is float
+
+
 @given(st.floats(), st.floats(allow_nan=False), st.floats(0, 1e300))
 def test_a_number_fits_its_range_and_nan_no_range(x, low, width):
     high = low + width
