@@ -85,7 +85,7 @@ def read_field(message: Mapping[str, Any], path: str | FieldPath, typename: str 
             value = value[step]
         else:
             # a decoded message is a dict: checked first, before the Mapping ABC's slower check
-            if not isinstance(value, dict | Mapping):
+            if not isinstance(value, (dict, Mapping)):
                 where = _prefix(parsed.steps[:i]) or "the message"
                 raise FieldPathError(
                     f"field path {parsed.text!r}{what}: {where} is not a message, it has no "
