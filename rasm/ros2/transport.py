@@ -147,6 +147,16 @@ class KeepLastInbox(Generic[T]):
                 return None
             return self._queues[self._order.popleft()].popleft()
 
+    def get_all(self, timeout: float | None = None) -> list[T]:
+        """Every waiting item, in the order :meth:`get` would give them, once there is one;
+        empty once closed and empty, or when ``timeout`` expires. One lock for all of them."""
+        with self._cond:
+            if not self._order and not self._closed:
+                self._cond.wait_for(lambda: self._order or self._closed, timeout)
+            items = [self._queues[key].popleft() for key in self._order]
+            self._order.clear()
+            return items
+
     def close(self) -> None:
         """Wake every waiting :meth:`get`; items already queued can still be taken."""
         with self._cond:
@@ -424,18 +434,22 @@ class RosTransport(Transport):
 
     # -- the dispatcher -------------------------------------------------------------------------
     def _dispatch_loop(self) -> None:
-        while True:
-            item = self._inbox.get()
-            if item is None:
-                return
-            topic, data, uid, timestamp = item
-            try:
-                payload = topic.decode(data)
-            except MalformedMessage as exc:
-                self._reject(topic.name, "malformed", str(exc))
-                continue
-            try:
-                ok, failed = self._deliver(Message(topic.name, payload, uid, timestamp))
-                self.stats.add_delivery(ok, failed)
-            except Exception:  # _deliver catches callback errors; a last line of defence
-                _log.exception("error dispatching a message on %s", topic.name)
+        # what arrived while the last ones were delivered is taken at once: at high rates one
+        # wake-up and one lock for many messages, not one each
+        while items := self._inbox.get_all():
+            for item in items:
+                self._dispatch(*item)
+
+    def _dispatch(
+        self, topic: RosTopic, data: bytes, uid: str | None, timestamp: float | None
+    ) -> None:
+        try:
+            payload = topic.decode(data)
+        except MalformedMessage as exc:
+            self._reject(topic.name, "malformed", str(exc))
+            return
+        try:
+            ok, failed = self._deliver(Message(topic.name, payload, uid, timestamp))
+            self.stats.add_delivery(ok, failed)
+        except Exception:  # _deliver catches callback errors; a last line of defence
+            _log.exception("error dispatching a message on %s", topic.name)

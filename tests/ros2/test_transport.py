@@ -38,6 +38,34 @@ def test_the_inbox_keeps_the_last_depth_items_of_each_key_in_order(puts, limit):
     assert inbox.dropped == len(puts) - len(out)
 
 
+@given(_puts, st.integers(1, 30), st.integers(0, 60))
+def test_the_inbox_drained_at_once_gives_what_get_gives_one_by_one(puts, limit, cut):
+    one, drained = KeepLastInbox(limit), KeepLastInbox(limit)
+    out_one, out_drained = [], []
+    for number, (key, depth) in enumerate(puts):  # taken part way through, then at the end
+        for inbox in (one, drained):
+            inbox.put(key, (key, number), depth)
+        if number == cut:
+            while (item := one.get(timeout=0)) is not None:
+                out_one.append(item)
+            out_drained += drained.get_all(timeout=0)
+    while (item := one.get(timeout=0)) is not None:
+        out_one.append(item)
+    out_drained += drained.get_all(timeout=0)
+    assert out_drained == out_one
+    assert drained.get_all(timeout=0) == [] and len(drained) == 0
+    assert drained.dropped == one.dropped
+
+
+def test_a_closed_inbox_still_gives_what_it_holds_then_nothing():
+    inbox = KeepLastInbox(10)
+    inbox.put("a", 1, None)
+    inbox.put("b", 2, None)
+    inbox.close()
+    assert inbox.get_all() == [1, 2]
+    assert inbox.get_all() == []  # closed and empty: no wait
+
+
 def test_keep_all_is_bounded_by_the_inbox_limit():
     inbox = KeepLastInbox(3)
     for i in range(5):
