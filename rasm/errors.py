@@ -88,6 +88,16 @@ def mark(text: str, line: int, col: int, width: int = 1) -> str | None:
     return f"    {left}{source}{right}\n    {pad}{'^' * width}"
 
 
+def marked_error(message: str, where: Location, width: int = 1) -> SourceError:
+    """A :class:`SourceError` at ``where`` with the marked excerpt of its line, when the file
+    reads (else without one)."""
+    try:
+        text = read_utf8(where.file)
+    except (OSError, SourceError):
+        return SourceError(message, where)
+    return SourceError(message, where, mark(text, where.line, where.col, width))
+
+
 def printable(text: str) -> str:
     """``text`` with control characters other than newline and tab escaped (``\\x1b``): a
     message that quotes a hostile file cannot drive the terminal it is printed on."""

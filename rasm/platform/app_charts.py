@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, SourceError, SourceErrors, mark, read_utf8
+from rasm.errors import Location, SourceError, SourceErrors, marked_error, read_utf8
 from rasm.platform.chart_stages import STAGE_OUTCOMES
 from rasm.platform.manifest import AppManifest, is_chart_ref, manifest_location
 from rasm.platform.modes import mode_signals
@@ -181,7 +181,7 @@ def interface_problems(name: str, path: str | Path) -> list[SourceError]:
     problems = []
     for state in interface["states"]:
         if state not in found.states:
-            problems.append(_error(
+            problems.append(marked_error(
                 f"this replacement for the platform's {name} chart has no state '{state}': the "
                 f"platform relies on it (its {name} chart's interface: states "
                 f"{', '.join(interface['states'])})",
@@ -189,7 +189,7 @@ def interface_problems(name: str, path: str | Path) -> list[SourceError]:
             ))
     for event, states in interface["receives"].items():
         if event not in found.receives:
-            problems.append(_error(
+            problems.append(marked_error(
                 f"this replacement for the platform's {name} chart has no transition on "
                 f"'{event}': the platform sends it that event, which would be ignored",
                 found.start,
@@ -197,7 +197,7 @@ def interface_problems(name: str, path: str | Path) -> list[SourceError]:
             continue
         for state in states:
             if state in found.states and not found.takes(event, state):
-                problems.append(_error(
+                problems.append(marked_error(
                     f"no transition on '{event}' leaves state '{state}' (nor a state around "
                     f"it): the platform sends '{event}' to its {name} chart in '{state}', "
                     "where it would be ignored",
@@ -206,7 +206,7 @@ def interface_problems(name: str, path: str | Path) -> list[SourceError]:
                 ))
     for event in interface["sends"]:
         if event not in found.sends:
-            problems.append(_error(
+            problems.append(marked_error(
                 f"this replacement for the platform's {name} chart never sends '{event}': "
                 f"the platform listens for it (write send('{event}') where it happens)",
                 found.start,
@@ -225,13 +225,13 @@ def stage_chart_problems(stage: str, path: str | Path) -> list[SourceError]:
     found = outline(path)
     problems = []
     if stage not in found.receives:
-        problems.append(_error(
+        problems.append(marked_error(
             f"a chart for the {stage} stage needs a transition on the event '{stage}': the "
             "platform sends it once per iteration, and the chart answers it",
             found.start,
         ))
     if not set(allowed) & set(found.sends):
-        problems.append(_error(
+        problems.append(marked_error(
             f"this chart for the {stage} stage never sends an outcome: it answers "
             f"'{stage}' with send() of {_either(allowed)}",
             found.start,
@@ -242,7 +242,7 @@ def stage_chart_problems(stage: str, path: str | Path) -> list[SourceError]:
         others = [s for s, outcomes in STAGE_OUTCOMES.items() if event in outcomes]
         why = f"the {others[0]} stage's outcome, not" if others else "not"
         for where in places:
-            problems.append(_error(
+            problems.append(marked_error(
                 f"'{event}' is {why} an outcome of the {stage} stage (it answers with "
                 f"{_either(allowed)})",
                 where,
@@ -342,7 +342,7 @@ def _unknown_effectors(manifest: AppManifest, path: Path) -> list[SourceError]:
             suggestion = closest(name, manifest.effectors)
             if suggestion is not None:
                 message += f": did you mean '{suggestion}'?"
-            problems.append(_error(message, where, len(name) + 2))
+            problems.append(marked_error(message, where, len(name) + 2))
     return problems
 
 
@@ -365,12 +365,3 @@ def _mode_signal_clashes(manifest: AppManifest, written: dict[str, str]) -> Iter
                 manifest_location(manifest, [*manifest.component_path("monitor")[:-1],
                                              "produces", key]),
             )
-
-
-def _error(message: str, where: Location, width: int = 1) -> SourceError:
-    """A problem at ``where``, with the marked excerpt of its line when the file reads."""
-    try:
-        text = read_utf8(where.file)
-    except (OSError, SourceError):
-        return SourceError(message, where)
-    return SourceError(message, where, mark(text, where.line, where.col, width))

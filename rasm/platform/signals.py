@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, SourceError, SourceErrors, mark, read_utf8
+from rasm.errors import Location, SourceError, SourceErrors, marked_error, read_utf8
 from rasm.loop import LOOP_SIGNAL_TYPES
 from rasm.platform.manifest import AppManifest, manifest_location
 from rasm.resources import data_dir
@@ -239,18 +239,10 @@ def _parsed(path: Path, load: Any, problems: list[SourceError]) -> Any:
     return None
 
 
-def _error(message: str, where: Location, width: int = 1) -> SourceError:
-    try:
-        text = read_utf8(where.file)
-    except (OSError, SourceError):
-        return SourceError(message, where)
-    return SourceError(message, where, mark(text, where.line, where.col, width))
-
-
 def _property_problems(spec: Any, have: Provided) -> list[SourceError]:
     problems = []
     for name, where, what in unprovided(spec, have.trace):
-        problems.append(_error(_not_provided(name, what, have.trace), where, len(name)))
+        problems.append(marked_error(_not_provided(name, what, have.trace), where, len(name)))
     declared = {item.name: item.location for item in (*spec.inputs, *spec.events)}
     first_read = {}
     for name, where in reads(spec):
@@ -262,7 +254,7 @@ def _property_problems(spec: Any, have: Provided) -> list[SourceError]:
         where = declared.get(name) or first_read.get(name) or Location(spec.source)
         used = {"int": "an int", "any": "a plain value"}.get(kind, f"a {kind}")
         problems.append(
-            _error(
+            marked_error(
                 f"signal '{name}' is read as {used} but {provider.origin} gives it as "
                 f"{provider.type}: every value would be refused and no property reading it "
                 "judged",
@@ -308,10 +300,10 @@ def _rule_problems(rules: Any, have: Provided) -> list[SourceError]:
                     "; the app declares no plan fields: list the fields of its plans under "
                     "components.plan.produces"
                 )
-            problems.append(_error(message, where, len(name)))
+            problems.append(marked_error(message, where, len(name)))
         elif provider.type != "any" and provider.type not in _RULE_TAKES[variable.type]:
             problems.append(
-                _error(
+                marked_error(
                     f"rule variable '{name}' is {variable.type} but {provider.origin} gives it "
                     f"as {provider.type}: the rules reading it would reject every plan",
                     where,
