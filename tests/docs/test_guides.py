@@ -27,9 +27,7 @@ ROOT = Path(__file__).resolve().parents[2]
 HARNESS = Path(__file__).with_name("harness.py")
 GUIDES = ["README.md", *sorted(f"docs/{p.name}" for p in (ROOT / "docs").glob("*.md"))]
 # guides whose blocks are not yet made runnable, with why (RASM_DOCS_PENDING=1 runs them anyway)
-PENDING = {
-    "docs/ros2.md": "its blocks need a Zenoh peer and recordings they do not create",
-}
+PENDING: dict[str, str] = {}
 COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
 COMMAND_TIMEOUT = 300  # seconds: the slowest guide command (a packaging) takes about a minute
 SEPARATOR = "\x1e"  # between the outputs of a console block's commands
