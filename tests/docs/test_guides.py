@@ -5,7 +5,7 @@ The blocks of one guide share its folder (a file an early block writes is there 
 as they would for a reader going down the page. A block that cannot be run says why, in the
 guide (``<!-- not run: … -->``); :mod:`tests.docs.guides` has the conventions. The well-known
 ports the guides use (1883, 6379, 8086) are those of real servers started on free loopback ports
-for the guides that use them.
+for the guides that use them; 7448, where a guide's Zenoh session listens, becomes a free port.
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ import tempfile
 from pathlib import Path
 
 import pytest
+
+from rasm.testing.servers import free_port
 
 from .guides import Block, console_commands, output_matches, read_blocks
 
@@ -50,12 +52,16 @@ def workdir(tmp: Path) -> Path:
 
 
 class Servers:
-    """Real servers on free loopback ports, started the first time a guide names their port."""
+    """Real servers on free loopback ports, started the first time a guide names their port; and
+    for a port the guide's own code listens on (a Zenoh session that is its own meeting point),
+    one free loopback port for the whole guide, so that guides run at once never clash."""
 
     PORTS = {"1883": "shared_broker", "6379": "redis_server", "8086": "influx"}
+    LISTENED = ("7448",)
 
     def __init__(self, request: pytest.FixtureRequest) -> None:
         self.request = request
+        self.free: dict[str, int] = {}
 
     def substitute(self, text: str) -> str:
         for port, fixture in self.PORTS.items():
@@ -63,6 +69,12 @@ class Servers:
                 if f"{host}:{port}" in text:
                     server = self.request.getfixturevalue(fixture)
                     text = text.replace(f"{host}:{port}", f"127.0.0.1:{server.port}")
+        for port in self.LISTENED:
+            for host in ("127.0.0.1", "localhost"):
+                if f"{host}:{port}" in text:
+                    if port not in self.free:
+                        self.free[port] = free_port()
+                    text = text.replace(f"{host}:{port}", f"127.0.0.1:{self.free[port]}")
         return text
 
 

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
+import re
+import socket
+
 from hypothesis import given
 from hypothesis import strategies as st
 
 from .guides import console_commands, output_matches, read_blocks
+from .test_guides import Servers
 
 # printable lines without the elision mark, and not ending in blanks (trailing blanks are ignored)
 LINE = st.text(st.characters(blacklist_categories=("Cc", "Cs"), blacklist_characters="\n."),
@@ -54,3 +59,18 @@ def test_blocks_their_directives_and_commands(tmp_path):
         ("rasm check p.rv t.jsonl", ["ok"]), ("echo $?", ["0"])
     ]
     assert [c.line for c in commands] == [19, 21]
+
+
+def test_a_port_the_guide_listens_on_is_one_free_port_for_all_its_blocks(request):
+    servers = Servers(request)
+    block = 'open_transport("zenoh://127.0.0.1:7448", listen=["tcp/127.0.0.1:7448"])'
+    with socket.socket() as shown_port:
+        # held (or someone else's already): the free port cannot be the one the guide shows
+        with contextlib.suppress(OSError):
+            shown_port.bind(("127.0.0.1", 7448))
+        first = re.findall(r"127\.0\.0\.1:(\d+)", servers.substitute(block))
+    later = re.findall(r"127\.0\.0\.1:(\d+)", servers.substitute("zenoh://localhost:7448"))
+    assert len(set(first + later)) == 1 and first[0] != "7448"
+    with socket.socket() as sock:  # nobody listens there: the guide's session can
+        sock.bind(("127.0.0.1", int(first[0])))
+    assert servers.substitute("zenoh://127.0.0.1:7447") == "zenoh://127.0.0.1:7447"
