@@ -201,6 +201,10 @@ class ZenohTransport(RosTransport):
                 config.insert_json5(key, json.dumps(value))
             self._session = zenoh.open(config)
         except zenoh.ZError as exc:
+            if "listener" in str(exc):  # the session's own listen address, not the peer
+                raise CommError(
+                    f"could not listen on {', '.join(self.listen)}: {exc}"
+                ) from None
             raise CommError(
                 f"could not reach a Zenoh router or peer at {self.host}:{self.port} within "
                 f"{self.connect_timeout:g} s ({exc}); is one running there? (ROS 2: "

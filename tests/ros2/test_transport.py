@@ -142,3 +142,16 @@ def test_a_topics_qos_cannot_change_once_in_use(transports, dds_domain):
     with pytest.raises(CommError, match="its QoS cannot change now"):
         transport.declare("/odom", "nav_msgs/msg/Odometry", qos={"depth": 4})
     assert transport.topics["/odom"].qos.depth == 3
+
+
+def test_a_zenoh_session_that_cannot_listen_says_so_not_that_no_router_answered():
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        t = open_transport(f"zenoh://127.0.0.1:{port}", listen=[f"tcp/127.0.0.1:{port}"])
+        with pytest.raises(CommError, match=f"could not listen on tcp/127.0.0.1:{port}") as err:
+            t.connect()
+    assert "router" not in str(err.value)
