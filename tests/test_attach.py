@@ -441,8 +441,9 @@ def test_with_no_topic_map_a_rasm_loop_is_monitored_from_its_trace_topic(broker,
     trace = tmp_path / "trace.jsonl"
     run = subprocess.run(
         [sys.executable, "-m", "rasm.cli", "run", str(root / "examples" / "hotbox"),
-         "--transport", broker.url, "--clock", "simulated", "--seed", "1",
-         "--duration", "20", "--trace", str(trace)],
+         # the wall clock: a simulated run does not wait for the broker to deliver readings
+         "--transport", broker.url, "--clock", "wall", "--seed", "1",
+         "--duration", "3", "--trace", str(trace)],
         capture_output=True, text=True, timeout=120, cwd=tmp_path,
     )
     assert run.returncode == 0, run.stdout + run.stderr
