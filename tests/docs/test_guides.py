@@ -91,6 +91,10 @@ def environment(home: Path) -> dict[str, str]:
         ),
     )
     env.pop("PYTHONPATH", None)
+    # pytest prints whole failure messages in its summary when CI or BUILD_NUMBER is set; the
+    # guides show what a user's terminal shows
+    env.pop("CI", None)
+    env.pop("BUILD_NUMBER", None)
     # ~ and temporary files in the test's folder (a guide deploys to ~/hotbox); pip's cache
     # stays the user's, so that packaging finds what it downloaded before
     env["PIP_CACHE_DIR"] = os.environ.get("PIP_CACHE_DIR", str(Path.home() / ".cache" / "pip"))
