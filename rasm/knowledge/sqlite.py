@@ -20,8 +20,8 @@ import sqlite3
 import sys
 import threading
 from collections import deque
-from itertools import repeat
 from pathlib import Path
+from typing import Any
 
 from rasm.errors import KnowledgeError
 from rasm.knowledge.base import KnowledgeBase, Sample
@@ -30,17 +30,18 @@ from rasm.knowledge.values import (
     Declaration,
     decode,
     encode,
-    encode_all,
     infer_type,
     make_check,
 )
 
 _log = logging.getLogger("rasm.knowledge")
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 DEFAULT_KEEP = 10_000
 """Samples kept on disk per key unless ``keep`` says otherwise."""
 
+# One row per key per flush: a flush writes a handful of rows, not one per sample (a simulated
+# hour of the Hotbox registers 230k values), and each row's times and values are one JSON text.
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS declarations (
     key TEXT PRIMARY KEY,
@@ -49,14 +50,16 @@ CREATE TABLE IF NOT EXISTS declarations (
     minimum TEXT,            -- JSON number or NULL (TEXT: an int bound keeps every digit)
     maximum TEXT
 );
-CREATE TABLE IF NOT EXISTS samples (
-    seq INTEGER PRIMARY KEY, -- insertion order: orders samples of a key even at equal times
+CREATE TABLE IF NOT EXISTS batches (
+    seq INTEGER PRIMARY KEY, -- flush order: orders the batches of a key even at equal times
     key TEXT NOT NULL,
-    time REAL NOT NULL,
+    count INTEGER NOT NULL,  -- samples in the batch
+    last REAL NOT NULL,      -- time of its newest sample
     type TEXT NOT NULL,
-    value TEXT NOT NULL      -- JSON text (Python's dialect: NaN and Infinity allowed)
+    times TEXT NOT NULL,     -- JSON array of the times, oldest first
+    "values" TEXT NOT NULL   -- JSON array of the values (Python's dialect: NaN and Infinity)
 );
-CREATE INDEX IF NOT EXISTS samples_by_key ON samples (key, seq);
+CREATE INDEX IF NOT EXISTS batches_by_key ON batches (key, seq);
 """
 
 _BEFORE_ALL = -sys.float_info.max
@@ -92,7 +95,7 @@ class SqliteStorage(Storage):
         self._known: dict[str, Declaration] = {}  # on disk or waiting to be written
         self._last: dict[str, float] = {}  # newest time taken from the buffer, per key
         self._written: dict[str, Declaration] = {}  # as on disk
-        self._counts: dict[str, int] = {}  # rows on disk per key (we are the only writer)
+        self._counts: dict[str, int] = {}  # samples on disk per key (we are the only writer)
         self._lock_fd = _take_lock(self.path)
         try:
             if fresh:  # only once the lock is ours: never under another run's open file
@@ -117,7 +120,8 @@ class SqliteStorage(Storage):
         try:
             version = db.execute("PRAGMA user_version").fetchone()[0]
             tables = {row[0] for row in db.execute("SELECT name FROM sqlite_master")}
-            if version != SCHEMA_VERSION and (version != 0 or tables):
+            known_version = version in (1, SCHEMA_VERSION) or (version == 0 and not tables)
+            if not known_version:
                 raise KnowledgeError(
                     f"{self.path} is not a rasm knowledge file of schema {SCHEMA_VERSION} "
                     f"(user_version {version}): point sqlite: at another file"
@@ -127,14 +131,20 @@ class SqliteStorage(Storage):
                 _log.warning("%s: journal mode is %s, not WAL (file system?)", self.path, mode)
             db.execute(f"PRAGMA synchronous={'FULL' if self.durable else 'NORMAL'}")
             # one transaction: a kill half-way never leaves tables without the version mark
-            db.executescript(f"BEGIN; {_SCHEMA} PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
+            db.execute("BEGIN IMMEDIATE")
+            for statement in _SCHEMA.split(";"):
+                db.execute(statement)
+            if version == 1:
+                _convert_schema_1(db)
+            db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+            db.execute("COMMIT")
             for key, type_, history, lo, hi in db.execute(
                 "SELECT key, type, history, minimum, maximum FROM declarations"
             ):
                 decl = _declaration(self.path, key, type_, history, lo, hi)
                 self._written[key] = self._known[key] = decl
             for key, count, last in db.execute(
-                "SELECT key, COUNT(*), MAX(time) FROM samples GROUP BY key"
+                "SELECT key, SUM(count), MAX(last) FROM batches GROUP BY key"
             ):
                 self._counts[key] = count
                 self._last[key] = last
@@ -194,8 +204,8 @@ class SqliteStorage(Storage):
         key that holds a sixteenth more than ``keep`` rows back to ``keep``, and return how
         many samples were written.
 
-        The batch goes to SQLite as one ``executemany`` per table, its values encoded key by
-        key in one call of the JSON encoder each. On a failure nothing is written, the samples
+        Each key's buffered samples go in as one row (its times and its values each one JSON
+        array), all rows in one ``executemany``. On a failure nothing is written, the samples
         go back to the buffer and :class:`KnowledgeError` says why.
         """
         with self._db_lock:
@@ -215,18 +225,17 @@ class SqliteStorage(Storage):
             changed = [d for key, d in known.items() if self._written.get(key) != d]
             if not batch and not changed:
                 return 0
-            rows: list[tuple[str, float, str, str]] = []
+            rows: list[tuple[str, int, float, str, str, str]] = []
             counts: dict[str, int] = {}
             for key, queue in batch.items():
                 times, values = zip(*queue, strict=True)
-                kind = known[key].type
-                rows.extend(zip(repeat(key), times, repeat(kind), encode_all(values)))
+                rows.append(
+                    (key, len(times), times[-1], known[key].type, encode(times), encode(values))
+                )
                 counts[key] = self._counts.get(key, 0) + len(queue)
-            # the oldest rows of each key beyond `keep` (the index on (key, seq) finds them),
-            # once there are a sixteenth more: deleting them every flush dirtied the pages at
-            # each key's start in every transaction
-            pruned = [(key, count - self.keep) for key, count in counts.items()
-                      if count > self.keep + self.keep // 16]
+            # a key is pruned back to `keep` once it holds a sixteenth more: pruning every flush
+            # rewrote the rows at each key's start in every transaction
+            pruned = [key for key, count in counts.items() if count > self.keep + self.keep // 16]
             try:
                 db.execute("BEGIN IMMEDIATE")
                 db.executemany(
@@ -234,13 +243,12 @@ class SqliteStorage(Storage):
                     [_declaration_row(d) for d in changed],
                 )
                 db.executemany(
-                    "INSERT INTO samples (key, time, type, value) VALUES (?, ?, ?, ?)", rows
+                    'INSERT INTO batches (key, count, last, type, times, "values") '
+                    "VALUES (?, ?, ?, ?, ?, ?)",
+                    rows,
                 )
-                db.executemany(
-                    "DELETE FROM samples WHERE seq IN (SELECT seq FROM samples "
-                    "WHERE key = ? ORDER BY seq LIMIT ?)",
-                    pruned,
-                )
+                for key in pruned:
+                    _prune(db, key, counts[key] - self.keep)
                 db.execute("COMMIT")
             except sqlite3.Error as exc:
                 if db.in_transaction:
@@ -248,13 +256,13 @@ class SqliteStorage(Storage):
                 self._unbuffer(batch)
                 raise KnowledgeError(f"cannot write knowledge to {self.path}: {exc}") from exc
             self._counts.update(counts)
-            self._counts.update((key, self.keep) for key, _ in pruned)
+            self._counts.update((key, self.keep) for key in pruned)
             for decl in changed:
                 self._written[decl.key] = decl
             with self._buf_lock:
                 for decl in changed:
                     self._known[decl.key] = decl
-            return len(rows)
+            return sum(len(queue) for queue in batch.values())
 
     def _unbuffer(self, batch: dict[str, deque[Sample]]) -> None:
         """Put a batch that could not be written back in front of what came since."""
@@ -285,7 +293,7 @@ class SqliteStorage(Storage):
             db = self._open_db()
             stored = dict(self._written)
             keys = list(stored)
-            on_disk = db.execute("SELECT DISTINCT key FROM samples")
+            on_disk = db.execute("SELECT DISTINCT key FROM batches")
             keys += [key for (key,) in on_disk if key not in stored]
             plan: list[tuple[str, Declaration | None, list[Sample]]] = []
             for key in keys:
@@ -296,13 +304,9 @@ class SqliteStorage(Storage):
                     )
                 current = kb.declaration(key)
                 decl = current or stored.get(key)
-                rows = db.execute(
-                    "SELECT time, value FROM samples WHERE key = ? ORDER BY seq DESC LIMIT ?",
-                    (key, decl.history if decl else kb.default_history),
-                ).fetchall()
-                rows.reverse()
+                rows = self._newest(db, key, decl.history if decl else kb.default_history)
                 if decl is None:  # samples without a stored declaration: infer, as on a write
-                    decl = Declaration(key, infer_type(decode(rows[0][1])), kb.default_history)
+                    decl = Declaration(key, infer_type(rows[0][1]), kb.default_history)
                 samples = self._check_rows(decl, rows, strict)
                 plan.append((key, None if current else decl, samples))
             total = 0
@@ -318,19 +322,41 @@ class SqliteStorage(Storage):
                 total += kb.load_samples(key, samples)
             return total
 
+    def _newest(self, db: sqlite3.Connection, key: str, limit: int) -> list[tuple[float, Any]]:
+        """The newest ``limit`` (time, value) pairs of ``key`` on disk, oldest first."""
+        newest_first: list[list[tuple[float, Any]]] = []
+        found = 0
+        for times, values in db.execute(
+            'SELECT times, "values" FROM batches WHERE key = ? ORDER BY seq DESC', (key,)
+        ):
+            try:
+                times, values = decode(times), decode(values)
+                if not isinstance(times, list) or not isinstance(values, list):
+                    raise ValueError("a batch's times and values are not JSON arrays")
+                if len(times) != len(values):
+                    raise ValueError(f"{len(times)} times for {len(values)} values")
+            except ValueError as exc:
+                raise KnowledgeError(f"{self.path} is damaged: key {key!r}: {exc}") from exc
+            newest_first.append(list(zip(times, values, strict=True)))
+            found += len(times)
+            if found >= limit:
+                break
+        return [pair for batch in reversed(newest_first) for pair in batch][-limit:]
+
     def _check_rows(
-        self, decl: Declaration, rows: list[tuple[float, str]], strict: bool
+        self, decl: Declaration, rows: list[tuple[float, Any]], strict: bool
     ) -> list[Sample]:
         check = make_check(decl)
         samples: list[Sample] = []
         skipped: list[KnowledgeError] = []
         last = _BEFORE_ALL
-        for time, text in rows:
+        for time, value in rows:
             try:
+                if isinstance(time, bool) or not isinstance(time, int | float):
+                    raise ValueError(f"time {time!r} is not a number")
                 if not last <= time:  # only a file edited by hand can get here
                     raise ValueError(f"time goes back to {time!r} after {last!r}")
                 last = time
-                value = decode(text)
             except ValueError as exc:
                 raise KnowledgeError(f"{self.path} is damaged: key {decl.key!r}: {exc}") from exc
             try:
@@ -365,6 +391,48 @@ class SqliteStorage(Storage):
                 self._db = None
                 _release_lock(self._lock_fd)
                 self._lock_fd = None
+
+
+def _prune(db: sqlite3.Connection, key: str, excess: int) -> None:
+    """Delete the oldest ``excess`` samples of ``key``: whole batches, then the head of one."""
+    doomed: list[int] = []
+    cut: tuple[int, int, int] | None = None  # (seq, count, how many of its oldest go)
+    oldest_first = db.execute("SELECT seq, count FROM batches WHERE key = ? ORDER BY seq", (key,))
+    for seq, count in oldest_first:  # read only as far as the excess reaches
+        if count > excess:
+            cut = (seq, count, excess) if excess > 0 else None
+            break
+        doomed.append(seq)
+        excess -= count
+    oldest_first.close()
+    db.executemany("DELETE FROM batches WHERE seq = ?", [(seq,) for seq in doomed])
+    if cut is not None:
+        seq, count, head = cut
+        times, values = db.execute(
+            'SELECT times, "values" FROM batches WHERE seq = ?', (seq,)
+        ).fetchone()
+        db.execute(
+            'UPDATE batches SET count = ?, times = ?, "values" = ? WHERE seq = ?',
+            (count - head, encode(decode(times)[head:]), encode(decode(values)[head:]), seq),
+        )
+
+
+def _convert_schema_1(db: sqlite3.Connection) -> None:
+    """Rewrite a schema-1 file's samples (one row per sample, written by an earlier rasm) as
+    batches, inside the caller's transaction."""
+    runs: dict[str, tuple[str, list[float], list[object]]] = {}
+    for key, time, type_, text in db.execute(
+        "SELECT key, time, type, value FROM samples ORDER BY seq"
+    ):
+        runs.setdefault(key, (type_, [], []))
+        runs[key][1].append(time)
+        runs[key][2].append(decode(text))
+    db.executemany(
+        'INSERT INTO batches (key, count, last, type, times, "values") VALUES (?, ?, ?, ?, ?, ?)',
+        [(key, len(times), times[-1], type_, encode(times), encode(values))
+         for key, (type_, times, values) in runs.items()],
+    )
+    db.execute("DROP TABLE samples")
 
 
 def _declaration(

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import numbers
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,7 +20,7 @@ from rasm.errors import KnowledgeError, Misfit
 from rasm.values import TYPES, fit, infer_type
 
 __all__ = [
-    "DEFAULT_HISTORY", "TYPES", "Check", "Declaration", "decode", "encode", "encode_all",
+    "DEFAULT_HISTORY", "TYPES", "Check", "Declaration", "decode", "encode",
     "infer_type", "make_check",
 ]
 
@@ -89,21 +89,14 @@ def make_check(decl: Declaration) -> Check:
     return check
 
 
+# one encoder for every call: json.dumps with options builds a new one each time, which cost more
+# than the encoding of a flush's batch
+_ENCODER = json.JSONEncoder(separators=(",", ":"))
+
+
 def encode(value: Any) -> str:
     """The JSON text a value is stored as (Python's dialect: NaN and Infinity allowed)."""
-    return json.dumps(value, separators=(",", ":"))
-
-
-def encode_all(values: Sequence[Any]) -> list[str]:
-    """:func:`encode` of each value, in one call of the JSON encoder for the whole list.
-
-    The list's text is cut at its commas: exact when no value's own text holds one (numbers,
-    booleans, most strings), which the count of the pieces tells; else each is encoded alone.
-    """
-    pieces = json.dumps(list(values), separators=(",", ":"))[1:-1].split(",")
-    if len(pieces) == len(values):
-        return pieces
-    return [encode(value) for value in values]
+    return _ENCODER.encode(value)
 
 
 def decode(text: str) -> Any:
