@@ -20,6 +20,7 @@ import sqlite3
 import sys
 import threading
 from collections import deque
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -230,7 +231,8 @@ class SqliteStorage(Storage):
             for key, queue in batch.items():
                 times, values = zip(*queue, strict=True)
                 rows.append(
-                    (key, len(times), times[-1], known[key].type, encode(times), encode(values))
+                    (key, len(times), times[-1], known[key].type, _times_text(times),
+                     encode(values))
                 )
                 counts[key] = self._counts.get(key, 0) + len(queue)
             # a key is pruned back to `keep` once it holds a sixteenth more: pruning every flush
@@ -391,6 +393,12 @@ class SqliteStorage(Storage):
                 self._db = None
                 _release_lock(self._lock_fd)
                 self._lock_fd = None
+
+
+def _times_text(times: Sequence[float]) -> str:
+    """The JSON array of finite floats (what a buffer's times are): their reprs, which are their
+    JSON texts, joined; the JSON encoder's set-up cost more than this per flush and key."""
+    return f"[{','.join(map(repr, times))}]"
 
 
 def _prune(db: sqlite3.Connection, key: str, excess: int) -> None:

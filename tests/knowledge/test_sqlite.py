@@ -432,3 +432,18 @@ def test_writers_and_a_flusher_in_parallel_persist_every_sample_once(tmp_path):
     back = restored(path)
     for t in range(threads):
         assert [s.value for s in back.history(f"k{t}")] == list(range(per_thread))
+
+
+@SETTINGS
+@given(st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=1, max_size=20))
+def test_persisted_times_come_back_exactly(times):
+    times = sorted(times)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "k.db"
+        kb = KnowledgeBase()
+        kb.declare("k", "int", history=50)
+        with SqliteStorage(path) as storage:
+            storage.attach(kb)
+            for i, time in enumerate(times):
+                kb.register_knowledge("k", i, time)
+        assert [s.time for s in restored(path).history("k")] == times
