@@ -44,6 +44,9 @@ class Sample(NamedTuple):
 Callback = Callable[[str, Sample], object]
 """Called as ``callback(key, sample)`` after each registration."""
 
+BatchCallback = Callable[[list[tuple[str, Sample]]], object]
+"""Called as ``callback(samples)`` with the ``(key, sample)`` pairs of one registration call."""
+
 
 def _time_of(sample: Sample) -> float:
     return sample.time
@@ -96,9 +99,12 @@ class _Series:
 class Subscription:
     """Handle returned by :meth:`KnowledgeBase.subscribe`: call it (or ``cancel()``) to stop."""
 
-    def __init__(self, kb: KnowledgeBase, callback: Callback) -> None:
+    def __init__(
+        self, kb: KnowledgeBase, callback: Callback | BatchCallback, *, batches: bool = False
+    ) -> None:
         self._kb = kb
         self.callback = callback
+        self.batches = batches
 
     def cancel(self) -> None:
         """Stop the callback; calling it again does nothing."""
@@ -186,24 +192,32 @@ class KnowledgeBase:
         a time older than the key's last sample. Subscribers are called before this returns.
         """
         with self._lock:
-            series = self._series.get(key)
-            if series is None:
-                series = self._infer(key, value)
-            if not isinstance(time, float):
-                # the value is checked first: its error is the one raised when both are bad
-                series.check(value)
-                time = self._time(key, time)
-            sample = series.add(value, time)
-            self._notify(key, sample)
+            sample = self._store(key, value, time)
+            self._notify([(key, sample)])
             return sample
 
-    def _notify(self, key: str, sample: Sample) -> None:
+    def _store(self, key: str, value: Any, time: float) -> Sample:
+        """Check and store one value (the lock is held); subscribers are not called."""
+        series = self._series.get(key)
+        if series is None:
+            series = self._infer(key, value)
+        if not isinstance(time, float):
+            # the value is checked first: its error is the one raised when both are bad
+            series.check(value)
+            time = self._time(key, time)
+        return series.add(value, time)
+
+    def _notify(self, samples: list[tuple[str, Sample]]) -> None:
         """Call every subscriber; a failing reader must not fail the writer (Telegraf, the loop)."""
         for subscription in self._subscriptions:  # a tuple: a callback may (un)subscribe
             try:
-                subscription.callback(key, sample)
+                if subscription.batches:
+                    subscription.callback(samples)
+                else:
+                    for key, sample in samples:
+                        subscription.callback(key, sample)
             except Exception:
-                _log.exception("knowledge subscriber %r failed on %r", subscription.callback, key)
+                _log.exception("knowledge subscriber %r failed", subscription.callback)
 
     def register_values(self, values: Mapping[str, Any], time: float) -> dict[str, Exception]:
         """Record every value of ``values`` at ``time``, as :meth:`register_knowledge` would one
@@ -211,15 +225,18 @@ class KnowledgeBase:
 
         Each value is checked on its own: a refused one (``{key: the error register_knowledge
         would raise}``) is not stored and does not stop the others. Subscribers are called for
-        each stored value, in order, before this returns.
+        the stored values, in order, before this returns (a batch subscriber once for all).
         """
         refused: dict[str, Exception] = {}
+        stored: list[tuple[str, Sample]] = []
         with self._lock:
             for key, value in values.items():
                 try:
-                    self.register_knowledge(key, value, time)
+                    stored.append((key, self._store(key, value, time)))
                 except Exception as exc:
                     refused[key] = exc
+            if stored:
+                self._notify(stored)
         return refused
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
@@ -355,7 +372,15 @@ class KnowledgeBase:
         keep them short (set an event, append to a buffer). They may read the store. An exception
         in a callback is logged and never reaches the writer.
         """
-        subscription = Subscription(self, callback)
+        return self._subscribe(Subscription(self, callback))
+
+    def subscribe_batches(self, callback: BatchCallback) -> Subscription:
+        """As :meth:`subscribe`, but ``callback(samples)`` gets the ``(key, sample)`` pairs of
+        one registration call at once: one pair from :meth:`register_knowledge`, every stored
+        value of :meth:`register_values` (what a Storage Manager buffers, one call a record)."""
+        return self._subscribe(Subscription(self, callback, batches=True))
+
+    def _subscribe(self, subscription: Subscription) -> Subscription:
         with self._lock:
             self._subscriptions = (*self._subscriptions, subscription)
         return subscription

@@ -34,7 +34,7 @@ from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
 import redis
 
 from rasm.errors import KnowledgeError
-from rasm.knowledge.base import Callback, KnowledgeBase, Sample, Subscription
+from rasm.knowledge.base import KnowledgeBase, Sample, Subscription
 from rasm.knowledge.storage import Storage
 from rasm.knowledge.values import (
     DEFAULT_HISTORY,
@@ -288,16 +288,14 @@ class RedisKnowledgeBase(KnowledgeBase):
 
     # -- writing --------------------------------------------------------------------------------
 
-    def register_knowledge(self, key: str, value: Any, time: float) -> Sample:
-        """As :meth:`KnowledgeBase.register_knowledge`; the time rule holds across processes."""
+    def _store(self, key: str, value: Any, time: float) -> Sample:
+        # what register_knowledge and register_values store; the time rule holds across processes
         time = self._time(key, time)
         if not -math.inf < time < math.inf:
             raise self._bad_time(key, time, -math.inf)
         with self._lock:
             value = self._append_samples(key, [(time, value)], notify=self.notify, first=value)[0]
-            sample = Sample(time, value)
-            self._notify(key, sample)
-            return sample
+            return Sample(time, value)
 
     def load_samples(self, key: str, samples: Iterable[Sample]) -> int:
         """Append samples in bulk without notifying subscribers (nor other processes)."""
@@ -424,10 +422,10 @@ class RedisKnowledgeBase(KnowledgeBase):
 
     # -- subscribers ----------------------------------------------------------------------------
 
-    def subscribe(self, callback: Callback) -> Subscription:
-        """As :meth:`KnowledgeBase.subscribe`; also called for other processes' registrations,
-        on this knowledge base's listener thread."""
-        subscription = super().subscribe(callback)
+    def _subscribe(self, subscription: Subscription) -> Subscription:
+        # subscribers are also called for other processes' registrations, on this knowledge
+        # base's listener thread
+        super()._subscribe(subscription)
         with self._lock:
             if self._listener is None and self.notify:
                 self._start_listener()
@@ -476,7 +474,7 @@ class RedisKnowledgeBase(KnowledgeBase):
             except (ValueError, KeyError, TypeError):
                 _log.warning("malformed registration notice ignored: %r", message.get("data"))
                 continue
-            self._notify(key, sample)
+            self._notify([(key, sample)])
 
     def close(self) -> None:
         """Stop the listener and release the connections (idempotent)."""
@@ -521,8 +519,11 @@ class RedisStorage(Storage):
         self.buffer(key, sample)
 
     def buffer(self, key: str, sample: Sample) -> None:
+        self.buffer_all([(key, sample)])
+
+    def buffer_all(self, samples: list[tuple[str, Sample]]) -> None:
         with self._count_lock:
-            self._count += 1
+            self._count += len(samples)
 
     def update_persistency(self) -> int:
         """How many samples were registered since the last call (all already in Redis)."""

@@ -161,11 +161,16 @@ class SqliteStorage(Storage):
 
     def buffer(self, key: str, sample: Sample) -> None:
         """Buffer a sample a knowledge base already accepted (see :meth:`Storage.buffer`)."""
+        self.buffer_all([(key, sample)])
+
+    def buffer_all(self, samples: list[tuple[str, Sample]]) -> None:
+        """:meth:`buffer` each pair, under one acquisition of the buffer's lock."""
         with self._buf_lock:
-            queue = self._pending.get(key)
-            if queue is None:
-                queue = self._pending[key] = deque(maxlen=self.keep)
-            queue.append(sample)
+            for key, sample in samples:
+                queue = self._pending.get(key)
+                if queue is None:
+                    queue = self._pending[key] = deque(maxlen=self.keep)
+                queue.append(sample)
 
     def register_knowledge_update(self, key: str, sample: Sample) -> None:
         """Buffer one sample of ``key``, checked against its declaration (the attached knowledge

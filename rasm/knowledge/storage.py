@@ -45,6 +45,11 @@ class Storage(ABC):
         """Buffer a sample a knowledge base already accepted: checked against its declaration,
         not older than the key's last. The cheap path, taken for every value stored."""
 
+    def buffer_all(self, samples: list[tuple[str, Sample]]) -> None:
+        """:meth:`buffer` each ``(key, sample)`` pair, in order (a knowledge base's batch)."""
+        for key, sample in samples:
+            self.buffer(key, sample)
+
     @abstractmethod
     def _close(self) -> None:
         """Release the engine's resources (called once, after the last flush)."""
@@ -62,7 +67,7 @@ class Storage(ABC):
             if self._kb is not None:
                 raise KnowledgeError("this storage is already attached to another knowledge base")
             self._kb = kb
-            self._subscription = kb.subscribe(self.buffer)
+            self._subscription = kb.subscribe_batches(self.buffer_all)
 
     def detach(self) -> None:
         """Stop buffering the attached knowledge base's registrations."""

@@ -337,7 +337,7 @@ class Platform:
         if storage is not None:
             # the Storage Manager buffers every update for its storage; without one it has
             # nothing to do with them, so no subscriber call per value stored
-            self.kb.subscribe(self.stom.register_knowledge_update)
+            self.kb.subscribe_batches(self.stom.register_knowledge_updates)
         self.tg = Telegraf(
             m.probes,
             self._register,

@@ -31,9 +31,14 @@ class StorageManager(Block):
         super().__init__(context={"flush_period": flush_period}, **kw)
 
     def register_knowledge_update(self, key: str, sample: Sample) -> None:
-        if self.storage is None:
+        self.register_knowledge_updates([(key, sample)])
+
+    def register_knowledge_updates(self, samples: list[tuple[str, Sample]]) -> None:
+        """Buffer the ``(key, sample)`` pairs of one registration (the knowledge base checked
+        them); the first of a batch steps the chart to ``dirty``."""
+        if self.storage is None or not samples:
             return
-        self.storage.buffer(key, sample)  # the knowledge base checked it
+        self.storage.buffer_all(samples)
         if self._idle:
             self._idle = False
             self.send("update_registered")

@@ -356,21 +356,19 @@ def test_a_batch_is_each_value_registered_one_after_the_other(batches):
         assert batched.read_sample(key) == (history[-1] if history else None)
 
 
-def test_a_batch_goes_through_a_store_that_registers_its_own_way():
-    class Counting(KnowledgeBase):
-        calls = 0
-
-        def register_knowledge(self, key, value, time):
-            Counting.calls += 1
-            return super().register_knowledge(key, value, time)
-
-    kb = Counting()
+def test_a_batch_subscriber_gets_each_registration_call_at_once():
+    kb = KnowledgeBase()
     kb.declare("speed", "float", minimum=0.0)
-    kb.declare("count", "float")
+    batches, values = [], []
+    kb.subscribe_batches(batches.append)
+    kb.subscribe(lambda key, sample: values.append((key, sample)))
     refused = kb.register_values({"speed": -1.0, "other": 2.0, "count": 3}, 1.0)
-    assert list(refused) == ["speed"] and Counting.calls == 3
-    assert kb.read_knowledge("other") == 2.0
-    assert kb.read_values(["count"]) == {"count": 3.0} and type(kb.read_knowledge("count")) is float
+    kb.register_knowledge("speed", 0.5, 2.0)
+    assert kb.register_values({"speed": -2.0}, 3.0).keys() == {"speed"}  # nothing stored
+    assert list(refused) == ["speed"]
+    stored = [("other", Sample(1.0, 2.0)), ("count", Sample(1.0, 3))]
+    assert batches == [stored, [("speed", Sample(2.0, 0.5))]]
+    assert values == [*stored, ("speed", Sample(2.0, 0.5))]
 
 
 def test_a_subscriber_failing_in_a_batch_fails_neither_the_batch_nor_the_others():

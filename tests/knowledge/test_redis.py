@@ -158,6 +158,18 @@ def test_load_samples_does_not_notify(make):
     assert kb.history("x") == [Sample(1.0, 1.5), Sample(2.0, 2.5), Sample(3.0, 3.5)]
 
 
+def test_a_batch_keeps_the_stores_rules_and_reaches_batch_subscribers_at_once(make):
+    kb = make()
+    kb.declare("speed", "float", minimum=0.0)
+    kb.register_knowledge("speed", 1.0, 5.0)
+    batches = []
+    kb.subscribe_batches(batches.append)
+    refused = kb.register_values({"speed": 2.0, "mode": "dock"}, 4.0)  # speed: older than 5.0
+    assert list(refused) == ["speed"] and "older than its last sample" in str(refused["speed"])
+    assert batches == [[("mode", Sample(4.0, "dock"))]]
+    assert kb.history("speed") == [Sample(5.0, 1.0)]
+
+
 WRITER = textwrap.dedent(
     """
     import sys
