@@ -42,6 +42,7 @@ from rasm.platform.distribution import Distribution, DistributionHooks
 from rasm.platform.external_verdicts import ExternalVerdicts
 from rasm.platform.fallback import FallbackSwitch, check_fallback_legitimate
 from rasm.platform.knowledge_manager import KnowledgeManager
+from rasm.platform.knowledge_store import open_app_knowledge
 from rasm.platform.loading import (
     check_components,
     load_component,
@@ -57,7 +58,7 @@ from rasm.platform.plan_repair import PlanRepair, check_repair_weights
 from rasm.platform.ros_wiring import ros_options
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
-from rasm.platform.state_dir import claim_state_dir, default_state_dir
+from rasm.platform.state_dir import default_state_dir
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
 from rasm.platform.summary import RunSummary
@@ -291,37 +292,17 @@ class Platform:
 
     def _open_knowledge(self) -> Storage | None:
         """Open (and restore) the knowledge store; returns its storage, if persistent."""
-        from rasm.knowledge import open_knowledge
-
-        url = self.knowledge_url
-        if url == "sqlite":
-            name = "simulated.sqlite" if self.clock_kind == "simulated" else "knowledge.sqlite"
-            url = f"sqlite:{self.state_dir / name}"
-        if self.knowledge_url == "sqlite" and self._claims_state_dir:
-            claim_state_dir(self.state_dir, self.manifest)
-        self.kb: KnowledgeBase
-        # a simulation is a fresh world: no knowledge from an earlier run
-        fresh = self.clock_kind == "simulated"
-        self.kb, storage = open_knowledge(url, base_dir=Path.cwd(), fresh=fresh)
-        if url.startswith(("redis://", "rediss://")) and self.clock_kind == "simulated":
-            self.kb.clear()  # a simulation is a fresh world here too
-        if storage is not None:
-            storage.detach()  # the Storage Manager block feeds it (and steps its chart)
-        restored = [self.kb.read_sample(k) for k in self.kb.keys()]
-        restored = [sample for sample in restored if sample is not None]
-        if restored:
-            # a restarted managing system continues its timeline after what it restored
-            self._timeline_start = max(sample.time for sample in restored)
-            self.restored_from = url
-        for signal in self.manifest.signals.values():
-            self.kb.declare(
-                signal.key,
-                signal.type,
-                history=signal.history,
-                minimum=signal.minimum,
-                maximum=signal.maximum,
-            )
-        return storage
+        opened = open_app_knowledge(
+            self.manifest,
+            self.knowledge_url,
+            state_dir=self.state_dir,
+            simulated=self.clock_kind == "simulated",
+            claim=self._claims_state_dir,
+        )
+        self.kb: KnowledgeBase = opened.store
+        self.restored_from = opened.restored_from
+        self._timeline_start = opened.timeline_start
+        return opened.storage
 
     def _managing_blocks(self, storage: Storage | None) -> list[Block]:
         from rasm.properties import compile_properties
