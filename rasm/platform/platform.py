@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rasm.comm import Message, Transport
-from rasm.errors import PlatformError, is_interrupt
+from rasm.errors import PlatformError
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
@@ -35,7 +35,7 @@ from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopSt
 from rasm.platform.app_charts import check_charts
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
-from rasm.platform.components import Action, describe_failure
+from rasm.platform.components import Action
 from rasm.platform.core import Core
 from rasm.platform.corrective import corrective_check
 from rasm.platform.distribution import Distribution, DistributionHooks
@@ -65,6 +65,7 @@ from rasm.platform.summary import RunSummary
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
+from rasm.platform.twin_learning import TwinLearning
 from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 
 if TYPE_CHECKING:
@@ -201,7 +202,7 @@ class Platform:
         self.modes: ManagedSystemModes | None = None  # the app's modes chart, if it has one
         self.fb: FallbackSwitch | None = None  # the fallback switch, when the app declares one
         self._modes_armed: float | None = None  # when the modes chart's next timer job runs
-        self._twin_inputs: frozenset[str] = frozenset()
+        self.learning: TwinLearning | None = None  # the twin's online learning, with a twin
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
         self.logs = RepeatedLogs()
@@ -385,7 +386,16 @@ class Platform:
             twin = load_component(m.twin, m.folder, package=package)
         self.twin = load_twin(twin, self.kb.read_knowledge("twin_model"))
         if self.twin is not None:
-            self._twin_inputs = frozenset(self.twin.inputs)
+            self.learning = TwinLearning(
+                self.twin,
+                knowledge=self.kb,
+                store=self.km.register_knowledge,
+                register=self._register,
+                emit=self._emit,
+                refused=self._refused,
+                drift=lambda: self.scheduler.submit(lambda: self.ao.send("drift_detected")),
+                logs=self.logs,
+            )
         if m.corrective:
             self.tm.corrective = corrective_check(m, self.twin)
         self.ao = AdaptationOrchestrator(
@@ -482,8 +492,8 @@ class Platform:
             for key, value in values.items()
             if key not in refused and isinstance(value, _SCALARS)
         }
-        if not self._twin_inputs.isdisjoint(values):
-            self._observe_twin(time, stored)
+        if self.learning is not None and self.learning.reads(values):
+            self.learning.observe(time, stored)
         if self.modes is not None:
             # a change of the managed system's modes goes in the record that caused it
             change = self.modes.observe(
@@ -495,38 +505,6 @@ class Platform:
             self._arm_modes()
         if stored:
             self._emit(time, stored)
-
-    def _observe_twin(self, time: float, stored: dict[str, Any]) -> None:
-        """Let the twin learn from the latest inputs; register its residual (and add it to
-        ``stored``, the trace record of the inputs that produced it), and publish its model and
-        drift."""
-        twin = self.twin
-        try:
-            update = twin.observe(time, self.kb.read_values(twin.inputs))
-            residual = None if update is None else float(update.residual)
-        except BaseException as exc:  # a twin fault is logged; learning goes on
-            if is_interrupt(exc):
-                raise
-            self.logs.log(
-                _log, logging.ERROR, f"digital twin failed to learn: {describe_failure(exc)}"
-            )
-            return
-        if update is None:
-            return
-        try:
-            self.km.register_knowledge("twin_residual", residual, time)
-        except Exception as exc:  # a NaN residual is refused like any bad value
-            self._refused("twin_residual", residual, exc)
-            residual = None
-        if update.model_changed:
-            model = twin.model()
-            self._register({"twin_model": model}, time)
-            self._emit(time, {"twin_model_version": model.get("version")})
-        if update.drift:
-            self._emit(time, {"drift": True, "explanation": "the digital twin detected drift"})
-            self.scheduler.submit(lambda: self.ao.send("drift_detected"))
-        if residual is not None:
-            stored["twin_residual"] = residual
 
     def _refused(self, key: str, value: object, exc: Exception) -> None:
         """Log a value knowledge refused; the same reason again (whatever the value) is counted."""
