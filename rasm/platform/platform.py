@@ -29,9 +29,8 @@ from rasm.errors import PlatformError
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
-from rasm.loop import STAGES
 from rasm.platform.adaptation_manager import AdaptationManager
-from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
 from rasm.platform.app_charts import check_charts
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
@@ -61,7 +60,7 @@ from rasm.platform.signals import check_app
 from rasm.platform.state_dir import default_state_dir
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
-from rasm.platform.summary import RunSummary
+from rasm.platform.summary import RunSummary, bus_refusals, summarise
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
@@ -71,7 +70,6 @@ from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 if TYPE_CHECKING:
     from rasm.platform.replay import Replay
 from rasm.properties.monitor import Monitor, Verdict
-from rasm.properties.outcome import PropertyOutcome
 from rasm.resources import data_dir
 from rasm.statechart import MonotonicClock, SimulatedClock
 from rasm.trace import TraceWriter
@@ -721,47 +719,19 @@ class Platform:
             gc.unfreeze()
             self._gc_frozen = False
 
-    def _bus_refusals(self) -> dict[str, int]:
-        updates = self.dist.updates
-        counts = {
-            "malformed messages": self.transport.stats.malformed,
-            "actions refused by the effector gate": self.dist.actions_refused,
-            "updates refused": updates.refused if updates is not None else 0,
-        }
-        return {what: n for what, n in counts.items() if n}
-
     def summary(self, duration: float) -> RunSummary:
         """The run so far, read from the blocks (nothing is changed)."""
-        verdicts: dict[str, str] = {}
-        violations: dict[str, int] = {}
-        timing: dict[str, dict[str, float]] = {}
-        stats = LoopStats()
-        outcomes: dict[str, PropertyOutcome] = {}
-        if self.managing:
-            outcomes = dict(self.tc.outcomes)
-            verdicts = {name: o.state for name, o in outcomes.items()}
-            violations = {name: o.violations for name, o in outcomes.items() if o.violations}
-            timing = {
-                stage: self.sm.percentiles(stage)
-                for stage in STAGES
-                if self.sm.stage_timing.get(stage)
-            }
-            stats = self.ao.stats
-        return RunSummary(
-            app=self.manifest.name,
-            clock=self.clock_kind,
-            duration=duration,
-            stats=stats,
-            verdicts=verdicts,
-            violations=violations,
-            timing=timing,
-            records=self.trace.records,
-            rejected_data=dict(self.tg.rejected) if self.managing else {},
-            bus=self._bus_refusals(),
+        return summarise(
+            self.manifest.name,
+            self.clock_kind,
+            duration,
+            state=self.sm,
+            checker=self.tc if self.managing else None,
+            orchestrator=self.ao if self.managing else None,
+            telegraf=self.tg if self.managing else None,
+            trace=self.trace,
+            bus=bus_refusals(self.transport, self.dist),
             missed_iterations=self.scheduler.missed,
-            modes=self.sm.get_status(),
-            trace=str(self.trace.path) if self.trace.path else None,
             stopped_by=self.stopped_by,
             repeated_failures=self.logs.totals,
-            outcomes=outcomes,
         )

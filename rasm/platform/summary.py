@@ -5,10 +5,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from rasm.platform.adaptation_orchestrator import LoopStats
+from rasm.comm import Transport
+from rasm.loop import STAGES
+from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.distribution import Distribution
+from rasm.platform.state_manager import StateManager
+from rasm.platform.telegraf import Telegraf
+from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.properties.outcome import PASSING, PropertyOutcome
+from rasm.trace import TraceWriter
 
-__all__ = ["RunSummary"]
+__all__ = ["RunSummary", "bus_refusals", "summarise"]
 
 
 @dataclass
@@ -59,3 +66,57 @@ class RunSummary:
             }
             for o in self.outcomes.values()
         ]
+
+
+def summarise(
+    app: str,
+    clock: str,
+    duration: float,
+    *,
+    state: StateManager,
+    checker: TrustworthinessChecker | None,
+    orchestrator: AdaptationOrchestrator | None,
+    telegraf: Telegraf | None,
+    trace: TraceWriter,
+    bus: dict[str, int],
+    missed_iterations: int,
+    stopped_by: str | None,
+    repeated_failures: dict[str, int],
+) -> RunSummary:
+    """The run so far, read from its blocks (nothing is changed). ``checker``,
+    ``orchestrator`` and ``telegraf`` are the managing side's (None in a managed-only process:
+    no verdicts, no loop counts)."""
+    outcomes = dict(checker.outcomes) if checker is not None else {}
+    return RunSummary(
+        app=app,
+        clock=clock,
+        duration=duration,
+        stats=orchestrator.stats if orchestrator is not None else LoopStats(),
+        verdicts={name: o.state for name, o in outcomes.items()},
+        violations={name: o.violations for name, o in outcomes.items() if o.violations},
+        timing={
+            stage: state.percentiles(stage)
+            for stage in STAGES
+            if orchestrator is not None and state.stage_timing.get(stage)
+        },
+        records=trace.records,
+        rejected_data=dict(telegraf.rejected) if telegraf is not None else {},
+        bus=bus,
+        missed_iterations=missed_iterations,
+        modes=state.get_status(),
+        trace=str(trace.path) if trace.path else None,
+        stopped_by=stopped_by,
+        repeated_failures=repeated_failures,
+        outcomes=outcomes,
+    )
+
+
+def bus_refusals(transport: Transport, dist: Distribution) -> dict[str, int]:
+    """What the bus brought that was refused, by what it was (only the non-zero counts)."""
+    updates = dist.updates
+    counts = {
+        "malformed messages": transport.stats.malformed,
+        "actions refused by the effector gate": dist.actions_refused,
+        "updates refused": updates.refused if updates is not None else 0,
+    }
+    return {what: n for what, n in counts.items() if n}
