@@ -29,12 +29,12 @@ from rasm.errors import PlatformError
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
+from rasm.platform.actions_out import ActionSender, message_types
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
 from rasm.platform.app_charts import check_charts
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
-from rasm.platform.components import Action
 from rasm.platform.core import Core
 from rasm.platform.corrective import corrective_check
 from rasm.platform.distribution import Distribution, DistributionHooks
@@ -51,7 +51,7 @@ from rasm.platform.loading import (
 )
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.managed_system import ManagedSystem, Simulator
-from rasm.platform.manifest import AppManifest, Effector, load_manifest
+from rasm.platform.manifest import AppManifest, load_manifest
 from rasm.platform.modes import ManagedSystemModes
 from rasm.platform.plan_repair import PlanRepair, check_repair_weights
 from rasm.platform.ros_wiring import ros_options
@@ -347,7 +347,14 @@ class Platform:
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
             effectors=m.effectors,
-            send=self._send_action,
+            send=ActionSender(
+                m,
+                publish=self.cm.publish_message,
+                seal=self.dist.seal,
+                emit=self._emit,
+                clock=clock,
+                replaying=self.replay_path is not None,
+            ).send,
             mode_of=self._managed_system_mode,
             online=lambda: self.dist.managed_online,
             observers=self.on_verdict,  # the list itself: observers added later are called
@@ -554,30 +561,10 @@ class Platform:
         signal = self.manifest.mode_signal
         return self.kb.read_knowledge(signal) if signal else None
 
-    def _send_action(self, effector: Effector, action: Action) -> str | None:
-        payload: dict[str, Any] = {**action.payload, "plan": action.plan, "kind": action.kind}
-        if effector.type:
-            from rasm.platform.messages import build_message
-
-            payload = build_message(self.transport_store, effector, action.payload)
-        if self.replay is not None:
-            # a replay sends nothing: the action goes in the trace, as it would have been sent
-            action_record = {"effector": effector.name, "topic": effector.topic, "payload": payload}
-            self._emit(self.clock.time, {"recorded_action": action_record, "plan": action.plan})
-            return f"recorded in the trace, not sent (replay): {effector.name} on {effector.topic}"
-        if not effector.type:
-            payload = self.dist.seal(effector.topic, payload)
-        self.cm.publish_message(effector.topic, payload)
-        return None
-
     @property
     def transport_store(self) -> Any:
         """The app's ROS 2 types (the standard interfaces when it has none of its own)."""
-        if self.manifest.types is not None:
-            return self.manifest.types
-        from rasm.ros2.types import default_store
-
-        return default_store()
+        return message_types(self.manifest)
 
     def _timeline(self, stamp: float) -> float:
         """A message's ``header.stamp`` (wall-clock seconds) on the platform's timeline: on

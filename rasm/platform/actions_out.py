@@ -1,0 +1,72 @@
+"""Actions out: each action the Trustworthiness Checker lets through, on its effector's topic.
+
+An effector with a ROS 2 interface ``type`` gets the message its fields build from the action's
+payload; an untyped one gets the payload with the action's plan and kind, sealed by the
+distribution (signed, when actions are). A replay sends nothing: the action goes in the trace
+as it would have been sent.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from rasm.platform.components import Action
+from rasm.platform.manifest import AppManifest, Effector
+from rasm.statechart import Clock
+
+if TYPE_CHECKING:
+    from rasm.ros2 import TypeStore
+
+__all__ = ["ActionSender", "message_types"]
+
+
+def message_types(m: AppManifest) -> TypeStore:
+    """The app's ROS 2 types (the standard interfaces when it has none of its own)."""
+    if m.types is not None:
+        return m.types
+    from rasm.ros2.types import default_store
+
+    return default_store()
+
+
+class ActionSender:
+    """Sends an action on its effector's topic (:meth:`send`, the checker's ``send``).
+
+    ``publish(topic, payload)`` puts it on the transport; ``seal(topic, payload)`` signs an
+    untyped payload (raising when it cannot be sent); ``emit(time, record)`` writes the trace
+    record of an action a replay does not send.
+    """
+
+    def __init__(
+        self,
+        manifest: AppManifest,
+        *,
+        publish: Callable[[str, dict[str, Any]], object],
+        seal: Callable[[str, dict[str, Any]], dict[str, Any]],
+        emit: Callable[[float, dict[str, Any]], object],
+        clock: Clock,
+        replaying: bool,
+    ) -> None:
+        self.manifest = manifest
+        self.publish = publish
+        self.seal = seal
+        self.emit = emit
+        self.clock = clock
+        self.replaying = replaying
+
+    def send(self, effector: Effector, action: Action) -> str | None:
+        """Send ``action`` on ``effector``'s topic; why it was not sent (a replay), or None."""
+        payload: dict[str, Any] = {**action.payload, "plan": action.plan, "kind": action.kind}
+        if effector.type:
+            from rasm.platform.messages import build_message
+
+            payload = build_message(message_types(self.manifest), effector, action.payload)
+        if self.replaying:
+            action_record = {"effector": effector.name, "topic": effector.topic, "payload": payload}
+            self.emit(self.clock.time, {"recorded_action": action_record, "plan": action.plan})
+            return f"recorded in the trace, not sent (replay): {effector.name} on {effector.topic}"
+        if not effector.type:
+            payload = self.seal(effector.topic, payload)
+        self.publish(effector.topic, payload)
+        return None
