@@ -13,7 +13,7 @@ back. While the chart is not ``nominal``, the Adaptation Manager holds back ever
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -25,6 +25,7 @@ from rasm.platform.manifest import AppManifest, Fallback, manifest_location
 if TYPE_CHECKING:
     from collections import Counter
 
+    from rasm.properties.monitor import Verdict
     from rasm.rules import Rules, RuleSet
     from rasm.rules.fallback import FixedPlanProof
 
@@ -146,6 +147,8 @@ class FallbackSwitch(Block):
         online: Callable[[], bool],
         stats: Callable[[], LoopStats],
         emit: Callable[[float, dict[str, Any]], Any],
+        veto_properties: Collection[str],
+        submit: Callable[[Callable[[], object]], object],
         plan_prefix: str = "",
         **kw: Any,
     ) -> None:
@@ -153,6 +156,9 @@ class FallbackSwitch(Block):
         self.am = am
         self.tm = tm
         self.vetoes = vetoes
+        self.veto_properties = veto_properties
+        self.submit = submit  # hands a job to the loop, to run after the job in hand
+        self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
         self.online = online
         self.stats = stats
         self.emit = emit
@@ -225,6 +231,16 @@ class FallbackSwitch(Block):
             self.send("clear")
         if self.pending and self.state != "nominal":
             self._deliver()
+
+    def watch_verdict(self, verdict: Verdict) -> None:
+        """A veto property that starts or stops vouching has the triggers read at once (on the
+        loop, after the job in hand) rather than at the next tick."""
+        name = verdict.property
+        if name in self.veto_properties:
+            good = verdict.value is True and verdict.error is None
+            if self._veto_good.get(name) != good:
+                self._veto_good[name] = good
+                self.submit(self.evaluate)
 
     # ------------------------------------------------------------------ chart hooks
 

@@ -452,25 +452,16 @@ class Platform:
             online=lambda: self.dist.managed_online,
             stats=lambda: self.ao.stats,
             emit=self._emit,
+            veto_properties=self.tm.veto_properties,
+            submit=self.scheduler.submit,
             plan_prefix="" if self.clock_kind == "simulated" else f"{self.dist.run}-",
             chart=self._chart("fallback"),
             clock=self.clock,
             depends_on=("am", "tm", "ao"),
         )
         self.am.hold = self.fb
-        self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
-        self.on_verdict.append(self._veto_verdict)
+        self.on_verdict.append(self.fb.watch_verdict)
         return self.fb
-
-    def _veto_verdict(self, verdict: Verdict) -> None:
-        """A veto property that starts or stops vouching moves the fallback switch at once (on
-        the loop, after the job in hand) rather than at the next tick."""
-        name = verdict.property
-        if self.fb is not None and name in self.tm.veto_properties:
-            good = verdict.value is True and verdict.error is None
-            if self._veto_good.get(name) != good:
-                self._veto_good[name] = good
-                self.scheduler.submit(self.fb.evaluate)
 
     def _tick(self) -> None:
         """One loop period with a fallback: the switch reads its triggers, then the loop runs."""
