@@ -33,6 +33,7 @@ from rasm.platform.actions_out import ActionSender, message_types
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
 from rasm.platform.app_charts import check_charts
+from rasm.platform.app_properties import compile_app_properties
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.core import Core
@@ -70,7 +71,6 @@ from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 if TYPE_CHECKING:
     from rasm.platform.replay import Replay
 from rasm.properties.monitor import Monitor, Verdict
-from rasm.resources import data_dir
 from rasm.statechart import MonotonicClock, SimulatedClock
 from rasm.trace import TraceWriter
 from rasm.twin import DigitalTwin
@@ -304,7 +304,6 @@ class Platform:
         return opened.storage
 
     def _managing_blocks(self, storage: Storage | None) -> list[Block]:
-        from rasm.properties import compile_properties
         from rasm.rules import RuleSet
 
         m, clock = self.manifest, self.clock
@@ -328,17 +327,7 @@ class Platform:
         )
         self.rules = [RuleSet.load(path) for path in m.rules]
         check_repair_weights(m, self.rules)
-        files = [*sorted(data_dir("properties").glob("*.rv")), *m.properties]
-        monitors = [compile_properties(p.read_text(encoding="utf-8"), source=str(p)) for p in files]
-        defined: dict[str, Path] = {}
-        for path, monitor in zip(files, monitors, strict=True):
-            for name in monitor.properties:
-                if name in defined:  # verdicts are reported by name: two would merge silently
-                    raise PlatformError(
-                        f"property {name!r} of {path} is already defined in "
-                        f"{defined[name]}: rename one of them"
-                    )
-                defined[name] = path
+        monitors: list[Monitor] = compile_app_properties(m)
         if self.external.sources:
             monitors.append(self.external)
         # the managed system's modes chart, stepped by every batch of values stored
