@@ -20,19 +20,19 @@ from __future__ import annotations
 import copy
 import logging
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sismic.model import Event, Statechart
 
 from rasm.errors import ExecutionError
-from rasm.statechart import Interpreter, SimulatedClock, load_statechart
+from rasm.statechart import Clock, Interpreter, SimulatedClock, load_statechart
 
 if TYPE_CHECKING:
     from rasm.knowledge.base import KnowledgeBase
 
-__all__ = ["KnowledgeView", "ManagedSystemModes", "mode_signals"]
+__all__ = ["KnowledgeView", "ManagedSystemModes", "ModesRunner", "mode_signals"]
 
 _log = logging.getLogger("rasm.modes")
 _SCALARS = (int, float, bool, str)
@@ -176,3 +176,76 @@ class ManagedSystemModes:
         record.update({f"mode_{s}": True for s in sorted(entered)})
         record.update({f"mode_{s}": False for s in sorted(left)})
         return record
+
+
+class ModesRunner:
+    """The modes chart in the loop: knowledge's ``mode`` and the trace follow its active states,
+    and the chart is stepped whenever a timer of its is due, records or not.
+
+    ``register_values(values, time)`` stores ``mode`` in knowledge (returning what it refused,
+    which goes to ``refused(key, value, exc)``); ``emit(time, record)`` writes a trace record;
+    ``at(time, job)`` has the loop run ``job`` at ``time`` on ``clock``.
+    """
+
+    def __init__(
+        self,
+        modes: ManagedSystemModes,
+        *,
+        register_values: Callable[[dict[str, Any], float], Mapping[str, Exception]],
+        refused: Callable[[str, object, Exception], object],
+        emit: Callable[[float, dict[str, Any]], object],
+        at: Callable[[float, Callable[[], object]], object],
+        clock: Clock,
+    ) -> None:
+        self.modes = modes
+        self.register_values = register_values
+        self.refused = refused
+        self.emit = emit
+        self.at = at
+        self.clock = clock
+        self._armed: float | None = None  # when the chart's next timer job runs
+
+    @property
+    def mode(self) -> frozenset[str] | None:
+        """The managed system's modes now: the chart's active states, or None while its last
+        step failed (no mode is vouched for)."""
+        return None if self.modes.failing else self.modes.active
+
+    def start(self, time: float) -> None:
+        """Enter the initial modes: in knowledge and in a trace record of their own."""
+        initial = self.modes.start(time)
+        self._changed(time, initial)
+        self.emit(time, initial)
+        self._arm()
+
+    def observe(self, time: float, values: Mapping[str, Any]) -> dict[str, Any] | None:
+        """Step the chart with a batch of values stored; the mode change they caused (for their
+        trace record), or None."""
+        change = self.modes.observe(time, values)
+        if change:
+            self._changed(time, change)
+        self._arm()
+        return change
+
+    def _arm(self) -> None:
+        """Have the loop step the chart when its next timer is due (once per deadline: a record
+        arriving first leaves the job to find nothing to do)."""
+        due = self.modes.next_deadline()
+        if due is not None and due != self._armed:
+            self._armed = due
+            self.at(due, self._wake)
+
+    def _wake(self) -> None:
+        self._armed = None
+        time = self.clock.time
+        change = self.modes.wake(time)
+        if change:
+            self._changed(time, change)
+            self.emit(time, change)
+        self._arm()
+
+    def _changed(self, time: float, change: dict[str, Any]) -> None:
+        """``mode`` in knowledge says which modes are active now, for the stages and rules."""
+        refused = self.register_values({"mode": change["mode"]}, time)
+        for key, exc in refused.items():
+            self.refused(key, change["mode"], exc)

@@ -53,7 +53,7 @@ from rasm.platform.loading import (
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.managed_system import ManagedSystem, Simulator
 from rasm.platform.manifest import AppManifest, load_manifest
-from rasm.platform.modes import ManagedSystemModes
+from rasm.platform.modes import ManagedSystemModes, ModesRunner
 from rasm.platform.plan_repair import PlanRepair, check_repair_weights
 from rasm.platform.ros_wiring import ros_options
 from rasm.platform.scheduler import Scheduler
@@ -197,9 +197,8 @@ class Platform:
         # the store a live run's timeline continues from (None: it starts at 0)
         self.restored_from: str | None = None
         self.twin: DigitalTwin | None = None
-        self.modes: ManagedSystemModes | None = None  # the app's modes chart, if it has one
+        self.modes: ModesRunner | None = None  # the app's modes chart, if it has one
         self.fb: FallbackSwitch | None = None  # the fallback switch, when the app declares one
-        self._modes_armed: float | None = None  # when the modes chart's next timer job runs
         self.learning: TwinLearning | None = None  # the twin's online learning, with a twin
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
@@ -331,7 +330,15 @@ class Platform:
         if self.external.sources:
             monitors.append(self.external)
         # the managed system's modes chart, stepped by every batch of values stored
-        self.modes = ManagedSystemModes(shared_chart(m.modes), self.kb) if m.modes else None
+        if m.modes:
+            self.modes = ModesRunner(
+                ManagedSystemModes(shared_chart(m.modes), self.kb),
+                register_values=self.km.register_values,
+                refused=self._refused,
+                emit=self._emit,
+                at=self.scheduler.at,
+                clock=clock,
+            )
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
@@ -485,9 +492,7 @@ class Platform:
                 time, {key: value for key, value in values.items() if key not in refused}
             )
             if change:
-                self._mode_changed(time, change)
                 stored.update(change)
-            self._arm_modes()
         if stored:
             self._emit(time, stored)
 
@@ -509,35 +514,11 @@ class Platform:
         for observer in self.on_record:
             observer(time, record)
 
-    def _arm_modes(self) -> None:
-        """Have the scheduler step the modes chart when its next timer is due (once per
-        deadline: a record arriving first leaves the job to find nothing to do)."""
-        due = self.modes.next_deadline()
-        if due is not None and due != self._modes_armed:
-            self._modes_armed = due
-            self.scheduler.at(due, self._wake_modes)
-
-    def _wake_modes(self) -> None:
-        self._modes_armed = None
-        time = self.clock.time
-        change = self.modes.wake(time)
-        if change:
-            self._mode_changed(time, change)
-            self._emit(time, change)
-        self._arm_modes()
-
-    def _mode_changed(self, time: float, change: dict[str, Any]) -> None:
-        """The managed system's modes changed: ``mode`` in knowledge says which are active now,
-        for the stages (and rules) to read."""
-        refused = self.km.register_values({"mode": change["mode"]}, time)
-        for key, exc in refused.items():
-            self._refused(key, change["mode"], exc)
-
     def _managed_system_mode(self) -> str | frozenset[str] | None:
         """The managed system's mode, by which an effector is applicable or not: the active
         states of the modes chart, or the mode signal's value."""
         if self.modes is not None:
-            return None if self.modes.failing else self.modes.active
+            return self.modes.mode
         signal = self.manifest.mode_signal
         return self.kb.read_knowledge(signal) if signal else None
 
@@ -607,10 +588,7 @@ class Platform:
             self.clock.time = max(self.clock.time, self.replay.first_time)
         self.core.initialize()
         if self.managing and self.modes is not None:
-            initial = self.modes.start(self.clock.time)
-            self._mode_changed(self.clock.time, initial)
-            self._emit(self.clock.time, initial)
-            self._arm_modes()
+            self.modes.start(self.clock.time)
         if self.low_latency and not self._gc_frozen:
             gc.collect()
             gc.freeze()
