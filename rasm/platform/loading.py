@@ -22,6 +22,7 @@ from rasm.twin import DigitalTwin
 
 __all__ = [
     "check_components",
+    "load_app_components",
     "load_component",
     "load_stage_component",
     "load_twin",
@@ -96,6 +97,23 @@ def load_stage_component(m: AppManifest, stage: str, ref: str, package: str) -> 
             manifest_location(m, m.component_path(stage)),
         )
     return component
+
+
+def load_app_components(
+    m: AppManifest, given: dict[str, object]
+) -> tuple[dict[str, object], object | None]:
+    """The run's stage components and its twin (not restored yet: :func:`load_twin`): those
+    ``given`` (``Platform(components=...)``, by stage or ``twin``), else the manifest's."""
+    package = package_name(m)
+    components = {
+        stage: given.get(stage) or load_stage_component(m, stage, ref, package)
+        for stage, ref in m.components.items()
+    }
+    components.update(given)
+    twin = given.get("twin")
+    if twin is None and m.twin:
+        twin = load_component(m.twin, m.folder, package=package)
+    return components, twin
 
 
 def load_twin(twin: DigitalTwin | None, model: dict[str, Any] | None) -> DigitalTwin | None:

@@ -45,8 +45,8 @@ from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.knowledge_store import open_app_knowledge
 from rasm.platform.loading import (
     check_components,
+    load_app_components,
     load_component,
-    load_stage_component,
     load_twin,
     package_name,
 )
@@ -375,16 +375,7 @@ class Platform:
             clock=clock,
             depends_on=("tm", "tc"),
         )
-        package = package_name(m)
-        components = {
-            stage: self._component_overrides.get(stage)
-            or load_stage_component(m, stage, ref, package)
-            for stage, ref in m.components.items()
-        }
-        components.update(self._component_overrides)
-        twin = self._component_overrides.get("twin")
-        if twin is None and m.twin:
-            twin = load_component(m.twin, m.folder, package=package)
+        components, twin = load_app_components(m, self._component_overrides)
         self.twin = load_twin(twin, self.kb.read_knowledge("twin_model"))
         if self.twin is not None:
             self.learning = TwinLearning(
