@@ -19,8 +19,9 @@ The names are loaded on first use, so ``import rasm`` (and every ``rasm`` comman
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from rasm import _lazy
 
 __version__ = "0.1.0"
 
@@ -61,14 +62,4 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from rasm.properties import compile_properties
 
 
-def __getattr__(name: str) -> object:
-    module = _PUBLIC.get(name)
-    if module is None:
-        raise AttributeError(f"module 'rasm' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value  # later reads find it directly
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = _lazy.lazy_names(globals(), _PUBLIC)

@@ -77,3 +77,16 @@ def test_rasm_version_prints_the_package_version() -> None:
     )
     assert out.returncode == 0
     assert out.stdout.strip() == f"rasm {rasm.__version__}"
+
+
+def test_each_face_lists_its_public_names_and_names_itself_in_an_unknown_names_error() -> None:
+    import rasm.platform
+
+    for face in (rasm, rasm.platform):
+        assert dir(face) == sorted(face.__all__)
+        try:
+            face.Nothing  # noqa: B018
+        except AttributeError as exc:
+            assert str(exc) == f"module {face.__name__!r} has no attribute 'Nothing'"
+        else:
+            raise AssertionError(f"{face.__name__}.Nothing should not exist")

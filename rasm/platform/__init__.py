@@ -7,8 +7,9 @@ assembles them into a :class:`Platform`. The names below are loaded on first use
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from rasm import _lazy
 
 # public name -> the module that defines it
 _PUBLIC = {
@@ -46,14 +47,4 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from rasm.platform.summary import RunSummary
 
 
-def __getattr__(name: str) -> object:
-    module = _PUBLIC.get(name)
-    if module is None:
-        raise AttributeError(f"module 'rasm.platform' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value  # later reads find it directly
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = _lazy.lazy_names(globals(), _PUBLIC)
