@@ -55,7 +55,7 @@ from rasm.platform.managed_system import ManagedSystem, Simulator
 from rasm.platform.manifest import AppManifest, load_manifest
 from rasm.platform.modes import ManagedSystemModes, ModesRunner
 from rasm.platform.plan_repair import PlanRepair, check_repair_weights
-from rasm.platform.ros_wiring import ros_options
+from rasm.platform.ros_wiring import is_ros_transport, ros_options
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
 from rasm.platform.state_dir import default_state_dir
@@ -67,23 +67,18 @@ from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.platform.twin_learning import TwinLearning
 from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
-
-if TYPE_CHECKING:
-    from rasm.platform.replay import Replay
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.statechart import MonotonicClock, SimulatedClock
 from rasm.trace import TraceWriter
 from rasm.twin import DigitalTwin
 
+if TYPE_CHECKING:
+    from rasm.platform.replay import Replay
+
 __all__ = ["Platform", "RunSummary"]
 
 _log = logging.getLogger("rasm.platform")
 _SCALARS = (int, float, bool, str)
-
-
-def _is_ros(url: str) -> bool:
-    """Whether a transport URL is a ROS 2 middleware's (zenoh://, dds://)."""
-    return url.strip().startswith(("zenoh://", "dds://"))
 
 
 class Platform:
@@ -168,7 +163,7 @@ class Platform:
         self.transport_url = transport or manifest.transport
         self.replay_path = Path(replay) if replay is not None else None
         self.replay: Replay | None = None
-        self.ros = _is_ros(self.transport_url)
+        self.ros = is_ros_transport(self.transport_url)
         self.external = ExternalVerdicts(manifest.external_verdicts)
         self.verdicts_out: VerdictPublisher | None = None
         self.knowledge_url = knowledge or manifest.knowledge

@@ -8,7 +8,12 @@ from typing import Any
 from rasm.errors import SourceError, SourceErrors
 from rasm.platform.manifest import AppManifest, manifest_location
 
-__all__ = ["ros_options"]
+__all__ = ["is_ros_transport", "ros_options"]
+
+
+def is_ros_transport(url: str) -> bool:
+    """Whether a transport URL is a ROS 2 middleware's (zenoh://, dds://)."""
+    return url.strip().startswith(("zenoh://", "dds://"))
 
 
 def ros_options(m: AppManifest, transport_url: str) -> dict[str, Any]:
