@@ -75,7 +75,10 @@ class MqttTransport(Transport):
     publishes wait in paho's queue (at most ``max_pending``) and go out after reconnecting.
     ``on_connection_change(connected)`` is told, on paho's network thread, when the transport
     becomes ready (connected and subscriptions confirmed) and when it loses the connection.
+    Its own messages carry its uid prefix, so it knows them when the broker brings them back.
     """
+
+    tells_own_messages = True
 
     def __init__(
         self,
@@ -214,6 +217,7 @@ class MqttTransport(Transport):
             payload, uid=self._next_uid(), timestamp=time.time(), max_bytes=self.max_payload
         )
         assert self._client is not None
+        self._own_sent(topic)  # before it leaves: it may be back before publish() returns
         info = self._client.publish(topic, data, qos=q)
         rc = info.rc
         self._last_publish = info  # close() waits for it: packets leave in order
@@ -421,6 +425,8 @@ class MqttTransport(Transport):
                 self.stats.add_delivery(ok, failed)
             except Exception:  # _deliver catches callback errors; this is a last line of defence
                 _log.exception("error dispatching a message on %r", topic)
+            if uid is not None and uid.startswith(self._uid_prefix):
+                self._own_delivered(topic)
 
     def _count_malformed(self, topic: str, reason: str) -> None:
         self.stats.incr("malformed")

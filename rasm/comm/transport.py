@@ -9,6 +9,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rasm.comm.message import Message, TransportStats
+from rasm.comm.own_deliveries import OwnDeliveries
 from rasm.comm.topics import TopicIndex, validate_pattern
 from rasm.errors import CommError
 
@@ -70,11 +71,16 @@ class Transport(ABC):
     #: The URL this transport was opened with (``local`` or ``mqtt://host:port``).
     url: str
 
+    #: Whether the transport knows its own messages when they come back over the network, so
+    #: that :meth:`count_own_deliveries` and :meth:`wait_own_deliveries` work.
+    tells_own_messages: bool = False
+
     def __init__(self) -> None:
         self.stats = TransportStats()
         self._index: TopicIndex[Subscription] = TopicIndex()
         self._sub_lock = threading.Lock()
         self._state = "new"  # new -> open -> closed
+        self._own: OwnDeliveries | None = None  # counting own messages (count_own_deliveries)
 
     # -- the interface --------------------------------------------------------------------------
     @abstractmethod
@@ -110,6 +116,53 @@ class Transport(ABC):
                 sub.cancel()
                 raise
         return sub
+
+    # -- own messages coming back -----------------------------------------------------------------
+    def count_own_deliveries(self) -> None:
+        """From now on count every message this transport publishes on a topic it is itself
+        subscribed to, until the network has brought it back and its callbacks have returned.
+
+        A run on the simulated clock waits for them (:meth:`wait_own_deliveries`) before its
+        clock moves on. :class:`CommError` if this transport cannot tell its own messages.
+        """
+        if not self.tells_own_messages:
+            raise CommError(
+                f"{self.url}: this transport cannot tell its own messages when they come back, "
+                "so nothing can wait for their delivery"
+            )
+        if self._own is None:
+            self._own = OwnDeliveries()
+
+    def wait_own_deliveries(self, timeout: float) -> None:
+        """Return once every own message counted has been delivered here (callbacks returned).
+
+        A message that has not come back after ``timeout`` seconds (lost by the network, or
+        dropped by a full queue) raises :class:`CommError` naming its topic: the caller would
+        otherwise carry on as if it had never been sent.
+        """
+        own = self._own
+        if own is None:
+            return
+        missing = own.wait(timeout)
+        if missing:
+            topics = ", ".join(f"{n} on {topic!r}" for topic, n in sorted(missing.items())[:5])
+            raise CommError(
+                f"{self.url}: messages this process published did not come back within "
+                f"{timeout:g} s ({topics}); a run on the simulated clock moves its clock only "
+                "once every one of them is delivered"
+            )
+
+    def _own_sent(self, topic: str) -> None:
+        """Called by :meth:`publish` before a message leaves: counted if counting and some
+        subscription of this transport matches ``topic``."""
+        own = self._own
+        if own is not None and any(sub._active for sub in self._index.match(topic)):
+            own.sent(topic)
+
+    def _own_delivered(self, topic: str) -> None:
+        """Called once an own message has been delivered (its callbacks returned)."""
+        if self._own is not None:
+            self._own.delivered(topic)
 
     @property
     def subscriptions(self) -> int:

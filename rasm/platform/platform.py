@@ -58,6 +58,7 @@ from rasm.platform.plan_repair import PlanRepair, check_repair_weights
 from rasm.platform.ros_wiring import is_ros_transport, ros_options
 from rasm.platform.scheduler import Scheduler
 from rasm.platform.signals import check_app
+from rasm.platform.simulated_clock import check_simulated_run, wait_for_own_messages
 from rasm.platform.state_dir import default_state_dir
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
@@ -140,6 +141,8 @@ class Platform:
             check_components(components)
         self.manifest = manifest
         self.clock_kind = clock or manifest.clock or "wall"
+        if self.clock_kind == "simulated":
+            check_simulated_run(transport or manifest.transport, role, bool(manifest.simulator))
         self.clock = (
             SimulatedClock() if self.clock_kind == "simulated" else MonotonicClock(running=False)
         )
@@ -231,6 +234,8 @@ class Platform:
         if self.ros:
             options.update(ros_options(m, self.transport_url))
         self.transport: Transport = open_transport(self.transport_url, **options)
+        if self.clock_kind == "simulated" and self.replay_path is None:
+            self.scheduler.settle = wait_for_own_messages(self.transport)
         log = m.logging
         self.lt = LoggingAndTracking(
             chart=self._chart("logging_and_tracking"),

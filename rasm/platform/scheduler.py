@@ -5,6 +5,10 @@ timers, messages arriving from other threads) becomes a job run by one thread, i
 simulated run with a seed is deterministic. On the simulated clock the scheduler jumps from job to
 job as fast as the machine allows; on the wall clock it sleeps on a condition variable until the
 next job is due or another thread submits one: it never polls.
+
+A simulated run over a network transport also waits, before each look at the next job, for the
+messages it published to come back (:attr:`Scheduler.settle`): their jobs are then in the inbox
+before the clock can move past them, just as the in-process bus delivers them at once.
 """
 
 from __future__ import annotations
@@ -38,6 +42,9 @@ class Scheduler:
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
         self.missed = 0  # turns of periodic jobs skipped because they were already past
+        # on the simulated clock: returns once every message on its way to this process's
+        # subscriptions has been delivered (their jobs submitted); raises if one never comes
+        self.settle: Callable[[], Any] | None = None
 
     @property
     def time(self) -> float:
@@ -122,6 +129,10 @@ class Scheduler:
                 for job in inbox:
                     self._run(job)
                 continue
+            if simulated and self.settle is not None:
+                self.settle()  # a message still on the network would be served too late
+                if self._inbox:
+                    continue
             due = heap[0][0] if heap else None
             if end is not None and (due is None or due > end):
                 if simulated:
