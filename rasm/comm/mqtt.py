@@ -75,7 +75,7 @@ class MqttTransport(Transport):
     publishes wait in paho's queue (at most ``max_pending``) and go out after reconnecting.
     ``on_connection_change(connected)`` is told, on paho's network thread, when the transport
     becomes ready (connected and subscriptions confirmed) and when it loses the connection.
-    Its own messages carry its uid prefix, so it knows them when the broker brings them back.
+    Its own messages carry their uids, so it knows them when the broker brings them back.
     """
 
     tells_own_messages = True
@@ -213,11 +213,10 @@ class MqttTransport(Transport):
             self._require_open(f"publish on {topic!r}")
         validate_topic(topic)
         q = check_qos(self._qos_for(topic, qos))
-        data = encode(
-            payload, uid=self._next_uid(), timestamp=time.time(), max_bytes=self.max_payload
-        )
+        uid = self._next_uid()
+        data = encode(payload, uid=uid, timestamp=time.time(), max_bytes=self.max_payload)
         assert self._client is not None
-        self._own_sent(topic)  # before it leaves: it may be back before publish() returns
+        self._own_sent(uid, topic)  # before it leaves: it may be back before publish() returns
         info = self._client.publish(topic, data, qos=q)
         rc = info.rc
         self._last_publish = info  # close() waits for it: packets leave in order
@@ -421,12 +420,9 @@ class MqttTransport(Transport):
             else:
                 timestamp = None
             try:
-                ok, failed = self._deliver(Message(topic, payload, uid, timestamp))
-                self.stats.add_delivery(ok, failed)
+                self._deliver_received(Message(topic, payload, uid, timestamp))
             except Exception:  # _deliver catches callback errors; this is a last line of defence
                 _log.exception("error dispatching a message on %r", topic)
-            if uid is not None and uid.startswith(self._uid_prefix):
-                self._own_delivered(topic)
 
     def _count_malformed(self, topic: str, reason: str) -> None:
         self.stats.incr("malformed")

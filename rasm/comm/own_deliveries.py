@@ -1,51 +1,69 @@
-"""Counting a transport's own messages on their way back to it.
+"""A transport's own messages on their way back to it, delivered in the order they were sent.
 
 A transport subscribed to a topic it also publishes on gets its own messages back from the
-network. A run on the simulated clock must not move its clock while one of them is still on
-the way (a reading would be judged as never sent), so it counts them: one more on a topic when
-one leaves, one less when it has been delivered, and it waits for nought.
+network. A run on the simulated clock must not move its clock while one of them is still on the
+way (a reading would be judged as never sent), nor take them in another order than the
+in-process bus would (the network may bring two topics' messages back crossed). So, while
+counting, each message that leaves for a topic of its own subscriptions is noted in order; one
+that comes back waits for those sent before it, and a caller can wait until none is left.
 """
 
 from __future__ import annotations
 
 import threading
+from collections import deque
+
+from rasm.comm.message import Message
 
 __all__ = ["OwnDeliveries"]
 
 
 class OwnDeliveries:
-    """Per topic, how many own messages have left and not yet been delivered back."""
+    """The own messages sent and not yet delivered, in the order they were sent."""
 
     def __init__(self) -> None:
         self._changed = threading.Condition(threading.Lock())
-        self._waiting: dict[str, int] = {}
+        self._waiting: dict[str, str] = {}  # uid -> topic: sent, not yet handed out
+        self._order: deque[str] = deque()  # the same uids, in the order they were sent
+        self._back: dict[str, Message] = {}  # came back before one sent earlier
+        self._handed = 0  # handed out for delivery, callbacks not yet returned
 
-    def sent(self, topic: str) -> None:
+    def sent(self, uid: str, topic: str) -> None:
+        """The message ``uid`` is about to leave for ``topic``."""
         with self._changed:
-            self._waiting[topic] = self._waiting.get(topic, 0) + 1
+            self._waiting[uid] = topic
+            self._order.append(uid)
 
-    def delivered(self, topic: str) -> None:
-        """One came back. One sent before counting began is not counted (nothing waits)."""
+    def take(self, message: Message) -> list[Message] | None:
+        """``message`` came back: the own messages to deliver now, in the order they were sent
+        (empty while one sent earlier is still away); None if it is not one waited for (a
+        message from elsewhere, or sent before counting began): deliver it as usual. Call
+        :meth:`delivered` with what this returns once its callbacks have run."""
         with self._changed:
-            left = self._waiting.get(topic, 0) - 1
-            if left < 0:
-                return
-            if left:
-                self._waiting[topic] = left
-            else:
-                del self._waiting[topic]
-                if not self._waiting:
-                    self._changed.notify_all()
+            if message.uid not in self._waiting or message.uid in self._back:
+                return None
+            self._back[message.uid] = message
+            ready = []
+            while self._order and self._order[0] in self._back:
+                uid = self._order.popleft()
+                ready.append(self._back.pop(uid))
+                del self._waiting[uid]
+            self._handed += len(ready)
+            return ready
 
-    @property
-    def in_flight(self) -> int:
-        """How many have left and are not delivered yet."""
+    def delivered(self, messages: list[Message]) -> None:
+        """The callbacks of ``messages`` (from :meth:`take`) have returned."""
         with self._changed:
-            return sum(self._waiting.values())
+            self._handed -= len(messages)
+            if not self._waiting and not self._handed:
+                self._changed.notify_all()
 
     def wait(self, timeout: float) -> dict[str, int]:
-        """Wait until none is on the way (at most ``timeout`` s); what is still missing then,
-        by topic (empty: all delivered)."""
+        """Wait until every message sent is delivered (at most ``timeout`` s); how many are
+        still missing then, by topic (empty: all delivered)."""
         with self._changed:
-            self._changed.wait_for(lambda: not self._waiting, timeout)
-            return dict(self._waiting)
+            self._changed.wait_for(lambda: not self._waiting and not self._handed, timeout)
+            missing: dict[str, int] = {}
+            for topic in self._waiting.values():
+                missing[topic] = missing.get(topic, 0) + 1
+            return missing

@@ -152,17 +152,28 @@ class Transport(ABC):
                 "once every one of them is delivered"
             )
 
-    def _own_sent(self, topic: str) -> None:
-        """Called by :meth:`publish` before a message leaves: counted if counting and some
+    def _own_sent(self, uid: str, topic: str) -> None:
+        """Called by :meth:`publish` before message ``uid`` leaves: noted if counting and some
         subscription of this transport matches ``topic``."""
         own = self._own
         if own is not None and any(sub._active for sub in self._index.match(topic)):
-            own.sent(topic)
+            own.sent(uid, topic)
 
-    def _own_delivered(self, topic: str) -> None:
-        """Called once an own message has been delivered (its callbacks returned)."""
-        if self._own is not None:
-            self._own.delivered(topic)
+    def _deliver_received(self, message: Message) -> None:
+        """Deliver a message that came from the network (on the transport's delivery thread)
+        and count it; own messages waited for go in the order they were sent."""
+        own = self._own
+        ready = own.take(message) if own is not None else None
+        if ready is None:
+            ok, failed = self._deliver(message)
+            self.stats.add_delivery(ok, failed)
+            return
+        try:
+            for each in ready:
+                ok, failed = self._deliver(each)
+                self.stats.add_delivery(ok, failed)
+        finally:
+            own.delivered(ready)
 
     @property
     def subscriptions(self) -> int:

@@ -427,6 +427,8 @@ class RosTransport(Transport):
         raise NotImplementedError
 
     def _wire_send(self, topic: RosTopic, data: bytes) -> None:
+        """Send ``data``; a subclass that sets ``tells_own_messages`` calls
+        ``self._own_sent(uid, topic.name)`` just before, with the uid it arrives under."""
         raise NotImplementedError
 
     def _wire_matched(self, topic: RosTopic, publisher: Any) -> bool:
@@ -449,7 +451,6 @@ class RosTransport(Transport):
             self._reject(topic.name, "malformed", str(exc))
             return
         try:
-            ok, failed = self._deliver(Message(topic.name, payload, uid, timestamp))
-            self.stats.add_delivery(ok, failed)
+            self._deliver_received(Message(topic.name, payload, uid, timestamp))
         except Exception:  # _deliver catches callback errors; a last line of defence
             _log.exception("error dispatching a message on %s", topic.name)

@@ -153,8 +153,11 @@ class ZenohTransport(RosTransport):
     (rmw_zenoh's ``ZENOH_SESSION_CONFIG_URI`` files work); mode, endpoints and multicast
     scouting are then set as described. ``connect()`` fails with :class:`CommError` if nothing
     answers at ``HOST:PORT`` within ``connect_timeout`` seconds. The other keywords are
-    :class:`~rasm.ros2.transport.RosTransport`'s.
+    :class:`~rasm.ros2.transport.RosTransport`'s. Its own messages come back to its own
+    subscriptions with their publisher's gid and sequence number, so it knows them.
     """
+
+    tells_own_messages = True
 
     def __init__(
         self,
@@ -270,7 +273,10 @@ class ZenohTransport(RosTransport):
 
     def _wire_send(self, topic: RosTopic, data: bytes) -> None:
         publisher = self._publishers.get(topic.name) or self._wire_publisher(topic)
-        extra = attachment(next(publisher.sequence), time.time_ns(), publisher.gid)
+        sequence = next(publisher.sequence)
+        extra = attachment(sequence, time.time_ns(), publisher.gid)
+        # the uid it comes back under (_sender): noted before it leaves, as it may be back first
+        self._own_sent(f"{publisher.gid.hex()}.{sequence}", topic.name)
         try:
             publisher.publisher.put(data, attachment=extra)
         except zenoh.ZError as exc:

@@ -10,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rasm.comm import CommError, LocalTransport, Message
+from rasm.comm.own_deliveries import OwnDeliveries
 
 WAIT = 10.0  # generous bound on every wait: a loaded CI machine, never a sleep
 
@@ -59,3 +60,29 @@ def test_a_message_lost_on_the_way_fails_the_wait_naming_its_topic(broker, mqtt)
 def test_a_transport_that_cannot_tell_its_own_messages_refuses_to_count_them():
     with pytest.raises(CommError, match="cannot tell its own messages"):
         LocalTransport().count_own_deliveries()
+
+
+@given(data=st.data(), sent=st.lists(TOPICS, min_size=1, max_size=30))
+def test_own_messages_are_handed_out_in_the_order_sent_whatever_order_they_come_back(
+    data, sent
+):
+    own = OwnDeliveries()
+    messages = [Message(topic, {"n": n}, f"own.{n}") for n, topic in enumerate(sent)]
+    for message in messages:
+        own.sent(message.uid, message.topic)
+    back = data.draw(st.permutations(messages))
+    lost = data.draw(st.sampled_from([None, *messages]))  # one may never come back
+    handed: list[Message] = []
+    for message in back:
+        assert own.take(Message("sim/a", {}, "elsewhere.1")) is None  # not one of ours
+        if message is lost:
+            continue
+        ready = own.take(message)
+        assert ready is not None
+        handed += ready
+        own.delivered(ready)
+    if lost is None:
+        assert handed == messages and own.wait(0) == {}
+    else:  # what was sent after the lost one waits for it, and the wait names its topic
+        assert handed == messages[: messages.index(lost)]
+        assert own.wait(0)[lost.topic] >= 1
