@@ -27,8 +27,10 @@ On loopback only, for tests::
 
 from __future__ import annotations
 
+import itertools
 import logging
 import re
+from collections.abc import Iterator
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
@@ -147,8 +149,11 @@ class DdsTransport(RosTransport):
 
     ``url`` is ``dds://`` or ``dds://?domain=N``. ``config`` is a Cyclone XML configuration
     (or a ``file://`` URL of one) for this domain; without it Cyclone reads ``CYCLONEDDS_URI``.
-    The other keywords are :class:`~rasm.ros2.transport.RosTransport`'s.
+    The other keywords are :class:`~rasm.ros2.transport.RosTransport`'s. Its own samples come
+    back to its own readers with its writers' handles, so it knows them.
     """
+
+    tells_own_messages = True
 
     def __init__(
         self, url: str = "dds://", *, config: str | None = None, domain: int | None = None,
@@ -171,6 +176,9 @@ class DdsTransport(RosTransport):
         # DDS topic -> {publication key: type name}: what discovery saw, also before we read
         self._seen: dict[str, dict[Any, str]] = {}
         self._discovery: BuiltinDataReader | None = None
+        # own writers by handle: the numbers of the messages each sent, and of those back here
+        self._own_writers: dict[int, Iterator[int]] = {}
+        self._own_back: dict[int, int] = {}
         self._graph: DataWriter | None = None
 
     # -- the wire -------------------------------------------------------------------------------
@@ -224,6 +232,8 @@ class DdsTransport(RosTransport):
                 self._participant, self._dds_topic(topic),
                 qos=_qos(topic.qos, topic.codec.type_hash),
             )
+            # readers see the handle unsigned; Python's binding gives it signed
+            self._own_writers[writer.instance_handle % 2**64] = itertools.count(1)
             self._announce()
         return writer
 
@@ -232,6 +242,8 @@ class DdsTransport(RosTransport):
         # Cyclone's typed write() would re-encode a Python object; the codec's CDR goes as is,
         # padded to a multiple of 4 bytes as Cyclone's own serializer pads it.
         padded = data + b"\0" * (-len(data) % 4)
+        handle = writer.instance_handle % 2**64
+        self._own_sent(f"{handle}.{next(self._own_writers[handle])}", topic.name)
         result = ddspy_write(writer._ref, padded)
         if result < 0:
             raise CommError(f"{self.url}: could not publish on {topic.name} (DDS error {result})")
@@ -305,11 +317,21 @@ class DdsTransport(RosTransport):
                         continue  # a writer left or disposed: no message
                     refused = self._publication_check(topic, reader, info.publication_handle)
                     if refused is None:
-                        self._received(topic, data, None, info.source_timestamp / 1e9)
+                        uid = self._own_uid(info.publication_handle)
+                        self._received(topic, data, uid, info.source_timestamp / 1e9)
                     else:
                         self._reject(topic.name, *refused)
         except Exception:
             _log.exception("error receiving a message on %s", topic.name)
+
+    def _own_uid(self, handle: int) -> str | None:
+        """A sample's uid if one of this participant's writers sent it: the writer's handle
+        and the sample's number (a reliable writer's samples reach a local reader in order);
+        None for another participant's."""
+        if handle not in self._own_writers:
+            return None
+        number = self._own_back[handle] = self._own_back.get(handle, 0) + 1
+        return f"{handle}.{number}"
 
     def _publication_check(
         self, topic: RosTopic, reader: DataReader, handle: int

@@ -1,7 +1,7 @@
-"""A seeded run on the simulated clock over Zenoh gives the same trace every time: the clock
-moves only once the simulator's messages are back, taken in the order they were sent (Zenoh
-may bring two topics' messages back crossed). The app is the TurtleBot's ROS 2 app with its
-simulator in the process, speaking ROS 2 messages."""
+"""A seeded run on the simulated clock over Zenoh or Cyclone DDS gives the same trace every
+time: the clock moves only once the simulator's messages are back, taken in the order they were
+sent (Zenoh may bring two topics' messages back crossed). The app is the TurtleBot's ROS 2 app
+with its simulator in the process, speaking ROS 2 messages."""
 
 from __future__ import annotations
 
@@ -45,13 +45,8 @@ def ros_app_with_simulator(tmp_path: Path) -> Path:
     return app / "sim.yaml"
 
 
-def test_a_seeded_simulated_run_over_zenoh_gives_the_same_trace_every_time(
-    tmp_path, zenoh_port, transports
-):
-    app = ros_app_with_simulator(tmp_path)
-    url = f"zenoh://127.0.0.1:{zenoh_port}"
-    # the meeting point the run connects to
-    transports(ZenohTransport(url, listen=[f"tcp/127.0.0.1:{zenoh_port}"])).connect()
+def seeded_traces(app: Path, url: str, tmp_path: Path) -> list[list[dict]]:
+    """The traces of RUNS runs of ``app`` with seed 1 over ``url``, without durations."""
     traces = []
     for run in range(RUNS):
         trace_file = tmp_path / f"run-{run}.jsonl"
@@ -59,6 +54,24 @@ def test_a_seeded_simulated_run_over_zenoh_gives_the_same_trace_every_time(
                  state_dir=tmp_path / f"state-{run}", trace=trace_file).run(20.0)
         records = [json.loads(line) for line in trace_file.read_text().splitlines()]
         traces.append([{k: v for k, v in r.items() if k != "duration"} for r in records])
+    return traces
+
+
+def test_a_seeded_simulated_run_over_zenoh_gives_the_same_trace_every_time(
+    tmp_path, zenoh_port, transports
+):
+    app = ros_app_with_simulator(tmp_path)
+    url = f"zenoh://127.0.0.1:{zenoh_port}"
+    # the meeting point the run connects to
+    transports(ZenohTransport(url, listen=[f"tcp/127.0.0.1:{zenoh_port}"])).connect()
+    traces = seeded_traces(app, url, tmp_path)
     # every step's odometry reached knowledge: 0.1 s steps from 0 to 20 s
+    assert sum("qw" in r for r in traces[0]) == 201
+    assert all(trace == traces[0] for trace in traces[1:])
+
+
+def test_a_seeded_simulated_run_over_dds_gives_the_same_trace_every_time(tmp_path, dds_domain):
+    app = ros_app_with_simulator(tmp_path)
+    traces = seeded_traces(app, f"dds://?domain={dds_domain}", tmp_path)
     assert sum("qw" in r for r in traces[0]) == 201
     assert all(trace == traces[0] for trace in traces[1:])
