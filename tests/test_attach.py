@@ -441,13 +441,15 @@ def test_with_no_topic_map_a_rasm_loop_is_monitored_from_its_trace_topic(broker,
     trace = tmp_path / "trace.jsonl"
     run = subprocess.run(
         [sys.executable, "-m", "rasm.cli", "run", str(root / "examples" / "hotbox"),
-         # the wall clock: a simulated run does not wait for the broker to deliver readings
-         "--transport", broker.url, "--clock", "wall", "--seed", "1",
-         "--duration", "3", "--trace", str(trace)],
+         "--transport", broker.url, "--clock", "simulated", "--seed", "1",
+         "--duration", "20", "--trace", str(trace)],
         capture_output=True, text=True, timeout=120, cwd=tmp_path,
     )
     assert run.returncode == 0, run.stdout + run.stderr
-    records = len(trace.read_text().splitlines())
+    lines = trace.read_text().splitlines()
+    # every reading of the simulator (one each 0.1 s, 0 to 20 s) crossed the broker
+    assert sum("temperature" in json.loads(line) for line in lines) == 201
+    records = len(lines)
     deadline = clock.monotonic() + 30
     while attachment.summary.messages < records and clock.monotonic() < deadline:
         clock.sleep(0.05)  # waiting for a condition: the messages the loop published to arrive
