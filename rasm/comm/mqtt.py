@@ -240,6 +240,9 @@ class MqttTransport(Transport):
     def _next_uid(self) -> str:
         return self._uid_prefix + str(next(self._uids))
 
+    def _sent_here(self, uid: str | None) -> bool:
+        return uid is not None and uid.startswith(self._uid_prefix)
+
     def _qos_for(self, topic: str, qos: int | None) -> int:
         if qos is not None:
             return qos

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import threading
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from rasm.comm.message import Message, TransportStats
@@ -118,9 +118,11 @@ class Transport(ABC):
         return sub
 
     # -- own messages coming back -----------------------------------------------------------------
-    def count_own_deliveries(self) -> None:
+    def count_own_deliveries(self, exclusive: Iterable[str] = ()) -> None:
         """From now on count every message this transport publishes on a topic it is itself
-        subscribed to, until the network has brought it back and its callbacks have returned.
+        subscribed to, until the network has brought it back and its callbacks have returned;
+        and every message another process publishes on an ``exclusive`` topic (one this
+        process must have to itself).
 
         A run on the simulated clock waits for them (:meth:`wait_own_deliveries`) before its
         clock moves on. :class:`CommError` if this transport cannot tell its own messages.
@@ -131,19 +133,28 @@ class Transport(ABC):
                 "so nothing can wait for their delivery"
             )
         if self._own is None:
-            self._own = OwnDeliveries()
+            self._own = OwnDeliveries(exclusive)
 
     def wait_own_deliveries(self, timeout: float) -> None:
         """Return once every own message counted has been delivered here (callbacks returned).
 
         A message that has not come back after ``timeout`` seconds (lost by the network, or
         dropped by a full queue) raises :class:`CommError` naming its topic: the caller would
-        otherwise carry on as if it had never been sent.
+        otherwise carry on as if it had never been sent. So does a message another process
+        published on an exclusive topic: nothing could say when it would come.
         """
         own = self._own
         if own is None:
             return
         missing = own.wait(timeout)
+        strangers = own.strangers()
+        if strangers:
+            topics = ", ".join(f"{n} on {topic!r}" for topic, n in sorted(strangers.items())[:5])
+            raise CommError(
+                f"{self.url}: another process published on topics this process needs to "
+                f"itself ({topics}); a run on the simulated clock can wait only for its own "
+                "messages, so its managed system's topics must be its own (a broker of its own)"
+            )
         if missing:
             topics = ", ".join(f"{n} on {topic!r}" for topic, n in sorted(missing.items())[:5])
             raise CommError(
@@ -159,11 +170,16 @@ class Transport(ABC):
         if own is not None and any(sub._active for sub in self._index.match(topic)):
             own.sent(uid, topic)
 
+    def _sent_here(self, uid: str | None) -> bool:
+        """Whether the message of ``uid`` left this transport (a transport that sets
+        ``tells_own_messages`` knows)."""
+        return False
+
     def _deliver_received(self, message: Message) -> None:
         """Deliver a message that came from the network (on the transport's delivery thread)
         and count it; own messages waited for go in the order they were sent."""
         own = self._own
-        ready = own.take(message) if own is not None else None
+        ready = own.take(message, own=self._sent_here(message.uid)) if own is not None else None
         if ready is None:
             ok, failed = self._deliver(message)
             self.stats.add_delivery(ok, failed)

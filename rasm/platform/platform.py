@@ -235,7 +235,8 @@ class Platform:
             options.update(ros_options(m, self.transport_url))
         self.transport: Transport = open_transport(self.transport_url, **options)
         if self.clock_kind == "simulated" and self.replay_path is None:
-            self.scheduler.settle = wait_for_own_messages(self.transport)
+            managed_topics = [p.topic for p in m.probes] + [e.topic for e in m.effectors.values()]
+            self.scheduler.settle = wait_for_own_messages(self.transport, managed_topics)
         log = m.logging
         self.lt = LoggingAndTracking(
             chart=self._chart("logging_and_tracking"),

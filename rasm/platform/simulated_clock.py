@@ -10,7 +10,7 @@ has its managed system (the app's simulator) in the same process.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 from rasm.comm import LocalTransport, Transport
 from rasm.errors import PlatformError
@@ -45,11 +45,14 @@ def check_simulated_run(transport_url: str, role: str, has_simulator: bool) -> N
         )
 
 
-def wait_for_own_messages(transport: Transport) -> Callable[[], None] | None:
+def wait_for_own_messages(
+    transport: Transport, managed_topics: Iterable[str]
+) -> Callable[[], None] | None:
     """What the scheduler of a simulated run calls before each job over ``transport`` (None on
     the in-process bus, which delivers at once): waits until every message this process has
-    published is delivered back to its subscriptions, or raises :class:`CommError`."""
+    published is delivered back to its subscriptions, or raises :class:`CommError`; it raises
+    too once another process has published on ``managed_topics`` (the probes' and effectors')."""
     if isinstance(transport, LocalTransport):
         return None
-    transport.count_own_deliveries()
+    transport.count_own_deliveries(exclusive=managed_topics)
     return lambda: transport.wait_own_deliveries(DELIVERY_TIMEOUT)

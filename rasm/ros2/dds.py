@@ -324,6 +324,9 @@ class DdsTransport(RosTransport):
         except Exception:
             _log.exception("error receiving a message on %s", topic.name)
 
+    def _sent_here(self, uid: str | None) -> bool:
+        return uid is not None  # only this participant's samples get a uid (_own_uid)
+
     def _own_uid(self, handle: int) -> str | None:
         """A sample's uid if one of this participant's writers sent it: the writer's handle
         and the sample's number (a reliable writer's samples reach a local reader in order);

@@ -182,6 +182,7 @@ class ZenohTransport(RosTransport):
         self._node_token: Any = None
         self._entity_ids = itertools.count(1)  # 0 is the node's
         self._publishers: dict[str, _Publisher] = {}
+        self._own_gids: set[str] = set()  # this session's publishers, as in a message's uid
         self._subscribers: dict[str, tuple[Any, Any]] = {}  # topic -> (subscriber, token)
 
     # -- the wire -------------------------------------------------------------------------------
@@ -269,6 +270,7 @@ class ZenohTransport(RosTransport):
         made = _Publisher(publisher, self._session.liveliness().declare_token(token_key),
                           _gid(token_key))
         self._publishers[topic.name] = made
+        self._own_gids.add(made.gid.hex())
         return made
 
     def _wire_send(self, topic: RosTopic, data: bytes) -> None:
@@ -294,6 +296,10 @@ class ZenohTransport(RosTransport):
 
     def _in_use(self, topic: str) -> bool:
         return topic in self._publishers
+
+    def _sent_here(self, uid: str | None) -> bool:
+        # a uid is its publisher's gid and the message's sequence number (_sender)
+        return uid is not None and uid.rpartition(".")[0] in self._own_gids
 
     def _wire_subscribe(self, topic: RosTopic) -> None:
         if topic.name in self._subscribers:

@@ -3,6 +3,7 @@ on a real mosquitto on loopback."""
 
 from __future__ import annotations
 
+import threading
 from collections import Counter
 
 import pytest
@@ -57,6 +58,27 @@ def test_a_message_lost_on_the_way_fails_the_wait_naming_its_topic(broker, mqtt)
         bus.wait_own_deliveries(0.5)
 
 
+def test_a_message_another_process_published_on_an_own_topic_fails_the_wait(mqtt):
+    bus, other = mqtt(), mqtt()
+    received: list[Message] = []
+    all_three = threading.Event()
+
+    def receive(message: Message) -> None:
+        received.append(message)
+        if len(received) == 3:
+            all_three.set()
+
+    bus.subscribe("sim/+", receive)
+    bus.count_own_deliveries(exclusive=["sim/temperature"])
+    bus.publish("sim/temperature", {"value": 37.0})
+    other.publish("sim/presence", {"online": True})  # not exclusive: not counted
+    other.publish("sim/temperature", {"value": 99.0})
+    assert all_three.wait(WAIT)
+    with pytest.raises(CommError, match=r"another process published on topics this process "
+                                        r"needs to itself \(1 on 'sim/temperature'\)"):
+        bus.wait_own_deliveries(WAIT)
+
+
 def test_a_transport_that_cannot_tell_its_own_messages_refuses_to_count_them():
     with pytest.raises(CommError, match="cannot tell its own messages"):
         LocalTransport().count_own_deliveries()
@@ -66,7 +88,7 @@ def test_a_transport_that_cannot_tell_its_own_messages_refuses_to_count_them():
 def test_own_messages_are_handed_out_in_the_order_sent_whatever_order_they_come_back(
     data, sent
 ):
-    own = OwnDeliveries()
+    own = OwnDeliveries(exclusive={"sim/a"})
     messages = [Message(topic, {"n": n}, f"own.{n}") for n, topic in enumerate(sent)]
     for message in messages:
         own.sent(message.uid, message.topic)
@@ -74,13 +96,16 @@ def test_own_messages_are_handed_out_in_the_order_sent_whatever_order_they_come_
     lost = data.draw(st.sampled_from([None, *messages]))  # one may never come back
     handed: list[Message] = []
     for message in back:
-        assert own.take(Message("sim/a", {}, "elsewhere.1")) is None  # not one of ours
         if message is lost:
             continue
-        ready = own.take(message)
+        ready = own.take(message, own=True)
         assert ready is not None
         handed += ready
         own.delivered(ready)
+    # a message from elsewhere is delivered as usual, and counted on an exclusive topic
+    assert own.take(Message("sim/a", {}, "elsewhere.1"), own=False) is None
+    assert own.take(Message("sim/b", {}, "elsewhere.2"), own=False) is None
+    assert own.strangers() == {"sim/a": 1}
     if lost is None:
         assert handed == messages and own.wait(0) == {}
     else:  # what was sent after the lost one waits for it, and the wait names its topic

@@ -48,6 +48,20 @@ def test_a_simulated_run_whose_reading_never_comes_back_fails_naming_it(
         platform.run(20.0)
 
 
+def test_a_reading_from_another_process_fails_a_simulated_run(hotbox, broker, mqtt, tmp_path):
+    intruder = mqtt()
+    platform = Platform(hotbox, clock="simulated", seed=1, knowledge="memory",
+                        state_dir=tmp_path, transport=broker.url)
+    # another process publishes on the probe topic: nobody could say when its reading comes
+    platform.on_record.append(
+        lambda time, record: intruder.publish("hotbox/sensors", {"temperature": 80.0})
+        if time == 5 and "temperature" in record else None
+    )
+    with pytest.raises(CommError, match=r"another process published on topics this process "
+                                        r"needs to itself \(1 on 'hotbox/sensors'\)"):
+        platform.run(20.0)
+
+
 def rasm_run(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "rasm.cli", "run", *args],
                           capture_output=True, text=True, timeout=60, cwd=cwd)
