@@ -32,7 +32,6 @@ from rasm.logs import RepeatedLogs
 from rasm.platform.actions_out import ActionSender, message_types
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
-from rasm.platform.app_charts import check_charts
 from rasm.platform.app_properties import compile_app_properties
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.communication_manager import CommunicationManager
@@ -44,7 +43,6 @@ from rasm.platform.fallback import FallbackSwitch, check_fallback_legitimate
 from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.knowledge_store import open_app_knowledge
 from rasm.platform.loading import (
-    check_components,
     load_app_components,
     load_component,
     load_twin,
@@ -52,13 +50,13 @@ from rasm.platform.loading import (
 )
 from rasm.platform.logging_and_tracking import LoggingAndTracking
 from rasm.platform.managed_system import ManagedSystem, Simulator
-from rasm.platform.manifest import AppManifest, load_manifest
+from rasm.platform.manifest import AppManifest
 from rasm.platform.modes import ManagedSystemModes, ModesRunner
 from rasm.platform.plan_repair import PlanRepair, check_repair_weights
 from rasm.platform.ros_wiring import is_ros_transport, ros_options
+from rasm.platform.run_options import check_run
 from rasm.platform.scheduler import Scheduler
-from rasm.platform.signals import check_app
-from rasm.platform.simulated_clock import check_simulated_run, wait_for_own_messages
+from rasm.platform.simulated_clock import wait_for_own_messages
 from rasm.platform.state_dir import default_state_dir
 from rasm.platform.state_manager import StateManager
 from rasm.platform.storage_manager import StorageManager
@@ -110,39 +108,16 @@ class Platform:
         check_signals: bool = True,
         replay: str | Path | None = None,
     ) -> None:
-        if role not in ("all", "managing", "managed"):
-            raise PlatformError(f"unknown role {role!r} (all, managing or managed)")
-        if replay is not None:
-            # the recording is the managed system: nothing else runs, nothing is sent, and the
-            # loop runs on the recording's own time
-            if role != "all" or transport not in (None, "local") or clock == "wall":
-                raise PlatformError(
-                    "a replay drives the loop from the recording alone: it takes no role, "
-                    "no transport and no wall clock"
-                )
-            clock, transport = "simulated", "local"
-        if isinstance(manifest, str | Path):
-            manifest = load_manifest(manifest)
-        elif not isinstance(manifest, AppManifest):
-            raise TypeError(
-                f"Platform() takes an app folder, its app.yaml or an AppManifest "
-                f"(rasm.platform.load_manifest), not {type(manifest).__name__}"
-            )
-        if check_signals and role != "managed":
-            # a property or rule reading a name nothing provides: refused before anything runs
-            check_app(manifest)
-        elif role != "managed":
-            # the app's charts are checked even when its signals are not: a replacement chart
-            # that lacks a stage state would run nothing, silently
-            check_charts(manifest)
-        if clock not in (None, "simulated", "wall"):
-            raise PlatformError(f"unknown clock {clock!r} (simulated or wall)")
-        if components is not None:
-            check_components(components)
+        manifest, self.clock_kind, self.transport_url = check_run(
+            manifest,
+            role=role,
+            clock=clock,
+            transport=transport,
+            replay=replay,
+            components=components,
+            check_signals=check_signals,
+        )
         self.manifest = manifest
-        self.clock_kind = clock or manifest.clock or "wall"
-        if self.clock_kind == "simulated":
-            check_simulated_run(transport or manifest.transport, role, bool(manifest.simulator))
         self.clock = (
             SimulatedClock() if self.clock_kind == "simulated" else MonotonicClock(running=False)
         )
@@ -163,7 +138,6 @@ class Platform:
         self.state_dir = Path(state_dir) if state_dir else default_state_dir(manifest)
         self._claims_state_dir = not state_dir
         self.scenario = manifest.scenario if scenario is None else scenario
-        self.transport_url = transport or manifest.transport
         self.replay_path = Path(replay) if replay is not None else None
         self.replay: Replay | None = None
         self.ros = is_ros_transport(self.transport_url)

@@ -52,11 +52,16 @@ def test_a_reading_from_another_process_fails_a_simulated_run(hotbox, broker, mq
     intruder = mqtt()
     platform = Platform(hotbox, clock="simulated", seed=1, knowledge="memory",
                         state_dir=tmp_path, transport=broker.url)
-    # another process publishes on the probe topic: nobody could say when its reading comes
-    platform.on_record.append(
-        lambda time, record: intruder.publish("hotbox/sensors", {"temperature": 80.0})
-        if time == 5 and "temperature" in record else None
-    )
+    sent: list[float] = []
+
+    def intrude(time: float, record: dict) -> None:
+        # another process publishes on the probe topic, once: nobody could say when its reading
+        # comes (and a record it made would otherwise send another)
+        if time >= 5 and "temperature" in record and not sent:
+            sent.append(time)
+            intruder.publish("hotbox/sensors", {"temperature": 80.0})
+
+    platform.on_record.append(intrude)
     with pytest.raises(CommError, match=r"another process published on topics this process "
                                         r"needs to itself \(1 on 'hotbox/sensors'\)"):
         platform.run(20.0)
