@@ -149,18 +149,17 @@ class Transport(ABC):
         missing = own.wait(timeout)
         strangers = own.strangers()
         if strangers:
-            topics = ", ".join(f"{n} on {topic!r}" for topic, n in sorted(strangers.items())[:5])
             raise CommError(
                 f"{self.url}: another process published on topics this process needs to "
-                f"itself ({topics}); a run on the simulated clock can wait only for its own "
-                "messages, so its managed system's topics must be its own (a broker of its own)"
+                f"itself ({_per_topic(strangers)}); a run on the simulated clock can wait only "
+                "for its own messages, so its managed system's topics must be its own (a broker "
+                "of its own)"
             )
         if missing:
-            topics = ", ".join(f"{n} on {topic!r}" for topic, n in sorted(missing.items())[:5])
             raise CommError(
                 f"{self.url}: messages this process published did not come back within "
-                f"{timeout:g} s ({topics}); a run on the simulated clock moves its clock only "
-                "once every one of them is delivered"
+                f"{timeout:g} s ({_per_topic(missing)}); a run on the simulated clock moves its "
+                "clock only once every one of them is delivered"
             )
 
     def _own_sent(self, uid: str, topic: str) -> None:
@@ -256,3 +255,8 @@ class Transport(ABC):
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.url} {self._state}>"
+
+
+def _per_topic(counts: dict[str, int]) -> str:
+    """``3 on 'a/b', 1 on 'c'``: the first five topics of ``counts``, sorted."""
+    return ", ".join(f"{n} on {topic!r}" for topic, n in sorted(counts.items())[:5])
