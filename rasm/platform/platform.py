@@ -398,7 +398,7 @@ class Platform:
             self.verdicts_out = VerdictPublisher(
                 self.transport, names, ros=self.ros, skip=self.external.sources, logs=self.logs
             )
-            self.on_verdict.append(self.verdicts_out.publish)
+            self.tc.batch_observers.append(self.verdicts_out.publish_all)
         return blocks
 
     def _fallback_switch(self) -> FallbackSwitch:

@@ -70,6 +70,9 @@ class TrustworthinessChecker(Block):
         # called with every verdict; the list is the caller's and is read at each record, so
         # observers may come and go during a run
         self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
+        # called once per step (a record, the end, an external verdict) with the verdicts it
+        # decided, in order: for those that act on a batch, not a call per verdict
+        self.batch_observers: list[Callable[[list[Verdict]], Any]] = []
         # the latest verdict of each property; _decided_on: the step (a record, or the end)
         # that decided it
         self.latest: dict[str, Verdict] = {}
@@ -100,9 +103,8 @@ class TrustworthinessChecker(Block):
             else:
                 if monitor in self._failing:
                     self._recovered(monitor, time)
-            for verdict in verdicts:
-                self._take(verdict)
             decided += verdicts
+        self._take(decided)
         return decided
 
     def finish(self) -> list[Verdict]:
@@ -115,9 +117,8 @@ class TrustworthinessChecker(Block):
                 verdicts = monitor.finish()
             except Exception as exc:
                 verdicts = self._failed(monitor, self.records, self.clock.time, exc)
-            for verdict in verdicts:
-                self._take(verdict)
             decided += verdicts
+        self._take(decided)
         for name, outcome in self.outcomes.items():
             if not outcome.judged:
                 outcome.missing = self.missing(name)
@@ -131,7 +132,7 @@ class TrustworthinessChecker(Block):
         """A verdict decided outside the monitors (an external verdict source): counted, and
         the property's latest from now on."""
         self._steps += 1
-        self._take(verdict)
+        self._take([verdict])
 
     def latest_verdict(self, name: str) -> Verdict | None:
         """The latest verdict of property ``name``, or None before its first."""
@@ -144,19 +145,27 @@ class TrustworthinessChecker(Block):
                 return tuple(monitor.missing(name))
         return ()
 
-    def _take(self, verdict: Verdict) -> None:
-        name = verdict.property
-        outcome = self.outcomes.get(name)
-        if outcome is None:  # a monitor of another kind may decide about a name it did not list
-            outcome = self.outcomes[name] = PropertyOutcome(name)
-        outcome.add(verdict.value, verdict.error)
-        # a record may decide several verdicts of a bounded-future property, in no particular
-        # order: the latest is the worst of those the newest deciding record gave
-        if self._decided_on.get(name) != self._steps or _rank(verdict) > _rank(self.latest[name]):
-            self.latest[name] = verdict
-            self._decided_on[name] = self._steps
+    def _take(self, verdicts: list[Verdict]) -> None:
+        """Count the verdicts one step decided, note each property's latest, and hand them to
+        the observers."""
+        step = self._steps
+        for verdict in verdicts:
+            name = verdict.property
+            outcome = self.outcomes.get(name)
+            if outcome is None:  # a monitor of another kind may decide about a name it did not list
+                outcome = self.outcomes[name] = PropertyOutcome(name)
+            outcome.add(verdict.value, verdict.error)
+            # a step may decide several verdicts of a bounded-future property, in no particular
+            # order: the latest is the worst of those the newest deciding step gave
+            if self._decided_on.get(name) != step or _rank(verdict) > _rank(self.latest[name]):
+                self.latest[name] = verdict
+                self._decided_on[name] = step
         for observer in self.observers:
-            observer(verdict)
+            for verdict in verdicts:
+                observer(verdict)
+        if verdicts:
+            for batch_observer in self.batch_observers:
+                batch_observer(verdicts)
 
     def _failed(
         self, monitor: PropertyMonitor, index: int, time: float, exc: Exception

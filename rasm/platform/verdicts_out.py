@@ -48,15 +48,23 @@ class VerdictPublisher:
 
     def publish(self, verdict: Verdict) -> None:
         """One verdict out. An undecided verdict is not sent; one in error goes out false."""
-        if verdict.value is None or verdict.property in self.skip:
-            return
-        value = bool(verdict.value) and verdict.error is None
+        self.publish_all([verdict])
+
+    def publish_all(self, verdicts: Iterable[Verdict]) -> None:
+        """The verdicts one step decided, in order (see :meth:`publish`)."""
+        for verdict in verdicts:
+            if verdict.value is None or verdict.property in self.skip:
+                continue
+            value = bool(verdict.value) and verdict.error is None
+            # per record and property at sensor rates, the same value again over ROS would
+            # outweigh the robot's own traffic: a ROS verdict topic is sent to on a change
+            if self.ros and self.last_sent.get(verdict.property) == value:
+                continue
+            self._send(verdict, value)
+
+    def _send(self, verdict: Verdict, value: bool) -> None:
         try:
             if self.ros:
-                # per record and property at sensor rates, the same value again would outweigh
-                # the robot's own traffic
-                if self.last_sent.get(verdict.property) == value:
-                    return
                 self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
                 self.last_sent[verdict.property] = value
             else:

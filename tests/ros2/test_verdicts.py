@@ -130,3 +130,77 @@ def test_publish_verdicts_says_whether_they_go_out(tmp_path, flag, published):
     names = {m.topic for m in bus}
     assert ("temperature_band" in names) is published
     assert (platform.verdicts_published > 0) is published
+
+
+_DECIDED = st.lists(  # steps, each the verdicts it decided: (property, value, in error)
+    st.lists(st.tuples(st.sampled_from(["near", "far", "foreign"]),
+                       st.sampled_from([True, False, None]), st.booleans()), max_size=4),
+    max_size=12,
+)
+
+
+def _verdict_steps(steps):
+    from rasm.properties.monitor import Verdict
+
+    index = 0
+    for step in steps:
+        batch = []
+        for name, value, error in step:
+            index += 1
+            batch.append(Verdict(name, index, float(index), False if error else value,
+                                 "it raised" if error else None))
+        yield batch
+
+
+@pytest.fixture(scope="module")
+def zenoh_alone():
+    """A Zenoh session that is its own meeting point (no router, no peer)."""
+    from rasm.ros2 import ZenohTransport
+    from rasm.testing.servers import free_port
+
+    port = free_port()
+    transport = ZenohTransport(f"zenoh://127.0.0.1:{port}", listen=[f"tcp/127.0.0.1:{port}"])
+    transport.connect()
+    yield transport
+    transport.close()
+
+
+@given(steps=_DECIDED)
+def test_a_ros_verdict_topic_is_sent_to_only_when_its_value_changes(zenoh_alone, steps):
+    from rasm.logs import RepeatedLogs
+    from rasm.platform.verdicts_out import VerdictPublisher
+
+    publisher = VerdictPublisher(zenoh_alone, ["near", "far"], ros=True, skip={"foreign"},
+                                 logs=RepeatedLogs())
+    before = zenoh_alone.stats.published
+    changes, last = 0, {}
+    for batch in _verdict_steps(steps):
+        publisher.publish_all(batch)
+        for verdict in batch:
+            if verdict.value is None or verdict.property == "foreign":
+                continue
+            value = verdict.value is True and verdict.error is None
+            changes += last.get(verdict.property) != value
+            last[verdict.property] = value
+    assert publisher.published == changes == zenoh_alone.stats.published - before
+    assert publisher.last_sent == last
+
+
+@given(steps=_DECIDED)
+def test_elsewhere_every_decided_verdict_goes_out_in_order(steps):
+    from rasm.logs import RepeatedLogs
+    from rasm.platform.verdicts_out import VerdictPublisher
+
+    bus = open_transport("local")
+    bus.connect()
+    sent: list = []
+    bus.subscribe("#", lambda message: sent.append((message.topic, message.payload)))
+    publisher = VerdictPublisher(bus, ["near", "far"], ros=False, skip={"foreign"},
+                                 logs=RepeatedLogs())
+    expected = []
+    for batch in _verdict_steps(steps):
+        publisher.publish_all(batch)
+        expected += [(v.property, {"value": v.value is True and v.error is None, "time": v.time})
+                     for v in batch if v.value is not None and v.property != "foreign"]
+    bus.close()
+    assert sent == expected and publisher.published == len(expected)
