@@ -132,6 +132,7 @@ def test_publish_verdicts_says_whether_they_go_out(tmp_path, flag, published):
     assert (platform.verdicts_published > 0) is published
 
 
+
 _DECIDED = st.lists(  # steps, each the verdicts it decided: (property, value, in error)
     st.lists(st.tuples(st.sampled_from(["near", "far", "foreign"]),
                        st.sampled_from([True, False, None]), st.booleans()), max_size=4),
@@ -152,6 +153,30 @@ def _verdict_steps(steps):
         yield batch
 
 
+class _Steps:
+    """A monitor that decides the verdicts it is given, a step's at each record."""
+
+    def __init__(self, steps):
+        self.steps = iter(list(_verdict_steps(steps)))
+        self.properties = ["near", "far", "foreign"]
+
+    def step(self, time, record):
+        return next(self.steps)
+
+    def finish(self):
+        return []
+
+    def missing(self, name):
+        return ()
+
+
+def _checker(steps):
+    from rasm.platform.trustworthiness_checker import TrustworthinessChecker
+
+    return TrustworthinessChecker(monitors=[_Steps(steps)], effectors={}, send=lambda *_: None,
+                                  mode_of=lambda: None)
+
+
 @pytest.fixture(scope="module")
 def zenoh_alone():
     """A Zenoh session that is its own meeting point (no router, no peer)."""
@@ -166,17 +191,36 @@ def zenoh_alone():
 
 
 @given(steps=_DECIDED)
+def test_the_checker_hands_its_turn_observers_each_verdict_that_turns_its_property(steps):
+    tc = _checker(steps)
+    turns: list = []
+    tc.turn_observers.append(turns.append)
+    decided, standing = [], {}
+    expected = []
+    for _ in steps:
+        for verdict in tc.observe(0.0, {}):
+            decided.append(verdict)
+            now = verdict.value if verdict.error is None else False
+            if verdict.property not in standing or standing[verdict.property] != now:
+                expected.append(verdict)
+            standing[verdict.property] = now
+    assert turns == expected
+    assert {v.property for v in turns} == {v.property for v in decided}
+
+
+@given(steps=_DECIDED)
 def test_a_ros_verdict_topic_is_sent_to_only_when_its_value_changes(zenoh_alone, steps):
     from rasm.logs import RepeatedLogs
     from rasm.platform.verdicts_out import VerdictPublisher
 
     publisher = VerdictPublisher(zenoh_alone, ["near", "far"], ros=True, skip={"foreign"},
                                  logs=RepeatedLogs())
+    tc = _checker(steps)
+    tc.turn_observers.append(publisher.publish)  # as the platform wires it over ROS 2
     before = zenoh_alone.stats.published
     changes, last = 0, {}
-    for batch in _verdict_steps(steps):
-        publisher.publish_all(batch)
-        for verdict in batch:
+    for _ in steps:
+        for verdict in tc.observe(0.0, {}):
             if verdict.value is None or verdict.property == "foreign":
                 continue
             value = verdict.value is True and verdict.error is None
@@ -197,10 +241,12 @@ def test_elsewhere_every_decided_verdict_goes_out_in_order(steps):
     bus.subscribe("#", lambda message: sent.append((message.topic, message.payload)))
     publisher = VerdictPublisher(bus, ["near", "far"], ros=False, skip={"foreign"},
                                  logs=RepeatedLogs())
+    tc = _checker(steps)
+    tc.observers.append(publisher.publish)  # as the platform wires it elsewhere
     expected = []
-    for batch in _verdict_steps(steps):
-        publisher.publish_all(batch)
+    for _ in steps:
         expected += [(v.property, {"value": v.value is True and v.error is None, "time": v.time})
-                     for v in batch if v.value is not None and v.property != "foreign"]
+                     for v in tc.observe(0.0, {})
+                     if v.value is not None and v.property != "foreign"]
     bus.close()
     assert sent == expected and publisher.published == len(expected)
