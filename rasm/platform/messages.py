@@ -137,14 +137,12 @@ class MessageReader:
             self._reads.append(_Read(key, path, attributes))
 
     def read(self, message: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
-        from rasm.ros2 import FieldPathError, read_field
-
         values: dict[str, Any] = {}
         missing: list[str] = []
         for item in self._reads:
             try:
-                values[item.key] = read_field(message, item.path, self.typename)
-            except FieldPathError:
+                values[item.key] = item.path.read(message, self.typename)
+            except RasmError:  # a FieldPathError: the message has no such field
                 missing.append(item.key)
         return values, missing
 

@@ -52,6 +52,20 @@ class FieldPath:
     def __str__(self) -> str:
         return self.text
 
+    def read(self, message: Mapping[str, Any], typename: str = "") -> Any:
+        """The value at this path in the decoded ``message`` (:func:`read_field`); a path the
+        message lacks raises :class:`FieldPathError` (``typename`` makes it clearer)."""
+        value: Any = message
+        for at, step in enumerate(self.steps):
+            if isinstance(step, int):
+                if not isinstance(value, (list, tuple)) or step >= len(value):
+                    raise _no_such_field(self, at, value, typename)
+            # a decoded message is a dict: checked first, before the Mapping ABC's slower check
+            elif not isinstance(value, (dict, Mapping)) or step not in value:
+                raise _no_such_field(self, at, value, typename)
+            value = value[step]
+        return value
+
 
 def _as_path(path: str | FieldPath) -> FieldPath:
     return path if isinstance(path, FieldPath) else FieldPath.parse(path)
@@ -67,38 +81,32 @@ def _prefix(steps: tuple[str | int, ...]) -> str:
 def read_field(message: Mapping[str, Any], path: str | FieldPath, typename: str = "") -> Any:
     """The value at ``path`` in the decoded ``message`` (a sub-message is a dict, an array a
     list). ``typename`` only makes error messages clearer."""
-    parsed = _as_path(path)
+    return _as_path(path).read(message, typename)
+
+
+def _no_such_field(path: FieldPath, at: int, value: Any, typename: str) -> FieldPathError:
+    """Why ``value``, reached by the steps of ``path`` before step ``at``, has no step ``at``."""
     what = f" of {typename}" if typename else ""
-    value: Any = message
-    for i, step in enumerate(parsed.steps):
-        if isinstance(step, int):
-            if not isinstance(value, list | tuple):
-                raise FieldPathError(
-                    f"field path {parsed.text!r}{what}: {_prefix(parsed.steps[:i])} is not an "
-                    "array, it cannot be indexed"
-                )
-            if step >= len(value):
-                raise FieldPathError(
-                    f"field path {parsed.text!r}{what}: index {step} is out of range, "
-                    f"{_prefix(parsed.steps[:i])} has {len(value)} elements in this message"
-                )
-            value = value[step]
-        else:
-            # a decoded message is a dict: checked first, before the Mapping ABC's slower check
-            if not isinstance(value, (dict, Mapping)):
-                where = _prefix(parsed.steps[:i]) or "the message"
-                raise FieldPathError(
-                    f"field path {parsed.text!r}{what}: {where} is not a message, it has no "
-                    f"field {step!r}"
-                )
-            if step not in value:
-                where = _prefix(parsed.steps[:i]) or "the message"
-                raise FieldPathError(
-                    f"field path {parsed.text!r}{what}: {where} has no field {step!r} "
-                    f"(its fields: {', '.join(value) or 'none'})"
-                )
-            value = value[step]
-    return value
+    step = path.steps[at]
+    if isinstance(step, int):
+        if not isinstance(value, list | tuple):
+            return FieldPathError(
+                f"field path {path.text!r}{what}: {_prefix(path.steps[:at])} is not an "
+                "array, it cannot be indexed"
+            )
+        return FieldPathError(
+            f"field path {path.text!r}{what}: index {step} is out of range, "
+            f"{_prefix(path.steps[:at])} has {len(value)} elements in this message"
+        )
+    where = _prefix(path.steps[:at]) or "the message"
+    if not isinstance(value, Mapping):
+        return FieldPathError(
+            f"field path {path.text!r}{what}: {where} is not a message, it has no field {step!r}"
+        )
+    return FieldPathError(
+        f"field path {path.text!r}{what}: {where} has no field {step!r} "
+        f"(its fields: {', '.join(value) or 'none'})"
+    )
 
 
 def field_type(store: TypeStore, typename: str, path: str | FieldPath) -> FieldType:
