@@ -398,9 +398,7 @@ class Platform:
             self.verdicts_out = VerdictPublisher(
                 self.transport, names, ros=self.ros, skip=self.external.sources, logs=self.logs
             )
-            # over ROS 2 a verdict topic changes only when its property turns
-            verdicts = self.tc.turn_observers if self.ros else self.on_verdict
-            verdicts.append(self.verdicts_out.publish)
+            self.tc.batch_observers.append(self.verdicts_out.publish_all)
         return blocks
 
     def _fallback_switch(self) -> FallbackSwitch:

@@ -70,12 +70,9 @@ class TrustworthinessChecker(Block):
         # called with every verdict; the list is the caller's and is read at each record, so
         # observers may come and go during a run
         self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
-        # called with each verdict that turns its property: its standing (true, false or
-        # undecided; in error counts as false) is not that of the property's verdict before
-        # (the first verdict of each is a turn). At sensor rates most verdicts repeat the
-        # last one: those who act only on turns are not called for them
-        self.turn_observers: list[Callable[[Verdict], Any]] = []
-        self._standing: dict[str, bool | None] = {}  # per property, its last verdict's
+        # called once per step (a record, the end, an external verdict) with the verdicts it
+        # decided, in order: one call for a record's verdicts, not one per verdict
+        self.batch_observers: list[Callable[[list[Verdict]], Any]] = []
         # the latest verdict of each property; _decided_on: the step (a record, or the end)
         # that decided it
         self.latest: dict[str, Verdict] = {}
@@ -163,14 +160,12 @@ class TrustworthinessChecker(Block):
             if self._decided_on.get(name) != step or _rank(verdict) > _rank(self.latest[name]):
                 self.latest[name] = verdict
                 self._decided_on[name] = step
-            standing = verdict.value if verdict.error is None else False
-            if name not in self._standing or self._standing[name] != standing:
-                self._standing[name] = standing
-                for turn_observer in self.turn_observers:
-                    turn_observer(verdict)
         for observer in self.observers:
             for verdict in verdicts:
                 observer(verdict)
+        if verdicts:
+            for batch_observer in self.batch_observers:
+                batch_observer(verdicts)
 
     def _failed(
         self, monitor: PropertyMonitor, index: int, time: float, exc: Exception

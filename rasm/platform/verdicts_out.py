@@ -47,18 +47,26 @@ class VerdictPublisher:
                 transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool", qos=latched)
 
     def publish(self, verdict: Verdict) -> None:
-        """One verdict out. An undecided verdict is not sent; one in error goes out false.
+        """One verdict out. An undecided verdict is not sent; one in error goes out false."""
+        self.publish_all([verdict])
 
-        Over ROS 2 only a change of the value is sent, so the publisher need only see the
-        verdicts that turn their property (``TrustworthinessChecker.turn_observers``)."""
-        if verdict.value is None or verdict.property in self.skip:
-            return
-        value = bool(verdict.value) and verdict.error is None
+    def publish_all(self, verdicts: Iterable[Verdict]) -> None:
+        """The verdicts one step decided, in order (see :meth:`publish`). Over ROS 2 only a
+        change of a property's value is sent: a verdict that could not be sent is sent with
+        the property's next verdict."""
+        for verdict in verdicts:
+            if verdict.value is None or verdict.property in self.skip:
+                continue
+            value = bool(verdict.value) and verdict.error is None
+            # per record and property at sensor rates, the same value again over ROS would
+            # outweigh the robot's own traffic
+            if self.ros and self.last_sent.get(verdict.property) == value:
+                continue
+            self._send(verdict, value)
+
+    def _send(self, verdict: Verdict, value: bool) -> None:
         try:
             if self.ros:
-                # the same value again would, at sensor rates, outweigh the robot's own traffic
-                if self.last_sent.get(verdict.property) == value:
-                    return
                 self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
                 self.last_sent[verdict.property] = value
             else:

@@ -191,24 +191,6 @@ def zenoh_alone():
 
 
 @given(steps=_DECIDED)
-def test_the_checker_hands_its_turn_observers_each_verdict_that_turns_its_property(steps):
-    tc = _checker(steps)
-    turns: list = []
-    tc.turn_observers.append(turns.append)
-    decided, standing = [], {}
-    expected = []
-    for _ in steps:
-        for verdict in tc.observe(0.0, {}):
-            decided.append(verdict)
-            now = verdict.value if verdict.error is None else False
-            if verdict.property not in standing or standing[verdict.property] != now:
-                expected.append(verdict)
-            standing[verdict.property] = now
-    assert turns == expected
-    assert {v.property for v in turns} == {v.property for v in decided}
-
-
-@given(steps=_DECIDED)
 def test_a_ros_verdict_topic_is_sent_to_only_when_its_value_changes(zenoh_alone, steps):
     from rasm.logs import RepeatedLogs
     from rasm.platform.verdicts_out import VerdictPublisher
@@ -216,7 +198,7 @@ def test_a_ros_verdict_topic_is_sent_to_only_when_its_value_changes(zenoh_alone,
     publisher = VerdictPublisher(zenoh_alone, ["near", "far"], ros=True, skip={"foreign"},
                                  logs=RepeatedLogs())
     tc = _checker(steps)
-    tc.turn_observers.append(publisher.publish)  # as the platform wires it over ROS 2
+    tc.batch_observers.append(publisher.publish_all)  # as the platform wires it
     before = zenoh_alone.stats.published
     changes, last = 0, {}
     for _ in steps:
@@ -242,7 +224,7 @@ def test_elsewhere_every_decided_verdict_goes_out_in_order(steps):
     publisher = VerdictPublisher(bus, ["near", "far"], ros=False, skip={"foreign"},
                                  logs=RepeatedLogs())
     tc = _checker(steps)
-    tc.observers.append(publisher.publish)  # as the platform wires it elsewhere
+    tc.batch_observers.append(publisher.publish_all)  # as the platform wires it
     expected = []
     for _ in steps:
         expected += [(v.property, {"value": v.value is True and v.error is None, "time": v.time})
@@ -250,3 +232,25 @@ def test_elsewhere_every_decided_verdict_goes_out_in_order(steps):
                      if v.value is not None and v.property != "foreign"]
     bus.close()
     assert sent == expected and publisher.published == len(expected)
+
+
+def test_a_ros_verdict_that_could_not_be_sent_goes_out_with_the_next_one():
+    from rasm.logs import RepeatedLogs
+    from rasm.platform.verdicts_out import VerdictPublisher
+    from rasm.properties.monitor import Verdict
+    from rasm.ros2 import ZenohTransport
+    from rasm.testing.servers import free_port
+
+    port = free_port()
+    transport = ZenohTransport(f"zenoh://127.0.0.1:{port}", listen=[f"tcp/127.0.0.1:{port}"])
+    publisher = VerdictPublisher(transport, ["near"], ros=True, skip=(), logs=RepeatedLogs())
+    publisher.publish_all([Verdict("near", 0, 0.0, False)])  # not connected yet: not sent
+    assert publisher.published == 0 and publisher.last_sent == {}
+    transport.connect()
+    try:
+        publisher.publish_all([Verdict("near", 1, 1.0, False)])  # the same value, sent now
+        publisher.publish_all([Verdict("near", 2, 2.0, False)])
+    finally:
+        transport.close()
+    assert publisher.published == 1 == transport.stats.published
+    assert publisher.last_sent == {"near": False}
