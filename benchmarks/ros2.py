@@ -11,9 +11,9 @@ process, in turn,
   takes each into knowledge and its monitors: Telegraf reads the speed field, knowledge stores
   it, the trace record is checked against the app's property and the loop's own (9 in all);
 
-the rate is messages received per second, first to last. Each case runs 3 times; the median
-counts. Bag: a bag of N Odometry messages (MCAP) is read and decoded by rosbags' AnyReader and
-by rasm's BagReader.
+the rate is messages received per second, first to last. Each case runs 3 times, the three
+cases taking turns; the median counts. Bag: a bag of N Odometry messages (MCAP) is read and
+decoded by rosbags' AnyReader and by rasm's BagReader.
 
 Latency: a robot process (eclipse-zenoh and rosbags, no rasm) publishes Odometry at 200
 messages/s, with a burst of fast ones four times a second; a platform in this process (`rasm
@@ -513,13 +513,18 @@ def main(argv: list[str] | None = None) -> int:
     cases = {"bare": "bare + rosbags", "transport": "rasm transport",
              "platform": "rasm platform"}
     for middleware in ("zenoh", "dds"):
+        # the cases take turns, so that a change in the machine's other load over the minute
+        # weighs on all three alike and the ratios stay comparable
+        results: dict[str, list[tuple[float, int]]] = {kind: [] for kind in cases}
+        for _ in range(RUNS):
+            for kind in cases:
+                results[kind].append(run_case(middleware, kind, options.count))
         for kind, label in cases.items():
             name = f"{middleware} {label}"
-            results = [run_case(middleware, kind, options.count) for _ in range(RUNS)]
-            rows[name] = statistics.median(r for r, _ in results)
-            lost = options.count - min(n for _, n in results)
+            rows[name] = statistics.median(r for r, _ in results[kind])
+            fewest = min(n for _, n in results[kind])
             print(f"  {name}: {rows[name]:,.0f} msg/s (fewest received: "
-                  f"{options.count - lost} of {options.count})", file=sys.stderr)
+                  f"{fewest} of {options.count})", file=sys.stderr)
     theirs, ours = bag_rates(options.count)
     print(f"\nIngest of {TYPE} over loopback, messages/s (median of {RUNS} runs)")
     for name, rate in rows.items():
