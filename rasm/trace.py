@@ -28,7 +28,15 @@ from json.scanner import make_scanner
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from rasm.errors import Location, Misfit, RasmError, SourceError, SourceErrors, read_utf8
+from rasm.errors import (
+    Location,
+    Misfit,
+    PlatformError,
+    RasmError,
+    SourceError,
+    SourceErrors,
+    read_utf8,
+)
 from rasm.jsontext import JsonProblem, parse_json
 from rasm.properties.times import FAST, Seconds, nanoseconds
 from rasm.values import fit, wanted
@@ -37,7 +45,8 @@ if TYPE_CHECKING:
     from rasm.platform.summary import RunSummary
 
 __all__ = [
-    "MAX_REPORTED", "MalformedTrace", "Trace", "TraceWriter", "format_line", "parse_records",
+    "MAX_REPORTED", "MalformedTrace", "Trace", "TraceWriter", "format_line", "open_trace_writer",
+    "parse_records",
     "parse_trace", "read_records", "read_trace", "scan_records", "trace_line",
 ]
 
@@ -155,6 +164,20 @@ class TraceWriter:
         if self._out is not None and self._owned:
             self._out.close()
         self._out = None
+
+
+def open_trace_writer(
+    path: str | Path | None, *, max_bytes: int | None = None, keep: int = 4
+) -> TraceWriter:
+    """The writer of a run's trace: MCAP for a ``.mcap`` path (Foxglove opens it; not rotated),
+    else JSONL, rotated by size with ``max_bytes`` (``keep`` files); None writes nothing."""
+    if path is not None and str(path).endswith(".mcap"):
+        if max_bytes is not None:
+            raise PlatformError("an MCAP trace is not rotated: write JSONL to rotate")
+        from rasm.trace_mcap import McapTraceWriter  # mcap is imported only for an MCAP trace
+
+        return McapTraceWriter(path)
+    return TraceWriter(path, max_bytes=max_bytes, keep=keep)
 
 
 # ----------------------------------------------------------------------------- reading

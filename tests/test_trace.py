@@ -10,8 +10,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm.errors import SourceErrors
-from rasm.trace import TraceWriter, format_line, parse_trace, read_trace, trace_line
+from rasm.errors import PlatformError, SourceErrors
+from rasm.trace import (
+    TraceWriter,
+    format_line,
+    open_trace_writer,
+    parse_trace,
+    read_trace,
+    trace_line,
+)
 
 
 class Reading(float):
@@ -219,3 +226,16 @@ def test_a_run_in_memory_is_its_trace_file(tmp_path):
     read_back = [json.loads(line) for line in (tmp_path / "run.jsonl").read_text().splitlines()]
     assert len(trace) > 100 and same(list(trace), read_back)
     assert trace.lines() == (tmp_path / "run.jsonl").read_text().splitlines()
+
+
+def test_a_run_trace_is_mcap_by_its_suffix_and_only_jsonl_rotates(tmp_path):
+    mcap = open_trace_writer(tmp_path / "run.mcap")
+    mcap.emit(0.5, {"speed": 1.0})
+    mcap.close()
+    assert (tmp_path / "run.mcap").read_bytes().startswith(b"\x89MCAP")
+    jsonl = open_trace_writer(tmp_path / "run.jsonl", max_bytes=10_000)
+    jsonl.emit(0.5, {"speed": 1.0})
+    jsonl.close()
+    assert read_trace(tmp_path / "run.jsonl") == [(0.5, {"speed": 1.0})]
+    with pytest.raises(PlatformError, match="an MCAP trace is not rotated: write JSONL"):
+        open_trace_writer(tmp_path / "big.mcap", max_bytes=10_000)

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rasm.comm import Message, Transport
-from rasm.errors import PlatformError
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
@@ -68,7 +67,7 @@ from rasm.platform.twin_learning import TwinLearning
 from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.statechart import MonotonicClock, SimulatedClock
-from rasm.trace import TraceWriter
+from rasm.trace import TraceWriter, open_trace_writer
 from rasm.twin import DigitalTwin
 
 if TYPE_CHECKING:
@@ -126,15 +125,9 @@ class Platform:
         self.managing = role in ("all", "managing")
         self.scheduler = Scheduler(self.clock)
         self.scheduler.on_error = self._job_failed
-        # rotated by size with trace_max_bytes (rasm.trace.TraceWriter)
-        if trace is not None and str(trace).endswith(".mcap"):
-            if trace_max_bytes is not None:
-                raise PlatformError("an MCAP trace is not rotated: write JSONL to rotate")
-            from rasm.trace_mcap import McapTraceWriter
-
-            self.trace: TraceWriter = McapTraceWriter(trace)
-        else:
-            self.trace = TraceWriter(trace, max_bytes=trace_max_bytes, keep=trace_keep)
+        self.trace: TraceWriter = open_trace_writer(
+            trace, max_bytes=trace_max_bytes, keep=trace_keep
+        )
         self.state_dir = Path(state_dir) if state_dir else default_state_dir(manifest)
         self._claims_state_dir = not state_dir
         self.scenario = manifest.scenario if scenario is None else scenario
