@@ -58,7 +58,11 @@ from rasm.platform.scheduler import Scheduler
 from rasm.platform.simulated_clock import wait_for_own_messages
 from rasm.platform.state_dir import default_state_dir
 from rasm.platform.state_manager import StateManager
-from rasm.platform.storage_manager import StorageManager
+from rasm.platform.storage_manager import (
+    LIVE_FLUSH_PERIOD,
+    SIMULATED_FLUSH_PERIOD,
+    StorageManager,
+)
 from rasm.platform.summary import RunSummary, bus_refusals, summarise
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
@@ -278,7 +282,13 @@ class Platform:
             self.kb, chart=self._chart("knowledge_manager"), clock=clock, depends_on=("lt",)
         )
         self.stom = StorageManager(
-            storage, chart=self._chart("storage_manager"), clock=clock, depends_on=("km",)
+            storage,
+            flush_period=(
+                SIMULATED_FLUSH_PERIOD if self.clock_kind == "simulated" else LIVE_FLUSH_PERIOD
+            ),
+            chart=self._chart("storage_manager"),
+            clock=clock,
+            depends_on=("km",),
         )
         if storage is not None:
             # the Storage Manager buffers every update for its storage; without one it has

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import sqlite3
 from pathlib import Path
 
 from sismic.clock import SimulatedClock
 
 from rasm.knowledge import open_knowledge
+from rasm.platform import Platform
 from rasm.platform.storage_manager import StorageManager
+
+from .conftest import HOTBOX
 
 
 def test_updates_are_persisted_together_a_flush_period_after_the_first(tmp_path: Path) -> None:
@@ -42,3 +46,19 @@ def test_without_storage_updates_are_ignored() -> None:
     stom.send("configure")
     stom.register_knowledge_update("speed", None)  # nothing to buffer into, nothing stepped
     assert "idle" in stom.configuration and stom.update_persistency() == 0
+
+
+def test_a_simulated_run_flushes_every_ten_simulated_seconds(tmp_path: Path) -> None:
+    # the next simulated run starts the file afresh and ten simulated seconds pass in
+    # milliseconds: a flush each simulated second would be work no crash needs
+    path = tmp_path / "knowledge.sqlite"
+    platform = Platform(HOTBOX, clock="simulated", seed=1, knowledge=f"sqlite:{path}",
+                        state_dir=tmp_path)
+    platform.run(35.0)
+    with sqlite3.connect(path) as db:
+        flushed_at = [last for (last,) in db.execute(
+            "SELECT last FROM batches WHERE key = 'temperature' ORDER BY seq"
+        )]
+    assert len(flushed_at) == 4  # after 10, 20 and 30 s, then the rest at the end
+    gaps = [later - earlier for earlier, later in zip(flushed_at, flushed_at[1:], strict=False)]
+    assert all(abs(gap - 10.0) < 0.5 for gap in gaps[:-1]), flushed_at
