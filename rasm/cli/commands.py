@@ -24,12 +24,6 @@ class UsageError(RasmError):
     """Bad command-line usage that argparse cannot see (a missing file, a bad combination)."""
 
 
-def _open_output(path: str | None):
-    if path is None or path == "-":
-        return sys.stdout
-    return open(path, "w", encoding="utf-8")
-
-
 # --------------------------------------------------------------------------- statecharts
 
 

@@ -13,7 +13,6 @@ Only apps that name interface types import this module's ROS 2 parts (rosbags' t
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -106,78 +105,29 @@ def header_stamp(message: Mapping[str, Any]) -> float | None:
     return sec + nanosec * 1e-9
 
 
-@dataclass(frozen=True)
-class _Read:
-    key: str
-    path: Any  # a parsed rasm.ros2.FieldPath
-    attributes: tuple[str | int, ...]  # its steps as rosbags' message objects name them
-
-
 class MessageReader:
-    """Reads one probe's signals out of its messages: ``read(message)`` from a decoded dict,
-    ``read_object(message)`` from rosbags' message object (what a bag is read as, faster
-    than converting every field to a dict). Each gives ``{signal: value}`` and the signals
-    whose field the message did not have (an index past the end of an array)."""
+    """Reads one probe's signals out of its decoded messages: ``read(message)`` gives
+    ``{signal: value}`` and the signals whose field the message did not have (an index past
+    the end of an array)."""
 
-    def __init__(self, probe: Probe, store: TypeStore | None = None) -> None:
-        from rosbags.typesys.base import normalize_fieldname
-
+    def __init__(self, probe: Probe) -> None:
         from rasm.ros2 import FieldPath
 
         self.topic = probe.topic
         self.typename = probe.type or ""
-        self.store = store
-        self._reads = []
-        for key, signal in probe.signals.items():
-            path = FieldPath.parse(signal.field or key)
-            attributes = tuple(
-                normalize_fieldname(step) if isinstance(step, str) else step
-                for step in path.steps
-            )
-            self._reads.append(_Read(key, path, attributes))
+        self._reads = [
+            (key, FieldPath.parse(signal.field or key)) for key, signal in probe.signals.items()
+        ]
 
     def read(self, message: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
         values: dict[str, Any] = {}
         missing: list[str] = []
-        for item in self._reads:
+        for key, path in self._reads:
             try:
-                values[item.key] = item.path.read(message, self.typename)
+                values[key] = path.read(message, self.typename)
             except RasmError:  # a FieldPathError: the message has no such field
-                missing.append(item.key)
+                missing.append(key)
         return values, missing
-
-    def read_object(self, message: Any) -> tuple[dict[str, Any], list[str]]:
-        values: dict[str, Any] = {}
-        missing: list[str] = []
-        for item in self._reads:
-            value = message
-            try:
-                for step in item.attributes:
-                    value = value[step] if isinstance(step, int) else getattr(value, step)
-            except (IndexError, AttributeError):
-                missing.append(item.key)
-                continue
-            values[item.key] = self._plain(value)
-        return values, missing
-
-    def _plain(self, value: Any) -> Any:
-        """A field's value as a decoded dict holds it: lists, dicts, Python numbers."""
-        if isinstance(value, str | bool | int | float):
-            return value
-        if hasattr(value, "tolist"):  # a numpy array or number
-            return value.tolist()
-        if isinstance(value, list):
-            return [self._plain(item) for item in value]
-        typename = getattr(value, "__msgtype__", None)
-        if typename is not None and self.store is not None and typename in self.store:
-            return self.store.codec(typename).as_dict(value)
-        if typename is not None:  # a type only the bag defines: its fields as they are named
-            return {
-                name: self._plain(item)
-                for name, item in vars(value).items()
-                if name != "structure_needs_at_least_one_member"
-            }
-        return value
 
 
 def build_message(store: TypeStore, effector: Effector, payload: Mapping[str, Any]) -> dict:
