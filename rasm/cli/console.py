@@ -142,6 +142,11 @@ def print_summary(summary: RunSummary, console: Console) -> None:
         )
     )
     console.print(counts)
+    if summary.fallback_engagements is not None:
+        console.print(
+            f"fallback engaged {summary.fallback_engagements} "
+            f"time{'' if summary.fallback_engagements == 1 else 's'}"
+        )
     if s.failed_stages or s.timeouts:
         console.print(f"failed stages: {dict(s.failed_stages)}  overruns: {dict(s.timeouts)}")
     verdicts = Table(title="properties", show_header=True, header_style="bold")

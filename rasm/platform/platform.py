@@ -648,4 +648,5 @@ class Platform:
             missed_iterations=self.scheduler.missed,
             stopped_by=self.stopped_by,
             repeated_failures=self.logs.totals,
+            fallback=self.fb,
         )

@@ -9,6 +9,7 @@ from rasm.comm import Transport
 from rasm.loop import STAGES
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.distribution import Distribution
+from rasm.platform.fallback import FallbackSwitch
 from rasm.platform.state_manager import StateManager
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
@@ -44,6 +45,8 @@ class RunSummary:
     repeated_failures: dict[str, int] = field(default_factory=dict)
     # every property's verdicts counted: the state, the errors, the signals never seen
     outcomes: dict[str, PropertyOutcome] = field(default_factory=dict)
+    # how often the fallback switch engaged (None: the app has no fallback)
+    fallback_engagements: int | None = None
 
     @property
     def ok(self) -> bool:
@@ -82,6 +85,7 @@ def summarise(
     missed_iterations: int,
     stopped_by: str | None,
     repeated_failures: dict[str, int],
+    fallback: FallbackSwitch | None = None,
 ) -> RunSummary:
     """The run so far, read from its blocks (nothing is changed). ``checker``,
     ``orchestrator`` and ``telegraf`` are the managing side's (None in a managed-only process:
@@ -108,6 +112,7 @@ def summarise(
         stopped_by=stopped_by,
         repeated_failures=repeated_failures,
         outcomes=outcomes,
+        fallback_engagements=fallback.engagements if fallback is not None else None,
     )
 
 

@@ -22,6 +22,7 @@ def test_the_fallback_engages_and_hands_back_with_its_guarantees():
     assert verdicts["hand_back_after_dwell"] == "satisfied"
     assert verdicts["execute_only_legitimate_plans"] == "satisfied"
     assert verdicts["temperature_band"] == "violated"  # the scenario: the lid stays open
+    assert trace.summary.fallback_engagements == 2
 
 
 def test_a_repaired_plan_is_executed_instead_of_a_cancelled_adaptation():
