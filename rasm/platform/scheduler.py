@@ -3,8 +3,12 @@
 Everything the loop does (stepping the managed-system simulator, orchestrator ticks, statechart
 timers, messages arriving from other threads) becomes a job run by one thread, in time order, so a
 simulated run with a seed is deterministic. On the simulated clock the scheduler jumps from job to
-job as fast as the machine allows; on the wall clock it sleeps on a condition variable until the
-next job is due or another thread submits one: it never polls.
+job as fast as the machine allows; on the wall clock it sleeps on its inbox until the next job
+is due or another thread submits one: it never polls.
+
+Jobs from other threads go into the inbox, a queue that takes a job without a lock of the
+loop's and wakes the loop only when it sleeps; the loop takes every job waiting at once. At a
+transport's rates the two threads thus meet once per batch of messages, not once per message.
 
 A simulated run over a network transport also waits, before each look at the next job, for the
 messages it published to come back (:attr:`Scheduler.settle`): their jobs are then in the inbox
@@ -15,10 +19,11 @@ from __future__ import annotations
 
 import itertools
 import math
-import threading
+from collections import deque
 from collections.abc import Callable
 from functools import partial
 from heapq import heappop, heappush
+from queue import Empty, SimpleQueue
 from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
@@ -36,9 +41,9 @@ class Scheduler:
         self.simulated = isinstance(clock, SimulatedClock)
         self._heap: list[tuple[float, int, Job]] = []
         self._order = itertools.count()
-        self._wake = threading.Condition(threading.RLock())
-        self._waiting = False  # the loop thread sleeps in _wake.wait(): a submit must notify
-        self._inbox: list[Job] = []
+        self._inbox: SimpleQueue[Job] = SimpleQueue()  # submitted by any thread
+        # taken from the inbox by the loop, not yet run (the job that woke a loop asked to stop)
+        self._taken: deque[Job] = deque()
         self._stopping = False
         self.on_error: Callable[[BaseException], Any] | None = None
         self.missed = 0  # turns of periodic jobs skipped because they were already past
@@ -94,17 +99,30 @@ class Scheduler:
         self.at(first, tick)
 
     def submit(self, job: Job) -> None:
-        """Run ``job`` on the loop thread as soon as possible (thread-safe)."""
-        with self._wake:
-            self._inbox.append(job)
-            if self._waiting:  # notify() would find no waiter otherwise
-                self._wake.notify()
+        """Run ``job`` on the loop thread as soon as possible, after the jobs submitted before
+        it (thread-safe; never blocks)."""
+        self._inbox.put(job)
 
     def stop(self) -> None:
         """Make :meth:`run_until` return after the current job (thread-safe)."""
-        with self._wake:
-            self._stopping = True
-            self._wake.notify()
+        self._stopping = True
+        # a loop asleep on its inbox looks at the flag (put() is safe in a signal handler)
+        self._inbox.put(_wake_up)
+
+    def _take_inbox(self) -> bool:
+        """Move every job waiting in the inbox to the loop's own queue; False if none was.
+        (Only the loop thread takes from the inbox: a job it sees there stays there.)"""
+        took = False
+        while not self._inbox.empty():
+            self._taken.append(self._inbox.get_nowait())
+            took = True
+        return took
+
+    def _run_taken(self) -> None:
+        """Run the jobs taken from the inbox, in order (a stop asked for by one of them takes
+        effect after them all, as at the end of any other job)."""
+        while self._taken:
+            self._run(self._taken.popleft())
 
     def _run(self, job: Job) -> None:
         try:
@@ -118,20 +136,15 @@ class Scheduler:
         """Run jobs until the clock reaches ``end`` (None: until :meth:`stop`)."""
         clock, heap, simulated = self.clock, self._heap, self.simulated
         while True:
-            # Peeked without the lock (taken only to take the inbox): a submit() racing with the
-            # peek is served next turn, as if it had come just after a locked look.
-            if self._inbox or self._stopping:
-                with self._wake:
-                    if self._stopping:
-                        self._stopping = False
-                        return
-                    inbox, self._inbox = self._inbox, []
-                for job in inbox:
-                    self._run(job)
+            if self._stopping:
+                self._stopping = False
+                return
+            if self._taken or self._take_inbox():
+                self._run_taken()
                 continue
             if simulated and self.settle is not None:
                 self.settle()  # a message still on the network would be served too late
-                if self._inbox:
+                if self._take_inbox():
                     continue
             due = heap[0][0] if heap else None
             if end is not None and (due is None or due > end):
@@ -145,15 +158,14 @@ class Scheduler:
                 clock.time = max(clock.time, due)
                 now = clock.time
             else:
-                with self._wake:
-                    wait = None if due is None else due - clock.time
-                    if (wait is None or wait > 0) and not self._inbox and not self._stopping:
-                        self._waiting = True
-                        try:
-                            self._wake.wait(wait)
-                        finally:
-                            self._waiting = False
-                    if self._inbox or self._stopping:
+                wait = None if due is None else due - clock.time
+                if wait is None or wait > 0:
+                    # asleep until the next job is due, unless a job is submitted first
+                    try:
+                        self._taken.append(self._inbox.get(timeout=wait))
+                    except Empty:
+                        pass
+                    else:
                         continue
                 if end is not None and clock.time >= end and (not heap or heap[0][0] > end):
                     return
@@ -165,3 +177,7 @@ class Scheduler:
                 self._run(heappop(heap)[2])
             if not simulated and end is not None and clock.time >= end:
                 return
+
+
+def _wake_up() -> None:
+    """The job :meth:`Scheduler.stop` submits: it only wakes the loop."""

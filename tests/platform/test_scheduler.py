@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import threading
 import time
+from functools import partial
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from sismic.clock import SimulatedClock
 
@@ -227,3 +228,34 @@ def test_a_job_that_moves_the_clock_or_plays_it_is_followed():
     assert ("overrun", 0.5) in seen and ("already past", 1.2) in seen
     assert ("play", 1.5) in seen and ("submitted", 2.0) in seen
     assert seen[-2:] == [("end", 3.0), ("again", 3.0)]
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.integers(1, 200), min_size=1, max_size=4))
+def test_jobs_from_other_threads_run_once_each_in_each_threads_order(bursts):
+    # senders submit bursts while the wall-clock loop runs, sleeps and wakes: every job runs
+    # exactly once, on the loop's thread, each sender's jobs in the order it submitted them
+    scheduler = Scheduler(MonotonicClock())
+    loop_thread: list[threading.Thread] = []
+    ran: list[tuple[int, int]] = []
+    total = sum(bursts)
+
+    def job(sender: int, n: int) -> None:
+        loop_thread.append(threading.current_thread())
+        ran.append((sender, n))
+        if len(ran) == total:
+            scheduler.stop()
+
+    def send(sender: int, count: int) -> None:
+        for n in range(count):
+            scheduler.submit(partial(job, sender, n))
+
+    senders = [threading.Thread(target=send, args=(k, count)) for k, count in enumerate(bursts)]
+    for sender in senders:
+        sender.start()
+    scheduler.run_until(scheduler.time + 30)  # ends at the last job, or fails the count below
+    for sender in senders:
+        sender.join()
+    assert len(ran) == total and set(loop_thread) == {threading.current_thread()}
+    for k, count in enumerate(bursts):
+        assert [n for sender, n in ran if sender == k] == list(range(count))
