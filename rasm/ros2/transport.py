@@ -115,6 +115,7 @@ class KeepLastInbox(Generic[T]):
         # one key per waiting item, in arrival order: whose oldest item is served next
         self._order: deque[Any] = deque()
         self._cond = threading.Condition(threading.Lock())
+        self._getters = 0  # waiting in get() or get_all(): what put() must wake
         self._closed = False
 
     def put(self, key: Any, item: T, depth: int | None) -> bool:
@@ -122,7 +123,9 @@ class KeepLastInbox(Generic[T]):
         with self._cond:
             if self._closed:
                 return False
-            queue = self._queues.setdefault(key, deque())
+            queue = self._queues.get(key)
+            if queue is None:
+                queue = self._queues[key] = deque()
             if depth is not None and len(queue) >= depth:
                 queue.popleft()  # the key keeps its place in the order: one out, one in
                 queue.append(item)
@@ -135,14 +138,14 @@ class KeepLastInbox(Generic[T]):
                 kept = False
             queue.append(item)
             self._order.append(key)
-            self._cond.notify()
+            if self._getters:  # at high rates the getter is mostly busy: no one to wake
+                self._cond.notify()
             return kept
 
     def get(self, timeout: float | None = None) -> T | None:
         """The next item; ``None`` once closed and empty, or when ``timeout`` expires."""
         with self._cond:
-            if not self._order and not self._closed:
-                self._cond.wait_for(lambda: self._order or self._closed, timeout)
+            self._wait(timeout)
             if not self._order:
                 return None
             return self._queues[self._order.popleft()].popleft()
@@ -151,11 +154,20 @@ class KeepLastInbox(Generic[T]):
         """Every waiting item, in the order :meth:`get` would give them, once there is one;
         empty once closed and empty, or when ``timeout`` expires. One lock for all of them."""
         with self._cond:
-            if not self._order and not self._closed:
-                self._cond.wait_for(lambda: self._order or self._closed, timeout)
+            self._wait(timeout)
             items = [self._queues[key].popleft() for key in self._order]
             self._order.clear()
             return items
+
+    def _wait(self, timeout: float | None) -> None:
+        """Wait (holding the lock) until an item is there, the inbox closes or ``timeout``."""
+        if self._order or self._closed:
+            return
+        self._getters += 1
+        try:
+            self._cond.wait_for(lambda: self._order or self._closed, timeout)
+        finally:
+            self._getters -= 1
 
     def close(self) -> None:
         """Wake every waiting :meth:`get`; items already queued can still be taken."""
