@@ -332,30 +332,38 @@ class ZenohTransport(RosTransport):
                 pass  # the session is already closed
 
     def _sample_handler(self, topic: RosTopic):
-        expected_type, expected_hash = topic.codec.dds_name, topic.codec.type_hash
+        # the subscription's key ends in /*/*: a sample of the right type and hash has this key
+        expected_key = self._key(topic)
 
         def on_sample(sample: Any) -> None:
             # runs on a Zenoh thread: check the key, hand the bytes over, never raise
             try:
                 if sample.kind != zenoh.SampleKind.PUT:
                     return
-                type_part, hash_part = str(sample.key_expr).rsplit("/", 2)[-2:]
-                if type_part != expected_type:
-                    self._reject_type(topic, type_part)
-                elif hash_part != expected_hash:
-                    self._reject(
-                        topic.name, "wrong_hash",
-                        f"type hash {hash_part[:80]} is not {expected_hash}, this type store's "
-                        f"{topic.typename} ({self.store.distro}); the publisher's definition "
-                        "differs",
-                    )
-                else:
+                key = str(sample.key_expr)
+                if key == expected_key or self._right_type(topic, key):
                     uid, stamp = _sender(sample.attachment)
                     self._received(topic, sample.payload.to_bytes(), uid, stamp)
             except Exception:
                 _log.exception("error receiving a message on %s", topic.name)
 
         return on_sample
+
+    def _right_type(self, topic: RosTopic, key: str) -> bool:
+        """Whether ``key`` names the topic's type and type hash; a wrong one is rejected."""
+        type_part, hash_part = key.rsplit("/", 2)[-2:]
+        expected_hash = topic.codec.type_hash
+        if type_part != topic.codec.dds_name:
+            self._reject_type(topic, type_part)
+            return False
+        if hash_part != expected_hash:
+            self._reject(
+                topic.name, "wrong_hash",
+                f"type hash {hash_part[:80]} is not {expected_hash}, this type store's "
+                f"{topic.typename} ({self.store.distro}); the publisher's definition differs",
+            )
+            return False
+        return True
 
     def _reject_type(self, topic: RosTopic, type_part: str) -> None:
         ros_name = ros_type_name(type_part)
