@@ -73,11 +73,8 @@ class TrustworthinessChecker(Block):
         # called once per step (a record, the end, an external verdict) with the verdicts it
         # decided, in order: one call for a record's verdicts, not one per verdict
         self.batch_observers: list[Callable[[list[Verdict]], Any]] = []
-        # the latest verdict of each property; _decided_on: the step (a record, or the end)
-        # that decided it
+        # the latest verdict of each property
         self.latest: dict[str, Verdict] = {}
-        self._decided_on: dict[str, int] = {}
-        self._steps = 0
         self.outcomes: dict[str, PropertyOutcome] = {
             name: PropertyOutcome(name) for monitor in monitors for name in monitor.properties
         }
@@ -93,7 +90,6 @@ class TrustworthinessChecker(Block):
         """Feed one loop record to every monitor; returns the verdicts it decided."""
         index = self.records
         self.records += 1
-        self._steps += 1
         decided: list[Verdict] = []
         for monitor in self.monitors:
             try:
@@ -110,7 +106,6 @@ class TrustworthinessChecker(Block):
     def finish(self) -> list[Verdict]:
         """The end of the run: settle every monitor (``None``: the run ended before a verdict
         could be decided) and name the signals each property never judged waits for."""
-        self._steps += 1
         decided: list[Verdict] = []
         for monitor in self.monitors:
             try:
@@ -131,7 +126,6 @@ class TrustworthinessChecker(Block):
     def take(self, verdict: Verdict) -> None:
         """A verdict decided outside the monitors (an external verdict source): counted, and
         the property's latest from now on."""
-        self._steps += 1
         self._take([verdict])
 
     def latest_verdict(self, name: str) -> Verdict | None:
@@ -148,18 +142,19 @@ class TrustworthinessChecker(Block):
     def _take(self, verdicts: list[Verdict]) -> None:
         """Count the verdicts one step decided, note each property's latest, and hand them to
         the observers."""
-        step = self._steps
+        # a step may decide several verdicts of a bounded-future property, in no particular
+        # order: the latest is the worst of those the newest deciding step gave
+        newest: dict[str, Verdict] = {}
         for verdict in verdicts:
             name = verdict.property
             outcome = self.outcomes.get(name)
             if outcome is None:  # a monitor of another kind may decide about a name it did not list
                 outcome = self.outcomes[name] = PropertyOutcome(name)
             outcome.add(verdict.value, verdict.error)
-            # a step may decide several verdicts of a bounded-future property, in no particular
-            # order: the latest is the worst of those the newest deciding step gave
-            if self._decided_on.get(name) != step or _rank(verdict) > _rank(self.latest[name]):
-                self.latest[name] = verdict
-                self._decided_on[name] = step
+            known = newest.get(name)
+            if known is None or _rank(verdict) > _rank(known):
+                newest[name] = verdict
+        self.latest.update(newest)
         for observer in self.observers:
             for verdict in verdicts:
                 observer(verdict)
