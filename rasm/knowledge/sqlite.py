@@ -136,7 +136,7 @@ class SqliteStorage(Storage):
             for statement in _SCHEMA.split(";"):
                 db.execute(statement)
             if version == 1:
-                _convert_schema_1(db)
+                _convert_schema_1(db, self.path)
             db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
             db.execute("COMMIT")
             for key, type_, history, lo, hi in db.execute(
@@ -430,16 +430,20 @@ def _prune(db: sqlite3.Connection, key: str, excess: int) -> None:
         )
 
 
-def _convert_schema_1(db: sqlite3.Connection) -> None:
+def _convert_schema_1(db: sqlite3.Connection, path: Path) -> None:
     """Rewrite a schema-1 file's samples (one row per sample, written by an earlier rasm) as
-    batches, inside the caller's transaction."""
+    batches, inside the caller's transaction (a damaged value leaves the file as it was)."""
     runs: dict[str, tuple[str, list[float], list[object]]] = {}
     for key, time, type_, text in db.execute(
         "SELECT key, time, type, value FROM samples ORDER BY seq"
     ):
+        try:
+            value = decode(text)
+        except ValueError as exc:
+            raise KnowledgeError(f"{path} is damaged: key {key!r}: {exc}") from exc
         runs.setdefault(key, (type_, [], []))
         runs[key][1].append(time)
-        runs[key][2].append(decode(text))
+        runs[key][2].append(value)
     db.executemany(
         'INSERT INTO batches (key, count, last, type, times, "values") VALUES (?, ?, ?, ?, ?, ?)',
         [(key, len(times), times[-1], type_, encode(times), encode(values))

@@ -326,6 +326,20 @@ def test_a_file_of_schema_1_is_converted_and_restores_every_sample(tmp_path):
     assert "samples" not in tables and "batches" in tables
 
 
+def test_a_damaged_file_of_schema_1_is_reported_and_left_as_it_was(tmp_path):
+    path = tmp_path / "k.db"
+    with sqlite3.connect(path) as db:
+        db.executescript(SCHEMA_1)
+        db.execute(
+            "INSERT INTO samples (key, time, type, value) VALUES ('t', 0.5, 'float', '{oops')"
+        )
+    with pytest.raises(KnowledgeError, match=r"k.db is damaged: key 't'"):
+        SqliteStorage(path)
+    with sqlite3.connect(path) as db:
+        assert db.execute("PRAGMA user_version").fetchone()[0] == 1
+        assert db.execute("SELECT count(*) FROM samples").fetchone()[0] == 1
+
+
 def test_a_file_of_another_schema_version_is_refused(tmp_path):
     path = tmp_path / "k.db"
     SqliteStorage(path).close()
