@@ -8,9 +8,12 @@ and one QoS profile, declared before use (:meth:`RosTransport.declare`, or ``typ
 matches every declared topic. A pattern subscribes to the declared topics it matches, including
 topics declared later.
 
-Received messages wait in an inbox, per topic at most the QoS depth (keep-last: the oldest goes
-first), and one dispatcher thread per transport decodes them and runs the callbacks; so a slow
-callback never stalls the middleware's own threads. Bad input from the wire (bytes that do not
+Received messages wait, per topic at most the QoS depth (keep-last: the oldest goes first),
+until a thread of rasm's takes them, decodes them and runs the callbacks; so a slow callback
+never stalls the middleware's own threads. Where they wait is the subclass's choice: Zenoh's own
+channel per subscription, with one receiving thread each (:mod:`rasm.ros2.zenoh`), or this
+module's inbox with one dispatcher thread per transport (:mod:`rasm.ros2.dds`). Either way the
+callbacks of one transport run one at a time. Bad input from the wire (bytes that do not
 decode, a wrong type hash, a type the store does not know, a topic published with another type)
 is never delivered and never fatal: it is counted in ``stats.malformed`` and in
 :attr:`RosTransport.rejected` by reason, and logged once per topic and reason.
@@ -223,7 +226,9 @@ class RosTransport(Transport):
         self._rejected = dict.fromkeys(REJECTIONS, 0)
         self._reported: set[tuple[str, str]] = set()  # (topic, reason) already logged
         self._reject_lock = threading.Lock()
+        self.max_pending = max_pending
         self._inbox: KeepLastInbox[_Received] = KeepLastInbox(max_pending)
+        self._delivery_lock = threading.Lock()  # the callbacks run one at a time
         self._uids = itertools.count(1)
         self._dispatcher: threading.Thread | None = None
         profiles = dict(qos or {})
@@ -341,10 +346,11 @@ class RosTransport(Transport):
             raise CommError(f"{self.url}: a closed transport cannot reconnect; make a new one")
         self._open_wire()
         self._state = "open"
-        self._dispatcher = threading.Thread(
-            target=self._dispatch_loop, name=f"rasm-ros2-{self.url}", daemon=True
-        )
-        self._dispatcher.start()
+        if self.uses_inbox:
+            self._dispatcher = threading.Thread(
+                target=self._dispatch_loop, name=f"rasm-ros2-{self.url}", daemon=True
+            )
+            self._dispatcher.start()
         try:
             for topic in list(self._topics.values()):
                 if self._wanted(topic.name):
@@ -399,6 +405,11 @@ class RosTransport(Transport):
                 self._wire_unsubscribe(self._topics[name])
 
     # -- what subclasses call -------------------------------------------------------------------
+    #: Whether received messages wait in this module's inbox for the transport's dispatcher
+    #: (the subclass calls :meth:`_received`); False: the subclass's own threads take them
+    #: from where the middleware keeps them and call :meth:`_dispatch`.
+    uses_inbox = True
+
     def _received(
         self, topic: RosTopic, data: bytes, uid: str | None, timestamp: float | None
     ) -> None:
@@ -457,12 +468,15 @@ class RosTransport(Transport):
     def _dispatch(
         self, topic: RosTopic, data: bytes, uid: str | None, timestamp: float | None
     ) -> None:
+        """Decode one received message and run its callbacks (on whichever thread of rasm's
+        took it from the wire: one at a time)."""
         try:
             payload = topic.decode(data)
         except MalformedMessage as exc:
             self._reject(topic.name, "malformed", str(exc))
             return
-        try:
-            self._deliver_received(Message(topic.name, payload, uid, timestamp))
-        except Exception:  # _deliver catches callback errors; a last line of defence
-            _log.exception("error dispatching a message on %s", topic.name)
+        with self._delivery_lock:
+            try:
+                self._deliver_received(Message(topic.name, payload, uid, timestamp))
+            except Exception:  # _deliver catches callback errors; a last line of defence
+                _log.exception("error dispatching a message on %s", topic.name)

@@ -14,6 +14,13 @@
 The session is a Zenoh peer that connects to ``HOST:PORT`` (rmw_zenoh's router listens on
 7447) with multicast scouting off, as rmw_zenoh's sessions are; gossip scouting through the
 router finds the other peers.
+
+Received messages wait in Zenoh's own channel of each subscription, which is the topic's
+history: a ring of ``depth`` for keep-last (the oldest goes), a queue of ``max_pending`` for
+keep-all (full, it holds the publisher back, as a reliable keep-all one waits in ROS). One
+thread per subscribed topic takes them in batches: Zenoh's threads never run Python, which at
+sensor rates costs more than the decoding does. A message a publisher sent that a subscription
+never got (a sequence number skipped) is counted in ``stats.dropped``.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ import itertools
 import json
 import logging
 import struct
+import threading
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -44,6 +52,7 @@ DEFAULT_PORT = 7447  # where rmw_zenoh's router listens
 
 _ATTACHMENT = struct.Struct("<qqB16s")  # sequence number, source time (ns), GID length, GID
 _GID_SIZE = 16
+_BATCH = 1000  # messages a receiving thread takes from its channel at once, at most
 
 # rmw_zenoh writes each QoS policy into the token only where it differs from its defaults:
 # reliable, volatile, keep last 42 (its default depth), infinite deadline, lifespan and lease.
@@ -158,6 +167,7 @@ class ZenohTransport(RosTransport):
     """
 
     tells_own_messages = True
+    uses_inbox = False  # Zenoh's channel per subscription holds what waits (module docstring)
 
     def __init__(
         self,
@@ -183,7 +193,9 @@ class ZenohTransport(RosTransport):
         self._entity_ids = itertools.count(1)  # 0 is the node's
         self._publishers: dict[str, _Publisher] = {}
         self._own_gids: set[str] = set()  # this session's publishers, as in a message's uid
-        self._subscribers: dict[str, tuple[Any, Any]] = {}  # topic -> (subscriber, token)
+        # topic -> (subscriber, liveliness token, the thread receiving its messages)
+        self._subscribers: dict[str, tuple[Any, Any, threading.Thread]] = {}
+        self._receiving = threading.local()  # .topic: set on a receiving thread
 
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
@@ -306,17 +318,24 @@ class ZenohTransport(RosTransport):
             return
         # any type and hash: a message with the wrong ones is counted, not silently missed
         key = f"{self.domain}/{topic.name.strip('/')}/*/*"
-        on_sample = self._sample_handler(topic)
-        if topic.qos.durability == "transient_local":
+        qos = topic.qos
+        channel = (zenoh.handlers.FifoChannel(self.max_pending) if qos.keeps_all
+                   else zenoh.handlers.RingChannel(qos.depth))
+        if qos.durability == "transient_local":
             subscriber = zenoh.ext.declare_advanced_subscriber(
-                self._session, key, on_sample,
+                self._session, key, channel,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
                 subscriber_detection=True,
             )
         else:
-            subscriber = self._session.declare_subscriber(key, on_sample)
+            subscriber = self._session.declare_subscriber(key, channel)
         token = self._declare_token(next(self._entity_ids), "MS", topic)
-        self._subscribers[topic.name] = (subscriber, token)
+        receiver = threading.Thread(
+            target=self._receive, args=(topic, subscriber.handler),
+            name=f"rasm-zenoh-{topic.name}", daemon=True,
+        )
+        self._subscribers[topic.name] = (subscriber, token, receiver)
+        receiver.start()
 
     def _wire_unsubscribe(self, topic: RosTopic) -> None:
         self._undeclare_subscriber(topic.name)
@@ -325,29 +344,51 @@ class ZenohTransport(RosTransport):
         entry = self._subscribers.pop(name, None)
         if entry is None:
             return
-        for entity in reversed(entry):
+        subscriber, token, receiver = entry
+        for entity in (token, subscriber):
             try:
                 entity.undeclare()
             except zenoh.ZError:
                 pass  # the session is already closed
+        # its channel is closed now: the receiver ends after the batch in hand (not awaited
+        # from a callback, which holds the delivery another receiver may be waiting for)
+        if not getattr(self._receiving, "topic", None):
+            receiver.join(timeout=5.0)
 
-    def _sample_handler(self, topic: RosTopic):
+    def _receive(self, topic: RosTopic, channel: Any) -> None:
+        """Take ``topic``'s messages from its channel and deliver them, until it closes."""
         # the subscription's key ends in /*/*: a sample of the right type and hash has this key
         expected_key = self._key(topic)
-
-        def on_sample(sample: Any) -> None:
-            # runs on a Zenoh thread: check the key, hand the bytes over, never raise
+        self._receiving.topic = topic.name
+        last_sequence: dict[bytes, int] = {}  # per publisher GID: a skipped number was dropped
+        while True:
             try:
-                if sample.kind != zenoh.SampleKind.PUT:
-                    return
-                key = str(sample.key_expr)
-                if key == expected_key or self._right_type(topic, key):
-                    uid, stamp = _sender(sample.attachment)
-                    self._received(topic, sample.payload.to_bytes(), uid, stamp)
-            except Exception:
-                _log.exception("error receiving a message on %s", topic.name)
-
-        return on_sample
+                batch = [channel.recv()]
+                while len(batch) < _BATCH and (sample := channel.try_recv()) is not None:
+                    batch.append(sample)
+            except zenoh.ZError:
+                return  # the subscription was undeclared
+            for sample in batch:
+                try:
+                    if sample.kind != zenoh.SampleKind.PUT:
+                        continue
+                    key = str(sample.key_expr)
+                    if key != expected_key and not self._right_type(topic, key):
+                        continue
+                    sender = _sender(sample.attachment)
+                    if sender is None:
+                        self._dispatch(topic, sample.payload.to_bytes(), None, None)
+                        continue
+                    gid, sequence, stamp = sender
+                    previous = last_sequence.get(gid)
+                    if previous is not None and sequence > previous + 1:
+                        self.stats.incr("dropped", sequence - previous - 1)
+                    if previous is not None or len(last_sequence) < 10_000:
+                        last_sequence[gid] = sequence
+                    self._dispatch(topic, sample.payload.to_bytes(),
+                                   f"{gid.hex()}.{sequence}", stamp)
+                except Exception:
+                    _log.exception("error receiving a message on %s", topic.name)
 
     def _right_type(self, topic: RosTopic, key: str) -> bool:
         """Whether ``key`` names the topic's type and type hash; a wrong one is rejected."""
@@ -380,14 +421,15 @@ class ZenohTransport(RosTransport):
             )
 
 
-def _sender(extra: Any) -> tuple[str | None, float | None]:
-    """``(uid, source time in s)`` from an rmw_zenoh attachment; ``(None, None)`` without one."""
+def _sender(extra: Any) -> tuple[bytes, int, float] | None:
+    """``(publisher GID, sequence number, source time in s)`` from an rmw_zenoh attachment;
+    None without one."""
     if extra is None:
-        return None, None
+        return None
     data = extra.to_bytes()
     if len(data) != _ATTACHMENT.size:
-        return None, None
+        return None
     sequence, stamp, size, gid = _ATTACHMENT.unpack(data)
     if size != _GID_SIZE:
-        return None, None
-    return f"{gid.hex()}.{sequence}", stamp / 1e9
+        return None
+    return gid, sequence, stamp / 1e9

@@ -177,11 +177,12 @@ def zenoh_main(config):
                 done.wait(0.01)  # poll the match: zenoh-python offers no blocking wait for it
         say(event="ready")
         sequence = 0
+        numbers = iter(config.get("sequences", ()))  # the sequence numbers to send, if given
         gid = bytes(range(16))
         while True:
             for publisher, entry, payloads in publishers:
                 for payload in this_round(entry, payloads):
-                    sequence += 1
+                    sequence = next(numbers, sequence + 1)
                     attachment = struct.pack("<qqB16s", sequence, time.time_ns(), 16, gid)
                     publisher.put(payload, attachment=attachment)
             say(event="published", n=sequence)

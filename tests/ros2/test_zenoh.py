@@ -65,6 +65,24 @@ def test_messages_of_a_foreign_publisher_arrive_as_dicts(peers, transports, zeno
     assert transport.stats.malformed == 0
 
 
+def test_messages_a_publisher_sent_that_never_arrived_are_counted_as_dropped(
+    peers, transports, zenoh_port
+):
+    chatter = [{"data": f"m{i}"} for i in range(5)]
+    # the publisher's sequence numbers skip 3, 4 and 7: three messages sent that never arrived
+    peer = _peer(peers, zenoh_port, "pub", [{"topic": "/chatter", "type": "std_msgs/msg/String",
+                                             "messages": chatter}], sequences=[1, 2, 5, 6, 8])
+    transport = transports(ZenohTransport(f"zenoh://127.0.0.1:{zenoh_port}",
+                                          types={"/chatter": "std_msgs/msg/String"}))
+    got = []
+    transport.subscribe("/chatter", got.append)
+    transport.connect()
+    peer.wait_ready()
+    wait_until(lambda: len(got) == 5, what="the five messages sent")
+    assert [m.uid.rsplit(".", 1)[1] for m in got] == ["1", "2", "5", "6", "8"]
+    assert transport.stats.dropped == 3
+
+
 def test_a_topic_declared_with_fields_delivers_only_those(peers, transports, zenoh_port):
     topics = [{"topic": t, "type": SAMPLES[t][0], "messages": [SAMPLES[t][1]]}
               for t in ("/odom", "/scan")]
