@@ -25,6 +25,7 @@ never got (a sequence number skipped) is counted in ``stats.dropped``.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import itertools
 import json
@@ -35,6 +36,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
+from weakref import WeakSet
 
 import zenoh
 import zenoh.ext
@@ -134,6 +136,17 @@ def _gid(key: str) -> bytes:
     return hashlib.blake2b(key.encode(), digest_size=_GID_SIZE).digest()
 
 
+# the transports open in this process: closed at exit if their owner did not, as a receiving
+# thread still waiting in Zenoh when the interpreter ends aborts the process
+_OPEN: WeakSet[ZenohTransport] = WeakSet()
+
+
+@atexit.register
+def _close_open_transports() -> None:
+    for transport in list(_OPEN):
+        transport.close()
+
+
 class _Publisher:
     """One topic's Zenoh publisher, its liveliness token, GID and sequence numbers."""
 
@@ -228,8 +241,10 @@ class ZenohTransport(RosTransport):
             ) from None
         self._session_id = str(self._session.zid())
         self._node_token = self._declare_token(0, "NN")
+        _OPEN.add(self)
 
     def _close_wire(self) -> None:
+        _OPEN.discard(self)
         for publisher in self._publishers.values():
             publisher.undeclare()
         for name in list(self._subscribers):

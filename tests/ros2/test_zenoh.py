@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import logging
 import struct
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -250,3 +253,21 @@ def test_connect_fails_loudly_when_nothing_answers(zenoh_port):
     assert time.monotonic() - started < 5
     with pytest.raises(CommError, match="not open"):
         transport.publish("/x", {})
+
+
+def test_a_process_that_never_closes_its_transport_still_exits_cleanly(zenoh_port):
+    # its receiving thread waits in Zenoh all along: left there, the interpreter's end would
+    # abort the process
+    script = (
+        "import threading\n"
+        "from rasm.ros2 import ZenohTransport\n"
+        f"t = ZenohTransport('zenoh://127.0.0.1:{zenoh_port}', "
+        f"listen=['tcp/127.0.0.1:{zenoh_port}'], types={{'/quiet': 'std_msgs/msg/String'}})\n"
+        "heard = threading.Event()\n"
+        "t.subscribe('/quiet', lambda m: heard.set())\n"
+        "t.connect()\n"
+        "print(heard.wait(1.0))\n"  # a second without a message
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=60, cwd=Path(__file__).resolve().parents[2])
+    assert (done.returncode, done.stdout) == (0, "False\n"), done.stderr
