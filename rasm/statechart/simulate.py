@@ -4,6 +4,10 @@ The steps are exactly those stock sismic's ``Interpreter`` takes when driven the
 ``execute()`` at time 0 (the initial step, then any eventless steps), then for each event in turn
 the clock is set to the event's time, the event is queued and ``execute()`` runs until the chart is
 stable. ``until`` optionally advances the clock once more at the end, so timers can fire.
+
+An event may carry ``context``: variables set in the chart's context just before it is queued,
+as the platform sets a stage chart's ``knowledge``, ``time`` and ``anomaly`` before each of its
+stage's events; so a stage chart can be simulated on its own.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import math
 import sys
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from keyword import iskeyword
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -32,12 +37,14 @@ _RESERVED = {"name", "data", "delay", "self", "event_or_name"}
 
 @dataclass(frozen=True)
 class TimedEvent:
-    """One line of an events file: ``{"time": t, "event": "name", "data": {...}}``."""
+    """One line of an events file: ``{"time": t, "event": "name", "data": {...}}``, and
+    optionally ``"context": {...}``, variables set in the chart's context before the event."""
 
     time: float
     name: str
     data: dict[str, Any] = field(default_factory=dict)
     line: int = 0
+    context: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -50,6 +57,7 @@ class SimulatedStep:
     entered: list[str]
     exited: list[str]
     error: str | None = None
+    sent: list[tuple[str, dict[str, Any]]] = field(default_factory=list)  # send()'s events
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -90,9 +98,9 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
         if not isinstance(record, dict):
             bad('an event is a JSON object {"time": t, "event": "name", "data": {...}}')
             continue
-        unknown = sorted(set(record) - {"time", "event", "data"})
+        unknown = sorted(set(record) - {"time", "event", "data", "context"})
         if unknown:
-            bad(f"unknown key {unknown[0]!r} (expected time, event, data)")
+            bad(f"unknown key {unknown[0]!r} (expected time, event, data, context)")
             continue
         time = record.get("time")
         if isinstance(time, bool) or not isinstance(time, int | float) or not _finite(time):
@@ -116,8 +124,16 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
         if reserved:
             bad(f"data key {reserved[0]!r} is reserved by sismic; rename it")
             continue
+        context = record.get("context", {})
+        if not isinstance(context, dict):
+            bad('"context" must be a JSON object of variable names and values')
+            continue
+        names = [key for key in context if not key.isidentifier() or iskeyword(key)]
+        if names:
+            bad(f"context key {names[0]!r} is not a variable name the chart's code could read")
+            continue
         last_time = time
-        events.append(TimedEvent(time, name, data, number))
+        events.append(TimedEvent(time, name, data, number, context))
     if errors:
         raise SourceErrors(errors)
     return events
@@ -162,6 +178,7 @@ def _step(macro: MacroStep, interp: Interpreter) -> SimulatedStep:
         configuration=sorted(interp.configuration),
         entered=list(macro.entered_states),
         exited=list(macro.exited_states),
+        sent=[(event.name, dict(event.data)) for event in macro.sent_events],
     )
 
 
@@ -228,6 +245,7 @@ def simulate(
     _execute(interp, steps, "initial step")
     for event in events:
         clock.time = max(clock.time, event.time)
+        interp.context.update(event.context)
         interp.queue(event.name, **event.data)
         _execute(interp, steps, f"event '{event.name}' (line {event.line})")
     if until is not None and until > clock.time:
@@ -251,4 +269,7 @@ def format_steps(steps: list[SimulatedStep], fmt: str = "text") -> str:
             out.append(f"{'':>10}  {'':<20}  - exited:  {', '.join(step.exited)}")
         if step.entered:
             out.append(f"{'':>10}  {'':<20}  + entered: {', '.join(step.entered)}")
+        for name, data in step.sent:  # what a stage chart answers, with its data
+            fields = ", ".join(f"{key}={value!r}" for key, value in data.items())
+            out.append(f"{'':>10}  {'':<20}  > sent:    {name}({fields})")
     return "\n".join(out) + ("\n" if out else "")

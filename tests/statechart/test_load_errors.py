@@ -435,6 +435,25 @@ def test_cli_bad_events_file_names_the_line(tmp_path, capsys):
     assert f"{events}:6:1: data key 'name' is reserved" in err
 
 
+def test_cli_events_file_context_must_be_an_object_of_variable_names(tmp_path, capsys):
+    chart = tmp_path / "c.yaml"
+    chart.write_text("statechart:\n  name: y\n  root state:\n    name: r\n")
+    events = tmp_path / "events.jsonl"
+    events.write_text(
+        '{"time": 1, "event": "a", "context": [1]}\n'
+        '{"time": 2, "event": "a", "context": {"not a name": 1}}\n'
+        '{"time": 3, "event": "a", "context": {"lambda": 1}}\n'
+        '{"time": 4, "event": "a", "contxt": {}}\n'
+    )
+    assert main(["simulate", str(chart), "--events", str(events)]) == 2
+    err = capsys.readouterr().err
+    assert f'{events}:1:1: "context" must be a JSON object' in err
+    assert f"{events}:2:1: context key 'not a name' is not a variable name" in err
+    assert f"{events}:3:1: context key 'lambda' is not a variable name" in err
+    assert f"{events}:4:1: unknown key 'contxt' (expected time, event, data, context)" in err
+    assert "Traceback" not in err
+
+
 @pytest.mark.parametrize("command", ["simulate", "graph"])
 def test_cli_non_utf8_chart_exits_2_at_the_bad_byte(tmp_path, capsys, command):
     chart = tmp_path / "latin1.yaml"

@@ -112,3 +112,25 @@ def test_cli_json_output_matches_stock_sismic(tmp_path, capsys):
     assert lines[0]["event"] is None and lines[0]["time"] == 0
     # the after(2) timer in `busy` fired on the event at t=4, as stock sismic does
     assert any(s["event"] is None and "idle" in s["entered"] for s in lines[1:])
+
+
+def test_a_stage_chart_runs_on_its_own_with_each_events_context(tmp_path, capsys):
+    # the platform sets knowledge before each stage event; an event's context does the same
+    chart = tmp_path / "analyse.yaml"
+    chart.write_text(
+        "statechart:\n  name: analyse\n  root state:\n    name: r\n    transitions:\n"
+        "      - event: analyse\n        guard: knowledge.get('t', 0) > 50\n"
+        "        action: send('anomaly', reason='hot', t=knowledge['t'])\n"
+        "      - event: analyse\n        guard: knowledge.get('t', 0) <= 50\n"
+        "        action: send('no_anomaly')\n"
+    )
+    events = [TimedEvent(1.0, "analyse", context={"knowledge": {"t": 20}}),
+              TimedEvent(2.0, "analyse", context={"knowledge": {"t": 70}}),
+              TimedEvent(3.0, "analyse")]  # the knowledge set last stays
+    answers = [step.sent for step in simulate(chart, events) if step.event == "analyse"]
+    assert answers == [[("no_anomaly", {})], [("anomaly", {"reason": "hot", "t": 70})],
+                       [("anomaly", {"reason": "hot", "t": 70})]]
+    lines = tmp_path / "events.jsonl"
+    lines.write_text('{"time": 1, "event": "analyse", "context": {"knowledge": {"t": 99}}}\n')
+    assert main(["simulate", str(chart), "--events", str(lines)]) == 0
+    assert "> sent:    anomaly(reason='hot', t=99)" in capsys.readouterr().out
