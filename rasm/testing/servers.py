@@ -18,7 +18,9 @@ import shutil
 import socket
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 __all__ = [
     "Broker",
@@ -32,6 +34,7 @@ __all__ = [
 ]
 
 _HOST = "127.0.0.1"  # loopback only: tests never listen on a public interface
+_S = TypeVar("_S", bound="_Server")
 
 
 def find_mosquitto() -> str:
@@ -79,96 +82,7 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
-class Broker:
-    """A mosquitto process: ``host``, ``port``, ``url`` (``mqtt://host:port``), stop, restart."""
-
-    def __init__(self, tmp_dir: Path, port: int, timeout: float = 10.0) -> None:
-        self.host = _HOST
-        self.port = port
-        self.url = f"mqtt://{self.host}:{port}"
-        self.timeout = timeout
-        self.config = Path(tmp_dir) / f"mosquitto-{port}.conf"
-        self.log = Path(tmp_dir) / f"mosquitto-{port}.log"
-        self.config.write_text(
-            f"listener {port} {_HOST}\nallow_anonymous true\npersistence false\n"
-        )
-        self._process: subprocess.Popen[bytes] | None = None
-
-    @property
-    def running(self) -> bool:
-        return self._process is not None and self._process.poll() is None
-
-    def start(self) -> None:
-        """Start mosquitto and wait until it answers an MQTT CONNECT; RuntimeError if it cannot."""
-        if self.running:
-            return
-        with open(self.log, "ab") as log:
-            self._process = subprocess.Popen(
-                [find_mosquitto(), "-c", str(self.config)], stdout=log, stderr=subprocess.STDOUT
-            )
-        deadline = time.monotonic() + self.timeout
-        while True:
-            if _mqtt_answers(self.host, self.port):
-                return
-            try:
-                # Waiting on the process doubles as the short pause between attempts and notices
-                # at once if mosquitto exited (port taken, bad config).
-                code = self._process.wait(timeout=0.02)
-            except subprocess.TimeoutExpired:
-                code = None
-            if code is not None or time.monotonic() > deadline:
-                self.stop()
-                tail = self.log.read_text(errors="replace")[-2000:]
-                raise RuntimeError(
-                    f"mosquitto did not start on {self.host}:{self.port} "
-                    f"(exit code {code}); its log:\n{tail}"
-                )
-
-    def stop(self) -> None:
-        """Terminate the broker (idempotent); its clients see the connection drop."""
-        process, self._process = self._process, None
-        if process is None or process.poll() is not None:
-            return
-        process.terminate()
-        try:
-            process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=5)
-
-    def restart(self) -> None:
-        """Stop the broker and start a fresh one on the same port (no state survives)."""
-        self.stop()
-        self.start()
-
-    def __enter__(self) -> Broker:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def __repr__(self) -> str:
-        return f"<Broker {self.url} {'running' if self.running else 'stopped'}>"
-
-
-def start_mosquitto(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> Broker:
-    """Start a mosquitto broker on a free loopback port, with its config and log in ``tmp_dir``.
-
-    The port is picked free just before starting; if another process takes it in between, a new
-    port is tried (up to ``attempts`` times).
-    """
-    for attempt in range(attempts):
-        broker = Broker(Path(tmp_dir), free_port())
-        try:
-            broker.start()
-            return broker
-        except RuntimeError:
-            if attempt == attempts - 1:
-                raise
-    raise AssertionError("unreachable")
-
-
-# --------------------------------------------------------------------------- Redis and InfluxDB
+# --------------------------------------------------------------------------- the servers
 
 
 def _find_binary(name: str, package: str) -> str:
@@ -215,7 +129,7 @@ def _influx_answers(host: str, port: int) -> bool:
 
 
 class _Server:
-    """A server process with a config file and a log in a temporary folder (Redis, InfluxDB).
+    """A server process with a config file and a log in a temporary folder.
 
     Subclasses write the config in ``__init__`` and give the command and the readiness probe.
     """
@@ -296,6 +210,30 @@ class _Server:
         raise NotImplementedError
 
 
+class Broker(_Server):
+    """A mosquitto process: ``host``, ``port``, ``url`` (``mqtt://host:port``), stop, restart."""
+
+    name = "mosquitto"
+
+    def __init__(self, tmp_dir: Path, port: int, timeout: float = 10.0) -> None:
+        super().__init__(tmp_dir, port, timeout)
+        self.config = self.dir / f"mosquitto-{port}.conf"
+        self.config.write_text(
+            f"listener {port} {_HOST}\nallow_anonymous true\npersistence false\n"
+        )
+
+    @property
+    def url(self) -> str:
+        """``mqtt://host:port``."""
+        return f"mqtt://{self.host}:{self.port}"
+
+    def _command(self) -> list[str]:
+        return [find_mosquitto(), "-c", str(self.config)]
+
+    def _answers(self) -> bool:
+        return _mqtt_answers(self.host, self.port)
+
+
 class RedisServer(_Server):
     """A redis-server process without persistence: ``host``, ``port``, ``url``, ``stop``."""
 
@@ -353,10 +291,11 @@ class InfluxServer(_Server):
         return _influx_answers(self.host, self.port)
 
 
-def start_redis(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> RedisServer:
-    """Start a redis-server on a free loopback port, with its config and log in ``tmp_dir``."""
+def _start_on_a_free_port(make: Callable[[], _S], attempts: int) -> _S:
+    """Start the server ``make()`` makes on ports picked free just before; should another
+    process take one in between, try again on new ones (up to ``attempts`` times)."""
     for attempt in range(attempts):
-        server = RedisServer(Path(tmp_dir), free_port())
+        server = make()
         try:
             server.start()
             return server
@@ -364,17 +303,22 @@ def start_redis(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> RedisS
             if attempt == attempts - 1:
                 raise
     raise AssertionError("unreachable")
+
+
+def start_mosquitto(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> Broker:
+    """Start a mosquitto broker on a free loopback port, with its config and log in
+    ``tmp_dir``; returns once it answers an MQTT CONNECT."""
+    return _start_on_a_free_port(lambda: Broker(Path(tmp_dir), free_port()), attempts)
+
+
+def start_redis(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> RedisServer:
+    """Start a redis-server on a free loopback port, with its config and log in ``tmp_dir``."""
+    return _start_on_a_free_port(lambda: RedisServer(Path(tmp_dir), free_port()), attempts)
 
 
 def start_influxdb(tmp_dir: str | os.PathLike[str], *, attempts: int = 3) -> InfluxServer:
     """Start an InfluxDB 1.x ``influxd`` on free loopback ports (HTTP and RPC), data in
     ``tmp_dir``; returns once ``GET /ping`` answers 204."""
-    for attempt in range(attempts):
-        server = InfluxServer(Path(tmp_dir), free_port(), free_port())
-        try:
-            server.start()
-            return server
-        except RuntimeError:
-            if attempt == attempts - 1:
-                raise
-    raise AssertionError("unreachable")
+    return _start_on_a_free_port(
+        lambda: InfluxServer(Path(tmp_dir), free_port(), free_port()), attempts
+    )
