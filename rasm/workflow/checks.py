@@ -3,8 +3,10 @@
 Each check returns :class:`SourceError` values at the line and column of the offending element:
 dangling references, ports with no peer, publisher/subscriber message type mismatches,
 components on no compute unit, compute units whose transports cannot reach a component they must
-talk to, a MAPLE-K loop missing (or repeating, or splitting) a stage, and properties or rules
-that read signals no component produces (the shared check of :mod:`rasm.platform.signals`).
+talk to, a MAPLE-K loop missing (or repeating, or splitting) a stage, statecharts declared where
+the platform runs none (a chart for a managed-system component, modes on a stage, effector modes
+that are no state of the modes chart), and properties or rules that read signals no component
+produces (the shared check of :mod:`rasm.platform.signals`).
 """
 
 from __future__ import annotations
@@ -15,9 +17,9 @@ from typing import Any
 from rasm.errors import Location, SourceError, SourceErrors, mark
 from rasm.loop import LOOP_KEYS, STAGES
 from rasm.platform.signals import closest, reads, unprovided
-from rasm.workflow.model import ArchitectureModel, Check
+from rasm.workflow.model import ArchitectureModel, Check, ModesChart
 
-__all__ = ["check_model", "produced_signals", "property_reads"]
+__all__ = ["check_model", "mode_states", "produced_signals", "property_reads"]
 
 
 def check_model(model: ArchitectureModel, *, signals: bool = True) -> list[SourceError]:
@@ -30,6 +32,7 @@ def check_model(model: ArchitectureModel, *, signals: bool = True) -> list[Sourc
         *_deployment(model),
         *_reachability(model),
         *_loop(model),
+        *_statecharts(model),
         *_trustworthiness(model, signals=signals),
     ]
     return sorted(errors, key=lambda e: (e.location.line, e.location.col, e.message))
@@ -250,10 +253,154 @@ def _loop(model: ArchitectureModel) -> Iterator[SourceError]:
                 )
 
 
-def produced_signals(model: ArchitectureModel) -> dict[str, str]:
-    """Every signal some component produces (message fields it publishes, declared knowledge),
-    with its type; the platform's own trace keys are not included."""
+def mode_states(model: ArchitectureModel) -> tuple[str, ...]:
+    """The states of the model's modes chart: the chart file's when it exists beside the model
+    (in a generated app, the engineer's chart is the truth), else the states the model gives."""
+    modes = model.modes
+    if modes is None:
+        return ()
+    chart = _modes_chart(model, modes)
+    if chart is None:
+        return modes.states
+    return tuple(state for state in chart.states if state != chart.root)
+
+
+def _modes_chart(model: ArchitectureModel, modes: ModesChart) -> Any:
+    """The modes chart file beside the model, loaded; None when there is none or it does not
+    load (the app's lint reports a chart that does not load)."""
+    from rasm.statechart import load_statechart
+
+    path = model.folder / modes.chart
+    if not path.is_file():
+        return None
+    try:
+        return load_statechart(path)
+    except (SourceError, SourceErrors):
+        return None
+
+
+def _statecharts(model: ArchitectureModel) -> Iterator[SourceError]:
+    """Charts declared where the platform runs none, and effector modes the modes chart lacks."""
+    from rasm.workflow.derive import effectors
+
+    carriers = [c for c in model.components.values() if c.modes is not None]
+    for component in model.components.values():
+        if component.implementation == "statechart" and component.role not in STAGES:
+            yield _error(
+                model,
+                f"'{component.name}' is a {component.role}: only a MAPLE-K stage can be a "
+                "statechart (the managed system is simulated in Python; give it a modes chart "
+                "with modes: instead)",
+                component.implementation_location,
+            )
+        if component.modes is not None and component.role in STAGES:
+            yield _error(
+                model,
+                f"'{component.name}' is the {component.role} stage: modes belong to the managed "
+                "system (put them on a probe, effector or managed component)",
+                component.modes.location,
+            )
+    for extra in carriers[1:]:
+        assert extra.modes is not None
+        yield _error(
+            model,
+            f"'{extra.name}' declares modes, but '{carriers[0].name}' already does: the managed "
+            "system has one modes chart",
+            extra.modes.location,
+        )
+    modes = model.modes
+    if modes is not None:
+        yield from _modes_chart_problems(model, modes)
+    states = set(mode_states(model))
+    targets = {(e.component, e.port) for e in effectors(model)}
+    for component in model.components.values():
+        for port in component.ports.values():
+            if port.modes is None:
+                continue
+            where = port.modes_locations[0] if port.modes_locations else port.location
+            if (component.name, port.name) not in targets:
+                yield _error(
+                    model,
+                    f"port {port.ref}: modes apply to the actions of the execute stage, and no "
+                    "row of the communication matrix sends them here",
+                    where,
+                )
+            elif modes is None:
+                yield _error(
+                    model,
+                    f"port {port.ref} applies in modes, but the managed system has no modes "
+                    "chart (give one of its components modes: {states: [...]})",
+                    where,
+                )
+                continue
+            for mode, place in zip(port.modes, port.modes_locations, strict=True):
+                if mode not in states:
+                    suggestion = closest(mode, states)
+                    hint = f": did you mean '{suggestion}'?" if suggestion else ""
+                    yield _error(
+                        model,
+                        f"port {port.ref}: '{mode}' is not a state of the modes chart "
+                        f"{modes.chart} (its states: {', '.join(sorted(states))}){hint}",
+                        place,
+                    )
+    if modes is not None and model.mode_signal is not None and model.source is not None:
+        trust = model.source.data["trustworthiness"]
+        yield _error(
+            model,
+            "the managed system's modes are its modes chart: leave out mode_signal",
+            model.source.key(trust, "mode_signal"),
+        )
+
+
+def _modes_chart_problems(model: ArchitectureModel, modes: ModesChart) -> Iterator[SourceError]:
+    if modes.component in modes.states:
+        i = modes.states.index(modes.component)
+        yield _error(
+            model,
+            f"state '{modes.component}' is the modes chart's root (named after its component): "
+            "name the mode otherwise",
+            modes.state_locations[i],
+        )
+    taken = {c.chart: c.name for c in model.components.values() if c.chart is not None}
+    taken.update({check.file: check.kind for check in model.checks})
+    if modes.chart in taken:
+        yield _error(
+            model,
+            f"the modes chart {modes.chart} is also the file of '{taken[modes.chart]}'",
+            modes.chart_location,
+        )
+    chart = _modes_chart(model, modes)
+    if chart is not None:
+        # the engineer's chart is the truth; the model must not promise modes it lacks
+        for state, where in zip(modes.states, modes.state_locations, strict=True):
+            if state not in chart.states or state == chart.root:
+                yield _error(
+                    model,
+                    f"'{state}' is not a state of the modes chart {modes.chart}: change the "
+                    "model's states to match the chart",
+                    where,
+                )
+    signals = {"mode", *(f"mode_{state}" for state in mode_states(model))}
+    others = {
+        key for key, _ in produced_signals(model, modes=False).items() if key in signals
+    }
+    for key in sorted(others):
+        yield _error(
+            model,
+            f"signal '{key}': the modes chart writes it (mode, mode_<state>); a component "
+            "producing it too would mix the two in one knowledge key: rename the signal",
+            modes.location,
+        )
+
+
+def produced_signals(model: ArchitectureModel, *, modes: bool = True) -> dict[str, str]:
+    """Every signal some component produces (message fields it publishes, declared knowledge,
+    and with ``modes`` the keys the modes chart writes: ``mode``, ``mode_<state>``), with its
+    type; the platform's own trace keys are not included."""
     out: dict[str, str] = {}
+    if modes and model.modes is not None:
+        out["mode"] = "str"
+        out.update({f"mode_{state}": "bool" for state in mode_states(model)})
     for component in model.components.values():
         out.update(component.produces)
         for port in component.ports.values():

@@ -61,6 +61,7 @@ class Effector:
     component: str
     port: str
     message: str
+    modes: tuple[str, ...] | None = None  # the managed-system modes its actions apply in
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,9 @@ def effectors(model: ArchitectureModel) -> list[Effector]:
                 continue
             inputs = [p for p in component.ports.values() if p.direction == "in"]
             name = component.name if len(inputs) <= 1 else f"{component.name}_{port.name}"
-            out.append(Effector(name, link.topic, component.name, port.name, port.message))
+            out.append(
+                Effector(name, link.topic, component.name, port.name, port.message, port.modes)
+            )
     return out
 
 
@@ -123,22 +126,26 @@ def app_config(model: ArchitectureModel) -> dict[str, Any]:
         component = model.stage(stage)
         if component is None:
             continue
-        ref = f"components:{component.class_name}"
+        ref = component.chart or f"components:{component.class_name}"
         # what the monitor or plan declares it produces: the app's signal check needs it
         if component.produces and stage in ("monitor", "plan"):
             components[stage] = {"component": ref, "produces": dict(component.produces)}
         else:
             components[stage] = ref
     simulator = interface.get("simulator", {})
+    managed_system: dict[str, Any] = {}
+    if model.modes is not None:
+        managed_system["modes"] = model.modes.chart
+    managed_system.update(
+        simulator="components:Simulator",
+        period=simulator.get("period", 0.1),
+        scenario=simulator.get("scenario", {}),
+    )
     config: dict[str, Any] = {
         "name": model.name,
         "description": model.description or f"{model.name}: generated from its model",
         "components": components,
-        "managed_system": {
-            "simulator": "components:Simulator",
-            "period": simulator.get("period", 0.1),
-            "scenario": simulator.get("scenario", {}),
-        },
+        "managed_system": managed_system,
         "probes": [
             {
                 "topic": topic,
@@ -153,6 +160,7 @@ def app_config(model: ArchitectureModel) -> dict[str, Any]:
         "effectors": {
             e.name: {
                 "topic": e.topic,
+                **({"modes": list(e.modes)} if e.modes is not None else {}),
                 "fields": {k: v["type"] for k, v in model.messages[e.message].fields.items()},
             }
             for e in effectors(model)

@@ -3,7 +3,7 @@
 The files come from Jinja2 templates under ``templates/app``. Regenerating after a model change
 keeps every engineer's region (``# >>> rasm:user ID`` … ``# <<< rasm:user ID``); a region whose
 component left the model is saved under ``.rasm-orphans/`` and reported. Property and rule files,
-tests and the model itself are created once and never overwritten.
+stage and modes charts, tests and the model itself are created once and never overwritten.
 """
 
 from __future__ import annotations
@@ -59,6 +59,8 @@ def templates() -> Environment:
     )
     env.filters["pytype"] = lambda t: _PYTYPES[t]
     env.filters["oneline"] = _oneline
+    env.filters["printable"] = _printable
+    env.filters["stem"] = lambda path: Path(path).stem
     env.filters["wrap"] = _wrap
     env.filters["pydefault"] = _default
     return env
@@ -67,6 +69,12 @@ def templates() -> Environment:
 def _oneline(text: str) -> str:
     """Free text made safe for one line of a docstring or a comment."""
     return " ".join(str(text).split()).replace("\\", "/").replace('"', "'")
+
+
+def _printable(text: str) -> str:
+    """Free text without the characters a YAML block or comment cannot hold (controls, BOMs,
+    line separators)."""
+    return "".join(c if c.isprintable() else " " for c in str(text))
 
 
 def _wrap(text: str, indent: int) -> str:
@@ -133,8 +141,18 @@ def _rules_stub(model: ArchitectureModel) -> str:
     )
 
 
+_STAGE_IMPORTS = {
+    "monitor": ("StageContext",),
+    "analyse": ("Anomaly", "StageContext"),
+    "plan": ("Plan", "StageContext"),
+    "legitimate": ("StageContext",),
+    "execute": ("Action", "StageContext"),
+}
+
+
 def _context(model: ArchitectureModel) -> dict[str, Any]:
-    maple = [c for c in (model.stage(s) for s in STAGES) if c is not None]
+    stages = [c for c in (model.stage(s) for s in STAGES) if c is not None]
+    maple = [c for c in stages if c.chart is None]  # the stages written in Python
     managed = [c for c in model.components.values() if c.role in MANAGED_ROLES]
     signals = sorted(
         key
@@ -151,6 +169,11 @@ def _context(model: ArchitectureModel) -> dict[str, Any]:
     return {
         "model": model,
         "maple": maple,
+        "charts": [c for c in stages if c.chart is not None],
+        "produced_by_monitor": sorted(model.stage("monitor").produces)
+        if model.stage("monitor")
+        else [],
+        "rasm_imports": sorted({name for c in maple for name in _STAGE_IMPORTS[c.role]}),
         "managed": managed,
         "signals": signals,
         "produced": produced_signals(model),
@@ -182,6 +205,10 @@ def generate_app(model: ArchitectureModel, folder: str | Path) -> Generated:
     for check in model.checks:
         template = "app/properties.rv.j2" if check.kind == "properties" else "app/rules.yaml.j2"
         once[check.file] = (template, {"check": check, "rules_yaml": _rules_stub(model)})
+    for component in ctx["charts"]:
+        once[component.chart] = ("app/stage_chart.yaml.j2", {"component": component})
+    if model.modes is not None:
+        once[model.modes.chart] = ("app/modes_chart.yaml.j2", {"modes": model.modes})
     rendered: list[tuple[str, Path, str, list[Region]]] = []
     for name, template in owned.items():  # merge everything first: broken markers write nothing
         path = folder / name

@@ -27,6 +27,7 @@ __all__ = [
     "ComputeUnit",
     "Link",
     "Message",
+    "ModesChart",
     "Port",
     "MANAGED_ROLES",
     "SCHEMA",
@@ -53,10 +54,27 @@ class Port:
     message: str
     location: Location = _NOWHERE
     message_location: Location = _NOWHERE
+    # the managed-system modes in which actions arriving here apply (None: in every mode)
+    modes: tuple[str, ...] | None = None
+    modes_locations: tuple[Location, ...] = ()
 
     @property
     def ref(self) -> str:
         return f"{self.component}.{self.name}"
+
+
+@dataclass(frozen=True)
+class ModesChart:
+    """The managed system's operation modes, a statechart carried by one managed-system
+    component: its file in the app and the states the model gives it (the first is initial)."""
+
+    component: str
+    chart: str
+    states: tuple[str, ...]
+    description: str = ""
+    location: Location = _NOWHERE
+    chart_location: Location = _NOWHERE
+    state_locations: tuple[Location, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -69,6 +87,14 @@ class Component:
     produces: dict[str, str] = field(default_factory=dict)
     description: str = ""
     location: Location = _NOWHERE
+    implementation: str = "python"
+    implementation_location: Location = _NOWHERE
+    modes: ModesChart | None = None
+
+    @property
+    def chart(self) -> str | None:
+        """The stage chart's path in the app (``charts/<name>.yaml``), None for Python."""
+        return f"charts/{self.name}.yaml" if self.implementation == "statechart" else None
 
     @property
     def class_name(self) -> str:
@@ -171,6 +197,12 @@ class ArchitectureModel:
         """The component playing MAPLE-K ``stage`` (the first one, if several do)."""
         return next((c for c in self.components.values() if c.role == stage), None)
 
+    @property
+    def modes(self) -> ModesChart | None:
+        """The managed system's modes chart (the first component's that declares one), or
+        None."""
+        return next((c.modes for c in self.components.values() if c.modes is not None), None)
+
     def unit_of(self, component: str) -> str | None:
         return self.deployment.get(component)
 
@@ -270,6 +302,21 @@ def lint_model(path: str | Path, *, signals: bool = True) -> list[SourceError]:
     return check_model(model, signals=signals)
 
 
+def _modes_chart(src: YamlSource, component: str, spec: Any) -> ModesChart | None:
+    modes = spec.get("modes")
+    if modes is None:
+        return None
+    return ModesChart(
+        component,
+        str(modes.get("chart", f"charts/{component}_modes.yaml")),
+        tuple(str(s) for s in modes["states"]),
+        str(modes.get("description", "")),
+        src.key(spec, "modes"),
+        src.value(modes, "chart") if "chart" in modes else src.key(spec, "modes"),
+        tuple(src.item(modes["states"], i) for i in range(len(modes["states"]))),
+    )
+
+
 def _build(src: YamlSource, file: Path) -> ArchitectureModel:
     data = src.data
     messages = {
@@ -292,6 +339,8 @@ def _build(src: YamlSource, file: Path) -> ArchitectureModel:
                 str(port["message"]),
                 src.key(spec["ports"], port_name),
                 src.value(port, "message"),
+                tuple(str(m) for m in port["modes"]) if "modes" in port else None,
+                tuple(src.item(port["modes"], i) for i in range(len(port.get("modes") or ()))),
             )
         components[str(name)] = Component(
             str(name),
@@ -300,6 +349,9 @@ def _build(src: YamlSource, file: Path) -> ArchitectureModel:
             {str(k): str(v) for k, v in (spec.get("produces") or {}).items()},
             str(spec.get("description", "")),
             src.key(data["components"], name),
+            str(spec.get("implementation", "python")),
+            src.value(spec, "implementation") if "implementation" in spec else _NOWHERE,
+            _modes_chart(src, str(name), spec),
         )
     units = {
         str(name): ComputeUnit(
