@@ -51,6 +51,12 @@ def models(draw: st.DrawFn, name: str = "gen") -> dict[str, Any]:
     }
     stage_names = {s: draw(st.sampled_from([s, f"{s}_x"])) for s in STAGES}
     components: dict[str, Any] = {stage_names[s]: {"role": s} for s in STAGES}
+    for stage in components.values():  # any mix of Python and statechart stages
+        implementation = draw(st.sampled_from([None, "python", "statechart"]))
+        if implementation is not None:
+            stage["implementation"] = implementation
+    # the managed system's modes chart, carried by its first component, or none
+    states = draw(st.sampled_from([None, ["nominal"], ["nominal", "degraded", "halted"]]))
     deployment = {stage_names[s]: loop_unit for s in STAGES}
     messages: dict[str, Any] = {}
     links: list[dict[str, Any]] = []
@@ -82,6 +88,9 @@ def models(draw: st.DrawFn, name: str = "gen") -> dict[str, Any]:
             msg = f"Command{i}"
             messages[msg] = {"fields": draw(fields(f"c{i}"))}
             ports["cmd"] = {"direction": "in", "message": msg}
+            if states is not None and draw(st.booleans()):
+                ports["cmd"]["modes"] = draw(st.lists(st.sampled_from(states), min_size=1,
+                                                      max_size=len(states), unique=True))
             execute.setdefault("ports", {})[f"out{i}"] = {"direction": "out", "message": msg}
             links.append(
                 _link(
@@ -95,6 +104,8 @@ def models(draw: st.DrawFn, name: str = "gen") -> dict[str, Any]:
                 )
             )
         components[comp] = {"role": role, "ports": ports, "description": draw(DESCRIPTIONS)}
+        if i == 0 and states is not None:
+            components[comp]["modes"] = {"states": states, "description": draw(DESCRIPTIONS)}
         deployment[comp] = unit
     trust: dict[str, Any] = {
         "properties": [{"file": f"properties/{name}.rv", "runs_on": loop_unit}],

@@ -1,4 +1,5 @@
-"""For all valid models: the model lints clean, and its skeleton lints clean and runs."""
+"""For all valid models (any mix of Python and statechart stages, with or without a modes
+chart): the model lints clean, and its skeleton lints clean and runs."""
 
 from __future__ import annotations
 
@@ -34,7 +35,15 @@ def test_valid_models_lint_clean_and_generate_apps_that_lint_clean_and_run(
     manifest = load_manifest(app)
     files = [str(manifest.file), *map(str, manifest.properties), *map(str, manifest.rules)]
     assert lint_paths(files) == []
+    assert lint_paths([str(app)]) == []  # the app as `rasm lint APP` sees it, its charts too
     assert lint_model(app / "model.yaml") == []
+    # each stage is what the model says: its chart, or its class in components.py
+    for name, spec in model["components"].items():
+        if spec["role"] in manifest.components:
+            chart = spec.get("implementation") == "statechart"
+            assert (manifest.components[spec["role"]] == f"charts/{name}.yaml") == chart
+    carrier = next((c for c in model["components"].values() if "modes" in c), None)
+    assert (manifest.modes is not None) == (carrier is not None)
     forget_apps()
     cwd = Path.cwd()
     os.chdir(folder)
