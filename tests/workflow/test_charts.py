@@ -312,3 +312,33 @@ def test_effector_modes_need_a_modes_chart_and_a_modes_chart_replaces_mode_signa
     errors = lint_model(model)
     assert [(e.location.line, e.location.col) for e in errors] == [(line, col)], errors
     assert "'lidar' already does: the managed system has one modes chart" in errors[0].message
+
+
+SILENT_ANALYSE = """\
+        transitions:
+          - event: analyse
+            guard: knowledge.get('ranges', 0) > 300
+            action: |
+              pass
+"""
+FRAGILE_MODES = 'guard: 1 / event.data.get("motor_rpm", 1) < 0  # never holds, fails at 0 rpm'
+
+
+def test_the_generated_chart_tests_find_the_readings_a_chart_fails_on(tmp_path: Path) -> None:
+    app = tmp_path / "lw"
+    new_app(app, LIDAR_MODEL)
+    analyse = app / "charts" / "analyse.yaml"
+    state = "      - name: watching\n"
+    analyse.write_text(analyse.read_text().replace(state, state + SILENT_ANALYSE, 1))
+    modes = app / "lidar_modes.yaml"
+    modes.write_text(modes.read_text().replace('guard: "False"  # placeholder', FRAGILE_MODES, 1))
+    assert main(["lint", str(app)]) == 0  # nothing a static check can see
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests", "-k", "chart"],
+        cwd=app, capture_output=True, text=True, timeout=300,
+    )
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "2 failed" in done.stdout, done.stdout
+    # hypothesis shrinks to the reading each chart fails on
+    assert "sent no outcome" in done.stdout and "(ranges): 301" in done.stdout
+    assert "the modes chart failed on the record {'motor_rpm': 0.0}" in done.stdout
