@@ -380,17 +380,33 @@ def _modes_chart_problems(model: ArchitectureModel, modes: ModesChart) -> Iterat
                     "model's states to match the chart",
                     where,
                 )
-    signals = {"mode", *(f"mode_{state}" for state in mode_states(model))}
-    others = {
-        key for key, _ in produced_signals(model, modes=False).items() if key in signals
-    }
-    for key in sorted(others):
-        yield _error(
-            model,
-            f"signal '{key}': the modes chart writes it (mode, mode_<state>); a component "
-            "producing it too would mix the two in one knowledge key: rename the signal",
-            modes.location,
-        )
+    written = {"mode", *(f"mode_{state}" for state in mode_states(model))}
+    for key, where in _signal_places(model):
+        if key in written:
+            yield _error(
+                model,
+                f"signal '{key}': the modes chart writes it (mode, mode_<state>); a component "
+                "producing it too would mix the two in one knowledge key: rename the signal",
+                where,
+            )
+
+
+def _signal_places(model: ArchitectureModel) -> Iterator[tuple[str, Location]]:
+    """Each signal that reaches knowledge or the trace under its own name (the fields of the
+    messages the monitor receives, what components declare they produce), at its declaration."""
+    from rasm.workflow.derive import probes
+
+    if model.source is None:
+        return
+    data = model.source.data
+    for name in sorted(set(probes(model).values()) & set(model.messages)):
+        fields = data["messages"][name]["fields"]
+        for key in fields:
+            yield str(key), model.source.key(fields, key)
+    for name, component in model.components.items():
+        produces = data["components"][name].get("produces") or {}
+        for key in component.produces:
+            yield key, model.source.key(produces, key)
 
 
 def produced_signals(model: ArchitectureModel, *, modes: bool = True) -> dict[str, str]:

@@ -225,6 +225,20 @@ MODEL_ERRORS = [
         "state 'lidar' is the modes chart's root",
     ),
     (
+        "      motor_rpm: {type: float, min: 0}",
+        "      motor_rpm: {type: float, min: 0}\n      mode_stale: {type: bool}",
+        "mode_stale: {type",
+        0,
+        "signal 'mode_stale': the modes chart writes it",
+    ),
+    (
+        "produces: {restart: bool}",
+        "produces: {restart: bool, mode: str}",
+        "mode: str",
+        0,
+        "signal 'mode': the modes chart writes it",
+    ),
+    (
         "  analyse: {role: analyse, implementation: statechart}",
         "  analyse: {role: analyse, implementation: chart}",
         "chart}",
@@ -342,3 +356,28 @@ def test_the_generated_chart_tests_find_the_readings_a_chart_fails_on(tmp_path: 
     # hypothesis shrinks to the reading each chart fails on
     assert "sent no outcome" in done.stdout and "(ranges): 301" in done.stdout
     assert "the modes chart failed on the record {'motor_rpm': 0.0}" in done.stdout
+
+
+def test_a_stage_turned_into_a_chart_keeps_its_python_code_among_the_orphans(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    app = tmp_path / "hb"
+    new_app(app, HOTBOX_MODEL)
+    components = app / "components.py"
+    end = "        # <<< rasm:user PlanComponent.plan"
+    components.write_text(components.read_text().replace(
+        "        return None  # placeholder\n" + end, "        return MY_PLAN\n" + end
+    ))
+    model = app / "model.yaml"
+    model.write_text(model.read_text().replace(
+        "{role: plan}", "{role: plan, implementation: statechart}"
+    ))
+    capsys.readouterr()
+    assert main(["new", str(app)]) == 0
+    captured = capsys.readouterr()
+    assert f"wrote {app / 'charts/plan.yaml'}" in captured.out
+    assert "class PlanComponent" not in components.read_text()
+    assert "region PlanComponent.plan could not be kept" in captured.err
+    assert "return MY_PLAN" in (app / ".rasm-orphans" / "components.py.txt").read_text()
+    assert load_manifest(app).components["plan"] == "charts/plan.yaml"
+    assert main(["lint", str(app)]) == 0
