@@ -12,6 +12,7 @@ produces (the shared check of :mod:`rasm.platform.signals`).
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import PurePosixPath
 from typing import Any
 
 from rasm.errors import Location, SourceError, SourceErrors, mark
@@ -360,6 +361,14 @@ def _modes_chart_problems(model: ArchitectureModel, modes: ModesChart) -> Iterat
             f"state '{modes.component}' is the modes chart's root (named after its component): "
             "name the mode otherwise",
             modes.state_locations[i],
+        )
+    chart_path = PurePosixPath(modes.chart)
+    if chart_path.is_absolute() or ".." in chart_path.parts or "\\" in modes.chart:
+        yield _error(
+            model,
+            f"the modes chart {modes.chart} must be a path inside the application folder "
+            "(relative, no '..')",
+            modes.chart_location,
         )
     taken = {c.chart: c.name for c in model.components.values() if c.chart is not None}
     taken.update({check.file: check.kind for check in model.checks})

@@ -153,6 +153,7 @@ _STAGE_IMPORTS = {
 def _context(model: ArchitectureModel) -> dict[str, Any]:
     stages = [c for c in (model.stage(s) for s in STAGES) if c is not None]
     maple = [c for c in stages if c.chart is None]  # the stages written in Python
+    monitor = model.stage("monitor")
     managed = [c for c in model.components.values() if c.role in MANAGED_ROLES]
     signals = sorted(
         key
@@ -170,9 +171,7 @@ def _context(model: ArchitectureModel) -> dict[str, Any]:
         "model": model,
         "maple": maple,
         "charts": [c for c in stages if c.chart is not None],
-        "produced_by_monitor": sorted(model.stage("monitor").produces)
-        if model.stage("monitor")
-        else [],
+        "produced_by_monitor": sorted(monitor.produces) if monitor else [],
         "rasm_imports": sorted({name for c in maple for name in _STAGE_IMPORTS[c.role]}),
         "managed": managed,
         "signals": signals,

@@ -7,13 +7,14 @@ import json
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
 
 from rasm.cli import main
 from rasm.platform.manifest import load_manifest
-from rasm.workflow import lint_model, new_app
+from rasm.workflow import lint_model, new_app, package_app
 
 from .helpers import HOTBOX_MODEL, ROOT, forget_apps, position
 
@@ -232,6 +233,20 @@ MODEL_ERRORS = [
         "signal 'mode_stale': the modes chart writes it",
     ),
     (
+        "chart: lidar_modes.yaml",
+        "chart: ../lidar_modes.yaml",
+        "../lidar_modes.yaml",
+        0,
+        "the modes chart ../lidar_modes.yaml must be a path inside the application folder",
+    ),
+    (
+        "chart: lidar_modes.yaml",
+        "chart: charts/analyse.yaml",
+        "charts/analyse.yaml",
+        0,
+        "the modes chart charts/analyse.yaml is also the file of 'analyse'",
+    ),
+    (
         "produces: {restart: bool}",
         "produces: {restart: bool, mode: str}",
         "mode: str",
@@ -381,3 +396,18 @@ def test_a_stage_turned_into_a_chart_keeps_its_python_code_among_the_orphans(
     assert "return MY_PLAN" in (app / ".rasm-orphans" / "components.py.txt").read_text()
     assert load_manifest(app).components["plan"] == "charts/plan.yaml"
     assert main(["lint", str(app)]) == 0
+
+
+def test_the_package_of_a_statechart_app_carries_its_charts(tmp_path: Path) -> None:
+    app = tmp_path / "lw"
+    new_app(app, LIDAR_MODEL)
+    package_app(app, tmp_path / "lw.zip", dependencies=False)
+    with zipfile.ZipFile(tmp_path / "lw.zip") as package:
+        node = package.read("02_Nodes/maple_k/analyse/analyse.yaml").decode()
+        [wheel] = [n for n in package.namelist() if n.startswith("01_Binaries/rasm_app_")]
+        (tmp_path / "app.whl").write_bytes(package.read(wheel))
+    assert "implementation: charts/analyse.yaml" in node
+    with zipfile.ZipFile(tmp_path / "app.whl") as wheel_file:
+        names = set(wheel_file.namelist())
+    for chart in ("charts/monitor.yaml", "charts/execute.yaml", "lidar_modes.yaml"):
+        assert f"rasm_app_lidar_watch/{chart}" in names
