@@ -4,6 +4,7 @@ modes its effectors apply in, from the model to a running app."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -411,3 +412,70 @@ def test_the_package_of_a_statechart_app_carries_its_charts(tmp_path: Path) -> N
         names = set(wheel_file.namelist())
     for chart in ("charts/monitor.yaml", "charts/execute.yaml", "lidar_modes.yaml"):
         assert f"rasm_app_lidar_watch/{chart}" in names
+
+
+STATECHARTS_GUIDE = (ROOT / "docs" / "statecharts.md").read_text(encoding="utf-8")
+
+# the managed system of the example model publishes a scan every step, with no rays while jammed
+LIDAR_CODE = {
+    "Lidar.__init__": """\
+        self.jams = sorted(scenario.get("jams", []))
+        self.jammed = False
+""",
+    "Lidar.scan": """\
+        if self.jams and time >= self.jams[0]:
+            self.jams.pop(0)
+            self.jammed = True
+        return messages.Scan(ranges=0 if self.jammed else 360)
+""",
+    "Lidar.status": "        return messages.Status(motor_rpm=600.0)\n",
+    "Lidar.on_driver": """\
+        if message.restart:
+            self.jammed = False
+""",
+}
+
+
+def tutorial_block(label: str) -> str:
+    found = re.search(rf"<!-- tutorial: {re.escape(label)} -->\n```\w+\n(.*?)```",
+                      STATECHARTS_GUIDE, re.S)
+    assert found, f"no tutorial block '{label}'"
+    return found.group(1)
+
+
+def test_the_tutorials_charts_written_into_the_example_models_app_restart_the_lidar(
+    tmp_path: Path,
+) -> None:
+    """The skeleton of examples/models/lidar_watch.yaml is the tutorial's app, to be written:
+    with the guide's stage charts and modes chart in it, it runs as the guide says."""
+    app = tmp_path / "lw"
+    new_app(app, LIDAR_MODEL)
+    for stage in ("monitor", "analyse", "plan", "legitimate", "execute"):
+        chart = tutorial_block(f"lidar_watch/charts/{stage}.yaml")
+        (app / "charts" / f"{stage}.yaml").write_text(chart)
+    # a jammed scan has no rays here, where the guide's simulator sends no scan at all
+    (app / "lidar_modes.yaml").write_text(
+        tutorial_block("lidar_watch/lidar_modes.yaml").replace(
+            "\"'ranges' in event.data\"", "event.data.get('ranges', 0) > 0"
+        )
+    )
+    components = app / "components.py"
+    text = components.read_text()
+    for region, code in LIDAR_CODE.items():
+        start = f"# >>> rasm:user {region}\n"
+        end = f"        # <<< rasm:user {region}"
+        body = text[text.index(start) + len(start):text.index(end)]
+        text = text.replace(start + body + end, start + code + end)
+    components.write_text(text)
+    assert main(["lint", str(app)]) == 0
+    assert main(["run", str(app), "--clock", "simulated", "--trace", "t.jsonl"]) == 0
+    trace = records(tmp_path / "t.jsonl")
+    anomalies = [r["time"] for r in trace if r.get("anomaly")]
+    executed = [r["time"] for r in trace if r.get("executed")]
+    assert len(anomalies) == len(executed) == 2, (anomalies, executed)
+    # stale half a second after the last scan with rays (jams at 2 s and 6 s; a scan every
+    # 0.1 s); Analyse sees it at the next iteration, and the restart goes out at once
+    stale = [r["time"] for r in trace if r.get("mode_stale") is True]
+    assert [round(t, 1) for t in stale] == [2.4, 6.4]
+    assert all(0 <= a - s <= 0.2 for s, a in zip(stale, anomalies, strict=True))
+    assert executed == anomalies
