@@ -285,6 +285,7 @@ def _statecharts(model: ArchitectureModel) -> Iterator[SourceError]:
     from rasm.workflow.derive import effectors
 
     carriers = [c for c in model.components.values() if c.modes is not None]
+    files = {check.file for check in model.checks}
     for component in model.components.values():
         if component.implementation == "statechart" and component.role not in STAGES:
             yield _error(
@@ -292,6 +293,13 @@ def _statecharts(model: ArchitectureModel) -> Iterator[SourceError]:
                 f"'{component.name}' is a {component.role}: only a MAPLE-K stage can be a "
                 "statechart (the managed system is simulated in Python; give it a modes chart "
                 "with modes: instead)",
+                component.implementation_location,
+            )
+        if component.chart is not None and component.chart in files:
+            yield _error(
+                model,
+                f"the chart of '{component.name}', {component.chart}, is also a trustworthiness "
+                "file: give that file another path",
                 component.implementation_location,
             )
         if component.modes is not None and component.role in STAGES:

@@ -248,6 +248,13 @@ MODEL_ERRORS = [
         "the modes chart charts/analyse.yaml is also the file of 'analyse'",
     ),
     (
+        "    - file: lidar.rv",
+        "    - file: charts/plan.yaml",
+        "implementation: statechart, produces",
+        len("implementation: "),
+        "the chart of 'plan', charts/plan.yaml, is also a trustworthiness file",
+    ),
+    (
         "produces: {restart: bool}",
         "produces: {restart: bool, mode: str}",
         "mode: str",
