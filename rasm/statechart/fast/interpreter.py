@@ -386,8 +386,6 @@ class FastInterpreter(Interpreter):
                 verdict = tables.pair_verdict(t1, t2)
                 if verdict == ft.PAIR_OK:
                     continue
-                if verdict == ft.PAIR_NO_LCA:
-                    self._statechart.state_for(None)  # type: ignore[arg-type]  # raises
                 if verdict == ft.PAIR_NON_DETERMINISM:
                     klass, what = NonDeterminismError, "Non-determinist choice between transitions"
                 else:

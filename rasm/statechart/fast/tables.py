@@ -55,7 +55,6 @@ COMPOUND = "compound"  # acted on when it has an initial state
 PAIR_OK = "ok"
 PAIR_NON_DETERMINISM = "non-determinism"
 PAIR_CONFLICT = "conflict"
-PAIR_NO_LCA = "no common ancestor"  # stock calls state_for(None): sismic's StatechartError
 
 
 class ChartEditedError(StatechartError, SismicStatechartError):
@@ -267,9 +266,10 @@ class ChartTables:
 
     def _pair_verdict(self, t1: Transition, t2: Transition) -> str:
         lca = self.lca(t1.source, t2.source)
-        if lca is None:
-            return PAIR_NO_LCA
-        if not isinstance(self.state[lca], OrthogonalState):
+        # two enabled transitions of the root have no ancestor in common: a non-deterministic
+        # choice like any other state's (stock sismic fails there with "State None does not
+        # exist", looking for the root's parent)
+        if lca is None or not isinstance(self.state[lca], OrthogonalState):
             return PAIR_NON_DETERMINISM
         for transition in (t1, t2):
             last = self._last_before(transition.source, lca)

@@ -113,6 +113,26 @@ def test_same_error_type_and_message(statechart, events, prop, expected):
     assert fast == stock
 
 
+ROOT_TWICE = chart("""
+statechart:
+  name: root_twice
+  root state:
+    name: root
+    transitions:
+    - {event: e, action: x = 1}
+    - {event: e, action: x = 2}
+""")
+
+
+def test_two_enabled_transitions_of_the_root_are_a_non_deterministic_choice():
+    # stock sismic fails there looking for the root's parent ("State None does not exist");
+    # the choice is as non-deterministic as between two transitions of any other state
+    assert errors(Interpreter, ROOT_TWICE, ["e"])[0][1] == "State None does not exist"
+    [(kind, message)] = errors(FastInterpreter, ROOT_TWICE, ["e"])
+    assert kind is NonDeterminismError
+    assert message.startswith("Non-determinist choice between transitions root -> e")
+
+
 @pytest.mark.skipif(not STATECHARTS.is_dir(), reason="no shipped statecharts")
 @pytest.mark.parametrize("path", sorted(STATECHARTS.glob("*.yaml")), ids=lambda p: p.stem)
 def test_shipped_charts_run_identically(path):
