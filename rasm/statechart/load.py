@@ -355,6 +355,7 @@ class _Checker:
                     )
         if not any(p.severity == "error" for p in self.problems):
             self.check_reachability()
+            self.check_unguarded_twins()
 
     def check_initial_history(self, name: str, state: Any) -> None:
         """A history state as 'initial' restores what its parent last had active; entered
@@ -418,6 +419,30 @@ class _Checker:
             if name not in reached:
                 self.warning(
                     f"state '{name}' can never be entered", self.src.value(state, "name"), len(name)
+                )
+
+
+    def check_unguarded_twins(self) -> None:
+        """Two transitions of one state on one event (or both eventless), neither guarded nor
+        given a different priority, are enabled together every time: a non-deterministic
+        choice, and the step fails."""
+        first: dict[tuple[str, str | None, str], Any] = {}
+        for source, transition, _ in self.transitions:
+            if transition.get("guard") is not None:
+                continue
+            event = transition.get("event")
+            key = (source, None if event is None else str(event),
+                   str(transition.get("priority", 0)))
+            earlier = first.setdefault(key, transition)
+            if earlier is not transition:
+                on = f"on '{event}'" if event is not None else "without an event"
+                where = self.src.key(transition, "event") if event is not None else (
+                    self.src.node(transition))
+                self.warning(
+                    f"state '{source}' has two transitions {on} and no guard on either: both "
+                    "are always enabled together, a non-deterministic choice that fails the "
+                    "step (guard one, or give them different priorities)",
+                    where,
                 )
 
 

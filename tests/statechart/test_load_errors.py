@@ -419,6 +419,26 @@ def test_cli_lint_exits_1_with_one_line_per_problem(tmp_path, capsys):
     assert main(["lint", str(tmp_path / "missing.yaml")]) == 2
 
 
+def test_two_unguarded_transitions_of_a_state_on_one_event_are_a_warning(tmp_path, capsys):
+    chart = tmp_path / "twins.yaml"
+    chart.write_text(
+        "statechart:\n  name: t\n  root state:\n    name: r\n    initial: a\n"
+        "    states:\n      - name: a\n        transitions:\n"
+        "          - {target: b, event: go}\n"
+        "          - {target: b, event: go, guard: 'x > 1'}\n"  # guarded: may be meant
+        "          - {target: b, event: go, priority: 1}\n"  # another priority: chosen first
+        "          - {target: b, event: stop}\n"
+        "          - {target: b, event: go}\n"
+        "      - name: b\n"
+    )
+    assert main(["lint", str(chart)]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        f"{chart}:13:25: warning: state 'a' has two transitions on 'go' and no guard on either: "
+        "both are always enabled together, a non-deterministic choice that fails the step "
+        "(guard one, or give them different priorities)"
+    ]
+
+
 def test_cli_bad_events_file_names_the_line(tmp_path, capsys):
     chart = tmp_path / "c.yaml"
     chart.write_text("statechart:\n  name: y\n  root state:\n    name: r\n")
