@@ -258,9 +258,11 @@ def mode_states(model: ArchitectureModel) -> tuple[str, ...]:
     """The states of the model's modes chart: the chart file's when it exists beside the model
     (in a generated app, the engineer's chart is the truth), else the states the model gives."""
     modes = model.modes
-    if modes is None:
-        return ()
-    chart = _modes_chart(model, modes)
+    return () if modes is None else _states(modes, _modes_chart(model, modes))
+
+
+def _states(modes: ModesChart, chart: Any) -> tuple[str, ...]:
+    """The modes: the loaded chart's states when there is one, else the model's."""
     if chart is None:
         return modes.states
     return tuple(state for state in chart.states if state != chart.root)
@@ -282,7 +284,6 @@ def _modes_chart(model: ArchitectureModel, modes: ModesChart) -> Any:
 
 def _statecharts(model: ArchitectureModel) -> Iterator[SourceError]:
     """Charts declared where the platform runs none, and effector modes the modes chart lacks."""
-    from rasm.workflow.derive import effectors
 
     carriers = [c for c in model.components.values() if c.modes is not None]
     files = {check.file for check in model.checks}
@@ -318,9 +319,29 @@ def _statecharts(model: ArchitectureModel) -> Iterator[SourceError]:
             extra.modes.location,
         )
     modes = model.modes
-    if modes is not None:
-        yield from _modes_chart_problems(model, modes)
-    states = set(mode_states(model))
+    if modes is None:
+        states: tuple[str, ...] = ()
+    else:
+        chart = _modes_chart(model, modes)  # loaded once for the checks below
+        states = _states(modes, chart)
+        yield from _modes_chart_problems(model, modes, chart, states)
+    yield from _effector_modes(model, modes, set(states))
+    if modes is not None and model.mode_signal is not None and model.source is not None:
+        trust = model.source.data["trustworthiness"]
+        yield _error(
+            model,
+            "the managed system's modes are its modes chart: leave out mode_signal",
+            model.source.key(trust, "mode_signal"),
+        )
+
+
+def _effector_modes(
+    model: ArchitectureModel, modes: ModesChart | None, states: set[str]
+) -> Iterator[SourceError]:
+    """Effector ports' modes: only on what the execute stage sends to, only with a modes
+    chart, and only its states."""
+    from rasm.workflow.derive import effectors
+
     targets = {(e.component, e.port) for e in effectors(model)}
     for component in model.components.values():
         for port in component.ports.values():
@@ -352,16 +373,11 @@ def _statecharts(model: ArchitectureModel) -> Iterator[SourceError]:
                         f"{modes.chart} (its states: {', '.join(sorted(states))}){hint}",
                         place,
                     )
-    if modes is not None and model.mode_signal is not None and model.source is not None:
-        trust = model.source.data["trustworthiness"]
-        yield _error(
-            model,
-            "the managed system's modes are its modes chart: leave out mode_signal",
-            model.source.key(trust, "mode_signal"),
-        )
 
 
-def _modes_chart_problems(model: ArchitectureModel, modes: ModesChart) -> Iterator[SourceError]:
+def _modes_chart_problems(
+    model: ArchitectureModel, modes: ModesChart, chart: Any, states: tuple[str, ...]
+) -> Iterator[SourceError]:
     if modes.component in modes.states:
         i = modes.states.index(modes.component)
         yield _error(
@@ -386,7 +402,6 @@ def _modes_chart_problems(model: ArchitectureModel, modes: ModesChart) -> Iterat
             f"the modes chart {modes.chart} is also the file of '{taken[modes.chart]}'",
             modes.chart_location,
         )
-    chart = _modes_chart(model, modes)
     if chart is not None:
         # the engineer's chart is the truth; the model must not promise modes it lacks
         for state, where in zip(modes.states, modes.state_locations, strict=True):
@@ -397,7 +412,7 @@ def _modes_chart_problems(model: ArchitectureModel, modes: ModesChart) -> Iterat
                     "model's states to match the chart",
                     where,
                 )
-    written = {"mode", *(f"mode_{state}" for state in mode_states(model))}
+    written = {"mode", *(f"mode_{state}" for state in states)}
     for key, where in _signal_places(model):
         if key in written:
             yield _error(
