@@ -348,20 +348,22 @@ def _effector_modes(
             if port.modes is None:
                 continue
             where = port.modes_locations[0] if port.modes_locations else port.location
-            if (component.name, port.name) not in targets:
+            targeted = (component.name, port.name) in targets
+            if not targeted:
                 yield _error(
                     model,
                     f"port {port.ref}: modes apply to the actions of the execute stage, and no "
                     "row of the communication matrix sends them here",
                     where,
                 )
-            elif modes is None:
-                yield _error(
-                    model,
-                    f"port {port.ref} applies in modes, but the managed system has no modes "
-                    "chart (give one of its components modes: {states: [...]})",
-                    where,
-                )
+            if modes is None:
+                if targeted:
+                    yield _error(
+                        model,
+                        f"port {port.ref} applies in modes, but the managed system has no modes "
+                        "chart (give one of its components modes: {states: [...]})",
+                        where,
+                    )
                 continue
             for mode, place in zip(port.modes, port.modes_locations, strict=True):
                 if mode not in states:

@@ -321,6 +321,15 @@ def test_effector_modes_need_a_modes_chart_and_a_modes_chart_replaces_mode_signa
     assert error.message.startswith("port lidar.driver applies in modes, but the managed system "
                                     "has no modes chart")
 
+    # modes on a port the execute stage does not send to, with no modes chart: said, not raised
+    astray = without.replace("scan: {direction: out, message: Scan}",
+                             "scan: {direction: out, message: Scan, modes: [stale]}")
+    model.write_text(astray)
+    line, col = position(astray, "stale]}")
+    errors = [e for e in lint_model(model) if e.message.startswith("port lidar.scan")]
+    assert [(e.location.line, e.location.col) for e in errors] == [(line, col)]
+    assert "no row of the communication matrix sends them here" in errors[0].message
+
     both = source.replace("trustworthiness:                  # trustworthiness definition\n",
                           "trustworthiness:                  # trustworthiness definition\n"
                           "  mode_signal: motor_rpm\n")
