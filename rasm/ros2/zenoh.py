@@ -375,35 +375,30 @@ class ZenohTransport(RosTransport):
         # the subscription's key ends in /*/*: a sample of the right type and hash has this key
         expected_key = self._key(topic)
         self._receiving.topic = topic.name
-        last_sequence: dict[bytes, int] = {}  # per publisher GID: a skipped number was dropped
-        while True:
-            try:
-                batch = [channel.recv()]
-                while len(batch) < _BATCH and (sample := channel.try_recv()) is not None:
-                    batch.append(sample)
-            except zenoh.ZError:
-                return  # the subscription was undeclared
+        gaps = _SequenceGaps()
+        while (batch := _take_batch(channel)) is not None:
             for sample in batch:
                 try:
                     if sample.kind != zenoh.SampleKind.PUT:
                         continue
                     key = str(sample.key_expr)
-                    if key != expected_key and not self._right_type(topic, key):
-                        continue
-                    sender = _sender(sample.attachment)
-                    if sender is None:
-                        self._dispatch(topic, sample.payload.to_bytes(), None, None)
-                        continue
-                    gid, sequence, stamp = sender
-                    previous = last_sequence.get(gid)
-                    if previous is not None and sequence > previous + 1:
-                        self.stats.incr("dropped", sequence - previous - 1)
-                    if previous is not None or len(last_sequence) < 10_000:
-                        last_sequence[gid] = sequence
-                    self._dispatch(topic, sample.payload.to_bytes(),
-                                   f"{gid.hex()}.{sequence}", stamp)
+                    if key == expected_key or self._right_type(topic, key):
+                        self._take(topic, sample, gaps)
                 except Exception:
                     _log.exception("error receiving a message on %s", topic.name)
+
+    def _take(self, topic: RosTopic, sample: Any, gaps: _SequenceGaps) -> None:
+        """Deliver one sample of the right type, counting what its publisher sent before it
+        that never came."""
+        sender = _sender(sample.attachment)
+        if sender is None:
+            self._dispatch(topic, sample.payload.to_bytes(), None, None)
+            return
+        gid, sequence, stamp = sender
+        missed = gaps.missed(gid, sequence)
+        if missed:
+            self.stats.incr("dropped", missed)
+        self._dispatch(topic, sample.payload.to_bytes(), f"{gid.hex()}.{sequence}", stamp)
 
     def _right_type(self, topic: RosTopic, key: str) -> bool:
         """Whether ``key`` names the topic's type and type hash; a wrong one is rejected."""
@@ -434,6 +429,35 @@ class ZenohTransport(RosTransport):
                 topic.name, "type_conflict",
                 f"published as {ros_name}, but declared as {topic.typename}",
             )
+
+
+def _take_batch(channel: Any) -> list[Any] | None:
+    """What waits in ``channel`` (at most :data:`_BATCH`), once something does; None once it
+    is closed (the subscription was undeclared)."""
+    try:
+        batch = [channel.recv()]
+        while len(batch) < _BATCH and (sample := channel.try_recv()) is not None:
+            batch.append(sample)
+    except zenoh.ZError:
+        return None
+    return batch
+
+
+class _SequenceGaps:
+    """The last sequence number of each publisher (by GID) a subscription got."""
+
+    LIMIT = 10_000  # publishers remembered: a bounded memory of who sent what
+
+    def __init__(self) -> None:
+        self.last: dict[bytes, int] = {}
+
+    def missed(self, gid: bytes, sequence: int) -> int:
+        """How many numbers publisher ``gid`` skipped before ``sequence``: its messages that
+        never came (none for a publisher seen first, or one that started counting again)."""
+        previous = self.last.get(gid)
+        if previous is not None or len(self.last) < self.LIMIT:
+            self.last[gid] = sequence
+        return sequence - previous - 1 if previous is not None and sequence > previous + 1 else 0
 
 
 def _sender(extra: Any) -> tuple[bytes, int, float] | None:
