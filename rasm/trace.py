@@ -19,14 +19,17 @@ carries the exact nanoseconds the monitors compare.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import math
+import os
 import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from json.scanner import make_scanner
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 from rasm.errors import (
     Location,
@@ -38,11 +41,14 @@ from rasm.errors import (
     read_utf8,
 )
 from rasm.jsontext import JsonProblem, parse_json
+from rasm.losses import WriteFailure, WriteGuard, describe_error
 from rasm.properties.times import FAST, Seconds, nanoseconds
 from rasm.values import fit, wanted
 
 if TYPE_CHECKING:
     from rasm.platform.summary import RunSummary
+
+_log = logging.getLogger("rasm.trace")
 
 __all__ = [
     "MAX_REPORTED", "MalformedTrace", "Trace", "TraceWriter", "format_line", "open_trace_writer",
@@ -82,8 +88,16 @@ class TraceWriter:
     ``observers``.
 
     Records never go back in time: one emitted with a time before the last's is written at the
-    last's. Each line is handed to the operating system as it is written (a flush per record),
-    so a process killed at any moment leaves every record it emitted in the file.
+    last's. Each line is handed to the operating system as it is written (one ``write`` per
+    record, nothing buffered), so a process killed at any moment leaves every record it
+    emitted in the file.
+
+    A write that fails (a full disk, a read-only file system, a closed pipe) never reaches the
+    caller: the observers (the Trustworthiness Checker among them) still get every record, the
+    file is cut back to its last whole record and written no more, the failure is logged once
+    with the file and the operation, and :attr:`failure` counts the records left out (the run
+    summary shows it, and the run exits 1). A file that cannot be created raises
+    :class:`~rasm.errors.PlatformError` naming it, before the run starts.
 
     With ``max_bytes``, the file is rotated by size: when a line would take it past
     ``max_bytes``, ``trace.jsonl`` becomes ``trace.1.jsonl`` (an older ``trace.1.jsonl``
@@ -103,19 +117,55 @@ class TraceWriter:
         self.max_bytes = max_bytes if self.path is not None else None
         self.keep = keep
         self.rotations = 0
-        self._size = 0  # bytes in the current file (lines are ASCII: json escapes the rest)
-        self._out: TextIO | None = None
-        self._owned = self.path is not None
-        if str(path) == "-":
-            self._out = sys.stdout
-        elif self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            if self.max_bytes is not None and self.path.exists() and self.path.stat().st_size:
-                self._shift()  # an earlier run's trace is kept, not overwritten
-            self._out = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        self._size = 0  # bytes in the current file: it is cut back here when a write fails
+        self._file: BinaryIO | None = None  # unbuffered: one write per record
+        self._stdout = str(path) == "-"
+        self.guard = WriteGuard(
+            "trace", str(self.path) if self.path is not None else "on standard output",
+            logger=_log,
+        )
+        if self.path is not None:
+            self._create()
         self.observers: list[Callable[[float, dict[str, Any]], Any]] = []
         self.records = 0
         self.last_time = -math.inf
+
+    @property
+    def failure(self) -> WriteFailure | None:
+        """The writes that failed, and the records left out of the file (None: none)."""
+        return self.guard.failure
+
+    def _create(self) -> None:
+        assert self.path is not None
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            if self.max_bytes is not None and self.path.exists() and self.path.stat().st_size:
+                self._shift()  # an earlier run's trace is kept, not overwritten
+            self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close()
+            self._size = 0
+            self._begin()
+        except OSError as exc:
+            if self._file is not None:
+                self._file.close()
+                self._file = None
+            raise PlatformError(
+                f"creating the trace {self.path} failed: {describe_error(exc)}"
+            ) from None
+
+    def _begin(self) -> None:
+        """Write what a fresh file starts with (nothing: JSONL has no header)."""
+
+    def _encode(self, time: float, record: dict[str, Any]) -> bytes:
+        """One record as the file holds it."""
+        return (format_line(time, record) + "\n").encode("ascii")  # json escapes the rest
+
+    def _put(self, data: bytes) -> None:
+        """Hand ``data`` to the operating system (raises OSError)."""
+        assert self._file is not None
+        view = memoryview(data)
+        while view:
+            view = view[self._file.write(view) or 0:]
+        self._size += len(data)
 
     def rotated(self, n: int) -> Path:
         """The path of the ``n``-th older file: ``trace.jsonl`` → ``trace.<n>.jsonl``."""
@@ -127,16 +177,45 @@ class TraceWriter:
         time = max(time, self.last_time)
         self.last_time = time
         self.records += 1
-        if self._out is not None:
-            line = format_line(time, record) + "\n"
-            if self.max_bytes is not None:
-                if self._size and self._size + len(line) > self.max_bytes:
-                    self._rotate()
-                self._size += len(line)
-            self._out.write(line)
-            self._out.flush()
+        if self._file is not None or self._stdout:
+            self._write(time, record)
+        elif self.guard.failure is not None:
+            self.guard.lose()
         for observer in self.observers:
             observer(time, record)
+
+    def _write(self, time: float, record: dict[str, Any]) -> None:
+        data = self._encode(time, record)
+        operation = "writing"
+        try:
+            if self._stdout:
+                sys.stdout.write(data.decode("ascii"))
+                sys.stdout.flush()
+                return
+            if self.max_bytes is not None and self._size and self._size + len(data) > (
+                self.max_bytes
+            ):
+                operation = "rotating"
+                self._rotate()
+                operation = "writing"
+            self._put(data)
+        except OSError as exc:
+            self._stop(operation, exc, time)
+
+    def _stop(self, operation: str, exc: OSError, time: float) -> None:
+        """A write failed: log it once, cut the file back to its last whole record, and write
+        no more (the records from here on are counted as lost)."""
+        self.guard.fail(
+            operation, exc, lost=1, time=time,
+            consequence="the run goes on; this record and every later one are left out of the "
+            "file (the run summary counts them)",
+        )
+        file, self._file, self._stdout = self._file, None, False
+        if file is not None:
+            with contextlib.suppress(OSError):
+                os.ftruncate(file.fileno(), self._size)
+            with contextlib.suppress(OSError):
+                file.close()
 
     def _shift(self) -> None:
         """Move ``trace.jsonl`` to ``trace.1.jsonl``, each older one a place up, and delete
@@ -149,21 +228,40 @@ class TraceWriter:
         self.path.unlink(missing_ok=True)  # keep 0: the full file is dropped
 
     def _rotate(self) -> None:
-        assert self._out is not None and self.path is not None
-        self._out.close()
+        assert self._file is not None and self.path is not None
+        self._file.close()
+        self._file = None
         self._shift()
-        self._out = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        self._file = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed in close()
         self._size = 0
         self.rotations += 1
 
     def flush(self) -> None:
-        if self._out is not None:
-            self._out.flush()
+        """Nothing is held back in a file; standard output is flushed."""
+        if self._stdout:
+            try:
+                sys.stdout.flush()
+            except OSError as exc:
+                self._stop("writing", exc, self.last_time)
 
     def close(self) -> None:
-        if self._out is not None and self._owned:
-            self._out.close()
-        self._out = None
+        """Finish and close the file; a failure is counted, never raised."""
+        file = self._file
+        if file is None:
+            return
+        try:
+            self._finish()
+        except OSError as exc:
+            self.guard.fail("closing", exc, consequence="its last part may be missing")
+        finally:
+            self._file = None
+            try:
+                file.close()
+            except OSError as exc:
+                self.guard.fail("closing", exc, consequence="its last part may be missing")
+
+    def _finish(self) -> None:
+        """Write what a file ends with (nothing: JSONL has no footer)."""
 
 
 def open_trace_writer(
@@ -174,7 +272,7 @@ def open_trace_writer(
     if path is not None and str(path).endswith(".mcap"):
         if max_bytes is not None:
             raise PlatformError("an MCAP trace is not rotated: write JSONL to rotate")
-        from rasm.trace_mcap import McapTraceWriter  # mcap is imported only for an MCAP trace
+        from rasm.trace_mcap import McapTraceWriter
 
         return McapTraceWriter(path)
     return TraceWriter(path, max_bytes=max_bytes, keep=keep)

@@ -6,9 +6,11 @@ nanoseconds; the platform's timeline, so a simulated run starts at the epoch and
 the recording's own times). The channel's JSON schema names the keys the loop writes, so
 Foxglove's plots offer ``/rasm/trace.velocity`` and the like.
 
-MCAP writes in chunks: a process killed mid-run loses the records of its last chunk (at most
-:data:`CHUNK_BYTES`); the JSONL trace, flushed per record, loses none. ``rasm check`` reads an
-MCAP trace back (:func:`read_mcap_trace`).
+The file has no chunks: each record is one Message record handed to the operating system as
+it is written, like a JSONL line, so a process killed at any moment leaves every record it
+emitted readable (the summary and footer come at the end of a run that ends in order).
+``rasm check`` reads an MCAP trace back (:func:`read_mcap_trace`), a cut one too: what its
+writer never finished is reported as damage (:class:`McapTrace`).
 """
 
 from __future__ import annotations
@@ -16,16 +18,17 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from rasm.errors import RasmError
 from rasm.loop import LOOP_SIGNAL_TYPES
+from rasm.losses import Damage
+from rasm.mcapfile import McapEncoder, McapError, McapReader
 from rasm.trace import TraceWriter, format_line
 
-__all__ = ["CHANNEL", "CHUNK_BYTES", "McapTraceWriter", "is_mcap_trace", "read_mcap_trace"]
+__all__ = ["CHANNEL", "McapTrace", "McapTraceWriter", "is_mcap_trace", "read_mcap_trace"]
 
 CHANNEL = "/rasm/trace"
-CHUNK_BYTES = 64 * 1024
 
 _JSON_TYPES = {"float": "number", "int": "integer", "bool": "boolean", "str": "string"}
 
@@ -45,68 +48,73 @@ def _schema() -> bytes:
 
 
 class McapTraceWriter(TraceWriter):
-    """A :class:`~rasm.trace.TraceWriter` writing an MCAP file (see the module doc)."""
+    """A :class:`~rasm.trace.TraceWriter` writing an MCAP file (see the module doc); a failed
+    write is handled as the JSONL writer handles it (the file then ends without its summary,
+    which is how a reader knows it was cut)."""
 
     def __init__(self, path: str | Path) -> None:
-        from mcap.writer import Writer
+        self._mcap = McapEncoder(profile="", library="rasm")
+        super().__init__(path)
 
-        super().__init__(None)  # no JSONL file: this writer keeps its own
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file: IO[bytes] | None = open(self.path, "wb")  # noqa: SIM115 - closed in close()
-        self._mcap = Writer(self._file, chunk_size=CHUNK_BYTES)
-        self._mcap.start(profile="", library="rasm")
-        schema = self._mcap.register_schema("rasm.TraceRecord", "jsonschema", _schema())
-        self._channel = self._mcap.register_channel(CHANNEL, "json", schema)
+    def _begin(self) -> None:
+        self._put(self._mcap.start() + self._mcap.schema(1, "rasm.TraceRecord", "jsonschema",
+                                                         _schema())
+                  + self._mcap.channel(1, 1, CHANNEL, "json"))
 
-    def emit(self, time: float, record: dict[str, Any]) -> None:
-        time = max(time, self.last_time)
-        self.last_time = time
-        self.records += 1
-        if self._file is not None:
-            stamp = max(0, round(time * 1e9))
-            data = format_line(time, record).encode()
-            self._mcap.add_message(self._channel, stamp, data, stamp, self.records)
-        for observer in self.observers:
-            observer(time, record)
+    def _encode(self, time: float, record: dict[str, Any]) -> bytes:
+        stamp = max(0, round(time * 1e9))
+        data = format_line(time, record).encode()
+        return self._mcap.message(1, stamp, data, sequence=self.records)
 
-    def flush(self) -> None:
-        if self._file is not None:
-            self._file.flush()
-
-    def close(self) -> None:
-        if self._file is not None:
-            self._mcap.finish()
-            self._file.close()
-            self._file = None
+    def _finish(self) -> None:
+        self._put(self._mcap.finish(self._size))
 
 
 def is_mcap_trace(path: str | Path) -> bool:
-    """Whether ``path`` is an MCAP file holding a rasm trace (a ``/rasm/trace`` JSON channel)."""
+    """Whether ``path`` is an MCAP file holding a rasm trace (a ``/rasm/trace`` JSON channel),
+    whole or cut short."""
     file = Path(path)
     if file.suffix != ".mcap" or not file.is_file():
         return False
-    from mcap.reader import make_reader
-
     try:
-        with file.open("rb") as stream:
-            summary = make_reader(stream).get_summary()
-    except Exception:  # not MCAP, or truncated: not a trace this module wrote
+        with McapReader(file) as reader:
+            return reader.profile != "ros2" and any(
+                c.topic == CHANNEL and c.encoding == "json" for c in reader.channels.values()
+            )
+    except (McapError, OSError):
         return False
-    if summary is None:
-        return False
-    return any(
-        c.topic == CHANNEL and c.message_encoding == "json" for c in summary.channels.values()
-    )
+
+
+class McapTrace:
+    """The JSON lines of an MCAP trace, in log-time order (for :func:`rasm.trace.parse_records`):
+    iterate over it; each pass reads the file anew. :attr:`damage` lists what could not be read
+    (complete after a pass)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.damage: list[Damage] = []
+        with self._open() as reader:
+            self.damage = reader.damage
+
+    def _open(self) -> McapReader:
+        try:
+            return McapReader(self.path)
+        except McapError as exc:
+            raise RasmError(str(exc)) from None
+
+    def __iter__(self) -> Iterator[str]:
+        with self._open() as reader:
+            channels = {c.id for c in reader.channels.values() if c.topic == CHANNEL}
+            try:
+                for _, _, data in reader.messages(channels):
+                    yield data.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise RasmError(f"{self.path}: a trace record is not UTF-8 text ({exc})") from None
+            finally:
+                self.damage = reader.damage
 
 
 def read_mcap_trace(path: str | Path) -> Iterator[str]:
-    """The JSON lines of an MCAP trace, in log-time order (for :func:`rasm.trace.parse_trace`)."""
-    from mcap.reader import make_reader
-
-    with Path(path).open("rb") as stream:
-        try:
-            for _, _, message in make_reader(stream).iter_messages(topics=[CHANNEL]):
-                yield message.data.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise RasmError(f"{path}: a trace record is not UTF-8 text ({exc})") from None
+    """The JSON lines of an MCAP trace, in log-time order (for :func:`rasm.trace.parse_trace`);
+    :class:`McapTrace` also says what was damaged."""
+    return iter(McapTrace(path))

@@ -82,12 +82,19 @@ def _cmd_check(args: argparse.Namespace) -> int:
     named = args.format == "text" or args.verdicts
     verdicts = sys.stdout if args.verdicts else None
     if _is_recording(args.trace) or args.trace.endswith(".mcap"):
-        records, notes = _recorded_or_mcap_records(args, spec.signals)
+        records, notes, damage = _recorded_or_mcap_records(args, spec.signals)
         report = check_stream(spec, records(), trace=args.trace,
                               again=records if explain else None,
                               named=named, verdicts=verdicts)
         for note in notes():
             print(f"rasm: note: {args.trace}: {note}", file=sys.stderr)
+        report.note_damage(damage())
+        for lost in report.damage:
+            print(f"rasm: damaged: {printable(lost.describe())}", file=sys.stderr)
+        if report.damage and not args.allow_damaged:
+            print(f"rasm: {args.trace} is damaged: a verdict that depended on what was lost is "
+                  "not 'satisfied', and the check fails (--allow-damaged accepts verdicts on "
+                  "what could be read)", file=sys.stderr)
     elif args.app is not None or args.topics is not None:
         raise UsageError(
             f"{args.trace}: --app and --topics map a rosbag2 recording's topics to signals; a "
@@ -98,7 +105,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
                             verdicts=verdicts)
     if not args.verdicts:
         sys.stdout.write(format_json(report) if args.format == "json" else format_text(report))
-    return EXIT_FAILED if report.failed else EXIT_OK
+    refused = report.depends_on_damage and not args.allow_damaged
+    return EXIT_FAILED if report.failed or refused else EXIT_OK
 
 
 def _is_recording(path: str) -> bool:
@@ -117,10 +125,12 @@ def _is_recording(path: str) -> bool:
 
 def _recorded_or_mcap_records(
     args: argparse.Namespace, signals: dict[str, str]
-) -> tuple[Callable[[], Iterable[tuple[float, dict]]], Callable[[], list[str]]]:
+) -> tuple[
+    Callable[[], Iterable[tuple[float, dict]]], Callable[[], list[str]], Callable[[], list]
+]:
     """How to read the records of a rasm MCAP trace, or of a rosbag2 recording with the probes
-    of --app or --topics, each call reading them anew one by one; and what the first whole
-    reading left out (notes for standard error)."""
+    of --app or --topics, each call reading them anew one by one; what the first whole
+    reading left out (notes for standard error); and what could not be read (damage)."""
     if not _is_recording(args.trace):
         if args.app is not None or args.topics is not None:
             raise UsageError(
@@ -128,12 +138,14 @@ def _recorded_or_mcap_records(
                 "signals; a rasm trace names its signals itself"
             )
         from rasm.trace import parse_records
-        from rasm.trace_mcap import read_mcap_trace
+        from rasm.trace_mcap import McapTrace
+
+        trace = McapTrace(args.trace)
 
         def trace_records() -> Iterable[tuple[float, dict]]:
-            return parse_records(read_mcap_trace(args.trace), signals, source=args.trace)
+            return parse_records(trace, signals, source=args.trace)
 
-        return trace_records, list
+        return trace_records, list, lambda: trace.damage
     from rasm.platform.replay import recorded_trace
 
     if args.app is not None:
@@ -155,7 +167,7 @@ def _recorded_or_mcap_records(
             "--app APP (its probes) or --topics MAP.yaml (a 'probes:' list as in app.yaml)"
         )
     recorded = recorded_trace(args.trace, probes, store, signals)
-    return lambda: recorded, recorded.notes
+    return lambda: recorded, recorded.notes, lambda: recorded.damage
 
 
 def _cmd_verify_rules(args: argparse.Namespace) -> int:

@@ -199,3 +199,14 @@ def print_summary(summary: RunSummary, console: Console) -> None:
             f"loop iterations skipped (the loop was still busy when they fell due): "
             f"{summary.missed_iterations}"
         )
+    if summary.write_failures:
+        # the exit code is 1 for these: say plainly what is missing, one line each
+        console.print("[bold red]writes that failed[/] (the run went on without them):",
+                      soft_wrap=True)
+        for failure in summary.write_failures:
+            console.print(Text(f"  {failure.describe()}"), soft_wrap=True)
+    if summary.damage:
+        console.print("[bold red]damaged recording[/] (what could not be replayed):",
+                      soft_wrap=True)
+        for damage in summary.damage:
+            console.print(Text(f"  {damage.describe()}"), soft_wrap=True)

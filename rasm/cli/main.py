@@ -95,6 +95,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--verdicts", action="store_true", help="print every verdict as JSONL")
+    p.add_argument(
+        "--allow-damaged", action="store_true",
+        help="accept verdicts on what a damaged recording still holds (the damage is reported, "
+        "the verdicts that depended on it stay inconclusive, and they pass)",
+    )
 
     p = command("verify-rules", _cmd_verify_rules, "check legitimacy rules for consistency")
     p.add_argument("rules", help="rules file (YAML), or an app: its rules and fallback actions")

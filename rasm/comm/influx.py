@@ -26,6 +26,7 @@ a knowledge key may be ``0`` once and ``0.5`` later. NaN and infinities are left
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import http.client
 import json
@@ -42,6 +43,7 @@ from typing import Any, Protocol
 from urllib.parse import urlencode, urlsplit
 
 from rasm.errors import CommError
+from rasm.losses import WriteFailure, WriteGuard, describe_error
 
 __all__ = [
     "ADAPTATION_EVENTS",
@@ -283,18 +285,35 @@ class _HttpSink:
 
 
 class _FileSink:
+    """Appends batches to a file, unbuffered: a batch the disk refuses is cut off again (the
+    file keeps whole lines) and raises; nothing is left behind to fail at closing."""
+
     def __init__(self, path: Path, append: bool = True) -> None:
         self.path = path
-        path.parent.mkdir(parents=True, exist_ok=True)
-        mode = "a" if append else "w"
-        self._out = open(path, mode, encoding="utf-8")  # noqa: SIM115 - closed in close()
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._out = open(path, "ab" if append else "wb", buffering=0)  # noqa: SIM115
+        except OSError as exc:
+            raise CommError(f"creating the timing file {path} failed: {describe_error(exc)}"
+                            ) from None
+        self._size = self._out.seek(0, os.SEEK_END)
 
     def send(self, lines: list[str]) -> None:
-        self._out.write("\n".join(lines) + "\n")
-        self._out.flush()
+        data = ("\n".join(lines) + "\n").encode("utf-8")
+        view = memoryview(data)
+        try:
+            while view:
+                view = view[self._out.write(view) or 0:]
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._out.fileno(), self._size)
+                self._out.seek(self._size)
+            raise
+        self._size += len(data)
 
     def close(self) -> None:
-        self._out.close()
+        with contextlib.suppress(OSError):
+            self._out.close()
 
 
 # --------------------------------------------------------------------------- the writer
@@ -352,6 +371,10 @@ class InfluxWriter:
         self.max_queue = max_queue
         self.stats = WriterStats()
         self._sink: _Sink = _sink or _HttpSink(url, database, precision, timeout)
+        # a batch that cannot be written is logged once, the later ones counted
+        target = url[len("file:"):] if url.startswith("file:") else url
+        self.guard = WriteGuard("timing " + ("file" if url.startswith("file:") else "server"),
+                                target, unit="points", logger=_log)
         self._queue: deque[Entry] = deque()
         # full batches formatted by the writer that filled them, in order: (entries, lines)
         self._ready: deque[tuple[int, list[str] | None]] = deque()
@@ -464,6 +487,11 @@ class InfluxWriter:
         self._thread.join(timeout)
         self._sink.close()
 
+    @property
+    def failure(self) -> WriteFailure | None:
+        """The batches that could not be written (None: none)."""
+        return self.guard.failure
+
     def __enter__(self) -> InfluxWriter:
         return self
 
@@ -504,13 +532,19 @@ class InfluxWriter:
                 ok = lines is not None
             except (CommError, OSError) as exc:
                 ok = False
-                _log.warning("%d point(s) not written: %s", len(lines or ()), exc)
+                self.guard.fail(
+                    "writing", exc, lost=len(lines or ()),
+                    consequence="the run goes on; the points that cannot be written are "
+                    "counted (the run summary shows them)",
+                )
             except Exception:  # a bug must not kill the thread silently: log and go on
                 ok = False
                 _log.exception("InfluxDB writer failed on a batch")
             with self._cond:
                 if ok:
                     self.stats.written += len(lines)
+                    if lines:
+                        self.guard.succeeded()
                     if lines:
                         self.stats.batches += 1
                 else:  # not sent; a batch that could not even be formatted counts its entries

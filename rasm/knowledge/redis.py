@@ -539,6 +539,10 @@ class RedisStorage(Storage):
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def location(self) -> str:
+        return self.redis_knowledge.url
+
     def _close(self) -> None:
         if not self._closed:
             self._closed = True

@@ -34,6 +34,7 @@ from rasm.knowledge.values import (
     infer_type,
     make_check,
 )
+from rasm.losses import describe_error
 
 _log = logging.getLogger("rasm.knowledge")
 
@@ -110,6 +111,15 @@ class SqliteStorage(Storage):
     def __repr__(self) -> str:
         return f"SqliteStorage({str(self.path)!r}, keep={self.keep})"
 
+    @property
+    def location(self) -> str:
+        return str(self.path)
+
+    @property
+    def pending(self) -> int:
+        with self._buf_lock:
+            return sum(len(queue) for queue in self._pending.values())
+
     # -- opening --------------------------------------------------------------------------------
 
     def _connect(self) -> sqlite3.Connection:
@@ -117,7 +127,9 @@ class SqliteStorage(Storage):
             # isolation_level=None: we issue BEGIN/COMMIT ourselves, one transaction per flush
             db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None)
         except sqlite3.Error as exc:
-            raise KnowledgeError(f"cannot open knowledge file {self.path}: {exc}") from exc
+            raise KnowledgeError(
+                f"opening the knowledge store {self.path} failed: {describe_error(exc)}"
+            ) from exc
         try:
             version = db.execute("PRAGMA user_version").fetchone()[0]
             tables = {row[0] for row in db.execute("SELECT name FROM sqlite_master")}
@@ -487,7 +499,10 @@ def _take_lock(path: Path) -> int | None:
     try:
         fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
-        raise KnowledgeError(f"cannot open knowledge file {path}: {exc}") from exc
+        raise KnowledgeError(
+            f"opening the knowledge store {path} failed: creating its lock file {lock_path}: "
+            f"{describe_error(exc)}"
+        ) from exc
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:

@@ -50,6 +50,16 @@ class Storage(ABC):
         for key, sample in samples:
             self.buffer(key, sample)
 
+    @property
+    def location(self) -> str:
+        """Where it writes (a file, a server), for messages."""
+        return repr(self)
+
+    @property
+    def pending(self) -> int:
+        """Samples buffered and not written yet (what a failed last write loses)."""
+        return 0
+
     @abstractmethod
     def _close(self) -> None:
         """Release the engine's resources (called once, after the last flush)."""

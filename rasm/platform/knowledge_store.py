@@ -12,8 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from rasm.errors import PlatformError
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
+from rasm.losses import describe_error
 from rasm.platform.manifest import AppManifest
 from rasm.platform.state_dir import claim_state_dir
 
@@ -45,7 +47,15 @@ def open_app_knowledge(
         name = "simulated.sqlite" if simulated else "knowledge.sqlite"
         opened = f"sqlite:{state_dir / name}"
         if claim:
-            claim_state_dir(state_dir, manifest)
+            try:
+                claim_state_dir(state_dir, manifest)
+            except OSError as exc:
+                raise PlatformError(
+                    f"creating the state folder {state_dir} (the knowledge store and the timing "
+                    f"file go there) failed: {describe_error(exc)}; run from a folder rasm may "
+                    "write to, or give the app another store (knowledge: memory or "
+                    "sqlite:PATH) and timing (timing: off or file:PATH)"
+                ) from None
     store, storage = open_knowledge(opened, base_dir=Path.cwd(), fresh=simulated)
     if opened.startswith(("redis://", "rediss://")) and simulated:
         store.clear()  # a simulation is a fresh world here too

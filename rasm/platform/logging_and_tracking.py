@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
+import sys
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
+from rasm.losses import WriteFailure, WriteGuard, describe_error
 from rasm.platform.block import Block
 
 __all__ = ["LoggingAndTracking"]
@@ -37,6 +41,36 @@ class _BusHandler(logging.Handler):
             pass
         finally:
             self._busy = False
+
+
+class _FileHandler(logging.FileHandler):
+    """A log file written line by line (nothing buffered to fail later): a line the disk
+    refuses is counted in ``guard`` (the first one logged, on the other sinks), never printed
+    as a "--- Logging error ---" traceback."""
+
+    def __init__(self, path: str, guard: WriteGuard) -> None:
+        self.guard = guard
+        try:
+            super().__init__(path, encoding="utf-8")
+        except OSError as exc:
+            raise ValueError(f"opening the log file {path} failed: {describe_error(exc)}"
+                             ) from None
+
+    def _open(self):  # noqa: ANN202 - logging's own hook
+        raw = open(self.baseFilename, "ab", buffering=0)  # noqa: SIM115 - closed by close()
+        return io.TextIOWrapper(raw, encoding="utf-8", write_through=True)
+
+    def handleError(self, record: logging.LogRecord) -> None:  # noqa: N802 - logging's name
+        exc = sys.exc_info()[1]
+        if not isinstance(exc, OSError):
+            super().handleError(record)
+            return
+        self.guard.fail("writing", exc, lost=1, consequence="the run goes on; the lines that "
+                        "cannot be written are counted (the run summary shows them)")
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            super().close()
 
 
 class _CountingHandler(logging.Handler):
@@ -76,7 +110,13 @@ class LoggingAndTracking(Block):
         self.publish = publish
         self.handlers: list[logging.Handler] = []
         self.counts: Counter[str] = Counter()
+        self.guards: list[WriteGuard] = []  # one per log file
         super().__init__(**kw)
+
+    @property
+    def failures(self) -> list[WriteFailure]:
+        """The log files that refused writes."""
+        return [g.failure for g in self.guards if g.failure is not None]
 
     def on_configuration(self) -> None:
         for sink in self.sinks:
@@ -91,7 +131,9 @@ class LoggingAndTracking(Block):
             if kind == "console":
                 handler: logging.Handler = logging.StreamHandler()
             elif kind == "file":
-                handler = logging.FileHandler(target, encoding="utf-8")
+                guard = WriteGuard("log file", target, unit="lines", logger=self.logger)
+                self.guards.append(guard)
+                handler = _FileHandler(target, guard)
             else:
                 publish = self.publish
                 if publish is None:

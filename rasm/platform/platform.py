@@ -28,6 +28,7 @@ from rasm.comm import Message, Transport
 from rasm.knowledge.base import KnowledgeBase
 from rasm.knowledge.storage import Storage
 from rasm.logs import RepeatedLogs
+from rasm.losses import WriteFailure
 from rasm.platform.actions_out import ActionSender, message_types
 from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
@@ -649,4 +650,18 @@ class Platform:
             stopped_by=self.stopped_by,
             repeated_failures=self.logs.totals,
             fallback=self.fb,
+            write_failures=self.write_failures(),
+            damage=self.replay.damage if self.replay is not None else [],
         )
+
+    def write_failures(self) -> list[WriteFailure]:
+        """The files (or servers) that refused writes so far: the trace, the knowledge store,
+        the timing file or server, the log files."""
+        found = [self.trace.failure]
+        if self._built:
+            found += self.lt.failures
+            if self.managing:
+                found.append(self.stom.failure)
+            timing = self.dist.timing
+            found.append(timing.failure if timing is not None else None)
+        return [f for f in found if f is not None]

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rasm.errors import Misfit
+from rasm.losses import Damage
 from rasm.platform.manifest import Probe
 from rasm.properties.times import NS_PER_SECOND, Seconds
 from rasm.values import fit
@@ -68,9 +69,14 @@ class Recording:
         self.topics = [p.topic for p in probes if p.topic in recorded]
         self.absent = [p.topic for p in probes if p.topic not in recorded]
         if not self.topics:
+            from rasm.ros2.bags import recorded_damage
+
+            damage = recorded_damage(self.path)
+            damaged = "; it is damaged: " + "; ".join(d.describe() for d in damage) if (
+                damage) else ""
             raise BagError(
                 f"{self.path}: no probe topic ({', '.join(self.probes) or 'none'}) is in this "
-                f"recording (it has {', '.join(sorted(recorded)) or 'no topics'})"
+                f"recording (it has {', '.join(sorted(recorded)) or 'no topics'}){damaged}"
             )
         for topic in self.topics:
             declared = self.probes[topic].type
@@ -91,6 +97,11 @@ class Recording:
         """Messages that did not decode (skipped, logged once per topic)."""
         return self.reader.rejected
 
+    @property
+    def damage(self) -> list[Damage]:
+        """What could not be read of the probes' topics (complete once read to the end)."""
+        return self.reader.damage
+
     def __iter__(self) -> Iterator[tuple[int, str, dict[str, Any]]]:
         return iter(self.reader)
 
@@ -101,14 +112,13 @@ class LeftOut:
 
     refused: Counter[str] = field(default_factory=Counter)
     out_of_order: int = 0
-    undecoded: int = 0
     absent: list[str] = field(default_factory=list)
 
     def notes(self) -> list[str]:
-        """What was left out, one line each (nothing when nothing was)."""
+        """What was left out, one line each (nothing when nothing was). Messages that could
+        not be read (damage, messages that do not decode) are not notes: see
+        :attr:`RecordedTrace.damage`."""
         out = [f"no messages on {topic} in the recording" for topic in self.absent]
-        if self.undecoded:
-            out.append(f"{self.undecoded} message(s) did not decode and were skipped")
         for reason, n in sorted(self.refused.items()):
             out.append(f"{n} value(s) refused: {reason}")
         if self.out_of_order:
@@ -124,7 +134,8 @@ class RecordedTrace:
     the fields the probes' signals name (and ``header.stamp`` with ``stamp: header``) are read
     out of each message; the rest is not decoded.
 
-    ``messages`` and ``left_out`` describe the first pass read to its end (None before).
+    ``messages`` and ``left_out`` describe the first pass read to its end (None before);
+    :attr:`damage` what could not be read (complete once a pass read it to the end).
     """
 
     def __init__(self, path: str | Path | None, probes: list[Probe],
@@ -143,6 +154,11 @@ class RecordedTrace:
         """What the first whole pass left out, one line each."""
         return [] if self.left_out is None else self.left_out.notes()
 
+    @property
+    def damage(self) -> list[Damage]:
+        """What could not be read of the probes' topics: damaged parts, undecodable messages."""
+        return [] if self.recording is None else self.recording.damage
+
     def __iter__(self) -> Iterator[tuple[Seconds, dict[str, Any]]]:
         from rasm.ros2.fieldread import MISSING
 
@@ -150,7 +166,6 @@ class RecordedTrace:
             self.messages, self.left_out = 0, LeftOut()
             return
         left = LeftOut(absent=self.recording.absent)
-        undecoded = self.recording.rejected
         signals = {topic: list(p.signals.items()) for topic, p in self.probes.items()}
         stamped = {topic for topic, p in self.probes.items() if p.stamp == "header"}
         messages = 0
@@ -179,7 +194,6 @@ class RecordedTrace:
                 continue
             last_ns = time_ns
             yield _seconds(time_ns), record
-        left.undecoded = self.recording.rejected - undecoded
         if self.left_out is None:
             self.messages, self.left_out = messages, left
 
@@ -226,6 +240,11 @@ class Replay:
         self._next = next(self._items, None)
         if self._next is not None:
             self.first_time = self._next[0] / NS_PER_SECOND
+
+    @property
+    def damage(self) -> list[Damage]:
+        """What could not be replayed of the recording (complete once it was played out)."""
+        return self.recording.damage
 
     def start(
         self,

@@ -7,6 +7,7 @@ from typing import Any
 
 from rasm.knowledge.base import Sample
 from rasm.knowledge.storage import Storage
+from rasm.losses import WriteFailure, WriteGuard
 from rasm.platform.block import Block
 
 __all__ = ["LIVE_FLUSH_PERIOD", "SIMULATED_FLUSH_PERIOD", "StorageManager"]
@@ -27,6 +28,12 @@ class StorageManager(Block):
 
     Every update is buffered by the storage; only the first one while the chart is ``idle``
     steps it (to ``dirty``), and the chart persists the batch ``flush_period`` seconds later.
+
+    A write that fails (a full disk, a read-only file system) never stops the loop: it is
+    logged once with the file, later ones are counted (:attr:`failure`), the samples wait in
+    the storage's buffer (bounded: the newest ``keep`` of each key) and the chart retries after
+    the next ``flush_period``. What the last write at the end of the run cannot persist is
+    counted as lost.
     """
 
     chart_name = "storage_manager"
@@ -37,6 +44,10 @@ class StorageManager(Block):
     ) -> None:
         self.storage = storage
         self.persisted = 0
+        self.guard = WriteGuard(
+            "knowledge store", storage.location if storage is not None else "(none)",
+            unit="samples", logger=_log,
+        )
         self._idle = False  # the chart is in `idle`: the next update is the first of a batch
         super().__init__(context={"flush_period": flush_period}, **kw)
 
@@ -59,13 +70,23 @@ class StorageManager(Block):
     def on_fault(self, reason: str | None) -> None:
         self._idle = False
 
+    @property
+    def failure(self) -> WriteFailure | None:
+        """The writes that failed (None: none did)."""
+        return self.guard.failure
+
     def on_enter_persisting(self) -> None:
         try:
             self.persisted += self.update_persistency()
         except Exception as exc:  # a full disk must not stop the loop; the chart retries
-            _log.error("persisting knowledge failed: %s", exc)
+            self.guard.fail(
+                "committing", exc, time=self.clock.time,
+                consequence="the run goes on; the samples wait in memory and are written when "
+                "the store takes writes again (the run summary counts the failures)",
+            )
             self.post("persist_failed")
             return
+        self.guard.succeeded()
         self.post("persisted")
 
     def update_persistency(self) -> int:
@@ -73,6 +94,12 @@ class StorageManager(Block):
 
     def on_termination(self) -> None:
         self._idle = False
-        if self.storage is not None:
-            self.storage.update_persistency()
-            self.storage.close()
+        if self.storage is None:
+            return
+        try:
+            self.storage.close()  # the last write, then the file is released whatever happens
+        except Exception as exc:
+            self.guard.fail(
+                "committing", exc, lost=self.storage.pending, time=self.clock.time,
+                consequence="the samples not written yet are lost",
+            )

@@ -7,6 +7,7 @@ from typing import Any
 
 from rasm.comm import Transport
 from rasm.loop import STAGES
+from rasm.losses import Damage, WriteFailure
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
 from rasm.platform.distribution import Distribution
 from rasm.platform.fallback import FallbackSwitch
@@ -47,11 +48,17 @@ class RunSummary:
     outcomes: dict[str, PropertyOutcome] = field(default_factory=dict)
     # how often the fallback switch engaged (None: the app has no fallback)
     fallback_engagements: int | None = None
+    # the files (or servers) that refused writes: the trace, knowledge, timing, log files
+    write_failures: list[WriteFailure] = field(default_factory=list)
+    # the parts of a replayed recording that could not be read
+    damage: list[Damage] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
-        """No property violated, in error or not judged (inconclusive alone passes)."""
-        return all(state in PASSING for state in self.verdicts.values())
+        """No property violated, in error or not judged (inconclusive alone passes), no write
+        failed and nothing replayed was damaged: what the run promised to keep is all there."""
+        return (all(state in PASSING for state in self.verdicts.values())
+                and not self.write_failures and not self.damage)
 
     def properties(self) -> list[dict[str, Any]]:
         """Each property's overall verdict as JSON-able data, in the shape of ``rasm check
@@ -86,6 +93,8 @@ def summarise(
     stopped_by: str | None,
     repeated_failures: dict[str, int],
     fallback: FallbackSwitch | None = None,
+    write_failures: list[WriteFailure] | None = None,
+    damage: list[Damage] | None = None,
 ) -> RunSummary:
     """The run so far, read from its blocks (nothing is changed). ``checker``,
     ``orchestrator`` and ``telegraf`` are the managing side's (None in a managed-only process:
@@ -113,6 +122,8 @@ def summarise(
         repeated_failures=repeated_failures,
         outcomes=outcomes,
         fallback_engagements=fallback.engagements if fallback is not None else None,
+        write_failures=list(write_failures or ()),
+        damage=list(damage or ()),
     )
 
 

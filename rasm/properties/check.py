@@ -17,6 +17,7 @@ from itertools import islice
 from typing import TextIO
 
 from rasm.errors import SpecError
+from rasm.losses import Damage
 from rasm.properties.ast import Expr, Future, Specification, Until, children
 from rasm.properties.codegen import checked_signals
 from rasm.properties.explain import Explanation, explain
@@ -61,6 +62,8 @@ class PropertyReport:
     run: PropertyRun | None
     first_errors: list[tuple[int, float, str]] = field(default_factory=list)
     explanations: list[Explanation] = field(default_factory=list)
+    # its verdict depended on records a damaged recording lost (CheckReport.note_damage)
+    lost_data: bool = False
 
     @classmethod
     def of(cls, name: str, location: str, run: PropertyRun, times: Sequence[float]):
@@ -84,8 +87,10 @@ class PropertyReport:
 
     @property
     def verdict(self) -> str:
-        """The overall state: satisfied, violated, inconclusive, not judged or error."""
-        return self.outcome.state
+        """The overall state: satisfied, violated, inconclusive, not judged or error. Never
+        false on what was read, but judged on a damaged recording: inconclusive."""
+        state = self.outcome.state
+        return INCONCLUSIVE if self.lost_data and state == SATISFIED else state
 
     @property
     def passed(self) -> bool:
@@ -128,10 +133,24 @@ class CheckReport:
     records: int
     properties: list[PropertyReport]
     times: Sequence[float] = ()
+    damage: list[Damage] = field(default_factory=list)  # what the recording lost
 
     @property
     def violated(self) -> bool:
         return any(p.verdict == VIOLATED for p in self.properties)
+
+    def note_damage(self, damage: Sequence[Damage]) -> None:
+        """The recording lost ``damage``: every verdict that passed depended on what was lost
+        (a property is judged at every record), so none of them is "satisfied"."""
+        self.damage = list(damage)
+        if self.damage:
+            for p in self.properties:
+                p.lost_data = p.passed
+
+    @property
+    def depends_on_damage(self) -> bool:
+        """Some verdict that passed depended on what a damaged recording lost."""
+        return any(p.lost_data for p in self.properties)
 
     @property
     def failed(self) -> list[PropertyReport]:
@@ -368,9 +387,12 @@ def format_json(report: CheckReport) -> str:
     """``--format json``: one JSON object; ``verdict`` is one of the five states, ``errors``
     counts the records where the property could not be evaluated (``first_error`` says why),
     ``missing`` names the signals a property that was never judged waits for."""
+    out: dict = {"records": report.records}
+    if report.damage:
+        out["damage"] = [_damage_json(d) for d in report.damage]
     return json.dumps(
         {
-            "records": report.records,
+            **out,
             "properties": [
                 {
                     "name": p.name,
@@ -381,11 +403,23 @@ def format_json(report: CheckReport) -> str:
                     "errors": p.outcome.errors,
                     "first_error": p.outcome.first_error,
                     "missing": list(p.missing),
+                    **({"lost_data": True} if p.lost_data else {}),
                 }
                 for p in report.properties
             ],
         }
     ) + "\n"
+
+
+def _damage_json(d: Damage) -> dict:
+    """One damaged part, for ``--format json``: times in seconds (None where not known)."""
+    return {
+        "file": d.file, "where": d.where, "reason": d.reason, "bytes": d.lost_bytes,
+        "messages": d.messages,
+        "from": d.start_ns / 1e9 if d.start_ns is not None else None,
+        "to": d.end_ns / 1e9 if d.end_ns is not None else None,
+        "topics": list(d.topics) if d.topics is not None else None,
+    }
 
 
 def format_verdicts(report: CheckReport) -> str:
@@ -473,11 +507,17 @@ def format_text(report: CheckReport) -> str:
             why = (f"no value for {', '.join(p.missing)} in any record" if p.missing
                    else "no record reached it")
             out.append(f"  {p.name}: NOT JUDGED: {why}  [{p.location}]")
+        elif state == INCONCLUSIVE and p.lost_data and not p.inconclusive:
+            out.append(f"  {p.name}: inconclusive: never false on the {p.judged} records judged, "
+                       f"but the recording lost data it depends on  [{p.location}]")
         elif state == INCONCLUSIVE:
             out.append(f"  {p.name}: inconclusive ({p.inconclusive} of {p.judged} records "
                        f"depend on records after the end of the trace)  [{p.location}]")
         else:
             out.append(f"  {p.name}: satisfied ({p.judged} records judged)")
+    if report.damage:
+        out.append(f"damaged: {report.trace} lost data:")
+        out.extend(f"  {d.describe()}" for d in report.damage)
     out.append(_tally_line(report))
     return "\n".join(out) + "\n"
 

@@ -12,29 +12,40 @@ between them (rosbag2's own test bags do this), which would make a replay silent
 A message type comes from the type store when the bag's type hash agrees with it (or the bag
 has none), else from the definition recorded in the bag. A message that does not decode is
 skipped, counted in :attr:`BagReader.rejected` and logged once per topic.
+
+What cannot be read is never skipped in silence: an MCAP file is read by
+:class:`rasm.mcapfile.McapReader`, which checks each chunk (CRC, sizes, records, message
+index) and reports the chunks it leaves out, a cut end and a missing summary; a SQLite3 file
+SQLite finds damaged is read row by row around the damage. :attr:`BagReader.damage` lists it
+all, with the messages that did not decode, as :class:`rasm.losses.Damage`.
 """
 
 from __future__ import annotations
 
 import heapq
 import logging
+import shutil
+import sqlite3
+import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
+from urllib.parse import quote
 
 from rosbags.interfaces import Connection, MessageDefinitionFormat
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.typesys import TypesysError, get_types_from_idl, get_types_from_msg
 from ruamel.yaml import YAML, YAMLError
 
+from rasm.losses import Damage
 from rasm.ros2.codec import MessageCodec
 from rasm.ros2.errors import BagError, MalformedMessage, RosError
 from rasm.ros2.fieldread import field_reader
 from rasm.ros2.types import TypeStore, default_store
 
 __all__ = [
-    "BagReader", "BagRecord", "BagWriter", "read_bag", "recorded_topics", "recorded_types",
-    "STORAGE_SUFFIXES",
+    "BagReader", "BagRecord", "BagWriter", "read_bag", "recorded_damage", "recorded_topics",
+    "recorded_types", "STORAGE_SUFFIXES",
 ]
 
 _log = logging.getLogger("rasm.ros2.bags")
@@ -127,6 +138,9 @@ class BagReader:
         self._files = storage_files(self.path)
         self._wanted = None if topics is None else set(topics)
         self._reported: set[str] = set()
+        self._damage: dict[tuple[str, str], Damage] = {}  # by file and place
+        # per file and topic: messages that did not decode, the first and last log time
+        self._undecoded: dict[tuple[str, str], list[int]] = {}
         self.topics: dict[str, str] = {}
         self.undecodable: dict[str, str] = {}  # topic -> why (reading all topics only)
         self.message_count = 0
@@ -135,13 +149,33 @@ class BagReader:
         for file in self._files:
             with _opened(file) as reader:
                 self._scan(reader)
+                self._note_damage(reader.damage)
         if self._wanted is not None:
             absent = sorted(self._wanted - set(self.topics))
             if absent:
+                damaged = "; damaged: " + "; ".join(d.describe() for d in self.damage) if (
+                    self.damage) else ""
                 raise BagError(
                     f"{self.path}: no topic {absent[0]} in this recording (it has "
-                    f"{', '.join(sorted(self.topics)) or 'no topics'})"
+                    f"{', '.join(sorted(self.topics)) or 'no topics'}){damaged}"
                 )
+
+    @property
+    def damage(self) -> list[Damage]:
+        """What could not be read of the selected topics: damaged parts of the storage files
+        (complete once the messages were read to the end) and messages that did not decode."""
+        selected = set(self._wanted) if self._wanted is not None else None
+        found = [d for d in self._damage.values()
+                 if selected is None or d.concerns(selected)]
+        for (file, topic), (count, first, last) in self._undecoded.items():
+            found.append(Damage(file, f"{count:,} message{'s' if count != 1 else ''} on {topic}",
+                                "not a valid message of its type (it does not decode)",
+                                messages=count, start_ns=first, end_ns=last, topics=(topic,)))
+        return found
+
+    def _note_damage(self, damage: Iterable[Damage]) -> None:
+        for d in damage:
+            self._damage.setdefault((d.file, d.where), d)
 
     def _scan(self, reader: Reader) -> None:
         for connection in reader.connections:
@@ -203,21 +237,31 @@ class BagReader:
 
     def _records(self, file: Path) -> Iterator[BagRecord]:
         with _opened(file) as reader:
-            connections = [c for c in reader.connections if self._selects(c.topic)]
-            if not connections:
-                return
-            for connection, time_ns, data in reader.messages(connections=connections):
-                decode = self._decoders[
-                    (connection.topic, connection.msgtype, connection.digest or "")
-                ]
-                try:
-                    message = decode(data)
-                except MalformedMessage as exc:
-                    self._reject(connection.topic, time_ns, str(exc))
-                    continue
-                yield BagRecord(time_ns, connection.topic, message)
+            try:
+                connections = [c for c in reader.connections if self._selects(c.topic)]
+                if not connections:
+                    return
+                for connection, time_ns, data in reader.messages(connections):
+                    decode = self._decoders[
+                        (connection.topic, connection.msgtype, connection.digest or "")
+                    ]
+                    try:
+                        message = decode(data)
+                    except MalformedMessage as exc:
+                        self._reject(file, connection.topic, time_ns, str(exc))
+                        continue
+                    yield BagRecord(time_ns, connection.topic, message)
+            finally:
+                self._note_damage(reader.damage)
 
-    def _reject(self, topic: str, time_ns: int, reason: str) -> None:
+    def _reject(self, file: Path, topic: str, time_ns: int, reason: str) -> None:
+        key = (str(file), topic)
+        seen = self._undecoded.get(key)
+        if seen is None:
+            self._undecoded[key] = [1, time_ns, time_ns]
+        elif time_ns > seen[2]:  # a second pass over the recording counts nothing twice
+            seen[0] += 1
+            seen[2] = time_ns
         self.rejected += 1
         if topic not in self._reported:
             self._reported.add(topic)
@@ -237,6 +281,16 @@ def recorded_topics(path: str | Path) -> dict[str, str]:
     return topics
 
 
+def recorded_damage(path: str | Path) -> list[Damage]:
+    """What opening a recording's storage files already found damaged (reading its messages
+    may find more: :attr:`BagReader.damage`)."""
+    found: list[Damage] = []
+    for file in storage_files(path):
+        with _opened(file) as reader:
+            found += reader.damage
+    return found
+
+
 def read_bag(
     path: str | Path, topics: Iterable[str] | None = None, store: TypeStore | None = None
 ) -> Iterator[BagRecord]:
@@ -245,25 +299,299 @@ def read_bag(
 
 
 class _opened:
-    """A rosbags reader of one storage file, open for a ``with`` block; errors as BagError."""
+    """One storage file, open for a ``with`` block, read with the checks of its format
+    (:class:`_McapStorage`, :class:`_Db3Storage`); errors as BagError."""
 
     def __init__(self, file: Path) -> None:
         self.file = file
-        self.reader: Reader | None = None
+        self.storage: _McapStorage | _Db3Storage | None = None
 
-    def __enter__(self) -> Reader:
+    def __enter__(self) -> _McapStorage | _Db3Storage:
+        kind = _McapStorage if self.file.suffix == ".mcap" else _Db3Storage
         try:
-            self.reader = Reader(self.file)
-            self.reader.open()
+            self.storage = kind(self.file)
+        except BagError:
+            raise
         except (ReaderError, OSError, ValueError, KeyError, TypeError) as exc:
             raise BagError(f"{self.file}: cannot read this rosbag2 storage file: {exc}") from None
         except Exception as exc:  # the storage libraries' own errors (sqlite, mcap parsing)
             raise BagError(f"{self.file}: cannot read this rosbag2 storage file: {exc}") from None
-        return self.reader
+        return self.storage
 
     def __exit__(self, *exc: object) -> None:
-        if self.reader is not None and self.reader.is_open:
+        if self.storage is not None:
+            self.storage.close()
+
+
+_Read = tuple[Connection, int, bytes]  # a message as a storage gives it: connection, time, data
+
+_DEFINITION_FORMATS = {
+    "ros2msg": MessageDefinitionFormat.MSG,
+    "ros2idl": MessageDefinitionFormat.IDL,
+    "omgidl": MessageDefinitionFormat.IDL,
+}
+
+
+class _McapStorage:
+    """An MCAP storage file read by :class:`rasm.mcapfile.McapReader`, which checks every chunk
+    it reads and reports what it cannot (:attr:`damage`), in the shape of a rosbags reader."""
+
+    def __init__(self, file: Path) -> None:
+        from rosbags.interfaces import ConnectionExtRosbag2, MessageDefinition
+        from rosbags.rosbag2.metadata import parse_qos
+
+        from rasm.mcapfile import McapError, McapReader
+
+        try:
+            self.reader = McapReader(file)
+        except McapError as exc:
+            raise BagError(f"{file}: cannot read this rosbag2 storage file: {exc}") from None
+        if self.reader.profile != "ros2":
             self.reader.close()
+            raise BagError(
+                f"{file}: not a rosbag2 recording (its MCAP profile is "
+                f"{self.reader.profile or 'empty'!r}, not 'ros2')"
+            )
+        self.connections: list[Connection] = []
+        for channel in self.reader.channels.values():
+            schema = self.reader.schemas.get(channel.schema_id)
+            definition = MessageDefinition(
+                _DEFINITION_FORMATS.get(schema.encoding, MessageDefinitionFormat.NONE)
+                if schema else MessageDefinitionFormat.NONE,
+                schema.data.decode("utf-8", "replace") if schema else "",
+            )
+            try:
+                qos = parse_qos(channel.metadata.get("offered_qos_profiles", ""))
+            except Exception:  # QoS are not read: a profile rosbags cannot parse is no loss
+                qos = []
+            self.connections.append(Connection(
+                channel.id, channel.topic, schema.name if schema else "", definition, "",
+                self.reader.counts.get(channel.id, 0),
+                ConnectionExtRosbag2(channel.encoding, qos), self,
+            ))
+
+    @property
+    def damage(self) -> list[Damage]:
+        return self.reader.damage
+
+    def messages(self, connections: Iterable[Connection]) -> Iterator[_Read]:
+        by_id = {c.id: c for c in connections}
+        for channel, time_ns, data in self.reader.messages(set(by_id)):
+            yield by_id[channel], time_ns, data
+
+    def close(self) -> None:
+        self.reader.close()
+
+
+class _Db3Storage:
+    """A SQLite3 storage file read by rosbags, once SQLite's ``quick_check`` found it sound.
+    A damaged one is salvaged first: every message row that can be read is copied into a
+    temporary file (read by rosbags in its place), and the rows that cannot are reported as
+    :attr:`damage` (rosbag2 numbers its messages 1, 2, 3, …: a missing number is a lost
+    message), with the time range around them."""
+
+    def __init__(self, file: Path) -> None:
+        self.file = file
+        self.damage: list[Damage] = []
+        self._folder: str | None = None
+        problem = _db3_problem(file)
+        path = file
+        if problem is not None:
+            self._folder, path, self.damage = _salvage_db3(file, problem)
+        try:
+            self.reader = Reader(path)
+            self.reader.open()
+        except BaseException:
+            self._remove()
+            raise
+        self.connections: list[Connection] = list(self.reader.connections)
+
+    def messages(self, connections: Iterable[Connection]) -> Iterator[_Read]:
+        return self.reader.messages(connections=list(connections))
+
+    def close(self) -> None:
+        try:
+            if self.reader.is_open:
+                self.reader.close()
+        finally:
+            self._remove()
+
+    def _remove(self) -> None:
+        if self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
+            self._folder = None
+
+
+def _db3_connect(file: Path) -> sqlite3.Connection:
+    # immutable: read as it is, no lock, no journal (as rosbags reads it); writable_schema: a
+    # table whose root page is past a cut end does not keep the others from being read
+    db = sqlite3.connect(f"file:{quote(str(file.resolve()))}?mode=ro&immutable=1", uri=True)
+    db.execute("PRAGMA writable_schema=ON")
+    return db
+
+
+def _db3_problem(file: Path) -> str | None:
+    """What SQLite finds wrong with a storage file's pages (None: nothing)."""
+    try:
+        db = _db3_connect(file)
+    except sqlite3.Error as exc:
+        return str(exc)
+    try:
+        rows = db.execute("PRAGMA quick_check(5)").fetchall()
+    except sqlite3.Error as exc:
+        return str(exc)
+    finally:
+        db.close()
+    found = [str(row[0]) for row in rows if row and row[0] != "ok"]
+    if not found:
+        return None
+    first = found[0].splitlines()
+    # quick_check's first line may only name the database ("*** in database main ***")
+    text = next((line for line in first if not line.startswith("***")), first[0])
+    return text if len(found) == 1 and len(first) <= 2 else f"{text}, …"
+
+
+_BLOCK = 4096  # message rows read at once while salvaging
+_EMPTY_BLOCKS = 4  # without a known last row: blocks of nothing read after which reading stops
+_RUNS_REPORTED = 20  # runs of lost rows reported one by one (the rest in one)
+
+
+def _salvage_db3(file: Path, problem: str) -> tuple[str, Path, list[Damage]]:
+    """Copy what can be read of a damaged storage file into a temporary one: its tables as
+    they are, its messages row by row around the damage. Returns the folder, the copy and
+    the damage (runs of message rows that could not be read)."""
+    folder = tempfile.mkdtemp(prefix="rasm-salvaged-")
+    copy = Path(folder) / file.name
+    try:
+        source = _db3_connect(file)
+        target = sqlite3.connect(copy)
+        try:
+            schema = source.execute(
+                "SELECT type, name, sql FROM sqlite_master WHERE sql IS NOT NULL"
+            ).fetchall()
+            tables = [(name, sql) for kind, name, sql in schema
+                      if kind == "table" and not name.startswith("sqlite_")]
+            if "messages" not in {name for name, _ in tables}:
+                raise BagError(f"{file}: cannot read this rosbag2 storage file: it is damaged "
+                               f"({problem}) and its messages table cannot be found")
+            for _, sql in tables:
+                target.execute(sql)
+            for name, _ in tables:
+                if name != "messages":
+                    _copy_table(source, target, name, file, problem)
+            lost = _copy_messages(source, target)
+            for kind, _, sql in schema:
+                if kind == "index":
+                    target.execute(sql)
+            target.commit()
+        except sqlite3.Error as exc:
+            raise BagError(f"{file}: cannot read this rosbag2 storage file: it is damaged "
+                           f"({problem}) where its tables are described ({exc})") from None
+        finally:
+            source.close()
+            target.close()
+        damage = _lost_rows(file, problem, lost)
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise
+    return folder, copy, damage
+
+
+def _copy_table(source: sqlite3.Connection, target: sqlite3.Connection, name: str,
+                file: Path, problem: str) -> None:
+    try:
+        rows = source.execute(f'SELECT * FROM "{name}"').fetchall()
+    except sqlite3.Error as exc:
+        raise BagError(f"{file}: cannot read this rosbag2 storage file: it is damaged "
+                       f"({problem}) and its table {name} cannot be read ({exc})") from None
+    if rows:
+        marks = ", ".join("?" * len(rows[0]))
+        target.executemany(f'INSERT INTO "{name}" VALUES ({marks})', rows)
+
+
+def _copy_messages(source: sqlite3.Connection, target: sqlite3.Connection) -> _Lost:
+    """Copy every message row that can be read, by id (rosbag2 numbers them 1, 2, 3, …, so a
+    missing number is a lost message); returns what could not be read."""
+    columns = [row[1] for row in source.execute("PRAGMA table_info(messages)")]
+    insert = f"INSERT OR IGNORE INTO messages VALUES ({', '.join('?' * len(columns))})"
+    timestamp = columns.index("timestamp")
+    try:
+        (top,) = source.execute("SELECT max(id) FROM messages").fetchone()
+        known = True
+    except sqlite3.Error:  # the last rows cannot be reached: read on until nothing comes
+        top, known = None, False
+    read: dict[int, int] = {}  # id -> log time, of the rows read
+    unreadable = 0  # the highest id whose row SQLite could not read
+
+    def take(low: int, high: int) -> int:
+        nonlocal unreadable
+        try:
+            rows = source.execute("SELECT * FROM messages WHERE id BETWEEN ? AND ?",
+                                  (low, high)).fetchall()
+        except sqlite3.Error:
+            if low == high:
+                unreadable = max(unreadable, low)
+                return 0
+            middle = (low + high) // 2
+            return take(low, middle) + take(middle + 1, high)
+        target.executemany(insert, rows)
+        for row in rows:
+            read[row[0]] = row[timestamp]
+        return len(rows)
+
+    low, empty = 1, 0
+    while (low <= top) if known else (empty < _EMPTY_BLOCKS):
+        high = low + _BLOCK - 1
+        if known:
+            high = min(high, top)
+        empty = 0 if take(low, high) else empty + 1
+        low = high + 1
+    last = top if known else max(read, default=0)
+    runs: list[tuple[int, int, int | None, int | None]] = []
+    first: int | None = None
+    for number in range(1, last + 2):
+        if number <= last and number not in read:
+            if first is None:
+                first = number
+        elif first is not None:
+            runs.append((first, number - 1, read.get(first - 1), read.get(number)))
+            first = None
+    # rows past the last one read that SQLite could not read: how many, nobody knows
+    tail = (last + 1, read.get(last)) if not known and unreadable > last else None
+    return _Lost(runs, tail)
+
+
+class _Lost(NamedTuple):
+    runs: list[tuple[int, int, int | None, int | None]]  # first id, last id, time before, after
+    tail: tuple[int, int | None] | None  # the first id of an unreadable end, the time before
+
+
+def _lost_rows(file: Path, problem: str, lost: _Lost) -> list[Damage]:
+    reason = f"SQLite reports the file damaged ({problem})"
+    if not lost.runs and lost.tail is None:
+        # SQLite keeps no checksums: a row that reads may still hold bytes the damage changed
+        return [Damage(str(file), "its pages", f"{reason}; every message row was read, but "
+                       "the values on the damaged pages may be wrong", messages=0)]
+    shown = lost.runs[:_RUNS_REPORTED]
+    damage = [
+        Damage(str(file), f"message rows {first:,} to {last:,}" if first != last
+               else f"message row {first:,}", f"{reason}: they cannot be read",
+               messages=last - first + 1, start_ns=before, end_ns=after)
+        for first, last, before, after in shown
+    ]
+    rest = lost.runs[_RUNS_REPORTED:]
+    if rest:
+        damage.append(Damage(
+            str(file), f"{len(rest):,} more runs of message rows from row {rest[0][0]:,}",
+            f"{reason}: they cannot be read",
+            messages=sum(last - first + 1 for first, last, _, _ in rest),
+            start_ns=rest[0][2], end_ns=rest[-1][3],
+        ))
+    if lost.tail is not None:
+        first, before = lost.tail
+        damage.append(Damage(str(file), f"the message rows from {first:,} on",
+                             f"{reason}: they cannot be read", start_ns=before))
+    return damage
 
 
 def _recorded_store(connection: Connection) -> TypeStore:

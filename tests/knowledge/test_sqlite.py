@@ -406,7 +406,7 @@ def test_one_storage_at_a_time_writes_a_file(tmp_path):
 
 
 def test_a_missing_folder_is_a_knowledge_error(tmp_path):
-    with pytest.raises(KnowledgeError, match="cannot open knowledge file"):
+    with pytest.raises(KnowledgeError, match="knowledge store .* failed: creating its lock"):
         SqliteStorage(tmp_path / "missing" / "k.db")
 
 
