@@ -239,3 +239,34 @@ def test_a_run_trace_is_mcap_by_its_suffix_and_only_jsonl_rotates(tmp_path):
     assert read_trace(tmp_path / "run.jsonl") == [(0.5, {"speed": 1.0})]
     with pytest.raises(PlatformError, match="an MCAP trace is not rotated: write JSONL"):
         open_trace_writer(tmp_path / "big.mcap", max_bytes=10_000)
+
+
+def test_an_mcap_trace_reads_back_in_the_mcap_library_and_in_rasm(tmp_path):
+    import struct
+    import zlib
+
+    make_reader = pytest.importorskip("mcap.reader").make_reader
+    from rasm.trace import format_line
+    from rasm.trace_mcap import McapTrace
+
+    path = tmp_path / "run.mcap"
+    writer = open_trace_writer(path)
+    records = [(k / 10, {"speed": k * 0.1, "mode": "go"}) for k in range(500)]
+    for time, record in records:
+        writer.emit(time, record)
+    writer.close()
+    lines = [format_line(time, record) for time, record in records]
+    with path.open("rb") as stream:
+        reader = make_reader(stream)
+        summary = reader.get_summary()
+        assert summary.statistics.message_count == 500
+        assert [c.topic for c in summary.channels.values()] == ["/rasm/trace"]
+        read = [(m.log_time, m.data.decode()) for _, _, m in reader.iter_messages()]
+    assert read == [(round(time * 1e9), line) for (time, _), line in zip(records, lines,
+                                                                          strict=True)]
+    # the summary's CRC covers the summary, its offsets and the footer up to the CRC itself
+    data = path.read_bytes()
+    summary_start, _, crc = struct.unpack_from("<QQI", data, len(data) - 37 + 9)
+    assert crc == zlib.crc32(data[summary_start:len(data) - 12])
+    trace = McapTrace(path)
+    assert list(trace) == lines and trace.damage == []

@@ -115,6 +115,38 @@ def test_sigkill_loses_no_record_the_loop_had_written(tmp_path):
     assert readings[-1]["time"] >= steps[-2] - 1e-6
 
 
+def test_sigkill_leaves_an_mcap_trace_that_rasm_reads_and_checks(tmp_path, capsys):
+    from rasm.cli import main
+    from rasm.trace_mcap import McapTrace
+
+    app = make_app(tmp_path)
+    child = start_run(tmp_path, app, "--duration", "120", "--trace", "out.mcap")
+    try:
+        steps = watch_steps(child, 25)
+        child.send_signal(signal.SIGKILL)
+    finally:
+        child.wait(30)
+    trace = tmp_path / "out.mcap"
+    # killed in its first 64 kB, as the chunked writer lost everything: every record is there
+    assert trace.stat().st_size < 64 * 1024
+    read = McapTrace(trace)
+    readings = [r for r in map(json.loads, read) if "temperature" in r]
+    assert len(readings) >= len(steps) - 1
+    assert readings[-1]["time"] >= steps[-2] - 1e-6
+    (damage,) = read.damage  # the summary the killed writer never wrote
+    assert damage.where == "the end of the file" and "ends without" in damage.reason
+    # `rasm check` reads it as the rasm trace it is, checks what it holds, reports the damage
+    props = tmp_path / "props.rv"
+    props.write_text("input temperature: float\nproperty warm: always (temperature > -40)\n")
+    assert main(["check", str(props), str(trace), "--format", "json"]) == 1
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    assert report["records"] >= len(readings)
+    assert report["properties"][0]["verdict"] == "inconclusive"
+    assert "the end of the file" in captured.err and "rosbag2" not in captured.err
+    assert main(["check", str(props), str(trace), "--allow-damaged"]) == 0
+
+
 def persisted_temperature(cwd: Path) -> tuple[float, float]:
     """The latest temperature in the SQLite knowledge of a wall-clock Hotbox run in ``cwd``."""
     kb, storage = open_knowledge(f"sqlite:{cwd / '.rasm' / 'hotbox' / 'knowledge.sqlite'}")
