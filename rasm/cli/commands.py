@@ -89,8 +89,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
         for note in notes():
             print(f"rasm: note: {args.trace}: {note}", file=sys.stderr)
         report.note_damage(damage())
-        for lost in report.damage:
-            print(f"rasm: damaged: {printable(lost.describe())}", file=sys.stderr)
+        if not explain:  # the text report lists the damage itself
+            for lost in report.damage:
+                print(f"rasm: damaged: {printable(lost.describe())}", file=sys.stderr)
         if report.damage and not args.allow_damaged:
             print(f"rasm: {args.trace} is damaged: a verdict that depended on what was lost is "
                   "not 'satisfied', and the check fails (--allow-damaged accepts verdicts on "

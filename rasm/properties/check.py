@@ -540,6 +540,9 @@ def _tally_line(report: CheckReport) -> str:
     for p in report.properties:
         counts[p.verdict] += 1
     states = ", ".join(f"{n} {state}" for state, n in counts.items() if n)
+    lost = sum(1 for p in report.properties if p.lost_data)
+    damaged = (f"; the recording is damaged: {lost} verdict"
+               f"{'s depend' if lost != 1 else ' depends'} on what it lost" if lost else "")
     return f"{len(report.failed)} of {len(report.properties)} properties fail" + (
         f": {states}" if states else ""
-    )
+    ) + damaged
