@@ -37,7 +37,7 @@ from typing import IO
 from rasm.errors import RasmError
 from rasm.losses import Damage
 
-__all__ = ["MAGIC", "Channel", "McapEncoder", "McapError", "McapReader", "Schema"]
+__all__ = ["MAGIC", "Channel", "McapEncoder", "McapError", "McapReader", "Schema", "read_header"]
 
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -266,6 +266,37 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
     raise _Bad(f"its compression {compression!r} is not one MCAP defines")
 
 
+def _header(stream: IO[bytes], name: str) -> tuple[str, str, int]:
+    """The profile and library an MCAP file's header names, and where its data starts."""
+    stream.seek(0)
+    head = stream.read(8 + 9)
+    if len(head) == 0:
+        raise McapError(f"{name}: the file is empty")
+    if head[:8] != MAGIC:
+        raise McapError(f"{name}: not an MCAP file (it does not start with MCAP's magic bytes)")
+    if len(head) < 17:
+        raise McapError(f"{name}: the file ends inside its MCAP header")
+    op, length = _OP_LEN.unpack_from(head, 8)
+    content = stream.read(length) if op == _HEADER and length < 1 << 20 else b""
+    if op != _HEADER or len(content) != length:
+        raise McapError(f"{name}: its MCAP header is damaged or cut")
+    try:
+        profile, at = _text(content, 0)
+        library, _ = _text(content, at)
+    except (_Bad, struct.error, UnicodeDecodeError):
+        raise McapError(f"{name}: its MCAP header is damaged") from None
+    return profile, library, 17 + length
+
+
+def read_header(path: str | Path) -> tuple[str, str]:
+    """The profile (``ros2`` for a rosbag2 recording) and the library an MCAP file's header
+    names, read without looking further; raises :class:`McapError` for a file that is not
+    MCAP."""
+    with open(path, "rb") as stream:
+        profile, library, _ = _header(stream, str(path))
+    return profile, library
+
+
 class McapReader:
     """An MCAP file opened for reading (see the module doc). Close it, or use ``with``.
 
@@ -319,24 +350,7 @@ class McapReader:
         return self._file.read(size)
 
     def _open(self) -> None:
-        head = self._read_at(0, 8 + 9)
-        if len(head) == 0:
-            raise McapError(f"{self.name}: the file is empty")
-        if head[:8] != MAGIC:
-            raise McapError(f"{self.name}: not an MCAP file (it does not start with MCAP's "
-                            "magic bytes)")
-        if len(head) < 17:
-            raise McapError(f"{self.name}: the file ends inside its MCAP header")
-        op, length = _OP_LEN.unpack_from(head, 8)
-        content = self._read_at(17, length) if op == _HEADER and length < 1 << 20 else b""
-        if op != _HEADER or len(content) != length:
-            raise McapError(f"{self.name}: its MCAP header is damaged or cut")
-        try:
-            self.profile, at = _text(content, 0)
-            self.library, _ = _text(content, at)
-        except (_Bad, struct.error, UnicodeDecodeError):
-            raise McapError(f"{self.name}: its MCAP header is damaged") from None
-        self._data_start = 17 + length
+        self.profile, self.library, self._data_start = _header(self._file, self.name)
         if not self._read_summary():
             self._scan()
 

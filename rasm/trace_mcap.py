@@ -23,7 +23,7 @@ from typing import Any
 from rasm.errors import RasmError
 from rasm.loop import LOOP_SIGNAL_TYPES
 from rasm.losses import Damage
-from rasm.mcapfile import McapEncoder, McapError, McapReader
+from rasm.mcapfile import McapEncoder, McapError, McapReader, read_header
 from rasm.trace import TraceWriter, format_line
 
 __all__ = ["CHANNEL", "McapTrace", "McapTraceWriter", "is_mcap_trace", "read_mcap_trace"]
@@ -77,8 +77,10 @@ def is_mcap_trace(path: str | Path) -> bool:
     if file.suffix != ".mcap" or not file.is_file():
         return False
     try:
+        if read_header(file)[0] == "ros2":  # a rosbag2 recording: nothing more to read
+            return False
         with McapReader(file) as reader:
-            return reader.profile != "ros2" and any(
+            return any(
                 c.topic == CHANNEL and c.encoding == "json" for c in reader.channels.values()
             )
     except (McapError, OSError):

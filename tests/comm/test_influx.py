@@ -173,16 +173,21 @@ def test_a_full_queue_drops_and_counts(influx):
     assert writer.stats.written == 3
 
 
-def test_an_unreachable_server_fails_batches_without_raising(tmp_path):
+def test_an_unreachable_server_fails_batches_without_raising(tmp_path, caplog):
     from rasm.testing.servers import free_port
 
-    writer = InfluxWriter(f"http://127.0.0.1:{free_port()}", "x", timeout=1.0)
+    url = f"http://127.0.0.1:{free_port()}"
+    writer = InfluxWriter(url, "x", timeout=1.0)
     writer.write_record(1.0, {"stage": "monitor", "duration": 0.1})
     assert writer.flush()
     assert (writer.stats.failed, writer.stats.written) == (1, 0)
     writer.write_record(2.0, {"stage": "plan", "duration": 0.1})  # still accepted
     writer.close()
     assert writer.stats.failed == 2
+    # logged once, naming the server and the operation; the second batch only counted
+    logged = [r.getMessage() for r in caplog.records if r.name == "rasm.comm.influx"]
+    assert len(logged) == 1 and logged[0].startswith(f"timing server {url}: writing failed")
+    assert (writer.failure.failures, writer.failure.lost) == (2, 2)
 
 
 def test_refused_points_are_counted_as_failed(influx):
