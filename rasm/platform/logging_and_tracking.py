@@ -10,6 +10,7 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
+from rasm.errors import PlatformError
 from rasm.losses import WriteFailure, WriteGuard, describe_error
 from rasm.platform.block import Block
 
@@ -53,8 +54,8 @@ class _FileHandler(logging.FileHandler):
         try:
             super().__init__(path, encoding="utf-8")
         except OSError as exc:
-            raise ValueError(f"opening the log file {path} failed: {describe_error(exc)}"
-                             ) from None
+            raise PlatformError(f"opening the log file {path} failed: {describe_error(exc)}"
+                                ) from None
 
     def _open(self):  # noqa: ANN202 - logging's own hook
         raw = open(self.baseFilename, "ab", buffering=0)  # noqa: SIM115 - closed by close()

@@ -273,3 +273,11 @@ def test_a_read_only_folder_is_refused_at_the_start_naming_the_file_and_the_oper
     assert run.returncode == 2
     assert (f"rasm: creating the trace {disk / 'out.jsonl'} failed: Read-only file system "
             "(errno 30)") in run.stderr
+    app = tmp_path / "app"
+    shutil.copytree(HOTBOX, app)
+    with (app / "app.yaml").open("a") as manifest:
+        manifest.write(f"logging:\n  sinks: [console, 'file:{disk / 'rasm.log'}']\n")
+    run = rasm_run(tmp_path, str(app), "--clock", "simulated", "--duration", "2")
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    assert (f"opening the log file {disk / 'rasm.log'} failed: Read-only file system "
+            "(errno 30)") in run.stderr
