@@ -373,6 +373,7 @@ class McapReader:
         channels: dict[int, Channel] = {}
         chunks: list[_Chunk] = []
         counts: dict[int, int] | None = None
+        first = 0
         at = 0
         limit = (offset_start - summary_start) if offset_start else len(section)
         try:
@@ -390,6 +391,7 @@ class McapReader:
                 elif op == _CHUNK_INDEX:
                     chunks.append(self._chunk_index(content, summary_start))
                 elif op == _STATISTICS:
+                    (first,) = _U64.unpack_from(content, 26)  # the first message's log time
                     (size,) = _U32.unpack_from(content, 42)
                     counts = {c: n for c, n in struct.iter_unpack("<HQ", content[46:46 + size])}
                 at += 9 + length
@@ -400,7 +402,12 @@ class McapReader:
             # summary, and its channels are known from it (or from the records themselves)
             self.schemas, self.channels = schemas, channels
             self._data_end = summary_start
-            return False
+            if not channels or counts is None:
+                return False
+            # closed in order (a rasm trace): read in one pass, each record checked as it comes
+            self.counts = counts
+            self._runs = [_Run(self._data_start, summary_start, first)]
+            return True
         self.schemas, self.channels = schemas, channels
         self._chunks = sorted(chunks, key=lambda c: c.offset)
         if counts is not None:
@@ -664,17 +671,55 @@ class McapReader:
                 yield (time, position + k, channel, data)
 
     def _from_run(self, run: _Run, order: int, channels: set[int] | None):
+        """The records from ``run.offset`` to ``run.end``, checked as they are read (in file
+        order; a chunk among them gives its messages in log-time order)."""
         yield (run.start, -1, 0, None)
         stream = self._file
-        at = run.offset
+        at, end = run.offset, run.end
         position = order << 32
-        while at < run.end:
-            stream.seek(at)
+        last: int | None = None
+        while at < end:
+            stream.seek(at)  # the merge may have read another part of the file meanwhile
             head = stream.read(9)
-            _, length = _OP_LEN.unpack(head)
-            content = stream.read(length)
-            channel, _, time, _ = _MESSAGE_HEAD.unpack_from(content, 0)
-            if channels is None or channel in channels:
-                yield (time, position, channel, content[22:])
-            position += 1
+            if len(head) < 9:
+                self._cut(at, "a record", end - at, last)
+                return
+            op, length = _OP_LEN.unpack(head)
+            if op not in _KNOWN:
+                self._lost_sync(at, end, last, f"byte {at:,} is no MCAP record (opcode {op})")
+                return
+            if at + 9 + length > end:
+                self._cut(at, f"a {_NAMES.get(op, 'record')}", end - at, last)
+                return
+            if op in (_DATA_END, _FOOTER):
+                return
+            content = stream.read(length) if op in (_MESSAGE, _SCHEMA, _CHANNEL, _CHUNK) else b""
+            if op == _MESSAGE:
+                channel = _U16.unpack_from(content, 0)[0] if length >= 22 else None
+                if channel is None or channel not in self.channels:
+                    self._lost_sync(at, end, last, f"the message at byte {at:,} is not one of "
+                                    "a channel the file defines")
+                    return
+                time = _MESSAGE_HEAD.unpack_from(content, 0)[2]
+                if channels is None or channel in channels:
+                    yield (time, position, channel, content[22:])
+                position += 1
+                last = time
+            elif op == _CHUNK:
+                chunk = _Chunk(at, 9 + length)
+                try:
+                    messages = self._chunk_messages(chunk, content)
+                except _Bad as bad:
+                    self._bad_chunk(chunk, str(bad))
+                else:
+                    for time, channel, data in messages:
+                        if channels is None or channel in channels:
+                            yield (time, position, channel, data)
+                        position += 1
+            elif op in (_SCHEMA, _CHANNEL):
+                try:
+                    self._define(op, content)
+                except _Bad as bad:
+                    self._lost_sync(at, end, last, str(bad))
+                    return
             at += 9 + length

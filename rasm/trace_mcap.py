@@ -95,8 +95,10 @@ class McapTrace:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.damage: list[Damage] = []
-        with self._open() as reader:
-            self.damage = reader.damage
+        try:
+            read_header(self.path)  # an MCAP file, or an error now
+        except McapError as exc:
+            raise RasmError(str(exc)) from None
 
     def _open(self) -> McapReader:
         try:
