@@ -176,10 +176,10 @@ def _cmd_verify_rules(args: argparse.Namespace) -> int:
     from rasm.rules.against import check_against
     from rasm.rules.fallback import prove_fixed_plan
 
-    paths, fallback = _rules_of(args.rules)
+    paths, fallback, plan_fields = _rules_of(args.rules)
     failed = False
     for path in paths:
-        rules = load_rules(path)
+        rules = load_rules(path).with_plan_fields(plan_fields)
         report = verify(rules)
         if args.against:
             report.against = check_against(rules, args.against)
@@ -205,19 +205,20 @@ def _is_manifest(path) -> bool:
     return isinstance(data, dict) and "components" in data and "variables" not in data
 
 
-def _rules_of(target: str) -> tuple[list, dict | None]:
+def _rules_of(target: str) -> tuple[list, dict | None, list[str]]:
     """``verify-rules`` of a rules file, or of an app (its folder or app.yaml): every rules file
-    of the app, and its fallback actions as one plan to prove legitimate in every context."""
+    of the app, its fallback actions as one plan to prove legitimate in every context, and its
+    plan fields (``components.plan.produces``)."""
     from pathlib import Path
 
     from rasm.platform.manifest import load_manifest
 
     path = Path(target)
     if not (path.is_dir() or _is_manifest(path)):
-        return [path], None
+        return [path], None, []
     manifest = load_manifest(path)
     fallback = manifest.fallback.values if manifest.fallback is not None else None
-    return list(manifest.rules), fallback
+    return list(manifest.rules), fallback, manifest.plan_fields
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

@@ -168,6 +168,12 @@ class AppManifest:
     types: Any = None
 
     @property
+    def plan_fields(self) -> list[str]:
+        """The fields of the Plan's plans (``components.plan.produces``): the variables of the
+        app's rules that the planner chooses (SPEC section 7)."""
+        return list(self.produces.get("plan", {}))
+
+    @property
     def ros_topics(self) -> dict[str, tuple[str, dict[str, Any] | None]]:
         """Every topic the app names with a ROS 2 type: topic -> (type, QoS settings)."""
         found: dict[str, tuple[str, dict[str, Any] | None]] = {}

@@ -43,6 +43,7 @@ class PlanRepair:
         accept in ``context``; None if z3 finds none in time."""
         from rasm.rules import Rules
         from rasm.rules.repair import REPAIR_TIMEOUT_MS, nearest_plan
+        from rasm.rules.report import format_value
 
         sets = [rule_set.rules for rule_set in self.rule_sets]
         if not sets:
@@ -61,7 +62,9 @@ class PlanRepair:
             return None
         if not all(rs.evaluate(repair.values, context).accepted for rs in self.rule_sets):
             return None
-        changes = ", ".join(f"{name} {plan.values[name]!r} -> {repair.values[name]!r}"
-                            for name in repair.changed)
+        changes = ", ".join(
+            f"{name} {format_value(plan.values[name])} -> {format_value(repair.values[name])}"
+            for name in repair.changed
+        )
         why = f"the nearest legitimate plan to {plan.id}: {changes}"
         return Plan(repair.values, explanation=why)

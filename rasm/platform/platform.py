@@ -303,7 +303,7 @@ class Platform:
             clock=clock,
             depends_on=("km", "cm"),
         )
-        self.rules = [RuleSet.load(path) for path in m.rules]
+        self.rules = [RuleSet.load(path, plan_fields=m.plan_fields) for path in m.rules]
         check_repair_weights(m, self.rules)
         monitors: list[Monitor] = compile_app_properties(m)
         if self.external.sources:

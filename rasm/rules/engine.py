@@ -11,7 +11,7 @@ consistent; otherwise the old set stays and the refusal carries the report sayin
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,7 +20,7 @@ from rasm.errors import RasmError, RulesError
 from rasm.properties import compile_expression
 from rasm.rules.loader import load_rules, parse_rules
 from rasm.rules.model import Rules, Variable, require_rules
-from rasm.rules.report import Report
+from rasm.rules.report import Report, format_value
 from rasm.rules.verify import is_consistent
 
 
@@ -118,7 +118,7 @@ def _missing_or_bad(checks: tuple[_Check, ...], env: Mapping[str, Any]) -> str |
         except KeyError:
             return f"no value for {name}"
         if not variable.contains(value):
-            return f"{name} = {value!r} is not a value of {variable.describe()}"
+            return f"{name} = {format_value(value)} is not a value of {variable.describe()}"
     return None
 
 
@@ -150,8 +150,8 @@ class SwapResult:
         return self.accepted
 
 
-# (path, bytes) -> the file's rules and their consistency report (RuleSet.load)
-_CHECKED: dict[tuple[str, bytes], tuple[Rules, Report | None]] = {}
+# (path, bytes, plan fields) -> the file's rules and their consistency report (RuleSet.load)
+_CHECKED: dict[tuple[str, bytes, frozenset[str]], tuple[Rules, Report | None]] = {}
 _CHECKED_LOCK = threading.Lock()
 
 
@@ -161,10 +161,20 @@ class RuleSet:
     Evaluation reads one reference to the compiled rules, so a concurrent swap is seen either
     entirely or not at all. A rule set given to the constructor must be consistent too, unless
     ``require_consistent=False`` (tests and tools that judge plans of a known-broken set).
+    ``plan_fields`` (an app's ``components.plan.produces``) are plan fields of this set and of
+    every set swapped in, besides the variables their files mark ``plan: true``.
     """
 
-    def __init__(self, rules: Rules, *, require_consistent: bool = True) -> None:
+    def __init__(
+        self,
+        rules: Rules,
+        *,
+        require_consistent: bool = True,
+        plan_fields: Iterable[str] = (),
+    ) -> None:
+        self.plan_fields = frozenset(plan_fields)
         rules = require_rules(rules, "RuleSet() (or RuleSet.load(path) for a file)")
+        rules = rules.with_plan_fields(self.plan_fields)
         self.report: Report | None = None
         if require_consistent:
             report = is_consistent(rules)
@@ -175,23 +185,28 @@ class RuleSet:
         self._lock = threading.Lock()
 
     @classmethod
-    def load(cls, path: str | Path) -> RuleSet:
-        """The consistent rule set of the file at ``path``.
+    def load(cls, path: str | Path, *, plan_fields: Iterable[str] = ()) -> RuleSet:
+        """The consistent rule set of the file at ``path`` (``plan_fields`` as for the
+        constructor).
 
-        A file already loaded and proved consistent in this process (same path, same bytes) is
-        not parsed and proved again: every platform built from one app shares the work.
+        A file already loaded and proved consistent in this process (same path, same bytes,
+        same plan fields) is not parsed and proved again: every platform built from one app
+        shares the work.
         """
+        fields = frozenset(plan_fields)
         try:
-            key: tuple[str, bytes] | None = (str(path), Path(path).read_bytes())
+            key: tuple[str, bytes, frozenset[str]] | None = (
+                str(path), Path(path).read_bytes(), fields
+            )
         except (OSError, TypeError, ValueError):  # load_rules says what is wrong with it
             key = None
         with _CHECKED_LOCK:
             found = _CHECKED.get(key) if key is not None else None
         if found is not None:
-            rule_set = cls(found[0], require_consistent=False)
+            rule_set = cls(found[0], require_consistent=False, plan_fields=fields)
             rule_set.report = found[1]
             return rule_set
-        rule_set = cls(load_rules(path))
+        rule_set = cls(load_rules(path), plan_fields=fields)
         if key is not None:
             with _CHECKED_LOCK:
                 _CHECKED[key] = (rule_set.rules, rule_set.report)
@@ -211,6 +226,7 @@ class RuleSet:
     def swap(self, rules: Rules) -> SwapResult:
         """Replace the rules in force by ``rules`` if they are consistent; else keep the old."""
         require_rules(rules, "swap() (or swap_text(text), swap_file(path))")
+        rules = rules.with_plan_fields(self.plan_fields)
         with self._lock:
             try:
                 report = is_consistent(rules)

@@ -17,6 +17,7 @@ import z3
 from rasm.rules.engine import CompiledRules
 from rasm.rules.model import Rules
 from rasm.rules.mus import check, new_solver
+from rasm.rules.report import format_context, format_value
 from rasm.rules.smt import Encoder, _number
 
 __all__ = ["FixedPlanProof", "prove_fixed_plan"]
@@ -38,7 +39,7 @@ class FixedPlanProof:
             return ""
         if self.reason:
             return self.reason
-        where = ", ".join(f"{k} == {v!r}" for k, v in self.context.items()) or "any context"
+        where = format_context(self.context) if self.context else "any context"
         return f"breaks {', '.join(self.broken)} where {where}"
 
 
@@ -54,7 +55,8 @@ def prove_fixed_plan(rules: Rules, values: Mapping[str, Any]) -> FixedPlanProof:
         variable = rules.variables[name]
         if not variable.contains(value):
             return FixedPlanProof(
-                False, reason=f"{name} = {value!r} is not a value of {variable.describe()}"
+                False,
+                reason=f"{name} = {format_value(value)} is not a value of {variable.describe()}",
             )
     encoder = Encoder(rules.variables)
     solver = new_solver()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import keyword
 import math
+from dataclasses import replace
 from pathlib import Path, PurePath
 from typing import Any
 
@@ -28,7 +29,7 @@ from rasm.rules.typing import check_rule_expression
 from rasm.yamltext import YamlSource, load_yaml
 
 _TYPE_ALIASES = {"float": "real", "integer": "int", "boolean": "bool"}
-_VARIABLE_KEYS = {"type", "min", "max", "values", "description"}
+_VARIABLE_KEYS = {"type", "min", "max", "values", "plan", "description"}
 _RULE_KEYS = {"name", "when", "require", "description"}
 _TOP_KEYS = {"variables", "rules"}
 # Names the expression language gives a meaning of its own: a variable cannot take them.
@@ -162,10 +163,18 @@ class _Loader:
         for key in spec:
             if key not in _VARIABLE_KEYS:
                 self.error(
-                    f"variable {name!r}: unknown key {key!r} (use type, min, max, values)",
+                    f"variable {name!r}: unknown key {key!r} (use type, min, max, values, plan)",
                     self.where(spec, key, value=False), len(str(key)),
                 )
                 ok = False
+        plan = spec.get("plan", False)
+        if not isinstance(plan, bool):
+            self.error(
+                f"variable {name!r}: 'plan' is true (a plan field, chosen by the planner) or "
+                f"false (context), not {plan!r}",
+                self.where(spec, "plan"), len(str(plan)),
+            )
+            ok = False
         if "type" not in spec:
             self.error(
                 f"variable {name!r}: missing 'type' (one of {', '.join(TYPES)})",
@@ -181,7 +190,8 @@ class _Loader:
             )
             return None
         if type_ in ("real", "int"):
-            return self.numeric(name, type_, spec, location) if ok else None
+            numeric = self.numeric(name, type_, spec, location) if ok else None
+            return replace(numeric, plan=plan) if numeric is not None else None
         for key in ("min", "max"):
             if key in spec:
                 self.error(
@@ -196,11 +206,11 @@ class _Loader:
                     self.where(spec, "values", value=False), len("values"),
                 )
                 ok = False
-            return Variable(name, "bool", location=location) if ok else None
+            return Variable(name, "bool", plan=plan, location=location) if ok else None
         values = self.enum_values(name, spec)
         if values is None or not ok:
             return None
-        return Variable(name, "enum", values=values, location=location)
+        return Variable(name, "enum", values=values, plan=plan, location=location)
 
     def numeric(
         self, name: str, type_: str, spec: CommentedMap, location: Location

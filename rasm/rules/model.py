@@ -7,7 +7,8 @@ evaluates them on concrete plans.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from rasm.errors import Location
@@ -21,7 +22,8 @@ class Variable:
     """A plan or context variable a rule may read, with its declared domain.
 
     ``minimum``/``maximum`` bound ``real`` and ``int`` variables (``None``: unbounded);
-    ``values`` lists the values of an ``enum`` (strings, in declaration order).
+    ``values`` lists the values of an ``enum`` (strings, in declaration order). ``plan`` marks
+    a plan field, chosen by the planner; every other variable is context.
     """
 
     name: str
@@ -29,6 +31,7 @@ class Variable:
     minimum: int | float | None = None
     maximum: int | float | None = None
     values: tuple[str, ...] = ()
+    plan: bool = False
     location: Location = field(default=Location("<rules>"), compare=False)
 
     def contains(self, value: Any) -> bool:
@@ -90,6 +93,24 @@ class Rules:
     def names(self) -> list[str]:
         """The rule names in file order."""
         return [rule.name for rule in self.rules]
+
+    @property
+    def plan_fields(self) -> list[str]:
+        """The variables the planner chooses (``plan: true``, or named by the app), in
+        declaration order; empty when every variable is context."""
+        return [name for name, variable in self.variables.items() if variable.plan]
+
+    def with_plan_fields(self, names: Iterable[str]) -> Rules:
+        """These rules with the declared variables among ``names`` marked as plan fields too
+        (an app's ``components.plan.produces``); names that are no variable are ignored."""
+        wanted = {name for name in names if name in self.variables}
+        if all(self.variables[name].plan for name in wanted):
+            return self
+        variables = {
+            name: replace(variable, plan=True) if name in wanted else variable
+            for name, variable in self.variables.items()
+        }
+        return replace(self, variables=variables)
 
     def rule(self, name: str) -> Rule:
         """The rule called ``name`` (KeyError if there is none)."""

@@ -1,5 +1,9 @@
 """Minimal conflicting sets with z3: a MARCO-style enumeration with unsat-core shrinking.
 
+Two notions of conflict share the enumeration: without plan fields (:class:`ConflictFinder`,
+below) and with them (:class:`NoPlanFinder`: a set conflicts when some context admits no plan
+that obeys all its rules, SPEC section 7).
+
 The question: which *minimal* sets of rules have ``when`` conditions that can hold
 together while their ``require`` conditions then cannot all hold? Writing ``B_i = W_i and R_i``,
 a set S conflicts iff the ``W_i`` of S are jointly satisfiable and the ``B_i`` of S are not. Any
@@ -17,7 +21,7 @@ blocked. Every iteration blocks its seed, so the loop ends, and it ends with eve
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import z3
 
@@ -68,11 +72,77 @@ def core_ids(solver: z3.Solver) -> set[int]:
     return {literal.get_id() for literal in solver.unsat_core()}
 
 
-class ConflictFinder:
-    """Enumerate the minimal conflicts among indexed rules.
+class _Marco:
+    """MARCO over the rules ``0 .. count - 1``: subclasses say whether a set conflicts.
+
+    ``map`` is the map solver (constrained by the subclass so that it proposes only sets of
+    rules that can apply together); :meth:`conflicting` answers for one set, :meth:`grow` makes
+    a set that does not conflict maximal.
+    """
+
+    def __init__(self, count: int, domain: Sequence[z3.BoolRef]) -> None:
+        self.count = count
+        self.map = new_solver()
+        self.map.add(*domain)
+        self.picks = [z3.Bool(f"__pick_{i}") for i in range(count)]
+        self.checks = 0  # solver calls, for the benchmark's curiosity
+
+    def conflicting(self, subset: Sequence[int]) -> list[int] | None:
+        """None when the rules of ``subset`` do not conflict; else a conflicting part of it."""
+        raise NotImplementedError
+
+    def grow(self, subset: list[int]) -> set[int]:
+        """A maximal superset of ``subset`` (which does not conflict) that does not conflict."""
+        grown = set(subset)
+        for i in range(self.count):
+            if i not in grown and self.conflicting(sorted(grown | {i})) is None:
+                grown.add(i)
+        return grown
+
+    def conflicts(self, limit: int | None = None) -> list[list[int]]:
+        """All minimal conflicts (index lists, ascending), or the first ``limit`` of them."""
+        found: list[list[int]] = []
+        while check(self.map):
+            model = self.map.model()
+            seed = [i for i in range(self.count) if z3.is_true(model.eval(self.picks[i], True))]
+            part = self.conflicting(seed)
+            if part is None:
+                grown = self.grow(seed)
+                outside = [self.picks[i] for i in range(self.count) if i not in grown]
+                if not outside:
+                    break  # everything holds together: no conflict anywhere
+                self.map.add(z3.Or(*outside))
+            else:
+                mus = self.shrink(part)
+                found.append(mus)
+                self.map.add(z3.Or(*[z3.Not(self.picks[i]) for i in mus]))
+                if limit is not None and len(found) >= limit:
+                    break
+        return sorted(found)
+
+    def shrink(self, subset: list[int]) -> list[int]:
+        """A minimal conflicting subset of the conflicting ``subset`` (deletion + cores)."""
+        needed: list[int] = []  # proven necessary: removing any one makes the rest consistent
+        rest = list(subset)
+        while rest:
+            candidate, rest = rest[0], rest[1:]
+            part = self.conflicting(needed + rest)
+            if part is None:
+                needed.append(candidate)
+            else:
+                # A smaller core keeps every proven-necessary element (else it would be a subset
+                # of a consistent set), so only the untested rest shrinks.
+                kept = set(part)
+                rest = [i for i in rest if i in kept]
+        return sorted(needed)
+
+
+class ConflictFinder(_Marco):
+    """Enumerate the minimal conflicts among indexed rules when every variable is context.
 
     ``domain`` constrains the variables to their declared domains; ``whens[i]`` and
-    ``bodies[i]`` (``W_i and R_i``) are z3 booleans over them.
+    ``bodies[i]`` (``W_i and R_i``) are z3 booleans over them. A set conflicts when its ``W``s
+    hold together somewhere and its ``B``s nowhere.
     """
 
     def __init__(
@@ -81,68 +151,28 @@ class ConflictFinder:
         whens: Sequence[z3.BoolRef],
         bodies: Sequence[z3.BoolRef],
     ) -> None:
-        self.count = len(bodies)
+        super().__init__(len(bodies), domain)
         self.bodies = list(bodies)
         self.checker = new_solver()
         self.checker.add(*domain)
         self.selectors = [z3.Bool(f"__body_{i}") for i in range(self.count)]
         for selector, body in zip(self.selectors, bodies, strict=True):
             self.checker.add(z3.Implies(selector, body))
-        self.map = new_solver()
-        self.map.add(*domain)
-        self.picks = [z3.Bool(f"__pick_{i}") for i in range(self.count)]
         for pick, when in zip(self.picks, whens, strict=True):
             self.map.add(z3.Implies(pick, when))
-        self.checks = 0  # solver calls, for the benchmark's curiosity
 
     def satisfiable(self, subset: Sequence[int]) -> bool:
         """Whether the ``bodies`` of ``subset`` hold together somewhere in the domain."""
         self.checks += 1
         return check(self.checker, [self.selectors[i] for i in subset])
 
-    def conflicts(self, limit: int | None = None) -> list[list[int]]:
-        """All minimal conflicts (index lists, ascending), or the first ``limit`` of them."""
-        found: list[list[int]] = []
-        while check(self.map):
-            model = self.map.model()
-            seed = [i for i in range(self.count) if z3.is_true(model.eval(self.picks[i], True))]
-            if self.satisfiable(seed):
-                grown = self.grow(seed)
-                outside = [self.picks[i] for i in range(self.count) if i not in grown]
-                if not outside:
-                    break  # everything holds together: no conflict anywhere
-                self.map.add(z3.Or(*outside))
-            else:
-                mus = self.shrink(self.core(seed))
-                found.append(mus)
-                self.map.add(z3.Or(*[z3.Not(self.picks[i]) for i in mus]))
-                if limit is not None and len(found) >= limit:
-                    break
-        return sorted(found)
-
-    def core(self, subset: Sequence[int]) -> list[int]:
-        """The unsat core of the last (unsatisfiable) check, as indices in ``subset`` order."""
+    def conflicting(self, subset: Sequence[int]) -> list[int] | None:
+        if self.satisfiable(subset):
+            return None
         core = core_ids(self.checker)
         return [i for i in subset if self.selectors[i].get_id() in core]
 
-    def shrink(self, subset: list[int]) -> list[int]:
-        """A minimal unsatisfiable subset of the unsatisfiable ``subset`` (deletion + cores)."""
-        needed: list[int] = []  # proven necessary: removing any one makes the rest satisfiable
-        rest = list(subset)
-        while rest:
-            candidate, rest = rest[0], rest[1:]
-            trial = needed + rest
-            if self.satisfiable(trial):
-                needed.append(candidate)
-            else:
-                # A smaller core keeps every proven-necessary element (else it would be a subset
-                # of a satisfiable set), so only the untested rest shrinks.
-                kept = set(self.core(trial))
-                rest = [i for i in rest if i in kept]
-        return sorted(needed)
-
     def grow(self, subset: list[int]) -> set[int]:
-        """A maximal satisfiable superset of the satisfiable ``subset``."""
         grown = set(subset)
         grown |= self.holding()
         for i in range(self.count):
@@ -159,3 +189,60 @@ class ConflictFinder:
         return {
             i for i in range(self.count) if z3.is_true(model.eval(self.bodies[i], True))
         }
+
+
+class NoPlanFinder(_Marco):
+    """Enumerate the minimal sets of rules under which some context admits no plan.
+
+    ``context`` are the context variables' terms; ``domain`` constrains every variable to its
+    declared domain; ``holds[i]`` is rule i (``W_i -> R_i``) over context and plan; ``no_plan``
+    turns a formula over both into "no plan makes it true" over the context (see
+    :meth:`rasm.rules.smt.Encoder.no_plan`); ``applicable[i]`` says, over the context alone,
+    that some plan makes ``W_i`` hold. The map proposes only sets whose rules each apply to some
+    plan in one context: a rule that applies to no plan there holds for every plan, so it is in
+    no minimal conflict witnessed there.
+    """
+
+    def __init__(
+        self,
+        context: Sequence[z3.ExprRef],
+        domain: Sequence[z3.BoolRef],
+        holds: Sequence[z3.BoolRef],
+        applicable: Sequence[z3.BoolRef],
+        no_plan: Callable[[z3.BoolRef], z3.BoolRef],
+    ) -> None:
+        super().__init__(len(holds), domain)
+        self.context = list(context)
+        self.domain = list(domain)
+        self.holds = list(holds)
+        self.no_plan = no_plan
+        for pick, when in zip(self.picks, applicable, strict=True):
+            self.map.add(z3.Implies(pick, when))
+        # the plans at one context, for unsat cores: which rules leave no plan there
+        self.plans = new_solver()
+        self.plans.add(*domain)
+        self.selectors = [z3.Bool(f"__holds_{i}") for i in range(self.count)]
+        for selector, rule in zip(self.selectors, holds, strict=True):
+            self.plans.add(z3.Implies(selector, rule))
+
+    def witness(self, subset: Sequence[int]) -> z3.ModelRef | None:
+        """A model whose context admits no plan obeying every rule of ``subset``, or None."""
+        self.checks += 1
+        solver = new_solver()
+        solver.add(*self.domain)
+        solver.add(self.no_plan(z3.And(*[self.holds[i] for i in subset])))
+        return solver.model() if check(solver) else None
+
+    def conflicting(self, subset: Sequence[int]) -> list[int] | None:
+        model = self.witness(subset)
+        if model is None:
+            return None
+        self.plans.push()
+        try:
+            self.plans.add(*[term == model.eval(term, True) for term in self.context])
+            if check(self.plans, [self.selectors[i] for i in subset]):
+                return list(subset)  # no smaller part to offer: the deletion will find one
+            core = core_ids(self.plans)
+        finally:
+            self.plans.pop()
+        return [i for i in subset if self.selectors[i].get_id() in core]

@@ -34,13 +34,14 @@ class Violation:
 class Report:
     """The consistency report of ``rasm verify-rules``.
 
-    ``unsatisfiable_contexts`` maps each unsatisfiable rule to a context where its ``when`` holds
-    (and so no plan is legitimate); ``implied_by`` maps each redundant rule to rules that together
-    imply it (minimal when the search budget allowed).
+    ``unsatisfiable_contexts`` maps each unsatisfiable rule to a context where no plan is
+    legitimate (without plan fields: a point where its ``when`` holds); ``implied_by`` maps each
+    redundant rule to rules that together imply it (minimal when the search budget allowed).
     """
 
     source: str
     rule_count: int
+    plan_fields: list[str] = field(default_factory=list)  # empty: every variable is context
     unsatisfiable: list[str] = field(default_factory=list)
     conflicts: list[Conflict] = field(default_factory=list)
     redundant: list[str] = field(default_factory=list)
@@ -132,14 +133,39 @@ def format_context(context: dict[str, Any]) -> str:
     return ", ".join(f"{name} == {format_value(value)}" for name, value in context.items())
 
 
+def counted(count: int, noun: str) -> str:
+    """``1 conflict``, ``2 conflicts``: a count with its noun in the right number."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
 def format_text(report: Report) -> str:
     """The human report: one paragraph per finding, a verdict line last."""
     lines: list[str] = []
+    planned = bool(report.plan_fields)
+    if planned:
+        lines.append("plan fields (chosen by the planner): " + ", ".join(report.plan_fields)
+                     + "; every other variable is context")
     for name in report.unsatisfiable:
+        context = report.unsatisfiable_contexts.get(name, {})
+        if planned:
+            lines.append(f"unsatisfiable: {name}: "
+                         + ("no plan obeys it" if not context else
+                            "in some context no plan obeys it"))
+            if context:
+                lines.append(f"    e.g. {format_context(context)}")
+            continue
         lines.append(f"unsatisfiable: {name}: no value in the declared domains meets its "
                      "'require' when its 'when' holds")
-        lines.append(f"    e.g. {format_context(report.unsatisfiable_contexts.get(name, {}))}")
+        lines.append(f"    e.g. {format_context(context)}")
     for conflict in report.conflicts:
+        if planned:
+            lines.append("conflict: " + ", ".join(conflict.rules) + ": "
+                         + ("no plan obeys them all" if not conflict.context else
+                            "in some context no plan obeys them all"))
+            if conflict.context:
+                lines.append(f"    e.g. {format_context(conflict.context)}: every plan breaks "
+                             "one of them")
+            continue
         lines.append("conflict: " + ", ".join(conflict.rules)
                      + ": can apply together but cannot all be obeyed")
         lines.append(f"    e.g. {format_context(conflict.context)} breaks "
@@ -167,7 +193,8 @@ def format_text(report: Report) -> str:
             lines.append("fallback: NOT legitimate in every context: "
                          + report.fallback_proof.explanation())
     verdict = "consistent" if report.consistent else "inconsistent"
-    lines.append(f"{report.source}: {report.rule_count} rules, {verdict}: "
-                 f"{len(report.unsatisfiable)} unsatisfiable, {len(report.conflicts)} conflicts, "
+    lines.append(f"{report.source}: {counted(report.rule_count, 'rule')}, {verdict}: "
+                 f"{len(report.unsatisfiable)} unsatisfiable, "
+                 f"{counted(len(report.conflicts), 'conflict')}, "
                  f"{len(report.redundant)} redundant, {len(report.dead)} dead")
     return "\n".join(lines) + "\n"

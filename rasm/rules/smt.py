@@ -14,6 +14,8 @@ it false: :meth:`Encoder.condition` conjoins "every divisor is non-zero" to each
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Sequence
 from fractions import Fraction
 from typing import Any
 
@@ -21,6 +23,10 @@ import z3
 
 from rasm.properties import ast
 from rasm.rules.model import Rule, Rules, Variable
+
+#: At most this many combinations of values of finite plan fields are enumerated when asking
+#: whether a context admits a plan; plan fields beyond are quantified (z3 decides both).
+ENUMERATED_PLANS = 64
 
 
 class Encoder:
@@ -57,6 +63,57 @@ class Encoder:
                 if variable.maximum is not None:
                     result.append(term <= _number(variable.maximum))
         return result
+
+    def finite_values(self, name: str) -> list[z3.ExprRef] | None:
+        """Every value of ``name``'s domain as a z3 constant, or None for an infinite or large
+        domain (more than :data:`ENUMERATED_PLANS` values)."""
+        variable = self.variables[name]
+        if variable.type == "bool":
+            return [z3.BoolVal(False), z3.BoolVal(True)]
+        if variable.type == "enum":
+            return [z3.IntVal(self.ids[v]) for v in variable.values]
+        low, high = variable.minimum, variable.maximum
+        if variable.type == "int" and low is not None and high is not None:
+            if high - low < ENUMERATED_PLANS:
+                return [z3.IntVal(v) for v in range(int(low), int(high) + 1)]
+        return None
+
+    def no_plan(self, body: z3.BoolRef, plan: Sequence[str]) -> z3.BoolRef:
+        """"No value of the plan fields ``plan`` inside their domains makes ``body`` true", a
+        formula over the other variables.
+
+        Plan fields with few values (bool, enum, small int ranges: together at most
+        :data:`ENUMERATED_PLANS` combinations) are enumerated, which keeps the question
+        quantifier-free for them; the others are quantified.
+        """
+        finite: list[tuple[z3.ExprRef, list[z3.ExprRef]]] = []
+        free: list[str] = []
+        combinations = 1
+        for name in plan:
+            values = self.finite_values(name)
+            if values is not None and combinations * len(values) <= ENUMERATED_PLANS:
+                finite.append((self.terms[name], values))
+                combinations *= len(values)
+            else:
+                free.append(name)
+        bound = [self.terms[name] for name in free]
+        cases = []
+        for values in itertools.product(*(v for _, v in finite)):
+            case = z3.substitute(body, *zip((t for t, _ in finite), values, strict=True))
+            if bound:
+                case = z3.Exists(bound, z3.And(*self.domain(free), case))
+            cases.append(case)
+        return z3.Not(z3.Or(*cases))
+
+    def somewhere(self, expr: z3.BoolRef, plan: Sequence[str], tag: str) -> z3.BoolRef:
+        """"Some value of the plan fields ``plan`` inside their domains makes ``expr`` true",
+        without a quantifier: the plan fields are renamed apart (``tag`` makes the new names
+        unique) and constrained to their domains."""
+        if not plan:
+            return expr
+        copies = [(self.terms[n], z3.Const(f"{n}@{tag}", self.terms[n].sort())) for n in plan]
+        domain = [z3.substitute(c, *copies) for c in self.domain(plan)]
+        return z3.And(*domain, z3.substitute(expr, *copies))
 
     def rule(self, rule: Rule) -> tuple[z3.BoolRef, z3.BoolRef]:
         """The rule's ``when`` (True when left out) and ``require`` as z3 booleans."""

@@ -11,8 +11,17 @@ its ``require`` does not):
 * **redundant**: a rule implied by other rules that can hold where it applies: some set K of
   the other rules implies it, and K holds together with the rule's ``when`` somewhere. (An
   inconsistent set implies anything: without the second condition every rule that applies
-  where a conflict does would be "redundant".) Dead and unsatisfiable rules are reported as
-  such only, and take no part in implying others.
+  where a conflict does would be "redundant".) Dead and unsatisfiable rules are not reported
+  as redundant; unsatisfiable rules still take part in implying others.
+
+With plan fields (variables the planner chooses: ``plan: true`` in the file, or the app's
+``components.plan.produces``), the other variables are the *context*, and a rule set is judged
+by what it leaves the planner (SPEC section 7):
+
+* **unsatisfiable**: in some context the rule alone admits no plan (its witness is that context);
+* **conflict**: a minimal set of two or more rules such that some context admits no plan that
+  obeys all of them (its witness is that context: every plan there breaks one of them);
+* dead and redundant as above (a point is a context and a plan).
 
 Rules that share no variable cannot conflict or imply each other (except through an empty
 domain, which the loader rejects), so each group of rules linked by shared variables is solved
@@ -31,6 +40,7 @@ from rasm.rules.model import Rule, Rules, Variable, require_rules
 from rasm.rules.mus import (
     SOLVER_TIMEOUT_MS,
     ConflictFinder,
+    NoPlanFinder,
     SolverGaveUp,
     check,
     core_ids,
@@ -113,6 +123,7 @@ class _Verifier:
         self.encoder: Encoder
         self.encoder, self.formulas = encode_rules(rules)
         self.names = rules.names
+        self.plan = set(rules.plan_fields)  # empty: every variable is context
         self.deciding: list[int] = []  # the rules z3 is asked about (for when it gives up)
 
     def run(self, *, redundancy: bool) -> Report:
@@ -122,7 +133,8 @@ class _Verifier:
             raise gave_up(exc, [self.rules.rules[i] for i in self.deciding], self.rules) from None
 
     def report(self, *, redundancy: bool) -> Report:
-        report = Report(source=self.rules.source, rule_count=len(self.rules.rules))
+        report = Report(source=self.rules.source, rule_count=len(self.rules.rules),
+                        plan_fields=self.rules.plan_fields)
         dead, unsat = set(), set()
         for index, rule in enumerate(self.rules.rules):
             self.deciding = [index]
@@ -130,6 +142,12 @@ class _Verifier:
             solver = self.solver(rule.reads)
             if not check(solver, [when]):
                 dead.add(index)
+                continue
+            if self.plan:
+                witness = self.no_plan_context([index])
+                if witness is not None:
+                    unsat.add(index)
+                    report.unsatisfiable_contexts[rule.name] = witness
                 continue
             witness = self.encoder.decode(solver.model(), self.ordered(rule.reads))
             if not check(solver, [z3.And(when, require)]):
@@ -149,11 +167,13 @@ class _Verifier:
             n: report.unsatisfiable_contexts[n] for n in report.unsatisfiable
         }
         if redundancy:
-            sound = set(range(len(self.names))) - dead - unsat
             for group in self.groups():
-                members = [i for i in group if i in sound]
+                # an unsatisfiable rule still holds wherever its 'when' does not: it can take
+                # part in implying another rule, though it is not reported as redundant itself
+                members = [i for i in group if i not in dead]
                 self.deciding = members
-                for index, implied_by in self.redundant(members, in_conflict):
+                judged = [i for i in members if i not in unsat]
+                for index, implied_by in self.redundant(members, judged, in_conflict):
                     report.redundant.append(self.names[index])
                     report.implied_by[self.names[index]] = [self.names[i] for i in implied_by]
             order = {n: i for i, n in enumerate(self.names)}
@@ -179,10 +199,24 @@ class _Verifier:
     def reads(self, indices: Sequence[int]) -> set[str]:
         return set().union(*(self.rules.rules[i].reads for i in indices)) if indices else set()
 
+    def no_plan_context(self, members: Sequence[int]) -> dict[str, object] | None:
+        """A context (values of the context variables ``members`` read) that admits no plan
+        obeying every rule of ``members``, or None when every context admits one."""
+        reads = self.reads(members)
+        solver = self.solver(reads)
+        holds = z3.And(*[z3.Implies(*self.formulas[i]) for i in members])
+        solver.add(self.encoder.no_plan(holds, self.ordered(reads & self.plan)))
+        if not check(solver):
+            return None
+        return self.encoder.decode(solver.model(), self.ordered(reads - self.plan))
+
     def conflicts(self, candidates: list[int]) -> list[tuple[list[int], Conflict]]:
         if len(candidates) < 2:
             return []
-        split = guard_split(self.rules.rules, self.rules.variables, candidates)
+        # with plan fields, only context variables can cut the search into contexts: the
+        # planner picks the values of a plan field, it does not find them
+        variables = {n: v for n, v in self.rules.variables.items() if n not in self.plan}
+        split = guard_split(self.rules.rules, variables, candidates)
         if split is None:
             found = self.search(candidates, {i: self.formulas[i][0] for i in candidates})
         else:
@@ -200,13 +234,31 @@ class _Verifier:
         """The minimal conflicts among ``part``, each rule's ``when`` given by ``whens``."""
         if len(part) < 2:
             return set()
-        domain = self.encoder.domain(self.ordered(self.reads(part)))
-        bodies = [z3.And(whens[i], self.formulas[i][1]) for i in part]
-        finder = ConflictFinder(domain, [whens[i] for i in part], bodies)
+        reads = self.ordered(self.reads(part))
+        domain = self.encoder.domain(reads)
+        finder: ConflictFinder | NoPlanFinder
+        if self.plan:
+            plan = [n for n in reads if n in self.plan]
+            finder = NoPlanFinder(
+                context=[self.encoder.terms[n] for n in reads if n not in self.plan],
+                domain=domain,
+                holds=[z3.Implies(whens[i], self.formulas[i][1]) for i in part],
+                applicable=[self.encoder.somewhere(whens[i], plan, str(i)) for i in part],
+                no_plan=lambda body: self.encoder.no_plan(body, plan),
+            )
+        else:
+            bodies = [z3.And(whens[i], self.formulas[i][1]) for i in part]
+            finder = ConflictFinder(domain, [whens[i] for i in part], bodies)
         return {frozenset(part[i] for i in local) for local in finder.conflicts()}
 
     def conflict(self, members: list[int]) -> Conflict:
-        """The conflict's witness: a point where all its ``when``s hold (so some rule breaks)."""
+        """The conflict's witness: without plan fields a point where all its ``when``s hold (so
+        some rule breaks); with them a context where no plan obeys them all."""
+        rules = tuple(self.names[i] for i in members)
+        if self.plan:
+            context = self.no_plan_context(members)
+            assert context is not None, "a conflict without a witness"
+            return Conflict(rules=rules, context=context, broken=rules)
         reads = self.reads(members)
         solver = self.solver(reads)
         solver.add(*[self.formulas[i][0] for i in members])
@@ -217,15 +269,16 @@ class _Verifier:
             if not z3.is_true(model.eval(self.formulas[i][1], True))
         )
         return Conflict(
-            rules=tuple(self.names[i] for i in members),
+            rules=rules,
             context=self.encoder.decode(model, self.ordered(reads)),
             broken=broken,
         )
 
     def redundant(
-        self, members: list[int], in_conflict: set[int]
+        self, members: list[int], judged: list[int], in_conflict: set[int]
     ) -> list[tuple[int, list[int]]]:
-        """Each member genuinely implied by other members, with a small set that implies it.
+        """Each rule of ``judged`` genuinely implied by other ``members``, with a small set
+        that implies it.
 
         "Implied by the others" alone would flag every rule that applies where a conflict does
         (no point there is admitted anyway). So a rule r counts as redundant when some set K of
@@ -258,7 +311,7 @@ class _Verifier:
         for j in members:
             self.chooser.add(z3.Implies(keep[j], holds[j]))
         result = []
-        for i in members:
+        for i in judged:
             others = [j for j in members if j != i and j in partners[i]]
             if check(solver, [broken[i]] + [keep[j] for j in others]):
                 continue  # not implied even by all the others together

@@ -356,13 +356,9 @@ def _checklist(model: ArchitectureModel, manifest: Any) -> list[dict[str, Any]]:
         problems = lint_paths([str(path)]) if path.exists() else [f"{check.file} missing"]
         detail = "; ".join(problems[:3])
         if check.kind == "rules" and not problems:
-            report = verify(load_rules(path))
+            report = verify(load_rules(path).with_plan_fields(manifest.plan_fields))
             ok = report.consistent
-            detail = (
-                "consistent (z3)"
-                if ok
-                else (f"unsatisfiable {report.unsatisfiable}, conflicts {report.conflicts}")
-            )
+            detail = "consistent (z3)" if ok else f"inconsistent: {report.reason()}"
             items.append(
                 {
                     "what": f"rules `{check.file}`",

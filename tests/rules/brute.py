@@ -2,7 +2,8 @@
 
 It enumerates every point of the declared domains and judges each definition of
 ``rasm.rules.verify`` literally, with the property language's own ``evaluate``: slow, obvious,
-and independent of z3.
+and independent of z3. With plan fields it also groups the points by context (the values of
+the other variables) and asks of each context whether some plan obeys the rules.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ class Oracle:
     """Every finding of ``rasm verify-rules``, judged point by point."""
 
     rules: Rules
+    plan: frozenset[str] = frozenset()  # besides the variables the file marks ``plan: true``
     dead: set[str] = field(default_factory=set)
     unsatisfiable: set[str] = field(default_factory=set)
     conflicts: set[frozenset[str]] = field(default_factory=set)
@@ -47,6 +49,13 @@ class Oracle:
     def __post_init__(self) -> None:
         pts = points(self.rules)
         rules = self.rules.rules
+        self.plan = frozenset(self.plan) | set(self.rules.plan_fields)
+        # the points of each context: same values of every variable that is not a plan field
+        contexts: dict[tuple, list[int]] = {}
+        for index, point in enumerate(pts):
+            key = tuple(v for n, v in point.items() if n not in self.plan)
+            contexts.setdefault(key, []).append(index)
+        self.contexts = list(contexts.values())
         self.when = {r.name: [truth(r.when, p) for p in pts] for r in rules}
         self.require = {r.name: [truth(r.require, p) for p in pts] for r in rules}
         self.holds = {
@@ -58,13 +67,33 @@ class Oracle:
             name = rule.name
             if not any(self.when[name]):
                 self.dead.add(name)
+            elif self.plan:
+                if self.no_plan_somewhere([name]):
+                    self.unsatisfiable.add(name)
             elif not any(w and q for w, q in zip(self.when[name], self.require[name],
                                                 strict=True)):
                 self.unsatisfiable.add(name)
         candidates = [r.name for r in rules
                       if r.name not in self.dead and r.name not in self.unsatisfiable]
         self.conflicts = self._conflicts(candidates)
-        self.redundant = {n for n in candidates if self._redundant(n, candidates)}
+        # every other rule may help imply one (an unsatisfiable rule too: it holds wherever its
+        # 'when' does not); dead and unsatisfiable rules are not reported as redundant
+        everyone = [r.name for r in rules]
+        self.redundant = {n for n in candidates if self._redundant(n, everyone)}
+
+    def no_plan_at(self, names, context: list[int]) -> bool:
+        """No plan of this context obeys every rule of ``names``."""
+        return not any(all(self.holds[n][i] for n in names) for i in context)
+
+    def no_plan_somewhere(self, names) -> bool:
+        """Some context admits no plan obeying every rule of ``names``."""
+        return any(self.no_plan_at(names, context) for context in self.contexts)
+
+    def conflicting(self, names) -> bool:
+        """The definition of a conflicting set (not yet minimal) in force for these rules."""
+        if self.plan:
+            return self.no_plan_somewhere(names)
+        return self.whens_meet(names) and not self.bodies_meet(names)
 
     def whens_meet(self, names) -> bool:
         return any(all(self.when[n][i] for n in names) for i in range(self.n))
@@ -77,9 +106,15 @@ class Oracle:
         found = set()
         for size in range(2, len(candidates) + 1):
             for subset in itertools.combinations(candidates, size):
-                if not self.whens_meet(subset) or self.bodies_meet(subset):
+                if not self.conflicting(subset):
                     continue
-                if all(self.bodies_meet([n for n in subset if n != drop]) for drop in subset):
+                if self.plan:
+                    minimal = not any(self.no_plan_somewhere([n for n in subset if n != drop])
+                                      for drop in subset)
+                else:
+                    minimal = all(self.bodies_meet([n for n in subset if n != drop])
+                                  for drop in subset)
+                if minimal:
                     found.add(frozenset(subset))
         return found
 

@@ -84,3 +84,31 @@ def guarded_rules_files(draw, max_rules: int = 7) -> str:
             lines.append("    when: " + json.dumps(" and ".join(f"({p})" for p in parts)))
         lines.append(f"    require: {json.dumps(draw(numeric_conditions))}")
     return "\n".join(lines) + "\n"
+
+
+def with_plan_fields(text: str, plan: set[str]) -> str:
+    """``text`` (a file of :data:`VARIABLES`) with the variables in ``plan`` marked
+    ``plan: true``."""
+    lines = []
+    for line in text.split("\n"):
+        name = line.strip().split(":", 1)[0]
+        if line.startswith("  ") and not line.startswith("   ") and name in plan:
+            line = line.replace("}", ", plan: true}", 1)
+        lines.append(line)
+    return "\n".join(lines)
+
+
+plan_field_sets = st.sets(st.sampled_from(["x", "y", "m", "f"]), min_size=1, max_size=3)
+
+
+@st.composite
+def planned_rules_files(draw, max_rules: int = 6) -> str:
+    """:func:`rules_files` with one to three of the variables marked as plan fields."""
+    return with_plan_fields(draw(rules_files(max_rules=max_rules)), draw(plan_field_sets))
+
+
+@st.composite
+def planned_guarded_rules_files(draw, max_rules: int = 7) -> str:
+    """:func:`guarded_rules_files` with some variables marked as plan fields."""
+    return with_plan_fields(draw(guarded_rules_files(max_rules=max_rules)),
+                            draw(plan_field_sets))

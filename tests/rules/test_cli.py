@@ -134,3 +134,16 @@ def test_against_a_bad_property_file_exits_2(write, capsys):
     rules, props = write(CONSISTENT), write("property p:\n    always (velocity <)\n", "props.rv")
     assert main(["verify-rules", rules, "--against", props]) == 2
     assert f"{props}:2:" in capsys.readouterr().err
+
+
+def test_the_summary_says_its_counts_in_words(write, capsys):
+    one = ("variables:\n  v: {type: int, min: 0, max: 3}\nrules:\n"
+           "  - name: a\n    require: v <= 1\n  - name: b\n    require: v >= 2\n")
+    assert main(["verify-rules", write(one)]) == 1
+    out = capsys.readouterr().out
+    assert out.endswith(": 2 rules, inconsistent: 0 unsatisfiable, 1 conflict, 0 redundant, "
+                        "0 dead\n")
+    single = ("variables:\n  v: {type: int, min: 0, max: 3}\nrules:\n"
+              "  - name: a\n    require: true\n")
+    assert main(["verify-rules", write(single)]) == 0
+    assert ": 1 rule, consistent: 0 unsatisfiable, 0 conflicts," in capsys.readouterr().out

@@ -62,3 +62,18 @@ def test_keys_the_rules_do_not_declare_are_not_their_business():
     assert prove_fixed_plan(rules, {"x": 0, "colour": "red"}).legitimate
     proof = prove_fixed_plan(rules, {"colour": "red"})  # x is then any value of its domain
     assert not proof.legitimate and proof.broken == ("low",) and proof.context["x"] > 1
+
+
+def test_the_explanation_writes_values_as_the_rules_do():
+    rules = parse_rules("variables:\n  docked: {type: bool}\n  mode: {type: enum, values: [a, b]}\n"
+                        "  v: {type: int, min: 0, max: 3}\nrules:\n"
+                        "  - name: still_unless_docked\n    when: not docked and mode == \"a\"\n"
+                        "    require: v == 0\n")
+    proof = prove_fixed_plan(rules, {"v": 2})
+    assert proof.explanation() == (
+        'breaks still_unless_docked where docked == false, mode == "a"'
+    )
+    proof = prove_fixed_plan(rules, {"v": 0, "docked": 1})
+    assert proof.explanation() == "docked = 1 is not a value of bool"
+    proof = prove_fixed_plan(rules, {"v": True})
+    assert proof.explanation() == "v = true is not a value of int in [0, 3]"
