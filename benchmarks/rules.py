@@ -20,7 +20,12 @@ findings, and the growth exponent between sizes (time ~ n^k, from CPU time; the 
 k <= 2, and under 30 s for 500 rules). The machine is shared: CPU time is the figure to
 compare, wall time shows the load.
 
+With ``--plan`` the numeric variables are plan fields (the modes and flags stay context), so
+conflicts are judged by SPEC section 7's "some context admits no plan" (an exists-forall question
+per candidate set).
+
     .venv/bin/python benchmarks/rules.py [--sizes 10 100 500] [--repeat 3] [--family coupled]
+    .venv/bin/python benchmarks/rules.py --plan
     .venv/bin/python benchmarks/rules.py --worst 2 4 6 8 10
 """
 
@@ -124,6 +129,8 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 500])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--family", choices=["coupled", "modular", "both"], default="both")
+    parser.add_argument("--plan", action="store_true",
+                        help="the numeric variables are plan fields, modes and flags context")
     parser.add_argument("--worst", type=int, nargs="*", metavar="K",
                         help="instead: K independent conflicts in one coupled group")
     args = parser.parse_args()
@@ -141,7 +148,7 @@ def main() -> None:
         return
     families = ["coupled", "modular"] if args.family == "both" else [args.family]
     for family in families:
-        print(f"family {family}")
+        print(f"family {family}" + (", numeric variables as plan fields" if args.plan else ""))
         print(f"{'rules':>6} {'wall s':>7} {'cpu s':>7} {'consist s':>9} {'load s':>7} "
               f"{'plan us':>8} {'unsat':>6} {'confl':>6} {'redund':>6} {'dead':>5} "
               f"{'growth k':>8}")
@@ -151,6 +158,8 @@ def main() -> None:
             start = time.perf_counter()
             rules = parse_rules(text, source=f"{family}-{size}.yaml")
             load = time.perf_counter() - start
+            if args.plan:
+                rules = rules.with_plan_fields(n for n in rules.variables if n.startswith("v"))
             times, cpus, consistency = [], [], []
             for _ in range(args.repeat):
                 start, cpu = time.perf_counter(), time.process_time()

@@ -233,6 +233,27 @@ class NoPlanFinder(_Marco):
         solver.add(self.no_plan(z3.And(*[self.holds[i] for i in subset])))
         return solver.model() if check(solver) else None
 
+    def grow(self, subset: list[int]) -> set[int]:
+        """A maximal superset of ``subset`` that does not conflict: everything at once, less
+        one rule of each conflict found on the way (each such rule is tried again at the end);
+        a question per rule costs too much when each is an exists-forall one."""
+        grown = set(subset)
+        candidates = [i for i in range(self.count) if i not in grown]
+        dropped: list[int] = []
+        while candidates:
+            part = self.conflicting(sorted(grown.union(candidates)))
+            if part is None:
+                grown.update(candidates)
+                break
+            # ``grown`` alone does not conflict, so the conflicting part has a candidate
+            blamed = [i for i in part if i in candidates] or candidates
+            candidates.remove(blamed[-1])
+            dropped.append(blamed[-1])
+        for i in dropped:
+            if self.witness(sorted(grown | {i})) is None:
+                grown.add(i)
+        return grown
+
     def conflicting(self, subset: Sequence[int]) -> list[int] | None:
         model = self.witness(subset)
         if model is None:

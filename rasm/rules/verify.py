@@ -210,6 +210,12 @@ class _Verifier:
             return None
         return self.encoder.decode(solver.model(), self.ordered(reads - self.plan))
 
+    @staticmethod
+    def plan_read(formula: z3.BoolRef, plan: list[str]) -> list[str]:
+        """The names in ``plan`` that ``formula`` reads."""
+        read = {str(term) for term in z3.z3util.get_vars(formula)} if plan else set()
+        return [n for n in plan if n in read]
+
     def conflicts(self, candidates: list[int]) -> list[tuple[list[int], Conflict]]:
         if len(candidates) < 2:
             return []
@@ -243,7 +249,8 @@ class _Verifier:
                 context=[self.encoder.terms[n] for n in reads if n not in self.plan],
                 domain=domain,
                 holds=[z3.Implies(whens[i], self.formulas[i][1]) for i in part],
-                applicable=[self.encoder.somewhere(whens[i], plan, str(i)) for i in part],
+                applicable=[self.encoder.somewhere(whens[i], self.plan_read(whens[i], plan),
+                                                   str(i)) for i in part],
                 no_plan=lambda body: self.encoder.no_plan(body, plan),
             )
         else:
