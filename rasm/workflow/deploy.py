@@ -1,10 +1,12 @@
 """``rasm deploy``: verify a package, install one compute unit from it, validate, start.
 
-Nothing is written before the whole package is verified: every file's SHA-256 against
-``MANIFEST.json``, no file missing or unlisted, the HMAC-SHA256 signature when a key is
-configured, every entry's path (inside the package, in plain form, no file where another entry
-needs a folder), the unit's configuration and the workflows with the actions they name. Then
-the package is extracted to ``DIR/package``, the unit's
+Nothing is written before the whole package is verified, with bounded memory
+(:mod:`rasm.workflow.unpack`): every entry's path (inside the package, in plain form, no file
+where another entry needs a folder), the HMAC-SHA256 signature when a key is configured, the
+sizes the zip declares (no zip bomb) against those ``MANIFEST.json`` declares, no file missing
+or unlisted, every file's SHA-256 (streamed), the unit's configuration and the workflows with the
+actions they name. Then the package is extracted to ``DIR/package`` (streamed, re-hashed), the
+unit's
 variables are written to ``DIR/unit.env``, and the workflow ``deploy`` of
 ``06_Workflows/workflows.yaml`` runs its actions (``05_Actions/*.sh``): install from
 ``01_Binaries`` into ``DIR/venv`` with ``pip --no-index``, then validate. ``start=True`` also runs
@@ -13,27 +15,18 @@ the workflow ``start`` (the unit's nodes in the background).
 
 from __future__ import annotations
 
-import json
 import os
 import shlex
 import shutil
 import subprocess
 import sys
-import zipfile
 from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import Any
 
 from rasm.errors import RasmError, SourceError, not_utf8
 from rasm.workflow.derive import host_arch
-from rasm.workflow.integrity import (
-    MANIFEST,
-    SIGNATURE,
-    IntegrityError,
-    shown,
-    verify_files,
-    verify_signature,
-)
+from rasm.workflow.unpack import Package, open_package
 from rasm.yamltext import load_yaml, plain
 
 __all__ = [
@@ -55,7 +48,6 @@ _UNIT_KEYS = (
     "unit", "arch", "role", "transport", "clock", "knowledge", "app_module", "app_dist",
     "binaries",
 )
-_NAME_BYTES = 255  # the longest file or folder name Linux file systems take
 
 
 @dataclass
@@ -87,71 +79,15 @@ class DeployReport:
         return all(step.ok for step in self.steps)
 
 
-def _check_entry(name: str) -> None:
-    """Refuse an entry name that could write outside the package folder, or that names one file
-    in two ways (``a//b``, ``./a``): extraction writes exactly the names verified."""
-    path = PurePosixPath(name)
-    if path.is_absolute() or ".." in path.parts or "\\" in name:
-        raise IntegrityError(f"{shown(name)}: a path outside the package")
-    if str(path) != name or name in ("", "."):
-        raise IntegrityError(f"{name!r}: not a plain relative path (write {str(path)!r})")
-    if any(ord(c) < 32 or c == "\x7f" for c in name):
-        raise IntegrityError(f"{name!r}: a control character in a file name")
-    if any(len(part.encode("utf-8", "surrogateescape")) > _NAME_BYTES for part in path.parts):
-        raise IntegrityError(f"{shown(name[:60])}...: a name longer than {_NAME_BYTES} bytes")
+def read_package(package: str | Path, key: bytes | None) -> Package:
+    """The verified package: signature, file list, sizes and checksums checked with bounded
+    memory (:mod:`rasm.workflow.unpack`); raises :class:`IntegrityError`."""
+    return open_package(package, key)
 
 
-def _check_layout(names: list[str]) -> None:
-    """Refuse a file that is also a folder of another entry (``X`` and ``X/file``): extraction
-    would fail half-way, after writing."""
-    folders = {str(parent) for name in names for parent in PurePosixPath(name).parents}
-    for name in sorted(names):
-        if name in folders:
-            inside = next(n for n in sorted(names) if n.startswith(name + "/"))
-            raise IntegrityError(f"{shown(name)}: both a file and the folder of {shown(inside)}")
-
-
-def read_package(
-    package: str | Path, key: bytes | None
-) -> tuple[dict[str, Any], dict[str, bytes], str]:
-    """The verified manifest and contents of a package; raises :class:`IntegrityError`."""
-    path = Path(package)
+def _yaml_file(package: Package, name: str) -> Any:
     try:
-        with zipfile.ZipFile(path) as archive:
-            contents = {}
-            for info in archive.infolist():
-                if info.is_dir():
-                    continue
-                _check_entry(info.filename)
-                if info.filename in contents:
-                    raise IntegrityError(f"{shown(info.filename)}: appears twice in the package")
-                contents[info.filename] = archive.read(info)
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError) as exc:
-        raise IntegrityError(f"{path}: not a package (bad zip: {exc})") from None
-    except FileNotFoundError:
-        raise IntegrityError(f"{path}: no such package") from None
-    except IsADirectoryError:
-        raise IntegrityError(f"{path}: a folder, not a package") from None
-    except (ValueError, RuntimeError) as exc:  # an encrypted entry, a bad compression header
-        raise IntegrityError(f"{path}: not a package ({exc})") from None
-    if MANIFEST not in contents:
-        raise IntegrityError(f"{path}: no {MANIFEST}: not a rasm package")
-    raw = contents[MANIFEST]
-    signature = verify_signature(raw, contents.get(SIGNATURE), key)
-    try:
-        manifest = json.loads(raw)
-    except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, nested too deep
-        raise IntegrityError(f"{MANIFEST}: not JSON ({exc})") from None
-    if not isinstance(manifest, dict) or not isinstance(manifest.get("files"), dict):
-        raise IntegrityError(f"{MANIFEST}: no file list")
-    verify_files(manifest, contents)
-    _check_layout(list(contents))
-    return manifest, contents, signature
-
-
-def _yaml_file(contents: dict[str, bytes], name: str) -> Any:
-    try:
-        text = contents[name].decode("utf-8")
+        text = package.read(name).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise DeployError(str(not_utf8(name, exc))) from None
     try:
@@ -160,9 +96,9 @@ def _yaml_file(contents: dict[str, bytes], name: str) -> Any:
         raise DeployError(f"{error.location}: {error.message}") from None
 
 
-def _unit_config(contents: dict[str, bytes], name: str) -> dict[str, Any]:
+def _unit_config(package: Package, name: str) -> dict[str, Any]:
     """The unit's configuration, every key deploy uses present as a non-empty string."""
-    config = _yaml_file(contents, name)
+    config = _yaml_file(package, name)
     if not isinstance(config, dict):
         raise DeployError(f"{name}: a unit's configuration is a mapping")
     for key in _UNIT_KEYS:
@@ -271,17 +207,18 @@ def deploy_package(
 
     Everything is verified before anything is written: a refused package leaves ``target``
     as it was."""
-    manifest, contents, signature = read_package(package, key)
+    verified = read_package(package, key)
+    contents = verified.entries
     platform_file = f"04_Platform/{unit}.yaml"
     if platform_file not in contents:
-        listed = manifest.get("units")
+        listed = verified.manifest.get("units")
         units = ", ".join(map(str, listed)) if isinstance(listed, list) and listed else "none"
         raise DeployError(f"the package has no compute unit '{unit}' (units: {units})")
-    config = _unit_config(contents, platform_file)
+    config = _unit_config(verified, platform_file)
     workflows_file = "06_Workflows/workflows.yaml"
     if workflows_file not in contents:
         raise DeployError(f"the package has no {workflows_file}")
-    spec = _workflows(_yaml_file(contents, workflows_file), workflows_file, set(contents))
+    spec = _workflows(_yaml_file(verified, workflows_file), workflows_file, set(contents))
     for needed in ("deploy", "start") if start else ("deploy",):
         if needed not in spec["workflows"]:
             raise DeployError(f"{workflows_file}: no workflow '{needed}'")
@@ -304,18 +241,13 @@ def deploy_package(
         shutil.rmtree(extracted)
     elif extracted.exists() or extracted.is_symlink():  # never write through a link
         extracted.unlink()
-    for name, data in contents.items():
-        out = extracted / name
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_bytes(data)
-        if name.endswith(".sh"):
-            out.chmod(0o755)
+    verified.extract(extracted)
     if (target / "venv").exists():
         shutil.rmtree(target / "venv")
     (target / "unit.env").write_text(
         _env_file(config, target, python or sys.executable), encoding="utf-8"
     )
-    report = DeployReport(target, unit, config["role"], len(contents), signature)
+    report = DeployReport(target, unit, config["role"], len(contents), verified.signature)
     report.steps = run_workflow(target, "deploy", env)
     if report.ok and start:
         report.steps += run_workflow(target, "start", env)

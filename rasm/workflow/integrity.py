@@ -1,6 +1,7 @@
 """A package's integrity: a manifest with the SHA-256 of every file, optionally signed.
 
-``MANIFEST.json`` lists every file of the package with its SHA-256; ``MANIFEST.json.hmac`` (when
+``MANIFEST.json`` lists every file of the package with its SHA-256 (``files``) and its size in
+bytes (``sizes``); ``MANIFEST.json.hmac`` (when
 a key is configured) is the HMAC-SHA256 of the manifest's exact bytes, hex-encoded. The key comes
 from configuration: the environment variable ``RASM_PACKAGE_KEY`` (the key itself), or a key file
 (``--key-file`` or ``RASM_PACKAGE_KEY_FILE``; its bytes, surrounding whitespace stripped).
@@ -26,7 +27,6 @@ __all__ = [
     "manifest_bytes",
     "shown",
     "sign",
-    "verify_files",
     "verify_signature",
 ]
 
@@ -83,21 +83,6 @@ def verify_signature(manifest: bytes, signature: bytes | None, key: bytes | None
     if not hmac.compare_digest(expected, signature.decode("ascii", "replace").strip()):
         raise IntegrityError(f"{SIGNATURE}: the signature does not match the configured key")
     return "signature verified (HMAC-SHA256)"
-
-
-def verify_files(manifest: dict[str, Any], contents: dict[str, bytes]) -> None:
-    """Every listed file present with its SHA-256, and nothing unlisted (bar the manifest)."""
-    listed: dict[str, str] = manifest.get("files", {})
-    for name, expected in sorted(listed.items()):
-        if name not in contents:
-            raise IntegrityError(
-                f"{shown(name)}: listed in {MANIFEST} but missing from the package"
-            )
-        if digest(contents[name]) != expected:
-            raise IntegrityError(f"{shown(name)}: SHA-256 does not match {MANIFEST} (file changed)")
-    extra = sorted(set(contents) - set(listed) - {MANIFEST, SIGNATURE})
-    if extra:
-        raise IntegrityError(f"{shown(extra[0])}: in the package but not listed in {MANIFEST}")
 
 
 def manifest_bytes(data: dict[str, Any]) -> bytes:

@@ -9,7 +9,7 @@
     04_Platform/       per compute unit: role, transport, knowledge store, clock, checks
     05_Actions/        install, validate, run, stop (POSIX sh scripts)
     06_Workflows/      the trustworthiness checklist and workflows.yaml (actions chained)
-    MANIFEST.json      SHA-256 of every file; MANIFEST.json.hmac when a key is configured
+    MANIFEST.json      SHA-256 and size of every file; MANIFEST.json.hmac when a key is configured
 
 Wheels are real: ``pip wheel --no-deps`` of rasm's source tree and of the app (staged as package
 ``rasm_app_NAME``), and ``pip download --only-binary=:all:`` of rasm's dependencies for each CPU
@@ -490,6 +490,8 @@ def package_app(
         "rasm": metadata.version("rasm"),
         "units": sorted(model.units),
         "files": {name: digest(data) for name, data in sorted(files.items())},
+        # checked against the zip's own sizes before deploy reads any file (no zip bomb)
+        "sizes": {name: len(data) for name, data in sorted(files.items())},
     }
     raw = manifest_bytes(listing)
     output = Path(output)

@@ -191,8 +191,20 @@ def test_a_tampered_file_is_refused_naming_it(
 
     bad = rewrite(hotbox_zip, tmp_path / "bad.zip", tamper)
     assert main(["deploy", str(bad), "--unit", "local", "--to", str(tmp_path / "t")]) == 2
-    assert "05_Actions/validate.sh: SHA-256 does not match MANIFEST.json" in capsys.readouterr().err
+    # a longer file: its size no longer matches the one the signed manifest declares
+    assert ("05_Actions/validate.sh: size does not match MANIFEST.json (file changed"
+            in capsys.readouterr().err)
     assert not (tmp_path / "t").exists()
+
+    def same_size(files: dict[str, bytes]) -> dict[str, bytes]:
+        script = files["05_Actions/validate.sh"]
+        files["05_Actions/validate.sh"] = script[:-12] + b"rm -rf ~ ;\n"[:12].ljust(12)
+        return files
+
+    bad = rewrite(hotbox_zip, tmp_path / "same.zip", same_size)
+    assert main(["deploy", str(bad), "--unit", "local", "--to", str(tmp_path / "s")]) == 2
+    assert "05_Actions/validate.sh: SHA-256 does not match MANIFEST.json" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
 
 
 def test_an_added_or_missing_file_is_refused(hotbox_zip: Path, tmp_path: Path) -> None:
