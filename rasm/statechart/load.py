@@ -180,7 +180,11 @@ class _Checker:
                     col += len(skipped.rsplit("\n", 1)[-1])
             location = self.src.code_location(mapping, key, line, col)
             what = {"eval": "expression", "exec": "code"}[mode]
-            self.error(f"invalid Python {what} in '{key}': {exc.msg}", location)
+            message = exc.msg
+            if mode == "eval" and _needs_parentheses(text.strip()):
+                message = ("the expression goes on over several lines, which Python reads "
+                           "only inside parentheses: put the whole expression in ( )")
+            self.error(f"invalid Python {what} in '{key}': {message}", location)
         except (ValueError, MemoryError, RecursionError):  # past the compiler's own limits
             self.error(
                 f"the Python code in '{key}' is nested too deeply to compile",
@@ -444,6 +448,18 @@ class _Checker:
                     "step (guard one, or give them different priorities)",
                     where,
                 )
+
+
+def _needs_parentheses(text: str) -> bool:
+    """Whether ``text``, which does not compile as an expression, is one written over several
+    lines (a ``|`` block) that only lacks the parentheses that let Python join them."""
+    if "\n" not in text:
+        return False
+    try:
+        compile(f"(\n{text}\n)", "<guard>", "eval")
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        return False
+    return True
 
 
 def check_statechart(

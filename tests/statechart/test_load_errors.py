@@ -197,6 +197,39 @@ CASES = {
         21,
         "invalid Python expression in 'guard'",
     ),
+    "guard over several lines without parentheses": (
+        """
+        statechart:
+          name: x
+          root state:
+            name: r
+            transitions:
+              - event: e
+                guard: |
+                  x == 1
+                  and y < 3
+        """,
+        9,
+        11,
+        "invalid Python expression in 'guard': the expression goes on over several lines, "
+        "which Python reads only inside parentheses: put the whole expression in ( )",
+    ),
+    "guard over several lines with an error of its own": (
+        """
+        statechart:
+          name: x
+          root state:
+            name: r
+            transitions:
+              - event: e
+                guard: |
+                  x ==
+                  and y < 3
+        """,
+        8,
+        15,
+        "invalid Python expression in 'guard': invalid syntax",
+    ),
     "action syntax, block scalar": (
         """
         statechart:
