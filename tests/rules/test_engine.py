@@ -251,3 +251,38 @@ def test_a_rules_file_is_proved_once_and_reloaded_when_its_bytes_change(tmp_path
     path.write_text(INCONSISTENT, encoding="utf-8")
     with pytest.raises(RulesError):
         RuleSet.load(path)
+
+
+DOCKING = """variables:
+  battery: {type: real, min: 0, max: 100}
+  dock:    {type: bool}
+  speed:   {type: real, min: 0, max: 1}
+rules:
+  - name: dock_when_low
+    when: battery < 10
+    require: dock
+  - name: keep_moving
+    when: not dock
+    require: speed >= 0.2
+"""
+
+
+def test_a_rule_sets_plan_fields_hold_for_its_load_and_every_swap(tmp_path):
+    path = tmp_path / "dock.yaml"
+    path.write_text(DOCKING, encoding="utf-8")
+    with pytest.raises(RulesError, match="'dock_when_low', 'keep_moving' conflict"):
+        RuleSet.load(path)  # without plan fields every variable is context
+    rule_set = RuleSet.load(path, plan_fields=["dock", "speed"])
+    assert rule_set.rules.plan_fields == ["dock", "speed"]
+    assert rule_set.evaluate({"dock": True, "speed": 0.0}, {"battery": 5.0}).accepted
+    assert rule_set.evaluate({"dock": False, "speed": 0.5}, {"battery": 5.0}).broken == (
+        "dock_when_low",
+    )
+    # a new version is judged with the same plan fields
+    result = rule_set.swap_text(DOCKING.replace(">= 0.2", ">= 0.3"), source="v2.yaml")
+    assert result.accepted, result.reason
+    assert rule_set.rules.plan_fields == ["dock", "speed"]
+    stuck = DOCKING + "  - name: never_docked\n    when: dock\n    require: false\n"
+    result = rule_set.swap_text(stuck, source="v3.yaml")
+    assert not result.accepted and "rules 'dock_when_low', 'never_docked' conflict" in result.reason
+    assert rule_set.rules.source == "v2.yaml"
