@@ -157,14 +157,21 @@ def print_summary(summary: RunSummary, console: Console) -> None:
     verdicts.add_column("errors", justify="right")
     for name, state in summary.verdicts.items():
         outcome = summary.outcomes.get(name)
+        vacuous = outcome is not None and outcome.passed and bool(outcome.vacuous)
         verdicts.add_row(
             name,
-            Text(state, style=_STYLE.get(state, "")),
+            Text(f"{state}*" if vacuous else state, style=_STYLE.get(state, "")),
             str(outcome.judged) if outcome else "",
             str(summary.violations.get(name, 0)),
             str(outcome.errors) if outcome else "",
         )
     console.print(verdicts)
+    untested = [o for o in summary.outcomes.values() if o.passed and o.vacuous]
+    if untested:
+        # passing, but part of the property was never put to the test: say what never happened
+        console.print("* never put to the test:")
+        for outcome in untested:
+            console.print(f"  {outcome.name}: {outcome.word}", soft_wrap=True, markup=False)
     failing = [name for name, state in summary.verdicts.items() if state not in PASSING]
     if failing:
         # one line each, never wrapped: the signal names and the error are what to act on

@@ -71,6 +71,7 @@ from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.platform.twin_learning import TwinLearning
 from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 from rasm.properties.monitor import Monitor, Verdict
+from rasm.properties.vacuity import Vacuity
 from rasm.statechart import MonotonicClock, SimulatedClock
 from rasm.trace import TraceWriter, open_trace_writer
 from rasm.twin import DigitalTwin
@@ -306,6 +307,7 @@ class Platform:
         self.rules = [RuleSet.load(path, plan_fields=m.plan_fields) for path in m.rules]
         check_repair_weights(m, self.rules)
         monitors: list[Monitor] = compile_app_properties(m)
+        vacuity = [Vacuity(monitor.spec) for monitor in monitors]  # before external verdicts
         if self.external.sources:
             monitors.append(self.external)
         # the managed system's modes chart, stepped by every batch of values stored
@@ -333,6 +335,7 @@ class Platform:
             mode_of=self._managed_system_mode,
             online=lambda: self.dist.managed_online,
             observers=self.on_verdict,  # the list itself: observers added later are called
+            vacuity=vacuity,
             clock=clock,
             depends_on=("sm", "cm"),
         )

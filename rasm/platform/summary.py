@@ -73,6 +73,7 @@ class RunSummary:
                 "errors": o.errors,
                 "first_error": o.first_error,
                 "missing": list(o.missing),
+                "vacuous": [u.text for u in o.vacuous],
             }
             for o in self.outcomes.values()
         ]

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import Any, Protocol
 
 from rasm.platform.block import Block
 from rasm.platform.components import Action
 from rasm.platform.manifest import Effector
 from rasm.properties.monitor import Verdict
-from rasm.properties.outcome import PropertyOutcome
+from rasm.properties.outcome import PropertyOutcome, Untested
 
-__all__ = ["PropertyMonitor", "TrustworthinessChecker"]
+__all__ = ["AntecedentWatch", "PropertyMonitor", "TrustworthinessChecker"]
 
 _log = logging.getLogger("rasm.tc")
 
@@ -35,6 +35,20 @@ class PropertyMonitor(Protocol):
         """The signals property ``name`` still waits for."""
 
 
+class AntecedentWatch(Protocol):
+    """What tells a property satisfied vacuously (:class:`rasm.properties.vacuity.Vacuity`):
+    fed the same records as the monitors, it names the antecedents that never held."""
+
+    def step(self, time: float, values: Mapping[str, object]) -> None:
+        """Take one record."""
+
+    def finish(self) -> None:
+        """The end of the trace."""
+
+    def vacuous(self, name: str) -> tuple[Untested, ...]:
+        """The antecedents of property ``name`` that have not held on a judged record."""
+
+
 class TrustworthinessChecker(Block):
     """Trustworthiness Checker (tc): ``register_action`` and the online property monitors.
 
@@ -45,7 +59,8 @@ class TrustworthinessChecker(Block):
     ``latest`` holds each property's latest verdict, ``outcomes`` counts them all (its state is
     the property's overall verdict so far). A monitor that raises on a record makes every
     property it checks ``error`` for that record: the checker cannot vouch for them there, and
-    says so.
+    says so. ``vacuity`` watches the antecedents of the properties' ``->``: at the end, each
+    outcome names those that never held (``vacuous``).
     """
 
     chart_name = "trustworthiness_checker"
@@ -60,10 +75,12 @@ class TrustworthinessChecker(Block):
         mode_of: Callable[[], str | Collection[str] | None],
         observers: list[Callable[[Verdict], Any]] | None = None,
         online: Callable[[], bool] = lambda: True,
+        vacuity: Sequence[AntecedentWatch] = (),
         **kw: Any,
     ) -> None:
         self.online = online
         self.monitors = monitors
+        self.vacuity = list(vacuity)
         self.effectors = effectors
         self.send_to_effector = send
         self.mode_of = mode_of
@@ -82,6 +99,7 @@ class TrustworthinessChecker(Block):
         self.monitor_failures = 0  # records on which a monitor raised
         # monitor -> records it failed on since it last worked
         self._failing: dict[PropertyMonitor, int] = {}
+        self._dropped_watches: list[AntecedentWatch] = []  # watches that raised
         self._action: Action | None = None
         self._outcome: tuple[bool, str] = (False, "")
         super().__init__(**kw)
@@ -101,7 +119,19 @@ class TrustworthinessChecker(Block):
                     self._recovered(monitor, time)
             decided += verdicts
         self._take(decided)
+        for watch in self.vacuity:
+            try:
+                watch.step(time, record)
+            except Exception as exc:  # an antecedent it misses stays vacuous: said, not hidden
+                self._watch_failed(watch, time, exc)
         return decided
+
+    def _watch_failed(self, watch: AntecedentWatch, time: float, exc: Exception) -> None:
+        self.vacuity.remove(watch)
+        self._dropped_watches.append(watch)
+        _log.error("watching the antecedents of %s failed at t=%g: %s: %s; those that have not "
+                   "held so far are reported vacuous", _origin(watch), time,
+                   type(exc).__name__, exc, exc_info=exc)
 
     def finish(self) -> list[Verdict]:
         """The end of the run: settle every monitor (``None``: the run ended before a verdict
@@ -114,9 +144,16 @@ class TrustworthinessChecker(Block):
                 verdicts = self._failed(monitor, self.records, self.clock.time, exc)
             decided += verdicts
         self._take(decided)
+        for watch in list(self.vacuity):
+            try:
+                watch.finish()
+            except Exception as exc:
+                self._watch_failed(watch, self.clock.time, exc)
+        watches = [*self.vacuity, *self._dropped_watches]
         for name, outcome in self.outcomes.items():
             if not outcome.judged:
                 outcome.missing = self.missing(name)
+            outcome.vacuous = tuple(u for watch in watches for u in watch.vacuous(name))
         return decided
 
     def add_monitor(self, monitor: PropertyMonitor) -> None:

@@ -32,6 +32,7 @@ from rasm.properties.outcome import (
 )
 from rasm.properties.printer import format_value
 from rasm.properties.times import nanoseconds
+from rasm.properties.vacuity import Vacuity
 
 __all__ = ["CheckReport", "PropertyReport", "check_file", "check_records", "check_stream",
            "format_json", "format_text", "format_verdicts"]
@@ -172,10 +173,15 @@ def check_records(
 ) -> CheckReport:
     """Run every property of ``spec`` over ``records`` (already read and checked)."""
     runs = Monitor(spec).run(records)
+    vacuity = Vacuity(spec)
+    vacuity.feed(records)
+    vacuity.settle()
     times = [t for t, _ in records]
     reports = []
     for prop, run in zip(spec.properties, runs, strict=True):
-        reports.append(PropertyReport.of(prop.name, str(prop.location), run, times))
+        report = PropertyReport.of(prop.name, str(prop.location), run, times)
+        report.outcome.vacuous = vacuity.vacuous(prop.name)
+        reports.append(report)
     if explain_violations:
         limit = EXPLAINED + SUMMARISED
         wanted = {r.name: [i for i, _ in r.violations[:limit]] for r in reports if r.violations}
@@ -259,6 +265,7 @@ def check_stream(
     many records are checked between two counts of the verdicts.
     """
     monitor = Monitor(spec)
+    vacuity = Vacuity(spec)
     spools: list = []
     if verdicts is not None:
         # the lines go out property by property, and only for a trace read to its end without
@@ -290,10 +297,12 @@ def check_stream(
         records = iter(records)
         while part := list(islice(records, chunk)):
             monitor.feed(part)
+            vacuity.feed(part)
             times.held.extend([t for t, _ in part])
             count += len(part)
             take()
         monitor.settle()
+        vacuity.settle()
         take()
         for spool in spools:
             spool.seek(0)
@@ -307,6 +316,7 @@ def check_stream(
     for k, (prop, tally) in enumerate(zip(spec.properties, tallies, strict=True)):
         if monitor.starts[k] is None:
             tally.outcome.missing = monitor.missing(prop.name)
+        tally.outcome.vacuous = vacuity.vacuous(prop.name)
         reports.append(PropertyReport(prop.name, str(prop.location), tally.outcome,
                                       tally.violations, None, tally.first_errors))
     if again is not None:
@@ -386,7 +396,8 @@ def _lookahead(node: Expr) -> int:
 def format_json(report: CheckReport) -> str:
     """``--format json``: one JSON object; ``verdict`` is one of the five states, ``errors``
     counts the records where the property could not be evaluated (``first_error`` says why),
-    ``missing`` names the signals a property that was never judged waits for."""
+    ``missing`` names the signals a property that was never judged waits for, ``vacuous`` the
+    left sides of its ``->`` that never held on a judged record."""
     out: dict = {"records": report.records}
     if report.damage:
         out["damage"] = [_damage_json(d) for d in report.damage]
@@ -403,6 +414,7 @@ def format_json(report: CheckReport) -> str:
                     "errors": p.outcome.errors,
                     "first_error": p.outcome.first_error,
                     "missing": list(p.missing),
+                    "vacuous": [u.text for u in p.outcome.vacuous],
                     **({"lost_data": True} if p.lost_data else {}),
                 }
                 for p in report.properties
@@ -514,7 +526,11 @@ def format_text(report: CheckReport) -> str:
             out.append(f"  {p.name}: inconclusive ({p.inconclusive} of {p.judged} records "
                        f"depend on records after the end of the trace)  [{p.location}]")
         else:
-            out.append(f"  {p.name}: satisfied ({p.judged} records judged)")
+            if p.outcome.vacuous:
+                out.append(f"  {p.name}: {p.outcome.word}, {p.judged} records judged  "
+                           f"[{p.location}]")
+            else:
+                out.append(f"  {p.name}: satisfied ({p.judged} records judged)")
     if report.damage:
         out.append(f"damaged: {report.trace} lost data:")
         out.extend(f"  {d.describe()}" for d in report.damage)
@@ -539,7 +555,11 @@ def _tally_line(report: CheckReport) -> str:
     counts = {state: 0 for state in STATE_ORDER}
     for p in report.properties:
         counts[p.verdict] += 1
-    states = ", ".join(f"{n} {state}" for state, n in counts.items() if n)
+    vacuous = sum(1 for p in report.properties if p.verdict == SATISFIED and p.outcome.vacuous)
+    states = ", ".join(
+        f"{n} {state}" + (f" ({vacuous} vacuously)" if state == SATISFIED and vacuous else "")
+        for state, n in counts.items() if n
+    )
     lost = sum(1 for p in report.properties if p.lost_data)
     damaged = (f"; the recording is damaged: {lost} verdict"
                f"{'s depend' if lost != 1 else ' depends'} on what it lost" if lost else "")

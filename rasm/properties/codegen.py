@@ -122,7 +122,7 @@ def generate(
             finishes.append(
                 [f"if {started}:", *(_indent(line) for line in _guarded(finish, number, True))]
             )
-    program.source = _assemble(spec, gen, blocks, finishes, events)
+    program.source = _assemble(spec, gen, blocks, finishes, events, program.reads)
     return program
 
 
@@ -171,10 +171,12 @@ def _render(line, mode: str) -> str | None:
     return f"{pad}FAULT_RUN({number}, i, {'None' if finishing else 'tn'}, _exc)"
 
 
-def _assemble(spec, gen: FormulaGenerator, blocks, finishes, events) -> str:
+def _assemble(spec, gen: FormulaGenerator, blocks, finishes, events, reads) -> str:
     # an event holds no value from one record to the next (absent means false): its variable is
-    # a local of each function, set by every record; only inputs are held in the closure
+    # a local of each function, set by every record; only inputs are held in the closure.
+    # A warm-up may wait for a signal no formula reads (``reads``): it is held all the same.
     used = checked_signals(spec)
+    used += dict.fromkeys(name for warm in reads for name in warm if name not in used)
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     for name in used:
         if name not in events:

@@ -7,6 +7,10 @@
   ``missing``);
 * **error** — evaluating it raised at some record: the checker could not vouch for it there.
 
+A satisfied property may be satisfied *vacuously*: the left side of one of its ``->`` never held
+on a judged record (``vacuous``), so that part was never put to the test. It still passes, and
+every report says so: "satisfied (vacuously: anomaly never happened)".
+
 Only satisfied and inconclusive pass: ``rasm run``, ``rasm check``, ``rasm.testing`` and the
 report all read the state from :class:`PropertyOutcome`, so they agree.
 """
@@ -14,6 +18,7 @@ report all read the state from :class:`PropertyOutcome`, so they agree.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 __all__ = [
     "ERROR",
@@ -24,6 +29,7 @@ __all__ = [
     "STATES",
     "VIOLATED",
     "PropertyOutcome",
+    "Untested",
 ]
 
 SATISFIED = "satisfied"
@@ -33,6 +39,18 @@ NOT_JUDGED = "not judged"
 ERROR = "error"
 STATES = (SATISFIED, VIOLATED, INCONCLUSIVE, NOT_JUDGED, ERROR)
 PASSING = frozenset((SATISFIED, INCONCLUSIVE))
+
+
+class Untested(NamedTuple):
+    """The left side of an ``->`` that never held on a judged record: its text (a let's name
+    where it is one), and whether it is an event (which *happens* rather than *holds*)."""
+
+    text: str
+    event: bool = False
+
+    def phrase(self) -> str:
+        """``anomaly never happened``, ``speed > 1 never held``."""
+        return f"{self.text} never {'happened' if self.event else 'held'}"
 
 
 @dataclass
@@ -46,6 +64,7 @@ class PropertyOutcome:
     inconclusive: int = 0
     first_error: str | None = None
     missing: tuple[str, ...] = field(default_factory=tuple)  # never had a value (not judged)
+    vacuous: tuple[Untested, ...] = ()  # antecedents that never held on a judged record
 
     def add(self, value: bool | None, error: str | None = None) -> None:
         """Count one verdict (a :class:`~rasm.properties.monitor.Verdict`'s value and error)."""
@@ -76,6 +95,15 @@ class PropertyOutcome:
     def passed(self) -> bool:
         return self.state in PASSING
 
+    @property
+    def word(self) -> str:
+        """The state, and for a vacuously satisfied property what never happened:
+        ``satisfied (vacuously: anomaly never happened)``."""
+        state = self.state
+        if state == SATISFIED and self.vacuous:
+            return f"{state} (vacuously: {', '.join(u.phrase() for u in self.vacuous)})"
+        return state
+
     def describe(self) -> str:
         """The state in words, with what a reader needs next (counts, the first error)."""
         state = self.state
@@ -92,4 +120,4 @@ class PropertyOutcome:
             return "not judged: no record reached it"
         if state == INCONCLUSIVE:
             return f"inconclusive at {self.inconclusive} of {self.judged} records (trace ended)"
-        return f"satisfied at {self.judged} records"
+        return f"{self.word} at {self.judged} records"

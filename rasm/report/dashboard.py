@@ -124,11 +124,17 @@ class Dashboard:
                 timeline.add(verdict.time, verdict.value, verdict.error)
 
     def _name_missing(self) -> None:
-        """The signals each property never judged waits for, as the checker says."""
+        """The signals each property never judged waits for, and the antecedents that never
+        held, as the checker says at the end."""
         tc = getattr(self.platform, "tc", None)
+        if tc is None:
+            return
         for name, timeline in self.timelines.items():
-            if not timeline.judged and tc is not None:
+            if not timeline.judged:
                 timeline.outcome.missing = tc.missing(name)
+            outcome = tc.outcomes.get(name)
+            if outcome is not None:
+                timeline.outcome.vacuous = outcome.vacuous
 
     def on_record(self, time: float, record: dict[str, Any]) -> None:
         """``platform.on_record`` observer: runs on the loop thread for every trace record."""

@@ -108,6 +108,8 @@ class VerdictTimeline:
             "first_error": self.outcome.first_error,
             "missing": list(self.outcome.missing),
             "verdict": self.verdict,
+            "word": self.outcome.word,  # the verdict, "satisfied (vacuously: …)" where it is
+            "vacuous": [u.text for u in self.outcome.vacuous],
             "describe": self.outcome.describe(),
         }
 
@@ -135,6 +137,7 @@ def check_trace(specs: Sequence[Specification], trace: str | Path) -> list[Verdi
             if times and timeline.runs:
                 timeline.runs[-1][1] = times[-1]
             timeline.outcome.missing = result.missing
+            timeline.outcome.vacuous = result.outcome.vacuous
             timeline.violations = []
             for index, time in result.violations:
                 entry: dict[str, Any] = {"time": time, "index": index}

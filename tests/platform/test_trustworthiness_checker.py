@@ -5,10 +5,14 @@ from __future__ import annotations
 from hypothesis import given, settings
 
 from rasm import Action, Platform
-from rasm.platform.manifest import Effector
+from rasm.cli import main
+from rasm.platform.manifest import Effector, load_manifest
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.properties import compile_properties
+from rasm.properties.outcome import Untested
+from rasm.properties.vacuity import Vacuity
 
+from .conftest import HOTBOX
 from .scripted import Scripted
 from .test_trustworthiness_manager import STEPS
 
@@ -110,3 +114,65 @@ def test_the_checker_counts_every_record_a_monitor_failed_on_as_an_error(steps):
     if not outcome.judged:
         assert outcome.state == "not judged"
 
+
+
+def test_the_checker_names_the_antecedents_that_never_held_at_the_end():
+    monitor = compile_properties(
+        "input x: float\nevent alarm\nevent reset\n"
+        "property calm: always (alarm -> x < 1)\nproperty back: always (reset -> x < 2)\n"
+    )
+    tc = TrustworthinessChecker(
+        monitors=[monitor], effectors={}, send=lambda effector, action: None,
+        mode_of=lambda: None, vacuity=[Vacuity(monitor.spec)],
+    )
+    tc.observe(0.0, {"x": 0.5})
+    tc.observe(1.0, {"x": 0.5, "reset": True})
+    tc.finish()
+    assert tc.outcomes["calm"].vacuous == (Untested("alarm", event=True),)
+    assert tc.outcomes["calm"].word == "satisfied (vacuously: alarm never happened)"
+    assert tc.outcomes["back"].vacuous == () and tc.outcomes["back"].word == "satisfied"
+
+
+class _BrokenWatch:
+    spec = None
+
+    def step(self, time, values):
+        raise RuntimeError("broken watch")
+
+    def finish(self):
+        raise AssertionError("a watch that raised is not stepped again")
+
+    def vacuous(self, name):
+        return (Untested("alarm", event=True),)
+
+
+def test_a_failing_antecedent_watch_never_stops_the_checker_and_leaves_them_vacuous(caplog):
+    monitor = compile_properties("input x: float\nevent alarm\nproperty calm: always (alarm -> "
+                                 "x < 1)\n")
+    tc = TrustworthinessChecker(
+        monitors=[monitor], effectors={}, send=lambda effector, action: None,
+        mode_of=lambda: None, vacuity=[_BrokenWatch()],
+    )
+    assert [v.value for v in tc.observe(0.0, {"x": 0.5, "alarm": True})] == [True]
+    assert [v.value for v in tc.observe(1.0, {"x": 0.5})] == [True]
+    tc.finish()
+    assert "broken watch" in caplog.text
+    # it cannot vouch that the alarm was put to the test: the property says vacuously
+    assert tc.outcomes["calm"].word == "satisfied (vacuously: alarm never happened)"
+
+
+def test_a_run_without_an_anomaly_says_its_timeliness_was_never_put_to_the_test(
+    tmp_path, capsys, monkeypatch
+):
+    # the Hotbox's lid first opens at 8 s: in 5 s nothing happens that the loop must answer
+    monkeypatch.chdir(tmp_path)
+    code = main(["run", str(HOTBOX), "--clock", "simulated", "--seed", "1", "--duration", "5"])
+    out = capsys.readouterr().out
+    assert code == 0  # vacuously satisfied still passes
+    assert "timely_response: satisfied (vacuously: anomaly never happened)" in out
+    assert "boost_while_open" in out
+    summary = Platform(load_manifest(HOTBOX), clock="simulated", seed=1,
+                       knowledge="memory").run(5)
+    listed = {p["name"]: p["vacuous"] for p in summary.properties()}
+    assert listed["timely_response"] == ["anomaly"] and listed["prompt_planning"] == ["anomaly"]
+    assert listed["stage_order"] == []  # the stages did move: it was put to the test

@@ -92,6 +92,7 @@ def test_json_report(props, tmp_path, capsys):
         "errors": 0,
         "first_error": None,
         "missing": [],
+        "vacuous": [],
     }
     # the anomaly at 5.5 cannot be decided: the trace ends before its window does
     assert second["verdict"] == "violated"

@@ -261,7 +261,7 @@
         var why = p.verdict === "satisfied" ? "" : (p.describe || "");
         return '<tr data-property="' + esc(p.name) + '"><td>' + esc(p.name) +
           '</td><td class="verdict-' + esc(String(p.verdict).replace(/ /g, "-")) + '">' +
-          esc(p.verdict) + "</td><td>" + p.violated + "</td><td>" + p.errors +
+          esc(p.word || p.verdict) + "</td><td>" + p.violated + "</td><td>" + p.errors +
           "</td><td>" + p.judged + "</td><td>" + esc(why) + "</td><td>" +
           esc(p.reads.join(", ")) + "</td><td>" + esc(p.source) + "</td></tr>";
       }).join("") + "</tbody>";
