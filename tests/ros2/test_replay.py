@@ -81,6 +81,23 @@ def test_rasm_check_reads_a_recording_with_the_apps_probes(tmp_path, capsys, sto
     assert odom_times[0] == pytest.approx((T0 + 21 * 100_000_000 - STAMP_LAG) / 1e9, abs=1e-9)
 
 
+def test_a_loop_property_over_a_recording_is_said_to_be_vacuous(tmp_path, capsys):
+    # a recording of the robot's topics holds no loop events: the timeliness of the loop was
+    # never put to the test, and rasm check says so rather than a plain "satisfied"
+    bag = record(tmp_path / "bag")
+    props = tmp_path / "loop.rv"
+    props.write_text("input speed: float\nevent anomaly\nevent executed\n"
+                     "property timely: always (anomaly -> eventually[0, 5s] executed)\n"
+                     "property slow: always (speed < 1)\n")
+    code = main(["check", str(props), str(bag), "--app", str(GUARD), "--format", "json"])
+    assert code == 0
+    report = {p["name"]: p for p in json.loads(capsys.readouterr().out)["properties"]}
+    assert report["timely"]["verdict"] == "satisfied" and report["timely"]["vacuous"] == ["anomaly"]
+    assert report["slow"]["vacuous"] == []
+    assert main(["check", str(props), str(bag), "--app", str(GUARD)]) == 0
+    assert "timely: satisfied (vacuously: anomaly never happened)" in capsys.readouterr().out
+
+
 def test_rasm_check_reads_a_recording_with_a_topic_map(tmp_path, capsys):
     bag = record(tmp_path / "bag")
     topics = tmp_path / "topics.yaml"
