@@ -18,9 +18,9 @@ from typing import TextIO
 
 from rasm.errors import SpecError
 from rasm.losses import Damage
-from rasm.properties.ast import Expr, Future, Specification, Until, children
+from rasm.properties.ast import Specification
 from rasm.properties.codegen import checked_signals
-from rasm.properties.explain import Explanation, explain
+from rasm.properties.explain import Explanation, explain, seconds
 from rasm.properties.monitor import Monitor, PropertyRun
 from rasm.properties.outcome import (
     ERROR,
@@ -31,7 +31,6 @@ from rasm.properties.outcome import (
     PropertyOutcome,
 )
 from rasm.properties.printer import format_value
-from rasm.properties.times import nanoseconds
 from rasm.properties.vacuity import Vacuity
 
 __all__ = ["CheckReport", "PropertyReport", "check_file", "check_records", "check_stream",
@@ -364,33 +363,16 @@ def check_file(
 
 def _explain_first(spec: Specification, reports: list[PropertyReport],
                    again: Callable[[], Iterable[tuple[float, Mapping[str, object]]]]) -> None:
-    """Explain each property's first violations from the trace read again, up to where the
-    explanations can look: past the last violation explained by twice the farthest any
-    property looks ahead (a sub-formula's value there may look that far again)."""
+    """Explain each property's first violations from the trace read again, as far as the
+    explanations need it, holding only the records they may still look at
+    (:class:`~rasm.properties.explain.Explainer`)."""
     limit = EXPLAINED + SUMMARISED
     wanted = {r.name: [i for i, _ in r.violations[:limit]] for r in reports if r.violations}
     if not wanted:
         return
-    last = max(i for indices in wanted.values() for i in indices)
-    reach = 2 * max(_lookahead(p.formula) for p in spec.properties)
-    prefix: list[tuple[float, Mapping[str, object]]] = []
-    end_ns = None
-    for record in again():
-        prefix.append(record)
-        ns = nanoseconds(record[0])
-        if len(prefix) == last + 1:
-            end_ns = ns + reach
-        elif end_ns is not None and ns > end_ns:
-            break  # this record closes every window the explanations look into
-    explanations = explain(spec, prefix, wanted)
+    explanations = explain(spec, again(), wanted)
     for report in reports:
         report.explanations = [explanations[(report.name, i)] for i in wanted.get(report.name, [])]
-
-
-def _lookahead(node: Expr) -> int:
-    """How far past a record (ns) the value of ``node`` there may depend on records."""
-    own = node.bound.high_ns if isinstance(node, (Future, Until)) else 0
-    return own + max((_lookahead(child) for child in children(node)), default=0)
 
 
 def format_json(report: CheckReport) -> str:
@@ -494,16 +476,16 @@ def format_text(report: CheckReport) -> str:
             first_index, first_time = p.violations[0]
             out.append(
                 f"  {p.name}: VIOLATED at {p.outcome.violations} of {p.judged} judged records "
-                f"(first: record {first_index}, time {first_time:g})  [{p.location}]"
+                f"(first: record {first_index}, time {seconds(first_time)})  [{p.location}]"
             )
             for e in p.explanations[:EXPLAINED]:
-                out.append(f"    at record {e.index} (time {e.time:g}):")
+                out.append(f"    at record {e.index} (time {seconds(e.time)}):")
                 out.extend("      " + line for line in e.lines)
                 values = ", ".join(f"{k} = {format_value(v)}" for k, v in e.signals.items())
                 if values:
                     out.append(f"      signals: {values}")
             for e in p.explanations[EXPLAINED:]:
-                out.append(f"    at record {e.index} (time {e.time:g}): {_one_line(e)}")
+                out.append(f"    at record {e.index} (time {seconds(e.time)}): {_one_line(e)}")
             hidden = p.outcome.violations - len(p.explanations)
             if hidden > 0:
                 more = ", ".join(f"{i}" for i, _ in p.violations[len(p.explanations):][:20])
@@ -541,7 +523,7 @@ def format_text(report: CheckReport) -> str:
 def _errors(p: PropertyReport) -> list[str]:
     """The first records where ``p`` could not be evaluated, and why."""
     first = p.first_errors
-    out = [f"    in error at record {i} (time {t:g}): {why}" for i, t, why in first[:5]]
+    out = [f"    in error at record {i} (time {seconds(t)}): {why}" for i, t, why in first[:5]]
     count = p.outcome.errors
     if count > 5:
         more = ", ".join(str(i) for i, _, _ in first[5:ERRORS_NAMED])

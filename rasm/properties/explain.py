@@ -5,13 +5,20 @@ warmed up like its parent, so its values are the ones it had inside the parent) 
 is run once more through those probes. An explanation then walks down from the property: for
 ``and`` the false conjuncts, for ``->`` the consequent, for ``historically`` the record inside
 the window where the operand failed, for a comparison the values of both sides, and so on.
+
+The records pass by one chunk at a time (:class:`Explainer`): only those an explanation still
+to give may look at are kept — from as far back as its past windows reach to as far ahead as its
+future windows do — and never more than ``keep`` of them. A past window that reaches further
+back than the records kept says so ("… earlier records not kept"); the verdicts themselves are
+exact either way. Values are abridged: a long string shows its start and its length.
 """
 
 from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from itertools import islice
 
 from rasm.properties.ast import (
     COMPARISONS,
@@ -38,14 +45,34 @@ from rasm.properties.monitor import Monitor
 from rasm.properties.printer import format_value, unparse
 from rasm.properties.times import nanoseconds
 
-__all__ = ["Explanation", "explain"]
+__all__ = ["ABRIDGE", "KEEP", "Explainer", "Explanation", "abridge", "explain", "seconds"]
 
 MAX_LINES = 12
+KEEP = 65_536  # records kept for the explanations still to give, at most
+ABRIDGE = 80  # characters of a string value shown in an explanation
+
+
+def abridge(value: object) -> object:
+    """``value`` as an explanation shows it: a string longer than :data:`ABRIDGE` characters
+    is cut, with its length (one 10 MB value is not 10 MB of explanation)."""
+    if isinstance(value, str) and len(value) > ABRIDGE:
+        return f"{value[:ABRIDGE]}… ({len(value):,} characters)"
+    return value
+
+
+def seconds(time: object) -> str:
+    """A record time as reports print it (``12.5``), whatever number it is (an int, a float,
+    a Decimal, a Fraction)."""
+    try:
+        return f"{time:g}"
+    except (TypeError, ValueError):
+        return f"{float(time):g}"  # a Fraction has no format of its own
 
 
 @dataclass(frozen=True)
 class Explanation:
-    """Why ``property`` was false at record ``index``: text lines and the signal values."""
+    """Why ``property`` was false at record ``index``: text lines and the signal values
+    (abridged)."""
 
     property: str
     index: int
@@ -68,36 +95,243 @@ def _subformulas(node: Expr) -> list[Expr]:
     return found
 
 
-class _Tables:
-    """Every sub-formula's value at every judged record, from one run of the probes."""
+def _reach(node: Expr) -> tuple[int | float, int | float]:
+    """How far before and after a record (ns) an explanation of ``node`` there may look: it
+    walks down through ``not``, ``and``, ``or``, ``->`` and the windows of the temporal
+    operators; every other node is shown by its value at the record itself."""
+    if isinstance(node, Past):
+        back, ahead = _reach(node.operand)
+        return back + node.bound.high_ns, ahead
+    if isinstance(node, Future):
+        back, ahead = _reach(node.operand)
+        return back, ahead + node.bound.high_ns
+    if isinstance(node, Not) or (isinstance(node, Binary) and node.op in ("and", "or", "->")):
+        reaches = [_reach(child) for child in children(node)]
+        return max(r[0] for r in reaches), max(r[1] for r in reaches)
+    return 0, 0
 
-    def __init__(self, spec: Specification, prop: Property, records: Sequence) -> None:
+
+class _Rows:
+    """The records kept for one property's explanations: their times (as given and in exact
+    ns) and every probe's values, by record index, from ``first`` on. A probe's values arrive
+    when it has decided them (a future window's later), so each probe has its own end."""
+
+    def __init__(self, probes: int) -> None:
+        self.first = 0  # the index of the oldest record kept
+        self.times: list = []
+        self.ns: list[int] = []
+        self.values: list[list] = [[] for _ in range(probes)]
+        self.value_first: list[int | None] = [None] * probes  # the index of values[k][0]
+        self.dropped_ns: int | None = None  # the time of the newest record no longer kept
+
+    @property
+    def end(self) -> int:
+        return self.first + len(self.times)
+
+    def add(self, records: Sequence[tuple[float, Mapping[str, object]]]) -> None:
+        self.times.extend(t for t, _ in records)
+        self.ns.extend(nanoseconds(t) for t, _ in records)
+
+    def add_values(self, k: int, first: int, values: list) -> None:
+        """Probe ``k``'s values of records ``first``, ``first + 1``, …; those of records no
+        longer kept are left out."""
+        if not values:
+            return
+        if self.value_first[k] is None:
+            self.value_first[k] = max(first, self.first)
+        kept = self.values[k]
+        skip = self.value_first[k] + len(kept) - first
+        kept.extend(values[skip:] if skip > 0 else values)
+
+    def delivered(self) -> int:
+        """The records below this index have every probe's value."""
+        ends = [f + len(v) for f, v in zip(self.value_first, self.values, strict=True)
+                if f is not None]
+        return min(ends) if len(ends) == len(self.values) else -1
+
+    def drop_before(self, index: int) -> None:
+        cut = index - self.first
+        if cut <= 0:
+            return
+        self.dropped_ns = self.ns[min(cut, len(self.ns)) - 1]
+        del self.times[:cut], self.ns[:cut]
+        self.first = index
+        for k, first in enumerate(self.value_first):
+            if first is not None and first < index:
+                del self.values[k][: index - first]
+                self.value_first[k] = index
+
+    def value(self, k: int, index: int):
+        first = self.value_first[k]
+        assert first is not None
+        return self.values[k][index - first]
+
+
+class _Part:
+    """One violated property: its probes run over the records as they come, and its wanted
+    violations explained as soon as every record their windows reach has its values."""
+
+    def __init__(self, spec: Specification, prop: Property, wanted: list[int], keep: int) -> None:
+        self.name = prop.name
+        self.formula = prop.formula
+        self.keep = keep
+        self.reads = tuple(signals_of(prop.formula))
         nodes = _subformulas(prop.formula)
-        probes = tuple(Property(f"#{k}", node) for k, node in enumerate(nodes))
+        self.probes = len(nodes)
+        self.number = {node: k for k, node in enumerate(nodes)}  # equal nodes: one of them
         probe_spec = Specification(
             source=spec.source,
             inputs=spec.inputs,
             events=spec.events,
             lets=(),
-            properties=probes,
+            properties=tuple(Property(f"#{k}", node) for k, node in enumerate(nodes)),
             signals=spec.signals,
         )
-        reads = [tuple(signals_of(prop.formula))] * len(probes)
-        runs = Monitor(probe_spec, reads=reads).run(records)
-        self.values = {node: run for node, run in zip(nodes, runs, strict=True)}
+        self.monitor = Monitor(probe_spec, reads=[self.reads] * len(nodes))
+        self.rows = _Rows(len(nodes))
+        self.back, self.ahead = _reach(prop.formula)
+        self.pending = sorted(set(wanted))
+        self.explained: list[Explanation] = []
 
-    def value(self, node: Expr, index: int):
-        if isinstance(node, Literal):
-            return node.value
-        run = self.values[node]
-        return run.values[index - run.start]
+    @property
+    def done(self) -> bool:
+        return not self.pending
+
+    def feed(self, records: list, snapshots: Mapping[int, dict]) -> None:
+        self.rows.add(records)
+        self.monitor.feed(records)
+        self._take()
+        self._explain_ready(snapshots, final=False)
+        self._trim(snapshots)
+
+    def finish(self, snapshots: Mapping[int, dict]) -> None:
+        if self.pending:
+            self.monitor.settle()
+            self._take()
+            self._explain_ready(snapshots, final=True)
+
+    def _take(self) -> None:
+        for k in range(self.probes):
+            first, values, _ = self.monitor.take(k)
+            self.rows.add_values(k, first, values)
+
+    def _explain_ready(self, snapshots: Mapping[int, dict], final: bool) -> None:
+        rows = self.rows
+        delivered = rows.end if final else rows.delivered()
+        while self.pending and self.pending[0] < rows.end:
+            i = self.pending[0]
+            if not final:
+                # every record up to the farthest its future windows reach has its values
+                after = bisect_right(rows.ns, rows.ns[i - rows.first] + self.ahead,
+                                     i - rows.first) + rows.first
+                if after >= rows.end or delivered < after:
+                    return
+            self._explain(i, snapshots)
+            self.pending.pop(0)
+
+    def _explain(self, i: int, snapshots: Mapping[int, dict], lines: tuple[str, ...] = ()) -> None:
+        start = self.monitor.starts[0] or 0
+        if not lines:
+            explainer = _Explainer(self.rows, self.number, start)
+            explainer.explain(self.formula, i, True, 0)
+            lines = tuple(explainer.lines)
+        held = snapshots.get(i, {})
+        self.explained.append(Explanation(
+            self.name, i, self.rows.times[i - self.rows.first], lines,
+            {n: abridge(held.get(n)) for n in self.reads},
+        ))
+
+    def _trim(self, snapshots: Mapping[int, dict]) -> None:
+        """Keep only the records the explanations still to give may look at (``keep`` at
+        most: one whose own record would go is given without its detail)."""
+        rows = self.rows
+        if not self.pending:
+            rows.drop_before(rows.end)
+            return
+        i = self.pending[0]
+        anchor = rows.ns[i - rows.first] if i < rows.end else rows.ns[-1] if rows.ns else None
+        if anchor is not None:
+            oldest = bisect_left(rows.ns, anchor - self.back) + rows.first
+            rows.drop_before(min(oldest, i))
+        excess = len(rows.times) - self.keep
+        if excess > 0:
+            cut = rows.first + excess
+            while self.pending and self.pending[0] < cut:
+                i = self.pending.pop(0)
+                self._explain(i, snapshots, (
+                    f"(not explained: the records it depends on span more than {self.keep:,}; "
+                    "rasm check keeps no more of them)",
+                ))
+            rows.drop_before(cut)
+
+
+class Explainer:
+    """Explains the violations ``{property name: [record index, …]}`` of one trace, fed to it
+    in order, part by part (:meth:`feed`), holding no more of it than the explanations still to
+    give need (at most ``keep`` records per property); :meth:`finish` at the end of the trace.
+    Feeding can stop as soon as :attr:`done`."""
+
+    def __init__(self, spec: Specification, violations: Mapping[str, Sequence[int]], *,
+                 keep: int = KEEP) -> None:
+        self._parts = [
+            _Part(spec, prop, list(violations[prop.name]), keep)
+            for prop in spec.properties if violations.get(prop.name)
+        ]
+        self._snapshots = _Snapshots(spec, [i for p in self._parts for i in p.pending])
+        self.records = 0
+
+    @property
+    def done(self) -> bool:
+        """Every violation asked for is explained."""
+        return all(part.done for part in self._parts)
+
+    def feed(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> None:
+        """The next records of the trace."""
+        records = list(records)
+        self._snapshots.feed(self.records, records)
+        for part in self._parts:
+            if not part.done:
+                part.feed(records, self._snapshots.taken)
+        self.records += len(records)
+
+    def finish(self) -> dict[tuple[str, int], Explanation]:
+        """The end of the trace: every explanation, by (property, record index)."""
+        for part in self._parts:
+            part.finish(self._snapshots.taken)
+        return {(e.property, e.index): e for part in self._parts for e in part.explained}
+
+
+class _Snapshots:
+    """Every signal's held value at each of the records ``wanted`` (sample-and-hold, events
+    false where not set)."""
+
+    def __init__(self, spec: Specification, wanted: Iterable[int]) -> None:
+        self.events = [e.name for e in spec.events]
+        self.current: dict[str, object] = {
+            i.name: i.default for i in spec.inputs if i.default is not None
+        }
+        self.wanted = set(wanted)
+        self.last = max(self.wanted, default=-1)
+        self.taken: dict[int, dict] = {}
+
+    def feed(self, first: int, records: list) -> None:
+        current, events = self.current, self.events
+        for index, (_, record) in enumerate(records, first):
+            if index > self.last:
+                return
+            for name in events:
+                current[name] = False
+            current.update(record)
+            if index in self.wanted:
+                self.taken[index] = dict(current)
 
 
 class _Explainer:
-    def __init__(self, tables: _Tables, times: Sequence[float], start: int) -> None:
-        self.tables = tables
-        self.times = times
-        self.ns = [nanoseconds(t) for t in times]  # exact: what the windows compare
+    """One explanation, read from the records kept (``rows``)."""
+
+    def __init__(self, rows: _Rows, number: Mapping[Expr, int], start: int) -> None:
+        self.rows = rows
+        self.number = number
         self.start = start
         self.lines: list[str] = []
 
@@ -105,30 +339,45 @@ class _Explainer:
         if len(self.lines) < MAX_LINES:
             self.lines.append("  " * depth + text)
 
+    def time(self, j: int):
+        return self.rows.times[j - self.rows.first]
+
     def at(self, j: int) -> str:
-        return f"record {j} (time {self.times[j]:g})"
+        return f"record {j} (time {seconds(self.time(j))})"
 
     def val(self, node: Expr, j: int):
-        return self.tables.value(node, j)
+        if isinstance(node, Literal):
+            return node.value
+        return self.rows.value(self.number[node], j)
 
     def shown(self, node: Expr, j: int) -> str:
-        return f"{unparse(node)} = {format_value(self.val(node, j))}"
+        return f"{unparse(node)} = {format_value(abridge(self.val(node, j)))}"
 
-    def past_window(self, node, i: int) -> range:
-        """The records j <= i with a <= t_i - t_j <= b, newest first (found by bisection)."""
+    def past_window(self, node, i: int) -> tuple[range, bool]:
+        """The records j <= i with a <= t_i - t_j <= b, newest first (found by bisection), and
+        whether the window reaches judged records no longer kept."""
         a, b = node.bound.low_ns, node.bound.high_ns
-        ns = self.ns
-        low = bisect_left(ns, ns[i] - b, self.start, i + 1)
-        high = bisect_right(ns, ns[i] - a, self.start, i + 1) - 1
-        return range(high, low - 1, -1)
+        rows = self.rows
+        ns, first = rows.ns, rows.first
+        now = ns[i - first]
+        lowest = max(self.start, first) - first
+        low = bisect_left(ns, now - b, lowest, i - first + 1)
+        high = bisect_right(ns, now - a, lowest, i - first + 1) - 1
+        # a judged record no longer kept may lie in the window (when the newest of them is
+        # newer than the window's start it may, and one not older than its end surely does)
+        clipped = (self.start < first and rows.dropped_ns is not None
+                   and now - b <= rows.dropped_ns)
+        return range(high + first, low + first - 1, -1), clipped
 
-    def future_window(self, node, i: int) -> range:
-        """The records j >= i with a <= t_j - t_i <= b, oldest first."""
+    def future_window(self, node, i: int) -> tuple[range, bool]:
+        """The records j >= i with a <= t_j - t_i <= b, oldest first (none is left out: they
+        are kept until every explanation that looks at them is given)."""
         a, b = node.bound.low_ns, node.bound.high_ns
-        ns = self.ns
-        low = bisect_left(ns, ns[i] + a, i)
-        high = bisect_right(ns, ns[i] + b, i) - 1
-        return range(low, high + 1)
+        ns, first = self.rows.ns, self.rows.first
+        now = ns[i - first]
+        low = bisect_left(ns, now + a, i - first)
+        high = bisect_right(ns, now + b, i - first) - 1
+        return range(low + first, high + first + 1), False
 
     def leaves(self, node: Expr, i: int, depth: int) -> None:
         # the values of the operands that are not literals, e.g. "velocity = 0.7"
@@ -143,7 +392,7 @@ class _Explainer:
         text = unparse(node)
         failed = "held" if not want else "failed"
         if isinstance(node, Name):
-            self.say(depth, f"{node.name} was {format_value(self.val(node, i))}")
+            self.say(depth, f"{node.name} was {format_value(abridge(self.val(node, i)))}")
             return
         if isinstance(node, Not):
             self.say(depth, f"{text} {failed}:")
@@ -166,11 +415,15 @@ class _Explainer:
             self.leaves(node, i, depth + 1)
             return
         if isinstance(node, Past) or isinstance(node, Future):
-            window = (self.past_window if isinstance(node, Past) else self.future_window)(node, i)
+            window, clipped = (
+                self.past_window if isinstance(node, Past) else self.future_window
+            )(node, i)
             exists = node.op in ("once", "eventually")
             if exists == want:
                 # nothing in the window did it
-                where = _span(self.times, window)
+                where = self.span(window)
+                if clipped:
+                    where += f"; its records before record {self.rows.first} were not kept"
                 self.say(depth, f"{text} {failed}: {unparse(node.operand)} never "
                                 f"{'held' if want else 'failed'} {where}")
                 return
@@ -179,6 +432,8 @@ class _Explainer:
             if witness is not None:
                 self.say(depth + 1, f"at {self.at(witness)}:")
                 self.explain(node.operand, witness, want, depth + 2)
+            elif clipped:
+                self.say(depth + 1, f"at a record before record {self.rows.first} (not kept)")
             return
         if isinstance(node, (Since, Until)):
             self.say(depth, f"{text} {failed}")
@@ -190,55 +445,26 @@ class _Explainer:
             return
         self.say(depth, f"{text} {failed}")
 
-
-def _span(times: Sequence[float], window: range) -> str:
-    if not window:
-        return "(no record in the window)"
-    first, last = min(window), max(window)
-    return f"in records {first}–{last} (times {times[first]:g}–{times[last]:g})"
+    def span(self, window: range) -> str:
+        if not window:
+            return "(no record in the window)"
+        first, last = min(window), max(window)
+        return (f"in records {first}–{last} "
+                f"(times {seconds(self.time(first))}–{seconds(self.time(last))})")
 
 
 def explain(
     spec: Specification,
-    records: Sequence[tuple[float, Mapping[str, object]]],
+    records: Iterable[tuple[float, Mapping[str, object]]],
     violations: Mapping[str, Sequence[int]],
+    *,
+    keep: int = KEEP,
+    chunk: int = 16_384,
 ) -> dict[tuple[str, int], Explanation]:
-    """Explain the given violations ``{property name: [record index, …]}`` of a trace."""
-    result: dict[tuple[str, int], Explanation] = {}
-    times = [t for t, _ in records]
-    wanted = sorted({i for indices in violations.values() for i in indices})
-    snapshots = _snapshots(spec, records, wanted)
-    for prop in spec.properties:
-        indices = violations.get(prop.name)
-        if not indices:
-            continue
-        tables = _Tables(spec, prop, records)
-        start = tables.values[prop.formula].start
-        names = signals_of(prop.formula)
-        for i in indices:
-            explainer = _Explainer(tables, times, start)
-            explainer.explain(prop.formula, i, True, 0)
-            signals = {n: snapshots[i].get(n) for n in names}
-            result[(prop.name, i)] = Explanation(
-                prop.name, i, times[i], tuple(explainer.lines), signals
-            )
-    return result
-
-
-def _snapshots(spec: Specification, records, wanted: list[int]) -> dict[int, dict]:
-    events = {e.name for e in spec.events}
-    current = {i.name: i.default for i in spec.inputs if i.default is not None}
-    out: dict[int, dict] = {}
-    targets = set(wanted)
-    last = max(wanted) if wanted else -1
-    for index, (_, record) in enumerate(records):
-        if index > last:
-            break
-        for name in events:
-            current[name] = False
-        current.update(record)
-        if index in targets:
-            out[index] = dict(current)
-    return out
-
-
+    """Explain the given violations ``{property name: [record index, …]}`` of a trace (read
+    only as far as the explanations need)."""
+    explainer = Explainer(spec, violations, keep=keep)
+    records = iter(records)
+    while not explainer.done and (part := list(islice(records, chunk))):
+        explainer.feed(part)
+    return explainer.finish()

@@ -284,20 +284,30 @@ def test_explanation_windows_are_the_semantic_ones(steps, low, width, data):
     # the explainer finds windows by bisection; they must be exactly the semantics' windows, on the
     # decimals the times stand for (0.3 - 0.1 is 0.2)
     from rasm.properties.ast import Bound, Name, Past
-    from rasm.properties.explain import _Explainer
+    from rasm.properties.explain import _Explainer, _Rows
 
     exact = list(itertools.accumulate(Decimal(step) for step in steps))
     high = Decimal(low) + Decimal(width)  # Decimal("inf") when unbounded
     i = data.draw(st.integers(0, len(exact) - 1))
     start = data.draw(st.integers(0, i))
     node = Past("once", Bound(float(low), float(high)), Name("p"))
-    explainer = _Explainer(None, [float(t) for t in exact], start)
+    rows = _Rows(0)
+    rows.add([(float(t), {}) for t in exact])
+    explainer = _Explainer(rows, {}, start)
     t = exact
     a = Decimal(low)
     past = [j for j in range(i, start - 1, -1) if a <= t[i] - t[j] <= high]
     future = [j for j in range(i, len(t)) if a <= t[j] - t[i] <= high]
-    assert list(explainer.past_window(node, i)) == past
-    assert list(explainer.future_window(node, i)) == future
+    assert list(explainer.past_window(node, i)[0]) == past
+    assert list(explainer.future_window(node, i)[0]) == future
+    # with the records before ``kept`` no longer held, the window is what is left of it, and
+    # says when it may have lost judged records
+    kept = data.draw(st.integers(0, i))
+    rows.drop_before(kept)
+    window, clipped = explainer.past_window(node, i)
+    assert list(window) == [j for j in past if j >= kept]
+    if any(j < kept for j in past):
+        assert clipped  # it never claims a window whole that is not
 
 
 def test_files_that_are_not_utf8_are_placed_at_their_first_bad_byte(tmp_path, capsys):

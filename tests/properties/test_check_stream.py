@@ -178,16 +178,29 @@ def peak_megabytes(props: Path, trace: Path) -> int:
     return int(out[-1])
 
 
-def test_peak_memory_does_not_grow_with_the_trace(tmp_path):
+@pytest.mark.parametrize(
+    ("where", "formula"),
+    [
+        ("early", "always (b -> once[0, 1s] a)"),
+        # explained from the trace read again up to the end: only the records its windows
+        # reach are kept, not the whole prefix
+        ("late", "always (b -> once[0, 1s] a)"),
+        # an unbounded past window: a bounded number of records is kept all the same
+        ("late", "always (b -> historically a)"),
+    ],
+)
+def test_peak_memory_does_not_grow_with_the_trace(tmp_path, where, formula):
     props = tmp_path / "p.rv"
-    props.write_text("input a: bool\ninput b: bool\nproperty p: always (b -> once[0, 1s] a)\n")
+    props.write_text(f"input a: bool\ninput b: bool\nproperty p: {formula}\n")
     peaks = []
     for records in (20_000, 400_000):
         trace = tmp_path / f"t{records}.jsonl"
+        bad = range(300, 420) if where == "early" else range(records - 150, records - 30)
         with trace.open("w") as out:
             for k in range(records):
-                # one violation, early (explained from the start of the trace read again)
-                a, b = (k % 7 == 0 and not 300 <= k < 420), k % 11 == 0
+                # violations: a b with no a in the second before it; a b after an a failed
+                a = (k % 7 == 0 or "historically" in formula) and k not in bad
+                b = k % 11 == 0
                 out.write(f'{{"time": {k / 100}, "a": {json.dumps(a)}, "b": {json.dumps(b)}}}\n')
         peaks.append(peak_megabytes(props, trace))
     # twenty times the records (about 15 MB more of trace): the same memory, give or take
