@@ -234,6 +234,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         args.output,
         props,
         platform_props=getattr(args, "platform_props", True),
+        app=getattr(args, "app", None),
     )
     checked = model["properties"]["timelines"]
     states = Counter(t["verdict"] for t in checked)

@@ -166,6 +166,8 @@ def print_summary(summary: RunSummary, console: Console) -> None:
             str(outcome.errors) if outcome else "",
         )
     console.print(verdicts)
+    if summary.off:
+        console.print(f"not checked (off in app.yaml): {', '.join(summary.off)}", soft_wrap=True)
     untested = [o for o in summary.outcomes.values() if o.passed and o.vacuous]
     if untested:
         # passing, but part of the property was never put to the test: say what never happened

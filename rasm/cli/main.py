@@ -126,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="property file to check the trace against (repeatable)")
     p.add_argument("--no-platform-props", dest="platform_props", action="store_false",
                    help="leave out the platform's own properties")
+    p.add_argument("--app", default=None,
+                   help="the app that wrote the trace: its settings of the platform's "
+                   "properties (platform_properties:) and its property files")
 
     p = command("new", _cmd_new, "create an application skeleton")
     p.add_argument("name")

@@ -163,6 +163,8 @@ class AppManifest:
     repair: bool = False  # legitimate.repair: nearest
     repair_weights: dict[str, float] = field(default_factory=dict)
     corrective: bool = False  # trustworthiness.corrective
+    # platform_properties: per platform property, its limits (name -> value), or None: off
+    platform_properties: dict[str, dict[str, float] | None] = field(default_factory=dict)
     raw: dict[str, Any] = field(default_factory=dict)
     # the ROS 2 types of the app (standard interfaces and its msg/*.msg), when it names any
     types: Any = None
@@ -231,11 +233,18 @@ def _schema_errors(src: YamlSource, schema: dict[str, Any] = SCHEMA) -> list[Sou
             )
             continue
         if error.validator == "additionalProperties":
-            extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+            known = error.schema.get("properties", {})
+            extra = sorted(set(error.instance) - set(known))
             if extra and isinstance(error.instance, dict):
                 location = src.key(_node_at(src.data, path), extra[0])
-                errors.append(src.error(f"unknown key '{extra[0]}' in {where}", location))
+                message = f"unknown key '{extra[0]}' in {where}"
+                if path == ["platform_properties"]:
+                    message += (" (the platform properties an app may tune or turn off: "
+                                f"{', '.join(known)}; the others are always checked)")
+                errors.append(src.error(message, location))
                 continue
+        if error.validator in ("pattern", "type") and error.schema.get("pattern") == "^off$":
+            message = f"{error.instance!r} is neither off nor a mapping of its limits"
         errors.append(src.error(f"{where}: {message}", src.at(path)))
     # the schema's number checks let .nan and .inf through (a run of .inf seconds never ends)
     stack: list[tuple[list[Any], Any]] = [([], src.data)]
@@ -566,6 +575,10 @@ def load_manifest(app: str | Path) -> AppManifest:
         repair=legitimate.get("repair", "off") == "nearest",
         repair_weights={str(k): float(v) for k, v in (legitimate.get("weights") or {}).items()},
         corrective=bool(trust.get("corrective", False)),
+        platform_properties={
+            str(name): None if setting == "off" else {str(k): v for k, v in plain(setting).items()}
+            for name, setting in (data.get("platform_properties") or {}).items()
+        },
         raw=plain(data),
         types=types,
     )

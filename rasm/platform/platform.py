@@ -655,6 +655,8 @@ class Platform:
             fallback=self.fb,
             write_failures=self.write_failures(),
             damage=self.replay.damage if self.replay is not None else [],
+            off=tuple(name for name, limits in self.manifest.platform_properties.items()
+                      if limits is None) if self.managing else (),
         )
 
     def write_failures(self) -> list[WriteFailure]:

@@ -196,6 +196,9 @@ def app_problems(manifest: AppManifest) -> list[SourceError]:
         if rules is not None:
             problems += _rule_problems(rules, have)
     found = _trustworthiness_problems(manifest, have, names)
+    from rasm.platform.app_properties import setting_problems
+
+    found = [*found, *setting_problems(manifest)]
     problems += sorted(found, key=lambda e: (e.location.line, e.location.col))
     from rasm.platform.app_charts import app_chart_problems
 

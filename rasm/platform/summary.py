@@ -52,6 +52,8 @@ class RunSummary:
     write_failures: list[WriteFailure] = field(default_factory=list)
     # the parts of a replayed recording that could not be read
     damage: list[Damage] = field(default_factory=list)
+    # the platform properties the app turned off (platform_properties: in app.yaml): not checked
+    off: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -96,10 +98,11 @@ def summarise(
     fallback: FallbackSwitch | None = None,
     write_failures: list[WriteFailure] | None = None,
     damage: list[Damage] | None = None,
+    off: tuple[str, ...] = (),
 ) -> RunSummary:
     """The run so far, read from its blocks (nothing is changed). ``checker``,
     ``orchestrator`` and ``telegraf`` are the managing side's (None in a managed-only process:
-    no verdicts, no loop counts)."""
+    no verdicts, no loop counts). ``off``: the platform properties the app turned off."""
     outcomes = dict(checker.outcomes) if checker is not None else {}
     return RunSummary(
         app=app,
@@ -125,6 +128,7 @@ def summarise(
         fallback_engagements=fallback.engagements if fallback is not None else None,
         write_failures=list(write_failures or ()),
         damage=list(damage or ()),
+        off=off,
     )
 
 

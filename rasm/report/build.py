@@ -1,9 +1,10 @@
 """``rasm report``: a trace file (and property files) into one self-contained HTML page.
 
-Which properties: the platform's own (``properties/*.rv`` shipped with rasm: MAPLE-K stage
-order, legitimacy gating, timeliness), which every trace ``rasm run`` writes is subject to, plus
-the files given with ``props`` (an application's ``properties/*.rv``). Nothing is picked up from
-beside the trace: a report shows exactly the properties it was asked for, and names them.
+Which properties: the platform's own (``rasm:properties/*.rv``: MAPLE-K stage order, legitimacy
+gating, timeliness), which every trace ``rasm run`` writes is subject to — as ``app`` sets them
+(its ``platform_properties:``), when given — plus the app's property files and the files given
+with ``props``. Nothing is picked up from beside the trace: a report shows exactly the
+properties it was asked for, and names them.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any
 from rasm.errors import Location, SourceError
 from rasm.report.model import TraceModel
 from rasm.report.page import render_page
-from rasm.report.verdicts import check_trace, load_properties, platform_properties
+from rasm.report.verdicts import check_trace, load_properties
 from rasm.trace import read_trace
 
 __all__ = ["build_model", "missing_notes", "write_report"]
@@ -60,6 +61,9 @@ def missing_notes(model: dict[str, Any]) -> list[str]:
                 f"property {timeline['name']} in error at {timeline['errors']} records: "
                 f"{timeline['first_error']}"
             )
+    if props.get("off"):
+        notes.append("platform properties off for this app (not checked): "
+                     + ", ".join(props["off"]))
     if model["other_stages"]:
         notes.append(f"stages not drawn (not MAPLE-K): {', '.join(model['other_stages'])}")
     return notes
@@ -70,18 +74,35 @@ def build_model(
     props: Sequence[str | Path] = (),
     *,
     platform_props: bool = True,
+    app: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Everything the page draws, for one trace file."""
+    """Everything the page draws, for one trace file; ``app``: the app that wrote it (its
+    settings of the platform's properties and its property files)."""
+    from rasm.platform.app_properties import platform_specifications
+
+    manifest = None
+    if app is not None:
+        from rasm.platform.manifest import load_manifest
+
+        manifest = load_manifest(app)
     records = _read(trace)
-    files = [_shown(f) for f in [*(platform_properties() if platform_props else []), *props]]
-    specs = load_properties(files)
+    specs = []
+    off: list[str] = []
+    if platform_props:
+        settings = manifest.platform_properties if manifest is not None else {}
+        budget = manifest.stage_budget if manifest is not None else None
+        specs += platform_specifications(settings, stage_budget=budget)
+        off = [name for name, limits in settings.items() if limits is None]
+    files = [_shown(f) for f in [*(manifest.properties if manifest is not None else []), *props]]
+    specs += load_properties(files)
     model = TraceModel()
     for time, record in records:
         model.add(time, record)
     data = model.to_dict()
     timelines = check_trace(specs, trace) if specs else []
     data["properties"] = {
-        "files": [str(f) for f in files],
+        "files": list(dict.fromkeys(spec.source for spec in specs)),
+        "off": off,
         "timelines": [t.to_dict() for t in timelines],
         "note": "No properties: verdict timelines need property files "
         "(rasm report TRACE -o OUT.html --props FILE.rv).",
@@ -118,10 +139,11 @@ def write_report(
     props: Sequence[str | Path] = (),
     *,
     platform_props: bool = True,
+    app: str | Path | None = None,
     title: str | None = None,
 ) -> dict[str, Any]:
     """Write the self-contained report of ``trace`` to ``output``; returns the model drawn."""
-    model = build_model(trace, props, platform_props=platform_props)
+    model = build_model(trace, props, platform_props=platform_props, app=app)
     page = render_page(model, title=title or f"rasm report: {Path(trace).name}")
     Path(output).write_text(page, encoding="utf-8")
     return model

@@ -10,7 +10,11 @@ turns them into plain JSON-able data that ``assets/report.js`` draws:
 - the adaptations: anomaly, plan, legitimacy verdict with broken rules, trust check, outcome
   (executed, dropped, cancelled, no plan) and the explanations given on the way;
 - the managed system's mode changes, when the app has a modes chart (``mode`` records; their
-  ``mode_<state>`` keys are not drawn as signals of their own).
+  ``mode_<state>`` keys are not drawn as signals of their own);
+- the fallback episodes: when the fallback engaged and why, its actions (sent or dropped, each
+  with its explanation), when control was handed back (``fallback`` records, and the records of
+  the plan that is no adaptation's: it has no ``planned`` record, and comes while the fallback
+  holds).
 """
 
 from __future__ import annotations
@@ -88,6 +92,8 @@ class TraceModel:
         self._anomaly: tuple[float, str | None] | None = None
         self._by_plan: dict[str, Adaptation] = {}
         self.anomalies = 0
+        self.fallback: list[dict[str, Any]] = []  # the fallback's episodes, in order
+        self._fallback_plans: dict[str, dict[str, Any]] = {}  # plan id -> its episode
 
     # ------------------------------------------------------------------ feeding
 
@@ -99,7 +105,11 @@ class TraceModel:
         self.last_time = time
         if "stage" in record:
             self._stage(time, record)
-        if any(record.get(event) is True for event in EVENTS) or "plan" in record:
+        if record.get("fallback") in ("engaged", "released"):
+            self._fallback(time, record)
+        if self._fallback_action(time, record):
+            pass
+        elif any(record.get(event) is True for event in EVENTS) or "plan" in record:
             self._event(time, record)
         elif "explanation" in record and "stage" not in record:
             self._note(time, str(record["explanation"]))
@@ -112,6 +122,41 @@ class TraceModel:
         for key, value in record.items():
             if key not in LOOP_KEYS and not (changed and key.startswith("mode_")):
                 self._signal(time, key, value)
+
+    def _fallback(self, time: float, record: dict[str, Any]) -> None:
+        text = str(record.get("explanation") or "")
+        if record["fallback"] == "engaged":
+            self.fallback.append({
+                "engaged": time, "reason": text.removeprefix("fallback engaged: ") or None,
+                "released": None, "release": None, "plan": None, "actions": [],
+            })
+            self._trim(self.fallback)
+        elif self.fallback and self.fallback[-1]["released"] is None:
+            self.fallback[-1]["released"] = time
+            self.fallback[-1]["release"] = text or None
+
+    def _fallback_action(self, time: float, record: dict[str, Any]) -> bool:
+        """A record about the fallback's plan: counted in its episode, not as an adaptation."""
+        plan = record.get("plan")
+        if plan is None or record.get("planned") is True:
+            return False
+        plan = str(plan)
+        episode = self._fallback_plans.get(plan)
+        if episode is None:
+            engaged = self.fallback[-1] if self.fallback else None
+            if (engaged is None or engaged["released"] is not None or plan in self._by_plan
+                    or engaged["plan"] is not None):
+                return False
+            episode = self._fallback_plans[plan] = engaged  # the plan the engagement sent
+            engaged["plan"] = plan
+        for outcome in ("executed", "dropped"):
+            if record.get(outcome) is True:
+                explanation = record.get("explanation")
+                episode["actions"].append({
+                    "time": time, "outcome": outcome,
+                    "explanation": str(explanation) if explanation is not None else None,
+                })
+        return True
 
     def _stage(self, time: float, record: dict[str, Any]) -> None:
         stage = str(record["stage"])
@@ -245,13 +290,15 @@ class TraceModel:
     # ------------------------------------------------------------------ output
 
     def counts(self) -> dict[str, int]:
-        """Anomalies, plans, plans executed, rejected (by Legitimate), dropped, cancelled."""
+        """Anomalies, plans, plans executed, rejected (by Legitimate), dropped, cancelled, and
+        how often the fallback engaged (its actions are no adaptation's)."""
         out = {"anomalies": self.anomalies}
         out["plans"] = sum(1 for a in self.adaptations if a.plan is not None)
         out["executed"] = sum(1 for a in self.adaptations if a.outcome == "executed")
         out["rejected"] = sum(1 for a in self.adaptations if a.legitimacy == "rejected")
         for outcome in ("dropped", "cancelled"):
             out[outcome] = sum(1 for a in self.adaptations if a.outcome == outcome)
+        out["fallback"] = len(self.fallback)
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -277,5 +324,9 @@ class TraceModel:
             },
             "adaptations": [asdict(a) for a in self.adaptations],
             "mode_changes": [dict(change) for change in self.mode_changes],
+            "fallback": [
+                {**episode, "actions": [dict(a) for a in episode["actions"]]}
+                for episode in self.fallback
+            ],
             "counts": self.counts(),
         }

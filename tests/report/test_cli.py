@@ -93,3 +93,29 @@ def test_a_trace_that_is_not_utf8_is_placed_at_its_first_bad_byte(tmp_path: Path
     trace.write_bytes(b'{"time": 0, "stage": "monitor", "duration": 0.1}\n{"time": 1, \xff}\n')
     assert main(["report", str(trace), "-o", str(tmp_path / "r.html")]) == 2
     assert f"{trace}:2:13: not a UTF-8 text file" in capsys.readouterr().err
+
+
+def test_the_app_sets_the_platform_properties_and_brings_its_own(hotbox_trace: Path,
+                                                                  tmp_path: Path, capsys) -> None:
+    import shutil
+
+    from rasm.report import build_model
+
+    from .conftest import HOTBOX
+
+    app = tmp_path / "hotbox"
+    shutil.copytree(HOTBOX, app, ignore=shutil.ignore_patterns(".rasm", "__pycache__"))
+    manifest = app / "app.yaml"
+    manifest.write_text(manifest.read_text() + "platform_properties:\n  no_oscillation: off\n"
+                        "  stage_budget: {max_duration: 0.000001}\n")
+    model = build_model(hotbox_trace, app=app)
+    verdicts = {t["name"]: t["verdict"] for t in model["properties"]["timelines"]}
+    assert "no_oscillation" not in verdicts and model["properties"]["off"] == ["no_oscillation"]
+    assert verdicts["stage_budget"] == "violated"  # no stage takes under a microsecond
+    assert verdicts["temperature_band"] == "satisfied"  # the app's own files, without --props
+    assert model["properties"]["files"][:2] == ["rasm:properties/adaptation.rv",
+                                                "rasm:properties/maple_k.rv"]
+    code, err = _report(capsys, str(hotbox_trace), "-o", str(tmp_path / "r.html"), "--app",
+                        str(app))
+    assert code == 0
+    assert "rasm: note: platform properties off for this app (not checked): no_oscillation" in err

@@ -68,6 +68,7 @@ def test_a_rejected_plan_then_a_replan_then_execution() -> None:
         "rejected": 1,
         "dropped": 0,
         "cancelled": 0,
+        "fallback": 0,
     }
     assert "power" not in model.signals  # plan parameters are not knowledge
 
@@ -125,3 +126,42 @@ def test_mode_changes_are_rows_and_their_state_keys_no_signals() -> None:
     assert data["signals"]["mode"]["v"] == ["scanning", "stale", "scanning"]
     assert {"motor_rpm", "ranges", "mode_of_transport"} <= set(data["signals"])
     assert not {"mode_scanning", "mode_stale"} & set(data["signals"])
+
+
+def test_a_fallback_episode_is_no_adaptation_and_says_why_and_how_long() -> None:
+    # the records FallbackSwitch writes: the engagement with its reason, the fallback plan's
+    # action (no "planned" record: no anomaly led to it), a retry, the hand-back
+    model = _model(
+        [
+            {"time": 1, "anomaly": True, "explanation": "too cold"},
+            {"time": 1, "planned": True, "plan": "p1", "power": 150},
+            {"time": 1, "legitimate": True, "plan": "p1"},
+            {"time": 2, "fallback": "engaged",
+             "explanation": "fallback engaged: veto property band violated at t=2"},
+            {"time": 2, "trusted": True, "plan": "f1"},
+            {"time": 2, "dropped": True, "plan": "f1", "explanation": "effector unreachable"},
+            {"time": 2, "dropped": True, "plan": "p1",
+             "explanation": "the fallback holds the effectors"},
+            {"time": 2.5, "executed": True, "plan": "f1", "explanation": "sent to heater"},
+            {"time": 9, "fallback": "released",
+             "explanation": "control handed back: no trigger for 5.0 s"},
+            {"time": 12, "fallback": "engaged", "explanation": "fallback engaged: managed "
+             "system lost"},
+            {"time": 12, "executed": True, "plan": "f2", "explanation": "sent to heater"},
+        ]
+    )
+    data = model.to_dict()
+    assert [a["plan"] for a in data["adaptations"]] == ["p1"]  # the fallback's are no rows
+    assert data["adaptations"][0]["outcome"] == "dropped"
+    first, second = data["fallback"]
+    assert first == {
+        "engaged": 2, "reason": "veto property band violated at t=2", "released": 9,
+        "release": "control handed back: no trigger for 5.0 s", "plan": "f1",
+        "actions": [
+            {"time": 2, "outcome": "dropped", "explanation": "effector unreachable"},
+            {"time": 2.5, "outcome": "executed", "explanation": "sent to heater"},
+        ],
+    }
+    assert (second["reason"], second["released"], second["plan"]) == (
+        "managed system lost", None, "f2")
+    assert model.counts()["fallback"] == 2 and model.counts()["executed"] == 0

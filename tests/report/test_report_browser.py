@@ -205,3 +205,51 @@ def test_every_state_is_shown_in_words_and_only_satisfied_is_green(page, tmp_pat
     assert shown["budget"][0] == "error" and "OverflowError" in shown["budget"][2]
     assert {shown[name][1] for name in ("fast_enough", "typo", "budget")}.isdisjoint({green})
     assert not page.errors
+
+
+def test_fallback_episodes_violation_episodes_and_where_properties_are_defined(
+    page, tmp_path: Path
+) -> None:
+    """A 0.4 s near miss is one episode, not six violations; the fallback an episode with its
+    reason, action and hand-back; and the platform's properties are at rasm:properties/…"""
+    records = [{"time": round(k / 10, 1), "speed": 0.5} for k in range(40)]
+    for k in (10, 11, 12, 13):  # too fast from 1.0 s to 1.3 s, then slow again at 1.4 s
+        records[k]["speed"] = 1.5
+    records[10]["fallback"] = "engaged"
+    records[10]["explanation"] = "fallback engaged: veto property slow violated at t=1"
+    records.insert(11, {"time": 1.0, "trusted": True, "plan": "f1"})
+    records.insert(12, {"time": 1.0, "executed": True, "plan": "f1",
+                        "explanation": "sent to drive on robot/drive"})
+    records[30]["fallback"] = "released"
+    records[30]["explanation"] = "control handed back: no trigger for 1.5 s"
+    trace = tmp_path / "t.jsonl"
+    trace.write_text("".join(json.dumps(r) + "\n" for r in records))
+    props = tmp_path / "p.rv"
+    props.write_text("input speed: float\nproperty slow:\n    always (speed <= 1.0)\n")
+    out = tmp_path / "fallback.html"
+    assert main(["report", str(trace), "-o", str(out), "--props", str(props)]) == 0
+    _open(page, out)
+    p = page.page
+    fallback = p.locator("#fallback-table tbody tr")
+    assert fallback.count() == 1
+    text = fallback.inner_text()
+    assert "veto property slow violated at t=1" in text
+    assert "sent to drive on robot/drive" in text
+    assert "control handed back: no trigger for 1.5 s" in text and "1.800 s" in text
+    assert p.inner_text("#count-fallback") == "1"
+    assert p.locator("#adaptations tbody tr").count() == 0  # no "(no anomaly record)" row
+    episodes = [e for e in p.locator("#violations li.episode").all_inner_texts()
+                if " slow violated" in e]
+    # six records (the fallback's two among them) from 1.0 s until speed is slow at 1.4 s
+    assert len(episodes) == 1, episodes
+    assert "1.000 s slow violated for 0.400 s (6 records at records 10–15)" in episodes[0]
+    assert "speed <= 1.0 failed" in episodes[0]
+    cells = p.eval_on_selector_all(
+        "#verdict-table tbody tr", "rows => rows.map(r => [r.cells[0].innerText, "
+        "r.cells[2].innerText, r.cells[7].innerText])")
+    where = {name: (violations, defined) for name, violations, defined in cells}
+    assert where["slow"][0] == "6 (1 episode)"
+    assert where["slow"][1] == f"{props}:2:10"  # a file given: as given
+    assert where["stage_order"][1].startswith("rasm:properties/maple_k.rv:")
+    assert where["no_oscillation"][1].startswith("rasm:properties/adaptation.rv:")
+    assert not page.errors

@@ -41,6 +41,20 @@ def test_a_timeline_counts_its_verdicts_as_property_outcome_does(warm_up, values
     compressed = [v for k, v in enumerate(shown) if k == 0 or shown[k - 1] != v]
     assert [run[2] for run in data["runs"]] == compressed
     assert len(data["violations"]) == values.count(False)
+    # the episodes are the stretches of consecutive violations, each ended by the first
+    # judged record that is no violation (None: violated to the end)
+    stretches, k = [], 0
+    while k < len(values):
+        if values[k] is False:
+            end = k
+            while end + 1 < len(values) and values[end + 1] is False:
+                end += 1
+            until = float(warm_up + end + 1) if end + 1 < len(values) else None
+            stretches.append((float(warm_up + k), float(warm_up + end), until, end - k + 1))
+            k = end + 1
+        else:
+            k += 1
+    assert [(e["start"], e["end"], e["until"], e["count"]) for e in data["episodes"]] == stretches
 
 
 def test_the_dashboard_says_not_judged_and_names_the_signal(tmp_path: Path):

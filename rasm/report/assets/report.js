@@ -54,7 +54,8 @@
       m.records + " records, " + fmt(m.start) + " – " + fmt(m.end);
     $("span").textContent = span;
     var c = m.counts || {};
-    ["anomalies", "plans", "executed", "rejected", "dropped", "cancelled"].forEach(function (k) {
+    ["anomalies", "plans", "executed", "rejected", "dropped", "cancelled",
+     "fallback"].forEach(function (k) {
       $("count-" + k).textContent = c[k] || 0;
     });
     $("status").textContent = !m.live ? "generated " + (m.generated || "") :
@@ -242,7 +243,11 @@
     props.forEach(function (p) {
       p.violations.forEach(function (v) {
         vx.push(v.time); vy.push(p.name);
-        vt.push((v.explanation || ["(not explained)"]).join("<br>"));
+        var episode = (p.episodes || []).filter(function (e) {
+          return e.start <= v.time && v.time <= e.end && e.start !== v.time;
+        })[0];
+        vt.push((v.explanation || [episode ? "(in the episode from " + fmt(episode.start) + ")" :
+          "(not explained)"]).join("<br>"));
       });
     });
     if (vx.length) {
@@ -261,20 +266,31 @@
         var why = p.verdict === "satisfied" ? "" : (p.describe || "");
         return '<tr data-property="' + esc(p.name) + '"><td>' + esc(p.name) +
           '</td><td class="verdict-' + esc(String(p.verdict).replace(/ /g, "-")) + '">' +
-          esc(p.word || p.verdict) + "</td><td>" + p.violated + "</td><td>" + p.errors +
+          esc(p.word || p.verdict) + "</td><td>" + p.violated +
+          (p.episodes && p.episodes.length && p.episodes.length < p.violated ? " (" +
+            p.episodes.length + " episode" + (p.episodes.length === 1 ? "" : "s") + ")" : "") +
+          "</td><td>" + p.errors +
           "</td><td>" + p.judged + "</td><td>" + esc(why) + "</td><td>" +
           esc(p.reads.join(", ")) + "</td><td>" + esc(p.source) + "</td></tr>";
       }).join("") + "</tbody>";
     var items = [];
     props.forEach(function (p) {
-      p.violations.slice(0, 20).forEach(function (v) {
-        items.push("<li>" + goto(v.time) + " <b>" + esc(p.name) + "</b> violated" +
-          (v.index !== null && v.index !== undefined ? " at record " + v.index : "") +
-          (v.explanation ? "<pre>" + esc(v.explanation.join("\n")) + "</pre>" : "") + "</li>");
+      /* consecutive violations are one episode: its span, its records, its first explained */
+      var episodes = p.episodes || [];
+      episodes.slice(0, 20).forEach(function (e) {
+        var records = e.first === null || e.first === undefined ? "" : e.count === 1 ?
+          " at record " + e.first : " at records " + e.first + "–" + e.last;
+        var span = e.until === null ?
+          " from " + fmt(e.start) + " to the end of the trace (" + fmt(e.end) + ")" :
+          " for " + fmt(e.until - e.start);
+        items.push('<li class="episode">' + goto(e.start) + " <b>" + esc(p.name) +
+          "</b> violated" + span + " (" + e.count + " record" + (e.count === 1 ? "" : "s") +
+          records + ")" +
+          (e.explanation ? "<pre>" + esc(e.explanation.join("\n")) + "</pre>" : "") + "</li>");
       });
-      if (p.violations.length > 20) {
-        items.push("<li>… " + (p.violations.length - 20) + " more violations of " +
-          esc(p.name) + "</li>");
+      if (episodes.length > 20) {
+        items.push("<li>… " + (episodes.length - 20) + " more episodes of " + esc(p.name) +
+          "</li>");
       }
     });
     $("violations").innerHTML = items.join("");
@@ -360,6 +376,26 @@
     if (state.focus !== null) highlight(state.focus);
   }
 
+  /* ------------------------------------------------------------------ fallback */
+  function fallback(m) {
+    var list = m.fallback || [];
+    $("fallback").hidden = !list.length;
+    $("fallback-table").querySelector("tbody").innerHTML = list.slice(-MAX_ROWS).map(function (f) {
+      var actions = f.actions.map(function (a) {
+        return goto(a.time) + ' <span class="' + (a.outcome === "executed" ? "good" : "bad") +
+          '">' + esc(a.outcome === "executed" ? "sent" : "dropped") + "</span> " +
+          esc(a.explanation || "");
+      }).join("<br>") || "–";
+      var released = f.released === null ? (m.live && m.status !== "finished" ?
+        "still engaged" : "still engaged at the end") :
+        goto(f.released) + " " + esc(f.release || "");
+      var end = f.released === null ? m.end : f.released;
+      return '<tr data-time="' + f.engaged + '"><td>' + goto(f.engaged) + "</td><td>" +
+        esc(f.reason || "") + "</td><td>" + actions + "</td><td>" + released + "</td><td>" +
+        fmt(end - f.engaged) + (f.released === null ? " so far" : "") + "</td></tr>";
+    }).join("");
+  }
+
   /* ------------------------------------------------------------------ managed-system modes */
   function modeChanges(m) {
     var list = m.mode_changes || [];
@@ -373,6 +409,13 @@
   /* ------------------------------------------------------------------ focus */
   function markers(m, id) {
     var shapes = [];
+    if (id === "signals" || id === "verdicts") {
+      (m.fallback || []).forEach(function (f) {  /* the fallback's episodes, shaded */
+        shapes.push({type: "rect", xref: "x", yref: "paper", x0: f.engaged,
+          x1: f.released === null ? m.end : f.released, y0: 0, y1: 1, layer: "below",
+          fillcolor: "rgba(242, 142, 43, 0.12)", line: {width: 0}});
+      });
+    }
     if (id === "signals") {
       (m.adaptations || []).forEach(function (a) {
         if (a.outcome !== "executed" && a.outcome !== "rejected") return;
@@ -464,6 +507,7 @@
     verdicts(m);
     signals(m);
     adaptations(m);
+    fallback(m);
     modeChanges(m);
     document.body.dataset.records = String(m.records);
     document.body.dataset.rendered = "true";
