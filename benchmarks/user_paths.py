@@ -9,7 +9,11 @@
 2. **``rasm check`` on a large file**: a 1e6-record JSONL trace (``always (b -> once[0, 1s] a)``)
    against reelay fed record by record from ``json.loads`` of the same file; CPU seconds and
    peak memory of each, in its own process. Goal: rasm >= 1.5x reelay's speed, peak <= 64 MB.
-3. **Start-up**: ``rasm --help``, ``rasm lint`` and ``rasm check`` on tiny inputs (wall seconds),
+3. **``rasm check`` explaining a violation at the end**: the same kind of trace with ``b`` left
+   without ``a`` in its last seconds, checked with the text report, which explains the violations
+   from the trace read again; against the same trace when it holds. Goal: the same peak memory
+   (<= 64 MB).
+4. **Start-up**: ``rasm --help``, ``rasm lint`` and ``rasm check`` on tiny inputs (wall seconds),
    and what the pytest plugin adds to every pytest start (``import pytest, rasm.testing.plugin``
    against ``import pytest``). As a user runs them: Python's bytecode cache and rasm's parser
    cache written by a first run (the run without the parser cache is printed too).
@@ -119,6 +123,33 @@ def large_check(repeats: int, records: int) -> tuple[float, float]:
         return reelay_cpu / rasm_cpu, rasm_mb
 
 
+def late_violation(repeats: int, records: int) -> tuple[float, float]:
+    """(peak MB, CPU ratio) of the text report of a trace violated in its last second, against
+    the same trace holding."""
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        props = work / "p.rv"
+        props.write_text(PROPERTY)
+        traces = {}
+        for name in ("holds", "violated at the end"):
+            trace = traces[name] = work / f"{name.split()[0]}.jsonl"
+            with trace.open("w") as out:
+                for k in range(records):
+                    late = name != "holds" and k >= records - 200  # no a in the last 2 s
+                    record = {"time": round(k * 0.01, 2), "a": not late and k % 7 == 0,
+                              "b": k % 11 == 0}
+                    out.write(json.dumps(record) + "\n")
+        code = "import sys\nfrom rasm.cli import main\nmain(['check', sys.argv[1], sys.argv[2]])"
+        found = {}
+        for name, trace in traces.items():
+            runs = [peak(code, str(props), str(trace)) for _ in range(repeats)]
+            found[name] = (statistics.median(r[0] for r in runs), max(r[1] for r in runs))
+            print(f"rasm check (text), {records:,} records, {name}: {found[name][0]:.2f} s CPU, "
+                  f"{found[name][1]:.0f} MB peak")
+        late, holds = found["violated at the end"], found["holds"]
+        return late[1], late[0] / holds[0]
+
+
 def start_up(repeats: int) -> tuple[float, float]:
     # as installed: bytecode cached (this environment may forbid writing it), parser cached
     env = {name: value for name, value in os.environ.items() if name != "PYTHONDONTWRITEBYTECODE"}
@@ -158,10 +189,11 @@ def start_up(repeats: int) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs, one repetition")
-    parser.add_argument("--only", choices=["hour", "check", "start-up"], action="append",
-                        help="measure only this path (repeatable; default: all three)")
+    paths = ["hour", "check", "check-late", "start-up"]
+    parser.add_argument("--only", choices=paths, action="append",
+                        help="measure only this path (repeatable; default: all)")
     args = parser.parse_args()
-    only = set(args.only or ["hour", "check", "start-up"])
+    only = set(args.only or paths)
     repeats = 1 if args.quick else 3
     ratios = []
     if "hour" in only:
@@ -170,6 +202,9 @@ def main() -> None:
     if "check" in only:
         speed, megabytes = large_check(repeats, 200_000 if args.quick else 1_000_000)
         ratios += [f"check_over_reelay={speed:.2f}", f"check_peak_mb={megabytes:.0f}"]
+    if "check-late" in only:
+        megabytes, ratio = late_violation(repeats, 200_000 if args.quick else 1_000_000)
+        ratios += [f"check_late_peak_mb={megabytes:.0f}", f"check_late_over_holds={ratio:.2f}"]
     if "start-up" in only:
         slowest, plugin = start_up(1 if args.quick else 5)
         ratios += [f"slowest_command_s={slowest:.3f}", f"plugin_import_s={plugin:.3f}"]

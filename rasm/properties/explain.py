@@ -302,10 +302,11 @@ class Explainer:
 
 
 class _Snapshots:
-    """Every signal's held value at each of the records ``wanted`` (sample-and-hold, events
-    false where not set)."""
+    """The properties' signals' held values at each of the records ``wanted`` (sample-and-hold,
+    events false where not set)."""
 
     def __init__(self, spec: Specification, wanted: Iterable[int]) -> None:
+        self.names = list(spec.signals)
         self.events = [e.name for e in spec.events]
         self.current: dict[str, object] = {
             i.name: i.default for i in spec.inputs if i.default is not None
@@ -323,7 +324,7 @@ class _Snapshots:
                 current[name] = False
             current.update(record)
             if index in self.wanted:
-                self.taken[index] = dict(current)
+                self.taken[index] = {n: current[n] for n in self.names if n in current}
 
 
 class _Explainer:

@@ -121,7 +121,7 @@ class Dashboard:
         for verdict in verdicts:
             timeline = self.timelines.get(verdict.property)
             if timeline is not None:
-                timeline.add(verdict.time, verdict.value, verdict.error)
+                timeline.add(verdict.time, verdict.value, verdict.error, verdict.index)
 
     def _name_missing(self) -> None:
         """The signals each property never judged waits for, and the antecedents that never
