@@ -16,6 +16,17 @@ Every node owns the topic ``rasm/presence/<node>``:
 (shutdown or will), ``silent`` (online, but no heartbeat for ``timeout`` seconds: hung, or cut
 off without the broker noticing yet). Silence is detected by a timer thread that sleeps until the
 earliest deadline, never by polling.
+
+Signed presence (with a shared key, ``RASM_ACTION_KEY`` in ``rasm run``): a :class:`Presence`
+given a ``signer`` signs every message it sends, bound (:class:`rasm.comm.signing.BoundSigner`)
+to the epochs of the receivers it knows (``receivers()``; none at first: such a message only
+introduces its sender). A :class:`PresenceTracker` given a ``gate`` counts an ``online``
+message only when it is signed with the key *and* bound to the tracker's own epoch, newer than
+every one admitted from its sender's run: a forged heartbeat (unsigned, or a replay of a real
+one) is refused, counted in ``refused`` and cannot keep a dead node online. A correctly signed
+message bound to someone else introduces its sender (:meth:`PresenceTracker.known_epochs`), so
+the two sides learn each other's epochs within a period or two. ``offline`` messages count from
+anyone, signed or not: they can only stop things (the broker publishes the unsigned will).
 """
 
 from __future__ import annotations
@@ -29,6 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rasm.comm.message import Message
+from rasm.comm.signing import BINDING, BoundSigner, SignedGate
 from rasm.comm.topics import validate_topic
 from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError
@@ -90,7 +102,9 @@ class Presence:
     The transport must be connected (and, over MQTT, created with :func:`presence_will` so a
     crash is advertised too). Heartbeats come from a daemon thread; a failed publish (broker
     away) is logged and the next heartbeat tries again. ``info``: more fields of every online
-    message (start-up and heartbeats), e.g. ``{"epoch": gate.epoch}``.
+    message (start-up and heartbeats), e.g. ``{"epoch": gate.epoch}``. With a ``signer``
+    every message is signed, bound to the epochs ``receivers()`` gives at the time (see the
+    module docstring).
     """
 
     def __init__(
@@ -101,6 +115,8 @@ class Presence:
         role: str | None = None,
         period: float = 1.0,
         info: dict[str, Any] | None = None,
+        signer: BoundSigner | None = None,
+        receivers: Callable[[], list[str]] = list,
     ) -> None:
         if not isinstance(period, int | float) or isinstance(period, bool) or not period > 0:
             raise CommError(f"presence period must be a positive number of seconds: {period!r}")
@@ -113,6 +129,8 @@ class Presence:
         self.period = float(period)
         self.topic = presence_topic(node)
         self.info = dict(info or {})
+        self.signer = signer
+        self.receivers = receivers
         self.heartbeats = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -126,11 +144,17 @@ class Presence:
             **self.info,
         }
 
+    def _sealed(self, payload: dict[str, Any]) -> dict[str, Any]:
+        if self.signer is None:
+            return payload
+        epochs = sorted(self.receivers())
+        return self.signer.sign(payload, topic=self.topic, epochs=epochs, unbound=True)
+
     def start(self) -> Presence:
         """Announce start-up and start the heartbeats; returns self."""
         if self._thread is not None:
             return self
-        _publish(self.transport, self.topic, self._online(0), retain=True)
+        _publish(self.transport, self.topic, self._sealed(self._online(0)), retain=True)
         self._thread = threading.Thread(
             target=self._beat, name=f"rasm-presence-{self.node}", daemon=True
         )
@@ -142,7 +166,7 @@ class Presence:
         while not self._stop.wait(self.period):  # the wait is the timer: stop() ends it at once
             seq += 1
             try:
-                _publish(self.transport, self.topic, self._online(seq), retain=False)
+                _publish(self.transport, self.topic, self._sealed(self._online(seq)), retain=False)
                 self.heartbeats += 1
             except CommError as exc:
                 _log.warning("presence heartbeat of %s not sent: %s", self.node, exc)
@@ -157,7 +181,7 @@ class Presence:
             _publish(
                 self.transport,
                 self.topic,
-                {"state": "offline", "role": self.role, "reason": "shutdown"},
+                self._sealed({"state": "offline", "role": self.role, "reason": "shutdown"}),
                 retain=True,
             )
         except CommError as exc:
@@ -192,7 +216,8 @@ class PresenceTracker:
     order the changes happen, from the transport's delivery thread or the tracker's timer thread,
     while the tracker is locked: keep it short (it may read :meth:`nodes`). ``timeout`` is how
     long an online node may stay without a heartbeat before it is ``silent``; a heartbeat makes a
-    silent node online again.
+    silent node online again. With a ``gate`` only signed heartbeats bound to the gate's epoch
+    count (see the module docstring); the others are counted in :attr:`refused`.
     """
 
     def __init__(
@@ -201,13 +226,18 @@ class PresenceTracker:
         *,
         timeout: float = 3.0,
         on_change: OnChange | None = None,
+        gate: SignedGate | None = None,
     ) -> None:
         if not isinstance(timeout, int | float) or isinstance(timeout, bool) or not timeout > 0:
             raise CommError(f"presence timeout must be a positive number of seconds: {timeout!r}")
         self.transport = transport
         self.timeout = float(timeout)
         self.on_change = on_change
+        self.gate = gate
         self.malformed = 0
+        self.refused = 0  # online messages a gate refused: unsigned, forged or replayed
+        # nodes that introduced themselves with a correct signature: name -> (role, app, epoch)
+        self._introduced: dict[str, tuple[Any, Any, str]] = {}
         self.logs = RepeatedLogs()
         self._nodes: dict[str, NodeState] = {}
         self._cond = threading.Condition(threading.RLock())
@@ -265,6 +295,20 @@ class PresenceTracker:
                 and 0 < len(known.payload["epoch"]) <= 128
             }
 
+    def known_epochs(self, *, role: str | None = None, app: str | None = None) -> list[str]:
+        """With a gate: the epochs of the nodes (of ``role`` and ``app`` when given) that
+        introduced themselves with a correctly signed message, online or not yet verified;
+        what a :class:`Presence` binds its own heartbeats to. Without a gate: :meth:`epochs`."""
+        if self.gate is None:
+            return sorted(self.epochs(role=role, app=app).values())
+        with self._cond:
+            return sorted(
+                epoch
+                for name, (known_role, known_app, epoch) in self._introduced.items()
+                if (role is None or known_role == role) and (app is None or known_app == app)
+                and self._nodes.get(name, NodeState(name, "online")).state != "offline"
+            )
+
     def state(self, node: str) -> str | None:
         """``online``, ``offline``, ``silent``, or None for a node never heard of."""
         with self._cond:
@@ -285,6 +329,8 @@ class PresenceTracker:
                 "malformed presence message on %r ignored: %r", message.topic, payload,
             )
             return
+        if state == "online" and self.gate is not None and not self._admitted(message):
+            return
         reason = payload.get("reason")
         with self._cond:
             known = self._nodes.get(node)
@@ -300,6 +346,33 @@ class PresenceTracker:
                 self._cond.notify_all()  # the timer recomputes its earliest deadline
             if before != state:
                 self._changed(node, state)
+
+    def _admitted(self, message: Message) -> bool:
+        """Whether a gate admits an online message as a heartbeat; a correctly signed one that
+        is bound elsewhere only introduces its sender."""
+        payload = message.payload
+        node = message.topic.rsplit("/", 1)[-1]
+        if self.gate.signed(payload):
+            epoch = payload.get("epoch")
+            if isinstance(epoch, str) and 0 < len(epoch) <= 128:
+                with self._cond:
+                    if node in self._introduced or len(self._introduced) < 10_000:
+                        self._introduced[node] = (payload.get("role"), payload.get("app"), epoch)
+            binding = payload.get(BINDING)
+            epochs = binding.get("epochs") if isinstance(binding, dict) else None
+            if not isinstance(epochs, list) or self.gate.epoch not in epochs:
+                return False  # an introduction, not a heartbeat for this tracker
+        why = self.gate.check(payload, message.topic)
+        if why is None:
+            return True
+        with self._cond:
+            self.refused += 1
+        self.logs.log(
+            _log, logging.WARNING, f"presence on {message.topic} refused: {why.split(':')[0]}",
+            "presence message on %r refused (it does not count as a heartbeat): %s",
+            message.topic, why,
+        )
+        return False
 
     def _changed(self, node: str, state: str) -> None:
         if state == "offline":

@@ -47,11 +47,13 @@ __all__ = [
     "BoundSigner",
     "ReplayGuard",
     "SignedEffector",
+    "SignedGate",
     "UpdateOutcome",
     "UpdateReceiver",
     "canonical",
     "new_epoch",
     "sign",
+    "unsealed",
     "verify",
 ]
 
@@ -169,13 +171,16 @@ class BoundSigner:
             raise CommError(f"a run id must be text of 1 to {_MAX_ID} characters: {run!r}")
         self.seq = 0  # the sequence number of the last message signed
 
-    def sign(self, payload: Mapping[str, Any], *, topic: str, epochs: list[str]) -> dict[str, Any]:
+    def sign(
+        self, payload: Mapping[str, Any], *, topic: str, epochs: list[str], unbound: bool = False
+    ) -> dict[str, Any]:
         """``payload`` with a :data:`BINDING` for ``epochs`` and ``topic``, signed.
 
         ``epochs``: the announced epochs of the receivers meant (at least one; a message bound
-        to none would be refused by every receiver, so that is an error here).
+        to none would be refused by every receiver, so that is an error here, unless
+        ``unbound``: a presence message that only introduces its sender may be bound to none).
         """
-        if not epochs:
+        if not epochs and not unbound:
             raise CommError(
                 "nothing to bind the message to: no receiver has announced its epoch yet"
             )
@@ -368,11 +373,50 @@ class UpdateReceiver:
 # --------------------------------------------------------------------------- actions
 
 
+class SignedGate:
+    """A receiver's check of signed, bound messages: each must be signed with ``key`` and
+    bound to ``epoch`` (a fresh one unless given), to ``topic`` when given, and newer than every
+    message admitted from the same sender run (:class:`ReplayGuard`).
+
+    The half every receiver of signed messages shares: :class:`SignedEffector` passes actions
+    through one, the platform checks external verdicts and presence heartbeats with one each.
+    """
+
+    def __init__(self, key: bytes, *, epoch: str | None = None, topic: str | None = None) -> None:
+        self._key = _check_key(key)
+        self.topic = topic
+        self.guard = ReplayGuard(epoch)
+        self._lock = threading.Lock()
+
+    @property
+    def epoch(self) -> str:
+        """This receiver's incarnation: messages must be bound to it."""
+        return self.guard.epoch
+
+    def signed(self, payload: Any) -> bool:
+        """Whether ``payload`` carries a correct signature (its binding not looked at)."""
+        return verify(payload, self._key)
+
+    def check(self, payload: Any, topic: str | None = None) -> str | None:
+        """None if ``payload`` may pass (and remember it as admitted), else why not.
+        ``topic``: where it came (default: the gate's own)."""
+        refused = _why_refused(payload, self._key)
+        if refused is not None:
+            return refused
+        with self._lock:
+            return self.guard.admit(payload.get(BINDING), topic or self.topic)
+
+
+def unsealed(payload: Mapping[str, Any]) -> dict[str, Any]:
+    """``payload`` without its signature and binding: what the sender meant."""
+    return {k: v for k, v in payload.items() if k not in (SIGNATURE, BINDING)}
+
+
 class SignedEffector:
     """An effector-side gate: passes on only actions signed with the Trustworthiness Checker's key
     and bound to this incarnation.
 
-    ``handle(payload)`` verifies the signature and the binding (:class:`ReplayGuard`: bound to
+    ``handle(payload)`` verifies the signature and the binding (:class:`SignedGate`: bound to
     ``epoch``, to ``topic`` when given, and newer than every action admitted from the same
     sender run), then calls ``effector(action)`` with the payload minus its signature and
     binding and returns True; else it logs the reason, counts it in :attr:`refused` and returns
@@ -389,28 +433,24 @@ class SignedEffector:
         epoch: str | None = None,
         topic: str | None = None,
     ) -> None:
-        self._key = _check_key(key)
+        self.gate = SignedGate(key, epoch=epoch, topic=topic)
         self.effector = effector
         self.topic = topic
         self.accepted = 0
         self.refused = 0
         self.last_refusal: str | None = None
-        self.guard = ReplayGuard(epoch)
+        self.guard = self.gate.guard
         self.logs = RepeatedLogs()
         self._lock = threading.Lock()
 
     @property
     def epoch(self) -> str:
         """This gate's incarnation: actions must be bound to it."""
-        return self.guard.epoch
+        return self.gate.epoch
 
     def check(self, payload: Any) -> str | None:
         """None if ``payload`` may pass (and remember it as admitted), else why not."""
-        refused = _why_refused(payload, self._key)
-        if refused is not None:
-            return refused
-        with self._lock:
-            return self.guard.admit(payload.get(BINDING), self.topic)
+        return self.gate.check(payload)
 
     def handle(self, payload: Any) -> bool:
         """Verify and, if correctly signed, bound here and new, pass the action on."""
@@ -427,7 +467,7 @@ class SignedEffector:
                 "action refused by the effector gate: %s", reason,
             )
             return False
-        action = {k: v for k, v in payload.items() if k not in (SIGNATURE, BINDING)}
+        action = unsealed(payload)
         with self._lock:
             self.accepted += 1
         self.effector(action)

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rasm.comm import Transport
-from rasm.comm.signing import BoundSigner, SignedEffector, new_epoch
+from rasm.comm.signing import BoundSigner, SignedEffector, SignedGate, new_epoch
 from rasm.errors import CommError, PlatformError
 
 if TYPE_CHECKING:
@@ -176,20 +176,27 @@ class Distribution:
             return
         from rasm.comm import Presence, PresenceTracker, UpdateReceiver
 
+        signed = self.action_key is not None
+        if self.managing or signed:
+            # with the action key the managed side follows presence too: it binds its own
+            # heartbeats to the epochs of the managing processes that introduced themselves
+            self.tracker = PresenceTracker(
+                transport,
+                timeout=3 * max(self.period, 0.5),
+                on_change=self._presence_changed if self.managing else None,
+                gate=SignedGate(self.action_key, epoch=self.epoch) if signed else None,
+            ).start()
         self.presence = Presence(
             transport,
             self.node,
             role=self.role,
             period=max(self.period, 0.5),
             info={"app": self.app, "epoch": self.epoch},
+            signer=BoundSigner(self.action_key) if signed else None,
+            receivers=self._presence_receivers,
         ).start()
         if self.managing:
             observers.append(self._publish_record)
-            self.tracker = PresenceTracker(
-                transport,
-                timeout=3 * max(self.period, 0.5),
-                on_change=self._presence_changed,
-            ).start()
             if self.update_key is not None:
                 self.updates = UpdateReceiver(
                     transport,
@@ -198,6 +205,27 @@ class Distribution:
                     properties=self._apply_properties,
                     epoch=self.epoch,
                 ).start()
+
+    def _presence_receivers(self) -> list[str]:
+        """Whom this process's signed heartbeats are bound to: the other processes of its app
+        that introduced themselves."""
+        if self.tracker is None:
+            return []
+        return [e for e in self.tracker.known_epochs(app=self.app) if e != self.epoch]
+
+    def verdict_check(self, topics: dict[str, str]) -> Callable[[str, Any], str | None] | None:
+        """How external verdicts (source name -> topic) are told from an outsider's: over MQTT
+        with ``RASM_ACTION_KEY``, each must be signed with it and bound to this process's
+        epoch and its topic, and be newer than what came from its sender's run; None where
+        nothing can be checked here (no key, or a ROS 2 transport: its own check is the
+        declared publisher)."""
+        if self.action_key is None or not self.networked:
+            return None
+        gates = {
+            name: SignedGate(self.action_key, epoch=self.epoch, topic=topic)
+            for name, topic in topics.items()
+        }
+        return lambda name, payload: gates[name].check(payload)
 
     def stop(self) -> None:
         for part in (self.updates, self.tracker, self.presence):

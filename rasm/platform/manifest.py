@@ -63,13 +63,18 @@ class Probe:
     """A topic the managed system publishes on, routed by Telegraf into knowledge.
 
     With a ROS 2 interface ``type`` each signal is read from its field path; ``stamp`` is
-    ``header`` when a record's time is the message's ``header.stamp`` (else its arrival)."""
+    ``header`` when a record's time is the message's ``header.stamp`` (else its arrival).
+    ``staleness``: seconds it may stay silent before its signals are stale and the managed
+    system counts as lost (None: never); ``publisher``: the ROS 2 node that publishes it,
+    whose leaving the graph counts as the managed system lost."""
 
     topic: str
     signals: dict[str, Signal]
     type: str | None = None
     qos: dict[str, Any] | None = None
     stamp: str = "receipt"
+    staleness: float | None = None
+    publisher: str | None = None
 
 
 @dataclass(frozen=True)
@@ -93,13 +98,19 @@ class Effector:
 class ExternalVerdict:
     """A verdict topic of a monitor outside rasm, a veto source (``trustworthiness.
     external_verdicts``): ``{"value": bool}`` JSON, or on ROS 2 ``std_msgs/msg/Bool`` (its
-    ``data``) or ``std_msgs/msg/Empty`` (each message a violation that vetoes ``hold`` s)."""
+    ``data``) or ``std_msgs/msg/Empty`` (each message a violation that vetoes ``hold`` s).
+
+    ``freshness``: seconds a JSON or Bool verdict counts (a false vetoes that long whatever
+    arrives beside it; a source silent that long is stale); ``publisher``: over ROS 2 the node
+    whose messages alone count."""
 
     name: str
     topic: str
     type: str | None = None
     qos: dict[str, Any] | None = None
     hold: float = 1.0
+    freshness: float = 1.0
+    publisher: str | None = None
 
 
 @dataclass(frozen=True)
@@ -300,6 +311,8 @@ def _probes(src: YamlSource, problems: list[SourceError]) -> list[Probe]:
                 probe.get("type"),
                 plain(probe["qos"]) if "qos" in probe else None,
                 probe.get("stamp", "receipt"),
+                float(probe["staleness"]) if "staleness" in probe else None,
+                probe.get("publisher"),
             )
         )
     return probes
@@ -519,6 +532,8 @@ def load_manifest(app: str | Path) -> AppManifest:
             spec.get("type"),
             plain(spec["qos"]) if "qos" in spec else None,
             float(spec.get("hold", 1.0)),
+            float(spec.get("freshness", 1.0)),
+            spec.get("publisher"),
         )
         for name, spec in (trust.get("external_verdicts") or {}).items()
     }

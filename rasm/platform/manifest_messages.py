@@ -48,7 +48,7 @@ def check_messages(
                     f"{probe.topic} its interface type (type: pkg/msg/Name)",
                     src.at(["probes", i, "signals", key, "field"]),
                 ))
-        for key in ("stamp", "qos"):
+        for key in ("stamp", "qos", "publisher"):
             if key in written:
                 problems.append(src.error(
                     f"probe {probe.topic}: {key} belongs to a ROS 2 topic; give the probe its "
@@ -73,6 +73,7 @@ def check_messages(
                 "interface type (type: pkg/msg/Name)",
                 src.key(written, "qos"),
             ))
+    problems.extend(_external_problems(src, external))
     if problems or not typed:
         return None, effectors
     try:
@@ -107,6 +108,29 @@ def check_messages(
             path = ["trustworthiness", "external_verdicts", name, "topic"]
             _check_topic(src, verdict.topic, path, problems)
     return store, checked
+
+
+def _external_problems(src: YamlSource, external: dict[str, ExternalVerdict]) -> list[SourceError]:
+    """A publisher is a ROS 2 node (a JSON source has none); an Empty source's violations last
+    ``hold`` seconds and its silence is its "holds", so it has no freshness."""
+    problems = []
+    for name, verdict in external.items():
+        written = src.data["trustworthiness"]["external_verdicts"][name]
+        if not verdict.type and "publisher" in written:
+            problems.append(src.error(
+                f"external verdict {name}: publisher names a ROS 2 node; give the source its "
+                "type (std_msgs/msg/Bool or std_msgs/msg/Empty), or sign its verdicts over "
+                "MQTT with RASM_ACTION_KEY",
+                src.key(written, "publisher"),
+            ))
+        if verdict.type == "std_msgs/msg/Empty" and "freshness" in written:
+            problems.append(src.error(
+                f"external verdict {name}: an Empty source has no freshness (each message is "
+                "a violation that vetoes for hold seconds, and its silence is its \"holds\"); "
+                "use hold",
+                src.key(written, "freshness"),
+            ))
+    return problems
 
 
 def _check_topic(

@@ -42,6 +42,7 @@ from rasm.platform.external_verdicts import ExternalVerdicts
 from rasm.platform.fallback import FallbackSwitch, check_fallback_legitimate
 from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.knowledge_store import open_app_knowledge
+from rasm.platform.liveness import ManagedSystemWatch
 from rasm.platform.loading import (
     load_app_components,
     load_component,
@@ -140,7 +141,9 @@ class Platform:
         self.replay_path = Path(replay) if replay is not None else None
         self.replay: Replay | None = None
         self.ros = is_ros_transport(self.transport_url)
-        self.external = ExternalVerdicts(manifest.external_verdicts)
+        self.external = ExternalVerdicts(manifest.external_verdicts)  # built with the checker
+        self._external_due: float | None = None  # when the sources are looked at next
+        self._watch_due: float | None = None  # when the probes' staleness is looked at next
         self.verdicts_out: VerdictPublisher | None = None
         self.knowledge_url = knowledge or manifest.knowledge
         self._component_overrides = components or {}
@@ -308,8 +311,28 @@ class Platform:
         check_repair_weights(m, self.rules)
         monitors: list[Monitor] = compile_app_properties(m)
         vacuity = [Vacuity(monitor.spec) for monitor in monitors]  # before external verdicts
+        # who may speak for an external verdict: the signer of RASM_ACTION_KEY over MQTT, the
+        # declared publisher over ROS 2 (the transport delivers its messages alone)
+        self.external = ExternalVerdicts(
+            m.external_verdicts,
+            check=self.dist.verdict_check(
+                {name: source.topic for name, source in m.external_verdicts.items()}
+            ),
+            alive=getattr(self.transport, "node_alive", None) if self.ros else None,
+            logs=self.logs,
+        )
         if self.external.sources:
             monitors.append(self.external)
+        # is the managed system there, and which readings are live (probe staleness, the ROS
+        # graph, presence)
+        self.watch = ManagedSystemWatch(
+            m.probes,
+            clock=self.scheduler.now,
+            presence=lambda: self.dist.managed_online,
+            alive=getattr(self.transport, "node_alive", None) if self.ros else None,
+            on_change=self._managed_system_changed,
+            on_stale=lambda stale: self.tc.set_stale(stale, self.scheduler.now()),
+        )
         # the managed system's modes chart, stepped by every batch of values stored
         if m.modes:
             self.modes = ModesRunner(
@@ -333,7 +356,7 @@ class Platform:
                 replaying=self.replay_path is not None,
             ).send,
             mode_of=self._managed_system_mode,
-            online=lambda: self.dist.managed_online,
+            online=self.watch.online,
             observers=self.on_verdict,  # the list itself: observers added later are called
             vacuity=vacuity,
             clock=clock,
@@ -418,7 +441,7 @@ class Platform:
             am=self.am,
             tm=self.tm,
             vetoes=self.tm.vetoes,
-            online=lambda: self.dist.managed_online,
+            online=self.watch.online,
             stats=lambda: self.ao.stats,
             emit=self._emit,
             veto_properties=self.tm.veto_properties,
@@ -433,7 +456,9 @@ class Platform:
         return self.fb
 
     def _tick(self) -> None:
-        """One loop period with a fallback: the switch reads its triggers, then the loop runs."""
+        """One loop period: the managed system's witnesses are read (the ROS graph has no
+        deadline to wake on), the fallback switch reads its triggers, then the loop runs."""
+        self.watch.evaluate()
         if self.fb is not None:
             self.fb.evaluate()
         self.ao.orchestration_loop()
@@ -511,14 +536,66 @@ class Platform:
     def _on_external_verdict(self, name: str, message: Message) -> None:
         # on the transport's thread: the verdict is taken on the loop's, at the loop's time
         payload = message.payload
-        self.scheduler.submit(
-            lambda: self.tc.take(self.external.receive(name, payload, self.scheduler.now()))
-        )
+        self.scheduler.submit(lambda: self._take_external(name, payload))
+
+    def _take_external(self, name: str, payload: Any) -> None:
+        verdict = self.external.receive(name, payload, self.scheduler.now())
+        if verdict is not None:
+            self.tc.take(verdict)
+        self._external_wake()
+
+    def _external_wake(self) -> None:
+        """Have the external sources looked at when time alone changes one (a false leaving
+        its window, a source going stale), not only at the next record."""
+        now = self.scheduler.now()
+        due = self.external.next_change(now)
+        if due is not None and (self._external_due is None or due < self._external_due
+                                or self._external_due <= now):
+            self._external_due = due
+            self.scheduler.at(due, self._external_tick)
+
+    def _external_tick(self) -> None:
+        self._external_due = None
+        for verdict in self.external.step(self.scheduler.now(), {}):
+            self.tc.take(verdict)
+        self._external_wake()
 
     def _on_probe(self, message: Message) -> None:
         # delivered on the transport's thread: digested on the loop's, at the loop's time then
         topic, payload = message.topic, message.payload
-        self.scheduler.submit(lambda: self.tg.digest(topic, payload, self.scheduler.now()))
+        self.scheduler.submit(lambda: self._digest(topic, payload, self.scheduler.now()))
+
+    def _digest(self, topic: str, payload: Any, time: float) -> dict[str, Any]:
+        """One probe message into knowledge; a probe that stored values is live."""
+        stored = self.tg.digest(topic, payload, time)
+        if stored:
+            self.watch.heard(topic, time)
+            if self._watch_due is None:
+                self._watch_schedule()
+        return stored
+
+    def _watch_schedule(self) -> None:
+        """Have the managed system's witnesses read when a probe would go stale (one wake
+        pending at a time; a probe heard meanwhile moves the next one on)."""
+        due = self.watch.next_deadline()
+        self._watch_due = due
+        if due is not None:
+            self.scheduler.at(due, self._watch_tick)
+
+    def _watch_tick(self) -> None:
+        self.watch.evaluate()
+        self._watch_schedule()
+
+    def _managed_system_changed(self, lost: bool, why: str) -> None:
+        """The managed system is lost or back (loop thread): traced, told to the orchestrator,
+        and the fallback's triggers read at once."""
+        event = "managed_system_lost" if lost else "managed_system_back"
+        (_log.warning if lost else _log.info)("%s: %s", event, why or "every witness is back")
+        self._emit(self.scheduler.now(), {"explanation": f"{event}: {why}" if lost else event})
+        if self.ao.mode == "initialized":
+            self.ao.send(event)
+        if self.fb is not None:
+            self.fb.evaluate()
 
     def _schedule_block(self, block: Block, due: float) -> None:
         self.scheduler.at(due, block.wake)
@@ -532,9 +609,8 @@ class Platform:
         so what touches the loop is handed to the loop thread)."""
 
         def managed_system(event: str) -> None:
-            self.scheduler.submit(lambda: self.ao.send(event))
-            if self.fb is not None:
-                self.scheduler.submit(self.fb.evaluate)
+            # presence is one witness of the managed system's: the watch says what changed
+            self.scheduler.submit(self.watch.evaluate)
 
         def add_monitor(monitor: Monitor) -> None:
             self.scheduler.submit(lambda: self.tc.add_monitor(monitor))
@@ -575,7 +651,7 @@ class Platform:
         )
         m = self.manifest
         if self.replay is not None:
-            self.replay.start(self.scheduler, self.tg.digest, tail=m.period)
+            self.replay.start(self.scheduler, self._digest, tail=m.period)
         elif self.managing:
             for probe in m.probes:
                 self.cm.subscribe(probe.topic, self._on_probe)
@@ -587,11 +663,10 @@ class Platform:
                 )
             # a loop that overran skips the iterations it missed (Scheduler.missed)
             self.scheduler.every(
-                m.period,
-                self.ao.orchestration_loop if self.fb is None else self._tick,
-                start=self.clock.time + m.period,
-                skip_missed=True,
+                m.period, self._tick, start=self.clock.time + m.period, skip_missed=True
             )
+            self.watch.begin()
+            self._watch_tick()
         if self.managed is not None:
             self.managed.start(
                 self.cm, self.scheduler, started_at=self._started_at, gate=self.dist.effector_gate

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rasm.errors import PlatformError
+from rasm.errors import PlatformError, SourceErrors
 from rasm.platform.app_charts import check_charts
 from rasm.platform.loading import check_components
 from rasm.platform.manifest import AppManifest, load_manifest
-from rasm.platform.signals import check_app
+from rasm.platform.signals import check_app, transport_problems
 from rasm.platform.simulated_clock import check_simulated_run
 
 __all__ = ["check_run"]
@@ -54,11 +54,14 @@ def check_run(
         )
     if check_signals and role != "managed":
         # a property or rule reading a name nothing provides: refused before anything runs
-        check_app(manifest)
+        check_app(manifest, transport or manifest.transport)
     elif role != "managed":
         # the app's charts are checked even when its signals are not: a replacement chart that
         # lacks a stage state would run nothing, silently
         check_charts(manifest)
+        problems = transport_problems(manifest, transport or manifest.transport)
+        if problems:
+            raise SourceErrors(problems)
     if clock not in (None, "simulated", "wall"):
         raise PlatformError(f"unknown clock {clock!r} (simulated or wall)")
     if components is not None:

@@ -33,6 +33,7 @@ from typing import Any
 from rasm.errors import Location, SourceError, SourceErrors, marked_error, read_utf8
 from rasm.loop import LOOP_SIGNAL_TYPES
 from rasm.platform.manifest import AppManifest, manifest_location
+from rasm.platform.own_topics import own_topic_problems
 from rasm.resources import data_dir
 
 __all__ = [
@@ -178,11 +179,12 @@ def unprovided(spec: Any, names: Collection[str]) -> list[tuple[str, Location, s
 # --------------------------------------------------------------------------- the app check
 
 
-def app_problems(manifest: AppManifest) -> list[SourceError]:
+def app_problems(manifest: AppManifest, transport: str | None = None) -> list[SourceError]:
     """Every name the app's property and rule files read that nothing provides, or provides
     with a type they cannot take; veto properties or a mode signal that do not exist; and the
     problems of the charts the app brings (:mod:`rasm.platform.app_charts`).
-    A file that does not parse is reported with its own errors."""
+    A file that does not parse is reported with its own errors. ``transport``: the one the app
+    runs over (default: its manifest's), for what it asks of it (:func:`transport_problems`)."""
     have = provided(manifest)
     problems: list[SourceError] = []
     names: set[str] = set()
@@ -195,20 +197,33 @@ def app_problems(manifest: AppManifest) -> list[SourceError]:
         rules = _parsed(path, _load_rules, problems)
         if rules is not None:
             problems += _rule_problems(rules, have)
-    found = _trustworthiness_problems(manifest, have, names)
     from rasm.platform.app_properties import setting_problems
 
-    found = [*found, *setting_problems(manifest)]
+    found = [
+        *_trustworthiness_problems(manifest, have, names),
+        *transport_problems(manifest, transport or manifest.transport),
+        *own_topic_problems(manifest, names | _platform_property_names()),
+        *setting_problems(manifest),
+    ]
     problems += sorted(found, key=lambda e: (e.location.line, e.location.col))
     from rasm.platform.app_charts import app_chart_problems
 
     return problems + app_chart_problems(manifest)
 
 
-def check_app(manifest: AppManifest) -> None:
+def transport_problems(manifest: AppManifest, transport: str) -> list[SourceError]:
+    """What the app asks of ``transport`` that it cannot give: a ``managed_system_lost``
+    trigger nothing there reports, an external verdict source with no declared publisher
+    over ROS 2 (:mod:`rasm.platform.liveness`)."""
+    from rasm.platform.liveness import lost_trigger_problems, publisher_problems
+
+    return [*lost_trigger_problems(manifest, transport), *publisher_problems(manifest, transport)]
+
+
+def check_app(manifest: AppManifest, transport: str | None = None) -> None:
     """Raise :class:`SourceErrors` with :func:`app_problems`, if there are any (``rasm run``'s
     start-up: an app whose properties could never be judged does not run)."""
-    problems = app_problems(manifest)
+    problems = app_problems(manifest, transport)
     if problems:
         raise SourceErrors(problems)
 

@@ -59,8 +59,10 @@ class TrustworthinessChecker(Block):
     ``latest`` holds each property's latest verdict, ``outcomes`` counts them all (its state is
     the property's overall verdict so far). A monitor that raises on a record makes every
     property it checks ``error`` for that record: the checker cannot vouch for them there, and
-    says so. ``vacuity`` watches the antecedents of the properties' ``->``: at the end, each
-    outcome names those that never held (``vacuous``).
+    says so. So is a property that reads a stale signal (:meth:`set_stale`): while the signal
+    is stale, its verdicts are errors naming it, not judgements of the last reading.
+    ``vacuity`` watches the antecedents of the properties' ``->``: at the end, each outcome
+    names those that never held (``vacuous``).
     """
 
     chart_name = "trustworthiness_checker"
@@ -102,7 +104,25 @@ class TrustworthinessChecker(Block):
         self._dropped_watches: list[AntecedentWatch] = []  # watches that raised
         self._action: Action | None = None
         self._outcome: tuple[bool, str] = (False, "")
+        self._stale: dict[str, str] = {}  # property -> why it cannot be judged now
         super().__init__(**kw)
+
+    def set_stale(self, signals: dict[str, str], time: float) -> None:
+        """``signals`` (name -> why) are stale from ``time`` on, the others live: every property
+        reading a stale one is in error at once, and on every record until it is live again."""
+        stale = {}
+        for monitor in self.monitors:
+            reads = getattr(monitor, "reads", None)
+            if reads is None:
+                continue
+            for name in monitor.properties:
+                why = next((signals[s] for s in reads(name) if s in signals), None)
+                if why is not None:
+                    stale[name] = f"not judged on a stale reading: {why}"
+        fresh = [name for name in stale if name not in self._stale]
+        self._stale = stale
+        if fresh:
+            self._take([Verdict(name, self.records, time, False, stale[name]) for name in fresh])
 
     def observe(self, time: float, record: dict[str, Any]) -> list[Verdict]:
         """Feed one loop record to every monitor; returns the verdicts it decided."""
@@ -118,6 +138,8 @@ class TrustworthinessChecker(Block):
                 if monitor in self._failing:
                     self._recovered(monitor, time)
             decided += verdicts
+        if self._stale:
+            decided = [self._unless_stale(verdict) for verdict in decided]
         self._take(decided)
         for watch in self.vacuity:
             try:
@@ -132,6 +154,12 @@ class TrustworthinessChecker(Block):
         _log.error("watching the antecedents of %s failed at t=%g: %s: %s; those that have not "
                    "held so far are reported vacuous", _origin(watch), time,
                    type(exc).__name__, exc, exc_info=exc)
+
+    def _unless_stale(self, verdict: Verdict) -> Verdict:
+        why = self._stale.get(verdict.property)
+        if why is None or verdict.value is None:
+            return verdict
+        return verdict._replace(value=False, error=why)
 
     def finish(self) -> list[Verdict]:
         """The end of the run: settle every monitor (``None``: the run ended before a verdict

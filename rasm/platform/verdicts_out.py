@@ -2,7 +2,9 @@
 
 Over ROS 2 a verdict is ``std_msgs/msg/Bool`` on ``/rasm/verdict/<property>``, a latched topic
 sent to when the value changes (a late subscriber gets the current one); elsewhere it is
-``{"value": …, "time": …}`` on the topic named after the property, every one.
+``{"value": …, "time": …}`` on ``rasm/verdict/<property>``, every one. The platform's own
+topics live under ``rasm/`` (``/rasm/`` over ROS 2) so that none can be a probe's or an
+effector's: :mod:`rasm.platform.own_topics` refuses an app whose topics clash with them.
 """
 
 from __future__ import annotations
@@ -16,9 +18,15 @@ from rasm.logs import RepeatedLogs
 from rasm.platform.manifest import AppManifest
 from rasm.properties.monitor import Verdict
 
-__all__ = ["VerdictPublisher", "publishes_verdicts"]
+__all__ = ["VerdictPublisher", "publishes_verdicts", "verdict_topic"]
 
 _log = logging.getLogger("rasm.platform")
+
+
+def verdict_topic(name: str, *, ros: bool) -> str:
+    """Where property ``name``'s verdicts go: ``/rasm/verdict/<name>`` over ROS 2,
+    ``rasm/verdict/<name>`` elsewhere."""
+    return f"/rasm/verdict/{name}" if ros else f"rasm/verdict/{name}"
 
 
 def publishes_verdicts(m: AppManifest, transport_url: str, *, replaying: bool) -> bool:
@@ -44,7 +52,7 @@ class VerdictPublisher:
             # a verdict topic holds the property's state: latched, sent when it changes
             latched = {"durability": "transient_local", "depth": 1}
             for name in names:
-                transport.declare(f"/rasm/verdict/{name}", "std_msgs/msg/Bool", qos=latched)
+                transport.declare(verdict_topic(name, ros=True), "std_msgs/msg/Bool", qos=latched)
 
     def publish(self, verdict: Verdict) -> None:
         """One verdict out. An undecided verdict is not sent; one in error goes out false."""
@@ -66,11 +74,12 @@ class VerdictPublisher:
 
     def _send(self, verdict: Verdict, value: bool) -> None:
         try:
+            topic = verdict_topic(verdict.property, ros=self.ros)
             if self.ros:
-                self.transport.publish(f"/rasm/verdict/{verdict.property}", {"data": value})
+                self.transport.publish(topic, {"data": value})
                 self.last_sent[verdict.property] = value
             else:
-                self.transport.publish(verdict.property, {"value": value, "time": verdict.time})
+                self.transport.publish(topic, {"value": value, "time": verdict.time})
             self.published += 1
         except RasmError as exc:  # the loop goes on; said once, then counted
             what = f"verdict of {verdict.property} not published: {exc}"

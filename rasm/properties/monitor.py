@@ -197,6 +197,10 @@ class Monitor:
         """
         return self._step(time, values)
 
+    def reads(self, name: str) -> tuple[str, ...]:
+        """The signals property ``name`` reads (those of the lets it uses too)."""
+        return tuple(self.program.reads[self.names.index(name)])
+
     def missing(self, name: str) -> tuple[str, ...]:
         """The signals property ``name`` waits for: those it reads that have had no value yet
         (empty once it has started)."""

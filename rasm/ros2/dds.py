@@ -30,12 +30,17 @@ from __future__ import annotations
 import itertools
 import logging
 import re
+import threading
 from collections.abc import Iterator
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 from cyclonedds._clayer import ddspy_take, ddspy_write  # raw CDR in and out (see _wire_send)
-from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication
+from cyclonedds.builtin import (
+    BuiltinDataReader,
+    BuiltinTopicDcpsParticipant,
+    BuiltinTopicDcpsPublication,
+)
 from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct, make_idl_struct
@@ -49,7 +54,7 @@ from rosbags.typesys.base import normalize_fieldname
 
 from rasm.errors import CommError
 from rasm.ros2.qos import QosProfile
-from rasm.ros2.transport import RosTopic, RosTransport, check_domain
+from rasm.ros2.transport import RosTopic, RosTransport, check_domain, node_of
 from rasm.ros2.types import PLACEHOLDER_FIELD, FieldType, TypeStore, ros_type_name
 
 __all__ = ["DdsTransport", "parse_dds_url", "dds_topic_name", "idl_struct"]
@@ -144,6 +149,68 @@ _GRAPH_QOS = Qos(
 )
 
 
+# rasm's own reader of the graph keeps every participant's latest announcement until it is
+# read (a keyless topic is one instance: keep last 1 would keep one participant's alone)
+_GRAPH_READER_QOS = Qos(
+    Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
+    Policy.Durability.TransientLocal,
+    Policy.History.KeepLast(256),
+    Policy.DataRepresentation(use_cdrv0_representation=True),
+)
+_GUID = 16  # bytes of a DDS GUID, as a GID starts with it
+
+
+class _DdsGraph:
+    """The ROS graph over DDS, read when asked (never from a listener): each participant's
+    nodes and their writers' GUIDs from ``ros_discovery_info``, and which participants are
+    still there from DDS discovery."""
+
+    def __init__(self, announcements: DataReader, participants: BuiltinDataReader) -> None:
+        self._announcements = announcements
+        self._participants = participants
+        self._lock = threading.Lock()
+        self._alive: set[bytes] = set()  # participant GUIDs
+        self._nodes: dict[bytes, list[tuple[str, set[bytes]]]] = {}  # participant -> nodes
+
+    def _refresh(self) -> None:
+        while samples := self._participants.take(_TAKE_BATCH):
+            for sample in samples:
+                key = sample.key.bytes
+                if sample.sample_info.instance_state == InstanceState.Alive:
+                    self._alive.add(key)
+                else:
+                    self._alive.discard(key)
+                    self._nodes.pop(key, None)
+        while samples := self._announcements.take(_TAKE_BATCH):
+            for sample in samples:
+                if not getattr(sample, "gid", None) or len(self._nodes) > _MAX_SEEN:
+                    continue
+                self._nodes[bytes(sample.gid.data)[:_GUID]] = [
+                    (node_of(n.node_namespace, n.node_name),
+                     {bytes(g.data)[:_GUID] for g in n.writer_gid_seq})
+                    for n in sample.node_entities_info_seq
+                ]
+
+    def alive(self, node: str) -> bool:
+        with self._lock:
+            self._refresh()
+            return any(
+                name == node
+                for participant in self._alive
+                for name, _ in self._nodes.get(participant, ())
+            )
+
+    def writer_node(self, guid: bytes) -> str | None:
+        """The node whose participant announces writer ``guid`` and is still there."""
+        with self._lock:
+            self._refresh()
+            for participant in self._alive:
+                for name, writers in self._nodes.get(participant, ()):
+                    if guid[:_GUID] in writers:
+                        return name
+        return None
+
+
 class DdsTransport(RosTransport):
     """ROS 2 topics over Cyclone DDS (see the module docstring).
 
@@ -180,6 +247,7 @@ class DdsTransport(RosTransport):
         self._own_writers: dict[int, Iterator[int]] = {}
         self._own_back: dict[int, int] = {}
         self._graph: DataWriter | None = None
+        self._graph_view: _DdsGraph | None = None
 
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
@@ -194,6 +262,10 @@ class DdsTransport(RosTransport):
             if GRAPH_TYPE in self.store:
                 graph = Topic(self._participant, GRAPH_TOPIC, idl_struct(self.store, GRAPH_TYPE))
                 self._graph = DataWriter(self._participant, graph, qos=_GRAPH_QOS)
+                self._graph_view = _DdsGraph(
+                    DataReader(self._participant, graph, qos=_GRAPH_READER_QOS),
+                    BuiltinDataReader(self._participant, BuiltinTopicDcpsParticipant),
+                )
                 self._announce()
         except DDSException as exc:
             self._delete_all()
@@ -212,6 +284,7 @@ class DdsTransport(RosTransport):
         self._writers.clear()
         self._dds_topics.clear()
         self._discovery = self._participant = self._domain = self._graph = None
+        self._graph_view = None
         for entity in entities:
             if entity is not None:
                 entity.__del__()
@@ -336,7 +409,34 @@ class DdsTransport(RosTransport):
         number = self._own_back[handle] = self._own_back.get(handle, 0) + 1
         return f"{handle}.{number}"
 
+    def node_alive(self, node: str) -> bool:
+        """Whether ROS node ``node``'s participant announces it on ``ros_discovery_info`` and
+        is still there (DDS discovery: at once when it leaves, after its lease when it dies)."""
+        graph = self._graph_view
+        return graph is not None and graph.alive(node)
+
     def _publication_check(
+        self, topic: RosTopic, reader: DataReader, handle: int
+    ) -> tuple[str, str] | None:
+        """None if samples of publication ``handle`` may be delivered, else the reason and why
+        not: its type (:meth:`_type_check`) and, on a restricted topic, its node."""
+        refused = self._type_check(topic, reader, handle)
+        node = self._restricted.get(topic.name)
+        if refused is None and node is not None:
+            try:
+                guid = reader.get_matched_publication_data(handle).key.bytes
+            except (DDSException, AttributeError):
+                guid = None
+            graph = self._graph_view
+            sender = graph.writer_node(guid) if graph is not None and guid else None
+            if sender != node:
+                who = sender or "a writer no node in the graph announces"
+                return "foreign_publisher", (
+                    f"published by {who}, not by {node} (its declared publisher)"
+                )
+        return refused
+
+    def _type_check(
         self, topic: RosTopic, reader: DataReader, handle: int
     ) -> tuple[str, str] | None:
         """None if samples of publication ``handle`` may be delivered, else the reason and why

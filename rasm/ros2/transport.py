@@ -41,12 +41,20 @@ from rasm.ros2.fieldread import projection
 from rasm.ros2.qos import DEFAULT_QOS, QosProfile
 from rasm.ros2.types import TypeStore, default_store
 
-__all__ = ["REJECTIONS", "RosTopic", "RosTransport", "domain_from_env", "validate_ros_topic"]
+__all__ = [
+    "REJECTIONS",
+    "RosTopic",
+    "RosTransport",
+    "domain_from_env",
+    "node_of",
+    "validate_node_name",
+    "validate_ros_topic",
+]
 
 _log = logging.getLogger("rasm.ros2")
 
 #: Why a received message was not delivered (the keys of :attr:`RosTransport.rejected`).
-REJECTIONS = ("malformed", "wrong_hash", "unknown_type", "type_conflict")
+REJECTIONS = ("malformed", "wrong_hash", "unknown_type", "type_conflict", "foreign_publisher")
 
 _NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 MAX_DOMAIN = 232  # the highest ROS domain id DDS can map to UDP ports
@@ -66,6 +74,22 @@ def validate_ros_topic(name: str) -> str:
                 "and '_', not starting with a digit; no empty level)"
             )
     return name
+
+
+def validate_node_name(node: str) -> str:
+    """Return ``node`` if it is a fully qualified ROS node name (``/name``, ``/ns/name``)."""
+    if not isinstance(node, str) or not node.startswith("/") or not all(
+        _NAME_TOKEN.fullmatch(token) for token in node[1:].split("/")
+    ):
+        raise CommError(
+            f"{node!r} is not a fully qualified ROS node name (/name or /namespace/name)"
+        )
+    return node
+
+
+def node_of(namespace: str, name: str) -> str:
+    """A node's fully qualified name from its namespace and name."""
+    return f"{namespace.rstrip('/')}/{name}"
 
 
 def check_domain(domain: Any, where: str = "ROS domain id") -> int:
@@ -222,6 +246,7 @@ class RosTransport(Transport):
         self.node_name = node_name
         self.namespace = namespace
         self._topics: dict[str, RosTopic] = {}
+        self._restricted: dict[str, str] = {}  # topic -> the only node whose messages count
         self._wired: set[str] = set()  # topics with a subscription on the wire
         self._rejected = dict.fromkeys(REJECTIONS, 0)
         self._reported: set[tuple[str, str]] = set()  # (topic, reason) already logged
@@ -294,6 +319,28 @@ class RosTransport(Transport):
             self._wire_subscribe(declared)
             self._wired.add(topic)
         return declared
+
+    def restrict(self, topic: str, node: str) -> None:
+        """Deliver only the messages of ``topic`` that ROS node ``node`` (``/name`` or
+        ``/namespace/name``) publishes while it is in the graph; every other publisher's are
+        refused as ``foreign_publisher`` (counted, logged once). Zenoh: the message's GID must
+        be that of one of the node's publishers of the topic, by their liveliness tokens; DDS:
+        its writer must be one the node's participant announces on ``ros_discovery_info``.
+        Without SROS2 this tells publishers apart, it does not authenticate them: whoever
+        joins the graph may take the node's name (docs/threats.md)."""
+        validate_node_name(node)
+        self._restricted[topic] = node
+
+    def node_alive(self, node: str) -> bool:
+        """Whether ROS node ``node`` is in the graph now."""
+        raise NotImplementedError
+
+    def _foreign(self, topic: RosTopic, who: str) -> None:
+        """Refuse one message of a restricted topic that its declared node did not send."""
+        self._reject(
+            topic.name, "foreign_publisher",
+            f"published by {who}, not by {self._restricted[topic.name]} (its declared publisher)",
+        )
 
     @property
     def topics(self) -> dict[str, RosTopic]:

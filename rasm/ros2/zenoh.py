@@ -26,7 +26,6 @@ never got (a sequence number skipped) is counted in ``stats.dropped``.
 from __future__ import annotations
 
 import atexit
-import hashlib
 import itertools
 import json
 import logging
@@ -38,11 +37,12 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 from weakref import WeakSet
 
+import xxhash
 import zenoh
 import zenoh.ext
 
 from rasm.errors import CommError
-from rasm.ros2.transport import RosTopic, RosTransport, check_domain
+from rasm.ros2.transport import RosTopic, RosTransport, check_domain, node_of
 from rasm.ros2.types import ros_type_name
 
 __all__ = ["ZenohTransport", "parse_zenoh_url", "topic_key", "liveliness_key", "attachment"]
@@ -131,9 +131,65 @@ def attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
 
 
 def _gid(key: str) -> bytes:
-    # rmw_zenoh hashes the token's key into the GID (XXH3-128); only equality of GIDs matters
-    # to ROS tools, so any 16-byte digest of the same key serves.
-    return hashlib.blake2b(key.encode(), digest_size=_GID_SIZE).digest()
+    """An entity's GID as rmw_zenoh makes it: the XXH3-128 of its liveliness token's key, low
+    64 bits then high 64 bits, little endian; so a message's GID names the token of the
+    publisher that sent it."""
+    digest = xxhash.xxh3_128_intdigest(key.encode())
+    return (digest & (2**64 - 1)).to_bytes(8, "little") + (digest >> 64).to_bytes(8, "little")
+
+
+def _demangle(name: str) -> str:
+    return name.replace("%", "/")
+
+
+class _Graph:
+    """The ROS graph as the liveliness tokens on the Zenoh network tell it: the nodes in it
+    and, by GID, each publisher's node and topic. Fed by one thread of the transport's."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._nodes: dict[str, int] = {}  # node -> its NN tokens alive
+        self._publishers: dict[bytes, tuple[str, str]] = {}  # gid -> (node, topic)
+        self._tokens: dict[str, tuple[str, str, bytes | None]] = {}  # key -> (kind, node, gid)
+
+    def put(self, key: str) -> None:
+        parts = key.split("/")
+        if len(parts) < 9 or parts[0] != "@ros2_lv" or key in self._tokens:
+            return
+        kind, node = parts[5], node_of(_demangle(parts[7]), parts[8])
+        gid = None
+        with self._lock:
+            if kind == "NN":
+                self._nodes[node] = self._nodes.get(node, 0) + 1
+            elif kind == "MP" and len(parts) >= 10:
+                gid = _gid(key)
+                self._publishers[gid] = (node, _demangle(parts[9]))
+            if len(self._tokens) < 100_000:  # a bounded memory of the graph
+                self._tokens[key] = (kind, node, gid)
+
+    def delete(self, key: str) -> None:
+        with self._lock:
+            found = self._tokens.pop(key, None)
+            if found is None:
+                return
+            kind, node, gid = found
+            if kind == "NN":
+                left = self._nodes.get(node, 0) - 1
+                if left > 0:
+                    self._nodes[node] = left
+                else:
+                    self._nodes.pop(node, None)
+            elif gid is not None:
+                self._publishers.pop(gid, None)
+
+    def alive(self, node: str) -> bool:
+        with self._lock:
+            return node in self._nodes
+
+    def publisher(self, gid: bytes) -> tuple[str, str] | None:
+        """The node and topic of the publisher with ``gid``, while its token is alive."""
+        with self._lock:
+            return self._publishers.get(gid)
 
 
 # the transports open in this process: closed at exit if their owner did not, as a receiving
@@ -209,6 +265,9 @@ class ZenohTransport(RosTransport):
         # topic -> (subscriber, liveliness token, the thread receiving its messages)
         self._subscribers: dict[str, tuple[Any, Any, threading.Thread]] = {}
         self._receiving = threading.local()  # .topic: set on a receiving thread
+        self._graph = _Graph()
+        self._graph_subscriber: Any = None
+        self._graph_thread: threading.Thread | None = None
 
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
@@ -241,7 +300,37 @@ class ZenohTransport(RosTransport):
             ) from None
         self._session_id = str(self._session.zid())
         self._node_token = self._declare_token(0, "NN")
+        self._follow_graph()
         _OPEN.add(self)
+
+    def _follow_graph(self) -> None:
+        """Follow the liveliness tokens of this domain (the ones already there included), on a
+        thread of rasm's: Zenoh's own threads never run Python."""
+        channel = zenoh.handlers.FifoChannel(self.max_pending)
+        self._graph_subscriber = self._session.liveliness().declare_subscriber(
+            f"@ros2_lv/{self.domain}/**", channel, history=True
+        )
+        self._graph_thread = threading.Thread(
+            target=self._watch_graph, args=(self._graph_subscriber.handler,),
+            name="rasm-zenoh-graph", daemon=True,
+        )
+        self._graph_thread.start()
+
+    def _watch_graph(self, channel: Any) -> None:
+        while (batch := _take_batch(channel)) is not None:
+            for sample in batch:
+                try:
+                    key = str(sample.key_expr)
+                    if sample.kind == zenoh.SampleKind.PUT:
+                        self._graph.put(key)
+                    else:
+                        self._graph.delete(key)
+                except Exception:
+                    _log.exception("error reading the ROS graph's liveliness tokens")
+
+    def node_alive(self, node: str) -> bool:
+        """Whether ROS node ``node`` has a liveliness token on the network now."""
+        return self._graph.alive(node)
 
     def _close_wire(self) -> None:
         _OPEN.discard(self)
@@ -250,12 +339,19 @@ class ZenohTransport(RosTransport):
         for name in list(self._subscribers):
             self._undeclare_subscriber(name)
         self._publishers.clear()
+        if self._graph_subscriber is not None:
+            try:
+                self._graph_subscriber.undeclare()
+            except zenoh.ZError:
+                pass
         session, self._session = self._session, None
         if session is not None:
             try:
                 self._node_token.undeclare()
             finally:
                 session.close()
+        if self._graph_thread is not None:
+            self._graph_thread.join(timeout=5.0)
 
     def _declare_token(self, entity_id: int, kind: str, topic: RosTopic | None = None) -> Any:
         key = liveliness_key(
@@ -391,6 +487,18 @@ class ZenohTransport(RosTransport):
         """Deliver one sample of the right type, counting what its publisher sent before it
         that never came."""
         sender = _sender(sample.attachment)
+        node = self._restricted.get(topic.name)
+        if node is not None:
+            known = self._graph.publisher(sender[0]) if sender is not None else None
+            if known != (node, topic.name):
+                if sender is None:
+                    who = "a publisher that sends no GID"
+                elif known is None:
+                    who = "a publisher with no liveliness token in the graph"
+                else:
+                    who = f"{known[0]} (on {known[1]})"
+                self._foreign(topic, who)
+                return
         if sender is None:
             self._dispatch(topic, sample.payload.to_bytes(), None, None)
             return

@@ -2,7 +2,7 @@
 
 The simulator publishes ``speed`` (fast during the scenario's ``fast`` windows) and ``x`` (a
 float without a declared range: 1e308 at the scenario's ``overflow_at`` times, else 1.0) every
-``period`` seconds. Every ``every``-th loop iteration has an anomaly and plans one action for the
+``period`` seconds, nothing during the scenario's ``silent`` windows. Every ``every``-th loop iteration has an anomaly and plans one action for the
 ``motor`` effector, so actions are tried all along the run. ``properties/robot.rv`` holds the
 veto property ``slow`` and ``budget``, a ``sum`` over a window of ``x`` that two readings of 1e308
 overflow. ``extra`` adds properties (and their inputs) to that file.
@@ -21,9 +21,12 @@ class GuardedSimulator:
         scenario = scenario or {}
         self.fast = [tuple(w) for w in scenario.get("fast", [])]
         self.overflow = [float(t) for t in scenario.get("overflow_at", [])]
+        self.silent = [tuple(w) for w in scenario.get("silent", [])]
         self.commands = []
 
     def step(self, time, dt):
+        if any(a <= time < b for a, b in self.silent):
+            return {}  # the robot is gone: nothing comes
         speed = 2.0 if any(a <= time < b for a, b in self.fast) else 0.5
         x = 1e308 if any(abs(time - t) < dt / 2 for t in self.overflow) else 1.0
         return {"robot/sensors": {"speed": speed, "x": x}}
@@ -66,7 +69,7 @@ managed_system:
   period: {period}
 probes:
   - topic: robot/sensors
-    signals:
+{staleness}    signals:
       speed: {{type: float, min: 0, max: 10}}
       x: {{type: float}}
 {more_signals}
@@ -111,14 +114,18 @@ def write_guarded_app(
     signals: dict[str, str] | None = None,
     inputs: str = "",
     extra: str = "",
+    staleness: float | None = None,
 ) -> Path:
     """Write the app into ``folder``; ``signals`` adds probe signals (name -> type) the
-    simulator never publishes. Returns the folder."""
+    simulator never publishes; ``staleness`` is the probe's. Returns the folder."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "properties").mkdir(exist_ok=True)
     more = "".join(f"      {name}: {{type: {kind}}}\n" for name, kind in (signals or {}).items())
     (folder / "app.yaml").write_text(
-        MANIFEST.format(period=period, veto=", ".join(veto), more_signals=more.rstrip("\n"))
+        MANIFEST.format(
+            period=period, veto=", ".join(veto), more_signals=more.rstrip("\n"),
+            staleness=f"    staleness: {staleness}\n" if staleness is not None else "",
+        )
     )
     (folder / "components.py").write_text(COMPONENTS.replace("EVERY_N", str(every)))
     (folder / "properties" / "robot.rv").write_text(

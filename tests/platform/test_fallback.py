@@ -44,8 +44,9 @@ fallback:
 PERIOD = 0.5
 
 
-def write_app(folder, *, level=0, when="veto, stage_failures", after=3, dwell=2.0, veto=("slow",)):
-    app = write_guarded_app(folder, period=PERIOD, veto=veto)
+def write_app(folder, *, level=0, when="veto, stage_failures", after=3, dwell=2.0, veto=("slow",),
+              staleness=None):
+    app = write_guarded_app(folder, period=PERIOD, veto=veto, staleness=staleness)
     (app / "rules").mkdir(exist_ok=True)
     (app / "rules" / "robot.yaml").write_text(RULES)
     text = (app / "app.yaml").read_text().replace(
@@ -179,28 +180,33 @@ def test_a_planner_that_overruns_its_budget_ends_in_fallback(tmp_path):
 
 
 def test_a_lost_managed_system_engages_the_fallback_and_its_return_hands_back(tmp_path):
-    app = write_app(tmp_path / "app", when="managed_system_lost", dwell=1.0)
-    platform = Platform(app, clock="simulated", seed=1, knowledge="memory")
-    records = []
-    platform.on_record.append(lambda t, r: records.append({"time": t, **r}))
-    platform.build()
-    hooks = platform._hooks()
-
-    def presence(state, event):
-        # what the presence tracker does when the managed node's heartbeats stop / resume
-        platform.dist.managed_nodes["robot"] = state
-        hooks.managed_system(event)
-
-    platform.scheduler.at(4.2, lambda: presence("offline", "managed_system_lost"))
-    platform.scheduler.at(8.2, lambda: presence("online", "managed_system_back"))
-    platform.run(duration=12)
-    assert switches(records) == [(4.2, "engaged"), (9.2, "released")]
+    # the robot goes silent from 4.0 to 8.0; its probe may stay silent for 1 s
+    app = write_app(tmp_path / "app", when="managed_system_lost", dwell=1.0, staleness=1.0)
+    trace = run_app(app, seed=1, duration=12, scenario={"silent": [[4.0, 8.0]]})
+    # its last reading came at 3.5: lost at 4.5 (a deadline of its own, not a loop tick);
+    # back with the reading at 8.0 (at once, not at the next tick), handed back a dwell later
+    assert switches(trace) == [(4.5, "engaged"), (9.0, "released")]
+    lost = [r for r in trace if "managed_system_lost" in str(r.get("explanation"))]
+    assert lost[0]["time"] == 4.5 and "probe robot/sensors silent for 1 s" in lost[0]["explanation"]
     # offline, the fallback action cannot be delivered: it is retried until it is (at once
     # when the managed system is back; the release waits the dwell after that)
     f1 = [(r["time"], "executed" if r.get("executed") else "dropped")
-          for r in records if r.get("plan") == "f1" and ("executed" in r or "dropped" in r)]
-    assert f1[0] == (4.2, "dropped") and f1[-1] == (8.2, "executed")
-    assert_only_fallback_while_engaged(records)
+          for r in trace if r.get("plan") == "f1" and ("executed" in r or "dropped" in r)]
+    assert f1[0] == (4.5, "dropped") and f1[-1] == (8.0, "executed")
+    assert_only_fallback_while_engaged(trace)
+    # nothing but the fallback's action was sent to the silent robot
+    assert not [r for r in trace if r.get("executed") and 4.5 <= r["time"] < 8.0]
+
+
+def test_managed_system_lost_that_nothing_could_report_is_refused_with_its_place(tmp_path):
+    app = write_app(tmp_path / "app", when="managed_system_lost")  # local bus, no staleness
+    with pytest.raises(SourceErrors) as caught:
+        Platform(app, clock="simulated", seed=1, knowledge="memory")
+    message = str(caught.value)
+    assert "app.yaml:" in message and "managed_system_lost can never fire over local" in message
+    run = subprocess.run([sys.executable, "-m", "rasm.cli", "lint", str(app)],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert run.returncode == 1 and "managed_system_lost can never fire" in run.stdout, run
 
 
 # ---------------------------------------------------------------- refused before it runs

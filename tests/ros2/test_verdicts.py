@@ -99,14 +99,14 @@ def test_a_false_verdict_from_a_foreign_monitor_vetoes_over_zenoh(peers, tmp_pat
     assert any("veto property monitor_ok violated" in r["explanation"] for r in dropped)
 
 
-def test_verdicts_go_out_on_mqtt_as_the_public_checker_sends_them(tmp_path):
+def test_verdicts_go_out_on_mqtt_under_rasm_verdict_as_the_public_checker_words_them(tmp_path):
     broker = start_mosquitto(tmp_path)
     try:
         url = f"mqtt://127.0.0.1:{broker.port}"
         listener = open_transport(url)
         got: queue.Queue = queue.Queue()
         listener.connect()
-        listener.subscribe("temperature_band", lambda m: got.put(m.payload))
+        listener.subscribe("rasm/verdict/temperature_band", lambda m: got.put(m.payload))
         platform = Platform(HOTBOX, transport=url, clock="wall", state_dir=tmp_path / "state",
                             knowledge="memory")
         platform.run(1.5)
@@ -128,7 +128,7 @@ def test_publish_verdicts_says_whether_they_go_out(tmp_path, flag, published):
     platform.transport.subscribe("#", bus.append)
     platform.run(3)
     names = {m.topic for m in bus}
-    assert ("temperature_band" in names) is published
+    assert ("rasm/verdict/temperature_band" in names) is published
     assert (platform.verdicts_published > 0) is published
 
 
@@ -227,7 +227,8 @@ def test_elsewhere_every_decided_verdict_goes_out_in_order(steps):
     tc.batch_observers.append(publisher.publish_all)  # as the platform wires it
     expected = []
     for _ in steps:
-        expected += [(v.property, {"value": v.value is True and v.error is None, "time": v.time})
+        expected += [(f"rasm/verdict/{v.property}",
+                      {"value": v.value is True and v.error is None, "time": v.time})
                      for v in tc.observe(0.0, {})
                      if v.value is not None and v.property != "foreign"]
     bus.close()
