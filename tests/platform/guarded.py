@@ -2,10 +2,11 @@
 
 The simulator publishes ``speed`` (fast during the scenario's ``fast`` windows) and ``x`` (a
 float without a declared range: 1e308 at the scenario's ``overflow_at`` times, else 1.0) every
-``period`` seconds, nothing during the scenario's ``silent`` windows. Every ``every``-th loop iteration has an anomaly and plans one action for the
-``motor`` effector, so actions are tried all along the run. ``properties/robot.rv`` holds the
-veto property ``slow`` and ``budget``, a ``sum`` over a window of ``x`` that two readings of 1e308
-overflow. ``extra`` adds properties (and their inputs) to that file.
+``period`` seconds, and nothing during the scenario's ``silent`` windows. Every ``every``-th
+loop iteration has an anomaly and plans one action for the ``motor`` effector, so actions are
+tried all along the run. ``properties/robot.rv`` holds the veto property ``slow`` and
+``budget``, a ``sum`` over a window of ``x`` that two readings of 1e308 overflow. ``extra``
+adds properties (and their inputs) to that file.
 """
 
 from __future__ import annotations

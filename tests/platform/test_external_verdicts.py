@@ -60,8 +60,10 @@ def test_a_source_vouches_only_when_heard_lately_and_every_recent_verdict_was_tr
 
 
 def test_a_refused_message_is_counted_and_no_verdict():
-    sources = ExternalVerdicts({"ok": ExternalVerdict("ok", "checker/ok")},
-                               check=lambda name, payload: None if payload.get("mine") else "unsigned")
+    def check(name, payload):
+        return None if payload.get("mine") else "unsigned"
+
+    sources = ExternalVerdicts({"ok": ExternalVerdict("ok", "checker/ok")}, check=check)
     assert sources.receive("ok", {"value": True}, 0.0) is None
     assert sources.refused["ok"] == 1 and sources.missing("ok")
     assert sources.receive("ok", {"value": True, "mine": 1}, 0.1).value is True
