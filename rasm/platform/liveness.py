@@ -28,7 +28,13 @@ from dataclasses import dataclass
 from rasm.errors import SourceError
 from rasm.platform.manifest import AppManifest, Probe, manifest_location
 
-__all__ = ["ManagedSystemWatch", "lost_trigger_problems", "publisher_problems"]
+__all__ = [
+    "ManagedSystemWatch",
+    "can_report_loss",
+    "declared_publishers",
+    "lost_trigger_problems",
+    "publisher_problems",
+]
 
 
 @dataclass
@@ -181,6 +187,17 @@ def can_report_loss(manifest: AppManifest, transport: str) -> bool:
     if _is_ros(transport):
         return any(probe.publisher for probe in manifest.probes)
     return transport.strip().startswith(("mqtt://", "mqtts://"))
+
+
+def declared_publishers(manifest: AppManifest) -> dict[str, str]:
+    """Topic -> the ROS 2 node declared as its publisher (probes and external verdicts)."""
+    found = {probe.topic: probe.publisher for probe in manifest.probes if probe.publisher}
+    found.update(
+        (source.topic, source.publisher)
+        for source in manifest.external_verdicts.values()
+        if source.publisher
+    )
+    return found
 
 
 def publisher_problems(manifest: AppManifest, transport: str) -> Iterator[SourceError]:

@@ -42,7 +42,7 @@ from rasm.platform.external_verdicts import ExternalVerdicts
 from rasm.platform.fallback import FallbackSwitch, check_fallback_legitimate
 from rasm.platform.knowledge_manager import KnowledgeManager
 from rasm.platform.knowledge_store import open_app_knowledge
-from rasm.platform.liveness import ManagedSystemWatch
+from rasm.platform.liveness import ManagedSystemWatch, declared_publishers
 from rasm.platform.loading import (
     load_app_components,
     load_component,
@@ -210,6 +210,10 @@ class Platform:
         if self.ros:
             options.update(ros_options(m, self.transport_url))
         self.transport: Transport = open_transport(self.transport_url, **options)
+        if self.ros:
+            # only the declared publisher's messages count (rasm.ros2.transport.restrict)
+            for topic, node in declared_publishers(m).items():
+                self.transport.restrict(topic, node)
         if self.clock_kind == "simulated" and self.replay_path is None:
             managed_topics = [p.topic for p in m.probes] + [e.topic for e in m.effectors.values()]
             self.scheduler.settle = wait_for_own_messages(self.transport, managed_topics)

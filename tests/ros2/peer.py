@@ -19,7 +19,11 @@ Zenoh key expression), ``type_name`` (a DDS type name) and ``type_hash`` (announ
 user data) override what the peer would send, and ``stamp`` (true) sets the messages'
 ``header.stamp`` to the time each round is sent; ``"wait": false`` publishes without
 waiting for a DDS reader to match (one of another type never does); ``"latched": true`` makes
-a DDS reader or writer transient local.
+a DDS reader or writer transient local. ``node`` (``/name`` or ``/ns/name``) makes a publishing
+peer a ROS node as rmw_zenoh and rmw_cyclonedds make one: over Zenoh its node and publisher
+liveliness tokens, and each message's GID the XXH3-128 of its publisher's token; over DDS its
+node and writers announced on ``ros_discovery_info``. ``gid`` (hex) sends that GID instead,
+as a forger would.
 """
 
 from __future__ import annotations
@@ -172,6 +176,9 @@ def zenoh_main(config):
              entry, payloads_of(entry))
             for entry in config["topics"]
         ]
+        gids = {}
+        if config.get("node"):
+            entities.extend(zenoh_node(session, config, gids))
         for publisher, _, _ in publishers:
             while not publisher.matching_status.matching and not done.is_set():
                 done.wait(0.01)  # poll the match: zenoh-python offers no blocking wait for it
@@ -179,20 +186,43 @@ def zenoh_main(config):
         sequence = 0
         numbers = iter(config.get("sequences", ()))  # the sequence numbers to send, if given
         gid = bytes(range(16))
+        if config.get("gid"):
+            gid = bytes.fromhex(config["gid"])
         while True:
             for publisher, entry, payloads in publishers:
                 for payload in this_round(entry, payloads):
                     sequence = next(numbers, sequence + 1)
-                    attachment = struct.pack("<qqB16s", sequence, time.time_ns(), 16, gid)
+                    sender = gids.get(entry["topic"], gid)
+                    attachment = struct.pack("<qqB16s", sequence, time.time_ns(), 16, sender)
                     publisher.put(payload, attachment=attachment)
             say(event="published", n=sequence)
             if not config.get("repeat") or done.wait(0.05):
                 break
         done.wait()
-        entities = [p for p, _, _ in publishers]
+        entities += [p for p, _, _ in publishers]
     for entity in entities:
         entity.undeclare()
     session.close()
+
+
+def zenoh_node(session, config, gids):
+    """rmw_zenoh's liveliness tokens of a node and its publishers; fills ``gids`` (topic ->
+    the GID rmw_zenoh derives from the publisher's token)."""
+    import xxhash
+
+    namespace, _, name = config["node"].rpartition("/")
+    head = f"@ros2_lv/{config.get('domain', 0)}/{session.zid()}/0"
+    where = f"%/{(namespace or '/').replace('/', '%')}/{name}"
+    tokens = [session.liveliness().declare_token(f"{head}/0/NN/{where}")]
+    for i, entry in enumerate(config["topics"], start=1):
+        typename = entry["type"]
+        key = (f"{head}/{i}/MP/{where}/{entry['topic'].replace('/', '%')}/{dds_name(typename)}/"
+               f"{STORE.hash_rihs01(typename)}/::,10:,:,:,,")
+        digest = xxhash.xxh3_128_intdigest(key.encode())
+        gids[entry["topic"]] = (digest & (2**64 - 1)).to_bytes(8, "little") + \
+            (digest >> 64).to_bytes(8, "little")
+        tokens.append(session.liveliness().declare_token(key))
+    return tokens
 
 
 # -- Cyclone DDS --------------------------------------------------------------------------------
@@ -273,6 +303,8 @@ def dds_main(config):
             if idle:
                 done.wait(0.005)  # poll: this peer has no listener thread of its own
         return
+    graph = dds_node(participant, struct_of, config["node"], [w for _, w in endpoints]) \
+        if config.get("node") else None
     for entry, writer in endpoints:
         while entry.get("wait", True) and not writer.get_matched_subscriptions() \
                 and not done.is_set():
@@ -289,6 +321,35 @@ def dds_main(config):
         if not config.get("repeat") or done.wait(0.05):
             break
     done.wait()
+    del graph  # the node's announcement stays as long as the peer
+
+
+def dds_node(participant, struct_of, node, writers):
+    """rmw_cyclonedds's announcement of a node and its writers on ros_discovery_info; returns
+    the writer that keeps it there (transient local) while the peer lives."""
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.qos import Policy, Qos
+    from cyclonedds.topic import Topic
+
+    graph_type = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+    qos = Qos(Policy.Reliability.Reliable(10**8), Policy.Durability.TransientLocal,
+              Policy.History.KeepLast(1),
+              Policy.DataRepresentation(use_cdrv0_representation=True))
+    topic = Topic(participant, "ros_discovery_info", struct_of(graph_type), qos=qos)
+    writer = DataWriter(participant, topic, qos=qos)
+    namespace, _, name = node.rpartition("/")
+
+    def gid(entity):
+        return {"data": list(entity.guid.bytes.ljust(16, b"\0"))}
+
+    info = {"gid": gid(participant), "node_entities_info_seq": [{
+        "node_namespace": namespace or "/", "node_name": name, "reader_gid_seq": [],
+        "writer_gid_seq": [gid(w) for w in writers]}]}
+    data = bytes(STORE.serialize_cdr(to_object(graph_type, info), graph_type))
+    from cyclonedds._clayer import ddspy_write
+
+    ddspy_write(writer._ref, data + b"\0" * (-len(data) % 4))
+    return writer
 
 
 def dds_graph(participant, struct_of, done):

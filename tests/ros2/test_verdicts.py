@@ -83,14 +83,20 @@ def test_a_false_verdict_from_a_foreign_monitor_vetoes_over_zenoh(peers, tmp_pat
     from rasm.testing.servers import free_port
 
     port = free_port()
-    monitor = [{"topic": "/monitor/ok", "type": "std_msgs/msg/Bool", "messages": [{"data": False}]}]
+    verdicts = [{"topic": "/monitor/ok", "type": "std_msgs/msg/Bool",
+                 "messages": [{"data": False}]}]
     robot = peers({"middleware": "zenoh", "role": "pub", "listen": f"tcp/127.0.0.1:{port}",
-                   "repeat": True, "topics": ROBOT + monitor})
+                   "repeat": True, "topics": ROBOT})
     robot.wait_for(lambda p: p.events, what="the robot peer to listen")
+    monitor = peers({"middleware": "zenoh", "role": "pub",
+                     "listen": f"tcp/127.0.0.1:{free_port()}",
+                     "connect": [f"tcp/127.0.0.1:{port}"], "repeat": True, "node": "/monitor",
+                     "topics": verdicts})
     trace = tmp_path / "trace.jsonl"
     run = rasm_run(VETOED, f"zenoh://127.0.0.1:{port}", tmp_path, "--duration", "4",
                    "--trace", str(trace))
     robot.wait_ready()
+    monitor.wait_ready()
     code, output = finish(run)
     assert code == 1, output
     records = [json.loads(line) for line in trace.read_text().splitlines()]
