@@ -22,6 +22,7 @@ from rasm.comm.presence import Presence, PresenceTracker, presence_will
 from rasm.comm.signing import (
     BoundSigner,
     SignedEffector,
+    SignedGate,
     UpdateOutcome,
     UpdateReceiver,
     sign,
@@ -44,6 +45,7 @@ __all__ = [
     "PresenceTracker",
     "Publisher",
     "SignedEffector",
+    "SignedGate",
     "Subscriber",
     "Subscription",
     "Transport",

@@ -126,6 +126,7 @@ class Distribution:
         self.gates: list[SignedEffector] = []  # one effector gate per effector topic
         self.managed_nodes: dict[str, str] = {}
         self._epoch = 0.0
+        self._started = 0.0  # time.monotonic() at start()
         self._transport: Transport | None = None
         self._hooks: DistributionHooks | None = None
         # this process's incarnation (what actions and updates sent to it must be bound to)
@@ -170,6 +171,7 @@ class Distribution:
         self._transport = transport
         self._hooks = hooks
         self._epoch = _time.time() - clock_time
+        self._started = _time.monotonic()
         if self.managing:
             self._start_timing(observers)
         if not self.networked:
@@ -289,10 +291,18 @@ class Distribution:
 
     @property
     def managed_online(self) -> bool:
-        """False when every managed node known to the tracker is offline or silent."""
-        if not self.managed_nodes:
-            return True  # none seen yet (or the local bus): nothing to refuse
-        return any(state == "online" for state in self.managed_nodes.values())
+        """Whether presence says a managed process is there: some managed node of the app
+        online, or none heard of yet and either the managed system is this process's own (role
+        ``all``) or the start was less than the tracker's timeout ago (a managed process
+        announces itself within a period or two: past that, nobody is there). Always True
+        where there is no presence (the local bus, ROS 2)."""
+        if self.tracker is None or not self.managing:
+            return True
+        if any(state == "online" for state in self.managed_nodes.values()):
+            return True
+        if self.managed_nodes:
+            return False  # every one seen is offline or silent
+        return self.role == "all" or _time.monotonic() < self._started + self.tracker.timeout
 
     def _apply_rules(self, text: str) -> tuple[bool, str]:
         if not self._hooks.rules:

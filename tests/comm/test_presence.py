@@ -215,3 +215,49 @@ def test_presence_info_reaches_the_tracker_and_epochs_lists_online_nodes():
     bus.close()
     with pytest.raises(CommError, match="own fields"):
         Presence(bus, "n", info={"state": "offline"})
+
+
+# ---------------------------------------------------------------- signed presence
+
+_KEY = bytes(range(32))
+
+
+@given(st.lists(st.sampled_from(["bound", "unsigned", "elsewhere", "replay", "other key"]),
+                max_size=12))
+def test_with_a_gate_only_a_signed_heartbeat_bound_to_the_tracker_counts(kinds):
+    from rasm.comm import BoundSigner, SignedGate
+    from rasm.comm.message import Message
+
+    gate = SignedGate(_KEY)
+    tracker = PresenceTracker(LocalTransport(), gate=gate)
+    signer, stranger = BoundSigner(_KEY), BoundSigner(bytes(32))
+    topic = presence_topic("robot")
+    online = {"state": "online", "role": "managed", "period": 1.0, "app": "a", "epoch": "e1"}
+    sent_bound: list[dict] = []
+    expected_refused = 0
+    for kind in kinds:
+        if kind == "bound":
+            payload = signer.sign(online, topic=topic, epochs=[gate.epoch])
+            sent_bound.append(payload)
+        elif kind == "unsigned":
+            payload = online
+        elif kind == "elsewhere":  # a correct signature for another tracker: an introduction
+            payload = signer.sign(online, topic=topic, epochs=["someone-else"])
+        elif kind == "replay":
+            if not sent_bound:
+                continue
+            payload = sent_bound[0]
+        else:
+            payload = stranger.sign(online, topic=topic, epochs=[gate.epoch])
+        before = tracker.state("robot")
+        tracker._receive(Message(topic, payload))
+        if kind == "bound":
+            assert tracker.state("robot") == "online"
+        else:
+            assert tracker.state("robot") == before  # nothing else makes it online
+            expected_refused += kind in ("unsigned", "other key", "replay")
+    assert tracker.refused == expected_refused
+    # who introduced itself with the key is known by its epoch, online or not
+    introduced = any(k in ("bound", "elsewhere") for k in kinds)  # a replay follows a bound
+    assert tracker.known_epochs(app="a") == (["e1"] if introduced else [])
+    assert tracker.epochs(app="a") == ({"robot": "e1"} if sent_bound else {})

@@ -18,7 +18,7 @@ from pathlib import Path
 import paho.mqtt.client as paho
 
 from rasm import Platform
-from rasm.comm import MqttTransport, Presence, verify
+from rasm.comm import BoundSigner, MqttTransport, Presence, verify
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import HOTBOX
@@ -205,8 +205,10 @@ def test_no_action_is_sent_before_a_managed_process_announced_its_epoch(
     feeder.subscribe("hotbox/heater", lambda m: sent.put(m.payload), qos=1)
     cold = {"temperature": 30.0, "lid_open": True, "heater_power": 60.0}
     reading = {**cold, "heater_mode": "normal", "setpoint": 37.5}
+    # with the key only signed heartbeats bound to the managing process count
     presence = Presence(
-        feeder, "hotbox-managed-x", role="managed", info={"app": "hotbox", "epoch": "e-x"}
+        feeder, "hotbox-managed-x", role="managed", info={"app": "hotbox", "epoch": "e-x"},
+        signer=BoundSigner(bytes.fromhex(ACTION_KEY)), receivers=lambda: [platform.dist.epoch],
     )
     refusals: list[dict] = []
 
