@@ -87,3 +87,47 @@ def test_the_declared_monitors_true_lets_actions_through_whatever_an_outsider_sa
     code, output, records = _run(url, started, tmp_path)
     assert [r for r in records if r.get("executed")], output
     assert "foreign publisher" in output and "/outsider" in output
+
+
+WATCHED = DATA / "guard" / "watched.yaml"
+
+
+@pytest.mark.parametrize("middleware", ["zenoh", "dds"])
+def test_a_dead_robot_is_lost_and_nothing_is_judged_on_its_last_reading(
+    peers, tmp_path, middleware
+):
+    from tests.ros2.conftest import wait_until
+
+    # the robot is node /robot; it dies once rasm has acted on it
+    if middleware == "zenoh":
+        port = free_port()
+        robot = peers({"middleware": "zenoh", "role": "pub", "listen": f"tcp/127.0.0.1:{port}",
+                       "repeat": True, "node": "/robot", "topics": ROBOT})
+        robot.wait_for(lambda p: p.events, what="the robot peer to listen")
+        url = f"zenoh://127.0.0.1:{port}"
+    else:
+        domain = int.from_bytes(os.urandom(1), "big") % 200 + 20
+        robot = peers({"middleware": "dds", "role": "pub", "domain": domain, "repeat": True,
+                       "node": "/robot", "topics": ROBOT})
+        url = f"dds://?domain={domain}"
+    trace = tmp_path / "trace.jsonl"
+    run = rasm_run(WATCHED, url, tmp_path, "--duration", "8", "--trace", str(trace))
+    robot.wait_ready()
+
+    def acted():
+        text = trace.read_text() if trace.exists() else ""
+        return any(json.loads(line).get("executed") for line in text.splitlines())
+
+    wait_until(acted, timeout=30, what="rasm to act on the robot")
+    robot.stop()
+    code, output = finish(run)
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert code == 1, output
+    lost = next(r for r in records if "managed_system_lost" in str(r.get("explanation")))
+    assert "probe /odom" in lost["explanation"], lost
+    assert [r["fallback"] for r in records if "fallback" in r][:1] == ["engaged"]
+    # nothing but the fallback's stop was tried after the loss, and it found nobody
+    after = [r for r in records if r["time"] >= lost["time"] and r.get("executed")]
+    assert not after, after
+    # speed_limit held while the robot was there; on its last reading it is not "satisfied"
+    assert "not judged on a stale reading" in output, output
