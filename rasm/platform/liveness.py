@@ -75,7 +75,6 @@ class ManagedSystemWatch:
         }
         self.lost_why = ""  # why the managed system is lost now ("" while it is there)
         self._stale: dict[str, str] = {}  # signal -> why it is stale now
-        self.losses = 0
 
     def begin(self) -> None:
         """The run starts now: each probe's staleness is counted from here until its first
@@ -83,11 +82,6 @@ class ManagedSystemWatch:
         now = self.clock()
         for watched in self._watched.values():
             watched.last = max(watched.last, now)
-
-    @property
-    def watches(self) -> bool:
-        """Whether any probe is watched (else only presence can report a loss)."""
-        return bool(self._watched)
 
     def online(self) -> bool:
         """Whether the managed system is there, as of the last :meth:`evaluate`."""
@@ -132,7 +126,6 @@ class ManagedSystemWatch:
             self.on_stale(dict(stale))
         why = "; ".join(reasons)
         if bool(why) != bool(self.lost_why):
-            self.losses += bool(why)
             self.lost_why = why
             self.on_change(bool(why), why)
         else:

@@ -727,7 +727,9 @@ class Platform:
             orchestrator=self.ao if self.managing else None,
             telegraf=self.tg if self.managing else None,
             trace=self.trace,
-            bus=bus_refusals(self.transport, self.dist),
+            bus=bus_refusals(
+                self.transport, self.dist, sum(self.external.refused.values())
+            ),
             missed_iterations=self.scheduler.missed,
             stopped_by=self.stopped_by,
             repeated_failures=self.logs.totals,

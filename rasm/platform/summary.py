@@ -132,12 +132,19 @@ def summarise(
     )
 
 
-def bus_refusals(transport: Transport, dist: Distribution) -> dict[str, int]:
+def bus_refusals(
+    transport: Transport, dist: Distribution, external_refused: int = 0
+) -> dict[str, int]:
     """What the bus brought that was refused, by what it was (only the non-zero counts)."""
     updates = dist.updates
+    tracker = dist.tracker
     counts = {
         "malformed messages": transport.stats.malformed,
         "actions refused by the effector gate": dist.actions_refused,
         "updates refused": updates.refused if updates is not None else 0,
+        "presence messages refused (unsigned, forged or replayed)": (
+            tracker.refused if tracker is not None else 0
+        ),
+        "external verdicts refused (not the source's own)": external_refused,
     }
     return {what: n for what, n in counts.items() if n}
