@@ -22,6 +22,7 @@ from rasm.properties.ast import (
     Unary,
     Until,
 )
+from rasm.properties.times import format_nanoseconds
 
 __all__ = ["unparse", "format_value"]
 
@@ -53,10 +54,7 @@ def _bound(bound: Bound, default_unbounded: bool = True) -> str:
 
 def _seconds(ns: int | float) -> str:
     """Exact nanoseconds as the shortest decimal number of seconds: 1500000000 is 1.5."""
-    if ns == INF:
-        return "inf"
-    whole, fraction = divmod(ns, 10**9)
-    return f"{whole}.{fraction:09d}".rstrip("0").rstrip(".")
+    return "inf" if ns == INF else format_nanoseconds(ns)
 
 
 def format_value(value: object) -> str:
