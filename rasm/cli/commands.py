@@ -31,6 +31,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import math
 
     from rasm.statechart.simulate import format_steps, read_events, simulate
+    from rasm.times import format_seconds
 
     if args.until is not None and not (math.isfinite(args.until) and args.until >= 0):
         raise UsageError(f"--until must be a finite time in seconds, >= 0, not {args.until}")
@@ -39,7 +40,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     sys.stdout.write(format_steps(steps, args.format))
     failed = [step for step in steps if step.error]
     for step in failed:
-        print(f"rasm: at time {step.time:g}: {printable(step.error or '')}", file=sys.stderr)
+        print(f"rasm: at time {format_seconds(step.time)}: {printable(step.error or '')}",
+              file=sys.stderr)
     return EXIT_FAILED if failed else EXIT_OK
 
 

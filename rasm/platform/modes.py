@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import copy
 import logging
-import math
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -133,15 +132,7 @@ class ManagedSystemModes:
         """Step the chart at ``time`` with no record (a timer of its is due); the trace record
         of the mode change, or None."""
         self.clock.time = max(self.clock.time, time)
-        self._run()
-        # a timer compares as sismic does (now - delay >= entry), which can fall a rounding
-        # error short at the very deadline it reported: step again just past it
-        for _ in range(8):
-            due = self.interpreter.next_deadline()
-            if due is None or due > self.clock.time:
-                break
-            self.clock.time = math.nextafter(self.clock.time, math.inf)
-            self._run()
+        self._run()  # a timer holds at the deadline it reported (rasm.statechart.timers)
         return self._change()
 
     def next_deadline(self) -> float | None:

@@ -14,6 +14,8 @@ Two things stock sismic lacks and the platform needs:
 * **The next deadline.** ``after()``/``idle()`` guards and delayed events are only looked at when a
   step runs, and sismic offers no "when should I run next". :meth:`Interpreter.next_deadline`
   answers it, so a live runner sleeps until then (or until an event arrives) instead of polling.
+  Timers are exact (:mod:`rasm.statechart.timers`): a step run at that deadline finds the timer
+  holding, whatever the time the state was entered.
 """
 
 from __future__ import annotations
@@ -25,7 +27,6 @@ from dataclasses import dataclass
 from types import CodeType
 from typing import Any
 
-from sismic.code import PythonEvaluator
 from sismic.exceptions import CodeEvaluationError, ContractError
 from sismic.interpreter import Interpreter as SismicInterpreter
 from sismic.interpreter.listener import PropertyStatechartListener
@@ -33,6 +34,7 @@ from sismic.model import Event, InternalEvent, MetaEvent
 
 from rasm.errors import ExecutionError, RasmError, is_interrupt
 from rasm.statechart.fast import FastInterpreter
+from rasm.statechart.timers import ExactTimerEvaluator, deadline, elapsed
 
 __all__ = [
     "AtomicStepMixin", "DeadlineEvaluator", "FastGuardEvaluator", "Interpreter", "StepFailure",
@@ -75,12 +77,13 @@ class StepFailure:
 
 
 def _waited(since: float, now: float, seconds: float, deadlines: list[float] | None) -> bool:
-    """``after``/``idle``: true once ``seconds`` have passed since ``since``; otherwise the time
-    it will be is recorded in ``deadlines`` (if any)."""
-    if now - seconds >= since:
+    """``after``/``idle``: true once ``seconds`` have passed since ``since`` (exactly,
+    :mod:`rasm.statechart.timers`); otherwise the time it will be is recorded in ``deadlines``
+    (if any)."""
+    if elapsed(since, now, seconds):
         return True
     if deadlines is not None:
-        deadlines.append(since + seconds)
+        deadlines.append(deadline(since, seconds))
     return False
 
 
@@ -113,9 +116,10 @@ def _escaped(exc: BaseException, doing: str) -> CodeEvaluationError:
     return CodeEvaluationError(f"'{what}' occurred while {doing}")
 
 
-class FastGuardEvaluator(PythonEvaluator):
+class FastGuardEvaluator(ExactTimerEvaluator):
     """sismic's Python evaluator with guards evaluated in one frame instead of two (guards run at
-    every step), exposing only the names a guard uses: the same values, the same errors."""
+    every step), exposing only the names a guard uses: the same values, the same errors; its
+    timers are exact (:class:`~rasm.statechart.timers.ExactTimerEvaluator`)."""
 
     deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
     #: The event a guard raised on (sismic looks at an event before it takes it from the queue).

@@ -3,7 +3,12 @@
 The steps are exactly those stock sismic's ``Interpreter`` takes when driven the ordinary way:
 ``execute()`` at time 0 (the initial step, then any eventless steps), then for each event in turn
 the clock is set to the event's time, the event is queued and ``execute()`` runs until the chart is
-stable. ``until`` optionally advances the clock once more at the end, so timers can fire.
+stable. A line without an event only moves the clock: the chart then runs until it is stable,
+so the timers due by then fire. ``until`` optionally advances the clock once more at the end.
+
+Times are exact (:mod:`rasm.statechart.timers`): a timer fires at its deadline, where stock
+sismic's binary arithmetic can miss it (entered at 7.7, ``after(2)`` holds at 9.7), and the output
+gives each time as the decimal it was written as.
 
 An event may carry ``context``: variables set in the chart's context just before it is queued,
 as the platform sets a stage chart's ``knowledge``, ``time`` and ``anomaly`` before each of its
@@ -27,6 +32,7 @@ from sismic.model import MacroStep, Statechart
 from rasm.errors import ExecutionError, Location, SourceError, SourceErrors, not_utf8
 from rasm.statechart.interpreter import Interpreter
 from rasm.statechart.load import load_statechart, source_of
+from rasm.times import format_seconds
 
 __all__ = ["TimedEvent", "SimulatedStep", "read_events", "simulate", "format_steps"]
 
@@ -38,10 +44,11 @@ _RESERVED = {"name", "data", "delay", "self", "event_or_name"}
 @dataclass(frozen=True)
 class TimedEvent:
     """One line of an events file: ``{"time": t, "event": "name", "data": {...}}``, and
-    optionally ``"context": {...}``, variables set in the chart's context before the event."""
+    optionally ``"context": {...}``, variables set in the chart's context before the event.
+    A line without ``event`` (``name`` None) only moves the clock to ``time``."""
 
     time: float
-    name: str
+    name: str | None
     data: dict[str, Any] = field(default_factory=dict)
     line: int = 0
     context: dict[str, Any] = field(default_factory=dict)
@@ -113,6 +120,15 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
             bad(f"time {time} goes back (the previous event is at {last_time})")
             continue
         name = record.get("event")
+        if name is None and "event" not in record:
+            given = sorted({"data", "context"} & set(record))
+            if given:
+                bad(f'"{given[0]}" belongs to an event: add "event", or leave "{given[0]}" out '
+                    "to only move the clock")
+                continue
+            last_time = time
+            events.append(TimedEvent(time, None, line=number))
+            continue
         if not isinstance(name, str) or not name:
             bad('"event" must be a non-empty string')
             continue
@@ -217,7 +233,7 @@ def _execute(interp: Interpreter, steps: list[SimulatedStep], where: str) -> Non
             entered=[],
             exited=[],
             error=f"{where}: the chart did not become stable after {MAX_STEPS} steps at time "
-            f"{interp.time:g} (an eventless transition cycle?); stopped there",
+            f"{format_seconds(interp.time)} (an eventless transition cycle?); stopped there",
         )
     )
 
@@ -245,12 +261,15 @@ def simulate(
     _execute(interp, steps, "initial step")
     for event in events:
         clock.time = max(clock.time, event.time)
+        if event.name is None:  # only the clock moves: the timers due by now fire
+            _execute(interp, steps, f"time {format_seconds(event.time)} (line {event.line})")
+            continue
         interp.context.update(event.context)
         interp.queue(event.name, **event.data)
         _execute(interp, steps, f"event '{event.name}' (line {event.line})")
     if until is not None and until > clock.time:
         clock.time = until
-        _execute(interp, steps, f"time {until}")
+        _execute(interp, steps, f"time {format_seconds(until)}")
     return steps
 
 
@@ -262,9 +281,9 @@ def format_steps(steps: list[SimulatedStep], fmt: str = "text") -> str:
     for step in steps:
         event = step.event if step.event is not None else "(no event)"
         if step.error:
-            out.append(f"{step.time:>10g}  {event:<20}  ROLLED BACK: {step.error}")
+            out.append(f"{format_seconds(step.time):>10}  {event:<20}  ROLLED BACK: {step.error}")
             continue
-        out.append(f"{step.time:>10g}  {event:<20}  {', '.join(step.configuration)}")
+        out.append(f"{format_seconds(step.time):>10}  {event:<20}  {', '.join(step.configuration)}")
         if step.exited:
             out.append(f"{'':>10}  {'':<20}  - exited:  {', '.join(step.exited)}")
         if step.entered:

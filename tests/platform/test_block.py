@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from sismic.clock import SimulatedClock
 
 from rasm.platform.block import Block, shared_chart
@@ -148,6 +150,29 @@ def test_deadlines_are_asked_for_once_each_and_never_in_the_past(tmp_path: Path)
     clock.time = 3.5
     block.wake()
     assert block.configuration == ["root", "resting"] and asked == [3.0, 3.5]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    entry=st.integers(0, 2**21 * 10**5).map(lambda k: k / 10**5),  # up to five decimals
+    delay=st.sampled_from([0.1, 0.3, 0.7, 1.1, 2, 2.5, 9.99]),
+)
+def test_a_wake_at_the_deadline_the_block_asked_for_fires_its_timer(tmp_path_factory, entry,
+                                                                      delay):
+    # whatever the entry time: entered at 7.7, after(2) holds at 9.7 (not in binary arithmetic,
+    # where the wake would find nothing to do and no later one would be asked for)
+    chart = tmp_path_factory.getbasetemp() / "timed_delay.yaml"
+    chart.write_text(TIMED.replace("after(2)", f"after({delay})"))
+    clock = SimulatedClock()
+    block = Block("timed", chart=chart, clock=clock)
+    asked: list[float] = []
+    block.on_deadline = lambda b, due: asked.append(due)
+    clock.time = entry
+    block.send("go")
+    assert asked == [float(f"{entry + delay:.5f}")]  # the decimal entry + delay
+    clock.time = asked[0]
+    block.wake()
+    assert block.configuration == ["root", "resting"]
 
 
 def test_a_chart_file_is_loaded_once_and_again_when_its_bytes_change(tmp_path):

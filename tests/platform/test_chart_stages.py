@@ -92,6 +92,39 @@ def test_the_chart_keeps_its_own_variables_between_iterations(temperatures):
         assert stage.monitor(ctx(float(i), temperature=value)) == {"count": i + 1}
 
 
+WAITING = """statechart:
+  name: patience
+  root state:
+    name: root
+    initial: calm
+    states:
+      - name: calm
+        transitions:
+          - {event: analyse, target: waiting, action: "send('no_anomaly')"}
+      - name: waiting
+        transitions:
+          - {event: analyse, guard: "after(wait)", target: calm,
+             action: "send('anomaly', reason='waited')"}
+          - {event: analyse, guard: "not after(wait)", action: "send('no_anomaly')"}
+"""
+
+
+@given(
+    start=st.integers(0, 10**6),
+    period=st.sampled_from([0.1, 0.05, 0.2, 0.3, 0.7]),
+    turns=st.integers(1, 20),
+)
+def test_a_timer_of_a_stage_chart_holds_on_the_iteration_of_its_deadline(start, period, turns):
+    # the loop's iterations come at start + n * period, in binary arithmetic (0.1 * 7 is
+    # 0.7000000000000001); after(turns * period) holds on the iteration turns after the entry
+    stage = ChartStage(load_statechart(text=WAITING), "analyse")
+    stage.interpreter.context["wait"] = float(f"{turns * period:.2f}")
+    times = [start * period + n * period for n in range(turns + 1)]
+    answers = [stage.analyse(ctx(t)) for t in times]
+    assert answers[:-1] == [None] * turns
+    assert answers[-1] == Anomaly("waited", {})
+
+
 OUTCOMES = sorted({o for outcomes in STAGE_OUTCOMES.values() for o in outcomes})
 
 

@@ -45,8 +45,8 @@ PERIOD = 0.5
 
 
 def write_app(folder, *, level=0, when="veto, stage_failures", after=3, dwell=2.0, veto=("slow",),
-              staleness=None):
-    app = write_guarded_app(folder, period=PERIOD, veto=veto, staleness=staleness)
+              staleness=None, period=PERIOD):
+    app = write_guarded_app(folder, period=period, veto=veto, staleness=staleness)
     (app / "rules").mkdir(exist_ok=True)
     (app / "rules" / "robot.yaml").write_text(RULES)
     text = (app / "app.yaml").read_text().replace(
@@ -109,6 +109,16 @@ def test_a_trigger_while_recovering_engages_again_without_handing_back(tmp_path)
     # 6.0..7.0 is shorter than the dwell: one engagement, one release after the second window
     assert switches(trace) == [(5.0, "engaged"), (11.0, "released")]
     assert_only_fallback_while_engaged(trace)
+
+
+def test_the_dwell_ends_at_its_deadline_whatever_the_time_it_began(tmp_path):
+    # at 10 Hz the trigger clears at 7.7 (a clock moved in binary sums of 0.1): 2 s later, at
+    # 9.7, control goes back, where binary arithmetic finds 9.7 - 2 < 7.7 and never wakes again
+    app = write_app(tmp_path / "app", dwell=2.0, period=0.1)
+    trace = run_app(app, seed=1, duration=12, scenario={"fast": [[5.0, 7.65]]})
+    assert max(r["time"] for r in trace if r.get("speed") == 2.0) == 7.6
+    assert switches(trace) == [(5.0, "engaged"), (9.7, "released")]
+    assert any(t > 9.7 and not plan.startswith("f") for t, plan in executed_plans(trace))
 
 
 # ---------------------------------------------------------------- faulty planners

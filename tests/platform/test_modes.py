@@ -3,7 +3,7 @@ mode vouched for, and that in the loop its timers fire on the loop's clock."""
 
 from __future__ import annotations
 
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.knowledge import KnowledgeBase
@@ -142,6 +142,20 @@ def test_a_record_steps_the_chart_and_rearms_its_timer_from_there():
     assert change == {"mode": "fresh", "mode_fresh": True, "mode_stale": False}
     assert kb.read_knowledge("mode") == "fresh"
     assert len(records) == 2  # the change goes in the record that caused it, not one of its own
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 10**7).map(lambda k: k / 10))  # a 10 Hz record, up to about 12 days
+def test_the_timer_fires_at_its_deadline_whatever_the_time_of_the_record(time):
+    # re-entered at 7.7, after(2.0) holds at 9.7: the wake the runner arms finds it holding
+    kb, records, refused = KnowledgeBase(), [], []
+    run, scheduler = runner(kb, records, refused)
+    run.start(0.0)
+    scheduler.run_until(time)
+    run.observe(time, {"scan": True})
+    records.clear()
+    scheduler.run_until(time + 5.0)
+    assert [(t, r["mode"]) for t, r in records] == [(float(f"{time + 2.0:.1f}"), "stale")]
 
 
 def test_a_mode_knowledge_refuses_is_reported_not_stored():

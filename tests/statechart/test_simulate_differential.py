@@ -1,4 +1,9 @@
-"""`rasm simulate` takes exactly the macro steps stock sismic takes with the same timed events."""
+"""`rasm simulate` takes exactly the macro steps stock sismic takes with the same timed events.
+
+The events' times are on a binary grid (multiples of 1/4 s), where stock sismic's binary
+arithmetic is exact; off it, rasm's timers hold at their deadline where stock's can miss it
+(the one departure, tested in test_exact_timers.py).
+"""
 
 from __future__ import annotations
 
@@ -25,7 +30,8 @@ CHARTS = sorted(
 
 
 def stock_steps(path: Path, events: list[TimedEvent]) -> list[dict]:
-    """Drive stock sismic the ordinary way: run at 0, then per event set time, queue, run."""
+    """Drive stock sismic the ordinary way: run at 0, then per event set time, queue, run (a
+    line without an event: set time, run)."""
     clock = SimulatedClock()
     interp = StockInterpreter(import_from_yaml(path.read_text()), clock=clock)
     out = []
@@ -45,18 +51,19 @@ def stock_steps(path: Path, events: list[TimedEvent]) -> list[dict]:
     run()
     for event in events:
         clock.time = event.time
-        interp.queue(event.name, **event.data)
+        if event.name is not None:
+            interp.queue(event.name, **event.data)
         run()
     return out
 
 
-def event_names(path: Path) -> list[str]:
+def event_names(path: Path) -> list[str | None]:
     chart = load_statechart(path)
     names = sorted({t.event for t in chart.transitions if t.event})
-    return names + ["unknown_event"]
+    return names + ["unknown_event", None]  # None: a line that only moves the clock
 
 
-def timed_events(names: list[str]):
+def timed_events(names: list[str | None]):
     gaps = st.sampled_from([0, 0, 0.25, 0.5, 1, 1.5, 2, 3, 6])
     return st.lists(st.tuples(gaps, st.sampled_from(names)), max_size=25).map(
         lambda pairs: _accumulate(pairs)

@@ -62,10 +62,11 @@ def test_the_platform_monitors_watch_the_orchestrator_identically(monitor):
     # here the listener decides most meta-events from the guards alone.
     orchestrator = import_from_yaml(filepath=str(STATECHARTS / "adaptation_orchestrator.yaml"))
     prop = import_from_yaml(filepath=str(monitor))
-    script = [(0.1, name, {}) for name in SETUP]
+    # (steps of 1/8 s: stock's binary arithmetic is exact there, see test_differential)
+    script = [(0.125, name, {}) for name in SETUP]
     for round_ in range(4):
-        script += [(0.1, name, {}) for name in LOOP]
-        script += [(0.1, "tick", {}), (0.1, "monitored", {}), (2.0 + round_, "anomaly", {})]
+        script += [(0.125, name, {}) for name in LOOP]
+        script += [(0.125, "tick", {}), (0.125, "monitored", {}), (2.0 + round_, "anomaly", {})]
     expected = harness.run(Interpreter, orchestrator, script, prop=prop)
     assert harness.run(FastInterpreter, orchestrator, script, prop=prop) == expected
 
@@ -260,6 +261,6 @@ statechart:
 def test_a_property_that_rebinds_a_watched_name_is_seen_within_the_same_step():
     # Back in `watching` after rebinding NAMES, the entry of a1 in the same step must be decided
     # with the new NAMES, not with what was decided about `watching` before.
-    script = [(0.1, "n", {}) for _ in range(4)]
+    script = [(0.125, "n", {}) for _ in range(4)]
     expected = harness.run(Interpreter, NESTED, script, prop=REBINDING_ITSELF)
     assert harness.run(FastInterpreter, NESTED, script, prop=REBINDING_ITSELF) == expected
