@@ -10,6 +10,8 @@ record) and produces one verdict per record. Reported, in events (records) per s
   compiling (~5–10 ms) is not timed, as building reelay's and rtamt's monitors is not;
 * ``rasm step`` — ``Monitor.step(t, values)`` once per record, the online path (a list of
   ``Verdict`` objects per call);
+* properties that read ``time`` (``TIME_READING``; no peer has that expression) on the same
+  trace at 10 Hz, times k / 10, beside the same shapes over a signal: what exact time costs;
 * ``reelay``    — ``reelay.discrete_timed_monitor(pattern, condense=False).update(record)``;
 * ``rtamt``     — ``StlDiscreteTimeSpecification.update(k, [(name, value), …])`` (past
   formulas directly; the future one after ``pastify()``). rtamt is slow, so it runs on the
@@ -47,6 +49,16 @@ BASIC = [
      "(not (a >= 0.5)) or eventually[0:10](b >= 0.5)"),
 ]
 
+# Properties that read ``time`` (no peer has such an expression): on a 10 Hz trace whose times
+# are decimals (k / 10), beside the same shapes over a signal, for the cost of exact time.
+TIME_READING = [
+    "time - prev(time) <= 0.1",
+    "x - prev(x) <= 0.1",
+    "historically (a -> time >= 5)",
+    "historically (a -> x >= 0.05)",
+    "a -> eventually[0, 1] (b and time - prev(time) <= 0.1)",
+]
+
 
 def basic_trace(n: int, seed: int = 1) -> list[dict]:
     rng = random.Random(seed)
@@ -54,6 +66,11 @@ def basic_trace(n: int, seed: int = 1) -> list[dict]:
         {"time": k, "x": rng.random() * 0.52, "a": rng.random() < 0.3, "b": rng.random() < 0.3}
         for k in range(n)
     ]
+
+
+def decimal_trace(n: int, seed: int = 1) -> list[dict]:
+    """The basic trace at 10 Hz: record k at time k / 10 (the float of the decimal)."""
+    return [{**record, "time": record["time"] / 10} for record in basic_trace(n, seed)]
 
 
 def timed(function, n: int) -> float:
@@ -200,6 +217,11 @@ def main(argv=None) -> int:
         rtamt_rate = None if args.no_rtamt else measure_rtamt(
             rt, ["x", "a", "b"], trace[:n_rtamt], "eventually" in rt, repeat)
         report(name, run, step, reelay_rate, rtamt_rate)
+
+    decimal = decimal_trace(n)
+    for formula in TIME_READING:
+        run, step, _ = measure_case(basic_header, formula, None, decimal, repeat)
+        report(f"{formula} (10 Hz)", run, step, None, None)
 
     ts_trace = timescales.trace(n, seed=1)  # one trace for every bound: flatness is comparable
     for name in timescales.PATTERNS:

@@ -23,7 +23,8 @@ from fractions import Fraction
 
 __all__ = [
     "FAST", "NS_PER_SECOND", "Seconds", "bound_nanoseconds", "float_nanoseconds",
-    "format_nanoseconds", "format_seconds", "from_nanoseconds", "nanoseconds", "to_the_nanosecond",
+    "format_nanoseconds", "format_seconds", "from_nanoseconds", "nanoseconds", "seconds_value",
+    "to_the_nanosecond",
 ]
 
 NS_PER_SECOND = 10**9
@@ -95,6 +96,15 @@ def from_nanoseconds(ns: int) -> float:
         return ns / NS_PER_SECOND  # int / int: rounded once, correctly
     except OverflowError:
         return math.inf if ns > 0 else -math.inf
+
+
+def seconds_value(time: numbers.Real) -> int | float:
+    """A time as a plain number of seconds, as JSON writes it and properties' ``time`` reads
+    it: an int (any integral number) as an int, any other (a Fraction, a Decimal) as the float
+    nearest it; a float (a :class:`Seconds` too) is returned as it is."""
+    if isinstance(time, float):
+        return time
+    return int(time) if isinstance(time, numbers.Integral) else float(time)
 
 
 def to_the_nanosecond(time: float) -> float:

@@ -20,7 +20,7 @@ from rasm.errors import SpecError
 from rasm.losses import Damage
 from rasm.properties.ast import Specification
 from rasm.properties.codegen import checked_signals
-from rasm.properties.explain import Explanation, explain, seconds
+from rasm.properties.explain import Explanation, explain
 from rasm.properties.monitor import Monitor, PropertyRun
 from rasm.properties.outcome import (
     ERROR,
@@ -32,6 +32,7 @@ from rasm.properties.outcome import (
 )
 from rasm.properties.printer import format_value
 from rasm.properties.vacuity import Vacuity
+from rasm.properties.times import format_seconds, nanoseconds, seconds_value
 
 __all__ = ["CheckReport", "PropertyReport", "check_file", "check_records", "check_stream",
            "format_json", "format_text", "format_verdicts"]
@@ -390,7 +391,9 @@ def format_json(report: CheckReport) -> str:
                 {
                     "name": p.name,
                     "verdict": p.verdict,
-                    "violations": [{"index": i, "time": t} for i, t in p.violations],
+                    "violations": [
+                        {"index": i, "time": seconds_value(t)} for i, t in p.violations
+                    ],
                     "judged": p.judged,
                     "inconclusive": p.inconclusive,
                     "errors": p.outcome.errors,
@@ -436,9 +439,10 @@ _VALUES = {True: "true", False: "false", None: "null"}
 def _verdict_line(name: str, index: int, time: float, value: bool | None,
                   error: str | None) -> str:
     """One line of ``--verdicts``, as ``json.dumps`` writes the record; ``name`` is JSON
-    already. A time is an int or a float, whose JSON is its ``repr``."""
+    already. A time is written as a plain int or float (:func:`seconds_value`), whose JSON is
+    its ``repr``."""
     tail = "}\n" if error is None else f", \"error\": {json.dumps(error)}}}\n"
-    return (f'{{"property": {name}, "index": {index}, "time": {time!r}, '
+    return (f'{{"property": {name}, "index": {index}, "time": {seconds_value(time)!r}, '
             f'"value": {_VALUES[value]}{tail}')
 
 
@@ -476,16 +480,19 @@ def format_text(report: CheckReport) -> str:
             first_index, first_time = p.violations[0]
             out.append(
                 f"  {p.name}: VIOLATED at {p.outcome.violations} of {p.judged} judged records "
-                f"(first: record {first_index}, time {seconds(first_time)})  [{p.location}]"
+                f"(first: record {first_index}, time {format_seconds(first_time)})  "
+                f"[{p.location}]"
             )
             for e in p.explanations[:EXPLAINED]:
-                out.append(f"    at record {e.index} (time {seconds(e.time)}):")
+                out.append(f"    at record {e.index} (time {format_seconds(e.time)}):")
                 out.extend("      " + line for line in e.lines)
                 values = ", ".join(f"{k} = {format_value(v)}" for k, v in e.signals.items())
                 if values:
                     out.append(f"      signals: {values}")
             for e in p.explanations[EXPLAINED:]:
-                out.append(f"    at record {e.index} (time {seconds(e.time)}): {_one_line(e)}")
+                out.append(
+                    f"    at record {e.index} (time {format_seconds(e.time)}): {_one_line(e)}"
+                )
             hidden = p.outcome.violations - len(p.explanations)
             if hidden > 0:
                 more = ", ".join(f"{i}" for i, _ in p.violations[len(p.explanations):][:20])
@@ -523,7 +530,8 @@ def format_text(report: CheckReport) -> str:
 def _errors(p: PropertyReport) -> list[str]:
     """The first records where ``p`` could not be evaluated, and why."""
     first = p.first_errors
-    out = [f"    in error at record {i} (time {seconds(t)}): {why}" for i, t, why in first[:5]]
+    out = [f"    in error at record {i} (time {format_seconds(t)}): {why}"
+           for i, t, why in first[:5]]
     count = p.outcome.errors
     if count > 5:
         more = ", ".join(str(i) for i, _, _ in first[5:ERRORS_NAMED])

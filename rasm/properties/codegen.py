@@ -78,6 +78,7 @@ def generate(
         gen.owned.append([])
         gen.owed = None
         kind, value = gen.emit(gen.root)
+        value = gen.property_value(gen.root, kind, value)
         if reads is None:
             needed = signals_of(prop.formula)
         else:

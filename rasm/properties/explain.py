@@ -43,9 +43,9 @@ from rasm.properties.ast import (
 from rasm.properties.loader import signals_of
 from rasm.properties.monitor import Monitor
 from rasm.properties.printer import format_value, unparse
-from rasm.properties.times import nanoseconds
+from rasm.properties.times import format_seconds, nanoseconds
 
-__all__ = ["ABRIDGE", "KEEP", "Explainer", "Explanation", "abridge", "explain", "seconds"]
+__all__ = ["ABRIDGE", "KEEP", "Explainer", "Explanation", "abridge", "explain"]
 
 MAX_LINES = 12
 KEEP = 65_536  # records kept for the explanations still to give, at most
@@ -58,15 +58,6 @@ def abridge(value: object) -> object:
     if isinstance(value, str) and len(value) > ABRIDGE:
         return f"{value[:ABRIDGE]}… ({len(value):,} characters)"
     return value
-
-
-def seconds(time: object) -> str:
-    """A record time as reports print it (``12.5``), whatever number it is (an int, a float,
-    a Decimal, a Fraction)."""
-    try:
-        return f"{time:g}"
-    except (TypeError, ValueError):
-        return f"{float(time):g}"  # a Fraction has no format of its own
 
 
 @dataclass(frozen=True)
@@ -344,7 +335,7 @@ class _Explainer:
         return self.rows.times[j - self.rows.first]
 
     def at(self, j: int) -> str:
-        return f"record {j} (time {seconds(self.time(j))})"
+        return f"record {j} (time {format_seconds(self.time(j))})"
 
     def val(self, node: Expr, j: int):
         if isinstance(node, Literal):
@@ -446,12 +437,7 @@ class _Explainer:
             return
         self.say(depth, f"{text} {failed}")
 
-    def span(self, window: range) -> str:
-        if not window:
-            return "(no record in the window)"
-        first, last = min(window), max(window)
-        return (f"in records {first}–{last} "
-                f"(times {seconds(self.time(first))}–{seconds(self.time(last))})")
+        return f"record {j} (time {format_seconds(self.time(j))})"
 
 
 def explain(

@@ -6,14 +6,24 @@ witness time, a deque of not-yet-old-enough witnesses). Anything above a future 
 *stream* (``rasm.properties.streams``) whose values come late; the generated code feeds the
 streams their immediate inputs and reads the property's verdicts off the top stream.
 :mod:`rasm.properties.codegen` puts the properties' lines together into one program.
+
+``time`` is exact (:func:`is_time`): its value is the record's time in integer nanoseconds
+(``tn``), and so are the sums, differences, negations, ``abs``, ``min``, ``max`` and ``prev`` of
+times; a number they meet is read as a time (to the nanosecond) and a comparison with one is
+made in nanoseconds. Where a time meets anything else (``*``, ``/``, an aggregate, the value of
+a probe) it becomes the float nearest its seconds. So ``time - prev(time) >= 0.2`` holds at 0.3
+after 0.1, as ``once[0.2, 0.2]`` does.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from fractions import Fraction
 
+from rasm.errors import SourceError
 from rasm.properties.ast import (
+    COMPARISONS,
     INF,
     Aggregate,
     Binary,
@@ -33,6 +43,7 @@ from rasm.properties.ast import (
 )
 from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
 from rasm.properties.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
+from rasm.properties.printer import unparse
 from rasm.properties.streams import (
     AggregateStream,
     PointwiseStream,
@@ -41,9 +52,39 @@ from rasm.properties.streams import (
     TemporalStream,
     kleene_function,
 )
+from rasm.properties.times import NS_PER_SECOND, from_nanoseconds, nanoseconds
 from rasm.properties.types import TypeScope
 
-__all__ = ["FormulaGenerator", "normalise", "signal_variable"]
+__all__ = ["FormulaGenerator", "is_time", "normalise", "signal_variable"]
+
+
+def is_time(node: Expr) -> bool:
+    """Whether ``node``'s value is a time or a duration, carried as exact nanoseconds: ``time``,
+    and the ``prev``, negation, ``abs``, ``min``, ``max``, sums and differences of times."""
+    if isinstance(node, Time):
+        return True
+    if isinstance(node, (Prev, Unary)):
+        return is_time(node.operand)
+    if isinstance(node, Binary) and node.op in ("+", "-"):
+        return is_time(node.left) or is_time(node.right)
+    if isinstance(node, Call):
+        return any(is_time(arg) for arg in node.args)
+    return False
+
+
+def _as_nanoseconds(value: object) -> object:
+    """A number that meets a time, as exact nanoseconds (:mod:`rasm.times`: a float stands for
+    its shortest decimal); what is no finite number stays as it is (undefined stays undefined,
+    inf infinite, a string fails the operator as it would have)."""
+    if value.__class__ is bool:
+        return int(value) * NS_PER_SECOND  # true is 1, as in any arithmetic
+    ns = nanoseconds(value)
+    return value if ns is None else ns
+
+
+def _as_seconds(value: object) -> object:
+    """A time in nanoseconds as the float nearest its seconds (undefined stays undefined)."""
+    return from_nanoseconds(value) if value.__class__ is int else value / NS_PER_SECOND
 
 
 def normalise(node: Expr) -> Expr:
@@ -92,7 +133,7 @@ class FormulaGenerator:
         self.spec = spec
         self.types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
         self.constants: dict[str, object] = {"deque": deque, "INF": INF, "NAN": math.nan}
-        self.constants.update(HELPERS)
+        self.constants.update(HELPERS, _ns=_as_nanoseconds, _seconds=_as_seconds)
         self.state: dict[str, object] = {}
         self.count = 0
         self.lines: list = []
@@ -134,7 +175,7 @@ class FormulaGenerator:
         if isinstance(node, Name):
             return "imm", signal_variable(node.name)
         if isinstance(node, Time):
-            return "imm", "t"
+            return "imm", "tn"
         if isinstance(node, Future):  # only eventually, after normalise()
             (kind, value) = self.emit(node.operand)
             a, b = node.bound.low_ns, node.bound.high_ns
@@ -147,7 +188,7 @@ class FormulaGenerator:
             if left[0] == right[0] == "imm":
                 return self.inline_future(a, b, left[1], right[1])
             return self.stream(TemporalStream, [left, right], UntilCore(a, b))
-        parts = [self.emit(c) for c in _operands(node)]
+        parts = self.in_units(node, [self.emit(c) for c in _operands(node)])
         streams = [k for k, (kind, _) in enumerate(parts) if kind == "stream"]
         if len(streams) == 1 and isinstance(node, (Not, Unary, Binary, Call)):
             return self.inline_pointwise(node, parts, streams[0])
@@ -185,6 +226,50 @@ class FormulaGenerator:
             self.lines.append(f"{out} = {core}.push(tn, {values[0]})")
             return "imm", out
         raise TypeError(f"cannot compile {node!r}")
+
+    def in_units(self, node: Expr, parts: list) -> list:
+        """The immediate operands of ``node`` in the units it computes in: nanoseconds for time
+        arithmetic and for a comparison with a time (:func:`is_time`), seconds elsewhere."""
+        operands = _operands(node)
+        exact = is_time(node) or (
+            isinstance(node, Binary) and node.op in COMPARISONS and any(map(is_time, operands))
+        )
+        out = []
+        for child, (kind, value) in zip(operands, parts, strict=True):
+            if kind == "imm":
+                value = self.nanoseconds(child, value) if exact else self.seconds(child, value)
+            out.append((kind, value))
+        return out
+
+    def property_value(self, node: Expr, kind: str, value):
+        """What a property's formula gives as its value: seconds where it is a time (an
+        explanation's probe of ``time - prev(time)`` shows 0.2)."""
+        return self.seconds(node, value) if kind == "imm" else value
+
+    @staticmethod
+    def nanoseconds(node: Expr, value: str) -> str:
+        """Source of ``node``'s value in nanoseconds (``value``: its source as emitted)."""
+        if is_time(node):
+            return value
+        number = node.value if isinstance(node, Literal) else None
+        if isinstance(number, (int, float)) and not isinstance(number, bool):
+            if math.isfinite(number):
+                exact = Fraction(repr(number)) * NS_PER_SECOND  # the decimal, as written
+                if exact.denominator != 1:
+                    raise SourceError(
+                        f"{unparse(node)} is finer than a nanosecond, the resolution of times: "
+                        "a number added to or compared with a time is a time",
+                        node.location,
+                    )
+                return repr(exact.numerator)
+        return f"_ns({value})"
+
+    @staticmethod
+    def seconds(node: Expr, value: str) -> str:
+        """Source of ``node``'s value in seconds (``value``: its source as emitted)."""
+        if not is_time(node):
+            return value
+        return "t" if isinstance(node, Time) else f"_seconds({value})"
 
     def undefined(self, node: Expr) -> object:
         # prev(φ) at a property's first record: a boolean is false, anything else undefined

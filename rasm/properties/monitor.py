@@ -15,7 +15,7 @@ from rasm.properties.ast import Specification
 from rasm.properties.codegen import UNSET, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
-from rasm.properties.times import nanoseconds
+from rasm.properties.times import nanoseconds, seconds_value
 from rasm.values import fit, wanted
 
 __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties"]
@@ -162,7 +162,7 @@ class Monitor:
             COERCE=coerce,
             BAD=BAD,
             NANOSECONDS=nanoseconds,
-            SECONDS=_seconds,
+            SECONDS=seconds_value,
             FAULT=self._fault,
             FAULT_RUN=self._fault_run,
             RECOVERING=self._recovering,
@@ -369,11 +369,6 @@ class Monitor:
 def _why(exc: Exception, index: int | None) -> str:
     where = f"at record {index}" if index is not None else "at the end of the trace"
     return f"evaluating the property raised {type(exc).__name__} {where}: {exc}"
-
-
-def _seconds(time) -> int | float:
-    """A record time that is neither an int nor a float, as one (what ``time`` reads)."""
-    return int(time) if isinstance(time, numbers.Integral) else float(time)
 
 
 @functools.lru_cache(maxsize=128)

@@ -15,11 +15,12 @@ from rasm.times import (
     format_seconds,
     from_nanoseconds,
     nanoseconds,
+    seconds_value,
     to_the_nanosecond,
 )
 
 __all__ = [
     "FAST", "NS_PER_SECOND", "UNIT_NS", "Seconds", "bound_nanoseconds", "float_nanoseconds",
-    "format_nanoseconds", "format_seconds", "from_nanoseconds", "nanoseconds",
+    "format_nanoseconds", "format_seconds", "from_nanoseconds", "nanoseconds", "seconds_value",
     "to_the_nanosecond",
 ]

@@ -8,6 +8,11 @@ Times are exact: a record's time and a window's bounds are the decimals they wer
 (a float stands for its shortest decimal, ``repr``), held as :class:`fractions.Fraction`, so
 ``0.3 - 0.1`` is exactly ``0.2`` here. Arithmetic follows IEEE-754 binary64 without ever
 raising: the exact result rounded to a float, ±inf beyond the largest one.
+
+``time`` is exact too: its value is an :class:`Exact` (the record's time as a fraction), and so
+are the negations, ``abs``, ``min``, ``max``, ``prev``, sums and differences it takes part in,
+with every number in them read as its decimal; comparing an :class:`Exact` with a number is
+exact. Anywhere else (``*``, ``/``, an aggregate) an :class:`Exact` is the float nearest it.
 """
 
 from __future__ import annotations
@@ -48,6 +53,27 @@ def exact_seconds(time) -> Fraction:
     if isinstance(time, (int, Decimal, Fraction)):
         return Fraction(time)
     raise TypeError(time)
+
+
+class Exact(Fraction):
+    """A time or a duration, in exact seconds."""
+
+
+def exact_number(value) -> Fraction:
+    """A number as the decimal it is written as: a float stands for its shortest decimal."""
+    return Fraction(repr(value)) if isinstance(value, float) else Fraction(value)
+
+
+def plain(value):
+    """An :class:`Exact` where a plain number is needed: the float nearest it."""
+    return to_float(value) if isinstance(value, Exact) else value
+
+
+def exact_arithmetic(op: str, a, b):
+    """``a op b`` where ``a`` or ``b`` is a time: exact, or undefined / infinite as IEEE says."""
+    if any(isinstance(v, float) and not math.isfinite(v) for v in (a, b)):
+        return arithmetic(op, plain(a), plain(b))
+    return Exact(OPERATORS[op](exact_number(a), exact_number(b)))
 
 
 def exact_bound(seconds: float):
@@ -189,13 +215,12 @@ class Reference:
         if isinstance(node, Name):
             return self.env[i][node.name]
         if isinstance(node, Time):
-            time = self.times[i]
-            return time if isinstance(time, int) else float(time)
+            return Exact(exact_seconds(self.times[i]))
         if isinstance(node, Not):
             return k_not(self.value(node.operand, i))
         if isinstance(node, Unary):
             v = self.value(node.operand, i)
-            return None if v is None else -v
+            return None if v is None else Exact(-v) if isinstance(v, Exact) else -v
         if isinstance(node, Binary):
             a, b = self.value(node.left, i), self.value(node.right, i)
             if node.op == "and":
@@ -206,10 +231,15 @@ class Reference:
                 return k_or(k_not(a), b)
             if a is None or b is None:
                 return None
+            timed = isinstance(a, Exact) or isinstance(b, Exact)
+            if node.op in ("+", "-") and timed:
+                return exact_arithmetic(node.op, a, b)
             if node.op in ("+", "-", "*", "/"):
-                return arithmetic(node.op, a, b)
+                return arithmetic(node.op, plain(a), plain(b))
             if a != a or b != b:  # undefined: every comparison is false
                 return False
+            if timed and all(math.isfinite(v) for v in (a, b)):
+                a, b = exact_number(a), exact_number(b)
             return {
                 "==": a == b, "!=": a != b, "<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b,
             }[node.op]
@@ -219,6 +249,13 @@ class Reference:
                 return None
             if any(x != x for x in args):
                 return NAN
+            if any(isinstance(x, Exact) for x in args):
+                if all(math.isfinite(x) for x in args):
+                    args = [exact_number(x) for x in args]
+                    found = {"abs": lambda: abs(args[0]), "min": lambda: min(args),
+                             "max": lambda: max(args)}[node.func]()
+                    return Exact(found)
+                args = [plain(x) for x in args]
             return {"abs": lambda: abs(args[0]), "min": lambda: min(args),
                     "max": lambda: max(args)}[node.func]()
         if isinstance(node, Prev):
@@ -262,7 +299,7 @@ class Reference:
                 terms.append(k_and(None, lefts))
             return k_any(terms)
         if isinstance(node, Aggregate):
-            window = [self.value(node.operand, j) for j in past if a <= t[i] - t[j] <= b]
+            window = [plain(self.value(node.operand, j)) for j in past if a <= t[i] - t[j] <= b]
             if None in window:
                 return None
             if node.op == "count":

@@ -49,7 +49,9 @@ def _seconds(value: Decimal, draw) -> str:
 def numeric_atoms(draw, unit: Decimal | None = None) -> str:
     c = draw(st.sampled_from(["0", "0.5", "1", "2"]))
     op = draw(st.sampled_from([">", "<=", "==", "!=", "<", ">="]))
-    choice = draw(st.integers(0, 9))
+    choice = draw(st.integers(0, 11))
+    if choice >= 10:  # time arithmetic, against gaps on the trace's grid (exact: 0.3 - 0.1)
+        return f"{draw(time_terms(1, unit))} {op} {draw(grid_decimals(unit))}"
     if choice == 0:
         return f"x {op} {c}"
     if choice == 1:
@@ -72,6 +74,66 @@ def numeric_atoms(draw, unit: Decimal | None = None) -> str:
     if choice == 8:
         return f"max(x, y) + min(x, 1) {op} {c}"
     return f"x * 2 - y {op} {c}"
+
+
+@st.composite
+def decimals(draw, digits: int = 9, limit: int = 10**12) -> str:
+    """A decimal number of seconds written with up to ``digits`` decimals."""
+    scale = 10 ** (9 - draw(st.integers(0, digits)))
+    ns = draw(st.integers(-limit, limit)) // scale * scale
+    return f"{Decimal(ns).scaleb(-9).normalize():f}"
+
+
+@st.composite
+def grid_decimals(draw, unit: Decimal | None) -> str:
+    """A number on the trace's grid (``unit``, or 0.5 s): a small multiple of it, where gaps
+    land, or one of the traces' times."""
+    step = unit if unit is not None else Decimal("0.5")
+    offset = draw(st.sampled_from([Decimal(0), Decimal(0), *OFFSETS]))
+    return f"{(offset + step * draw(st.integers(-3, 8))).normalize():f}"
+
+
+@st.composite
+def time_terms(draw, depth: int = 2, unit: Decimal | None = None) -> str:
+    """Arithmetic on ``time``: sums, differences, negation, abs, min and max of times, prev,
+    a signal and decimal numbers (on the trace's grid, or any with up to nine decimals)."""
+    if depth <= 0 or draw(st.integers(0, 3)) == 0:
+        return draw(st.one_of(
+            st.sampled_from(["time", "prev(time)", "time - prev(time)", "x"]),
+            grid_decimals(unit),
+            decimals(9, 10**10),
+        ))
+    sub = time_terms(depth - 1, unit)
+    op = draw(st.sampled_from(["+", "-", "neg", "abs", "min", "max", "prev"]))
+    if op == "neg":
+        return f"-({draw(sub)})"
+    if op in ("abs", "prev"):
+        return f"{op}({draw(sub)})"
+    if op in ("min", "max"):
+        return f"{op}({draw(sub)}, {draw(sub)})"
+    return f"time {op} ({draw(sub)})" if draw(st.booleans()) else f"({draw(sub)}) {op} time"
+
+
+@st.composite
+def time_comparisons(draw, unit: Decimal | None = None) -> str:
+    """A comparison of time arithmetic with time arithmetic or a number: half of them shapes
+    that land on the grid's decimals (where binary arithmetic errs), half random terms."""
+    op = draw(st.sampled_from([">", "<=", "==", "!=", "<", ">="]))
+    g, h = draw(grid_decimals(unit)), draw(grid_decimals(unit))
+    if draw(st.booleans()):
+        return draw(st.sampled_from([
+            f"time - prev(time) {op} {g}",
+            f"time - {g} {op} prev(time) + {h}",
+            f"abs(time - prev(time) - {g}) {op} {h}",
+            f"min(time - prev(time), {g}) {op} {h}",
+            f"-(time - prev(time)) {op} -({g})",
+            f"time {op} {g}",
+            f"time - prev(prev(time)) {op} {g}",
+            f"time + x - prev(time) {op} {g}",
+            f"max(time, {g}) - {h} {op} prev(time)",
+        ]))
+    right = draw(st.one_of(time_terms(2, unit), grid_decimals(unit), decimals(9, 10**10)))
+    return f"{draw(time_terms(2, unit))} {op} {right}"
 
 
 @st.composite

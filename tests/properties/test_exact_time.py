@@ -21,12 +21,12 @@ from hypothesis import strategies as st
 from rasm.errors import SourceError, SourceErrors
 from rasm.properties import compile_properties, load_specification
 from rasm.properties.ast import Future, Until, children
-from rasm.properties.check import check_records
+from rasm.properties.check import check_records, format_json, format_text, format_verdicts
 from rasm.properties.times import Seconds, nanoseconds
 from rasm.trace import parse_trace, read_trace
 
 from .reference import exact_seconds
-from .strategies import HEADER, UNITS, decimal_traces, formulas
+from .strategies import HEADER, UNITS, decimal_traces, formulas, time_comparisons
 from .test_semantics import assert_agrees_with_reference, online
 
 
@@ -133,11 +133,81 @@ def test_a_time_that_is_not_finite_is_refused(time):
 
 
 def test_the_time_expression_and_verdicts_read_seconds():
-    # ``time`` is a number of seconds like any other (binary64 arithmetic), an int or a float
+    # ``time`` is the record's time in seconds; verdicts carry it as an int or a float
     monitor = compile_properties("property late: time >= 0.3\n")
     got = [monitor.step(t, {})[0] for t in (0.1, 0.3, Decimal("0.35"), Fraction(1, 2), 1)]
     assert [v.value for v in got] == [False, True, True, True, True]
     assert [v.time for v in got] == [0.1, 0.3, 0.35, 0.5, 1]
+
+
+def test_time_minus_prev_time_is_exact_as_window_bounds_are():
+    # 0.3 - 0.1 is 0.2 for `time` as for once[0.2, 0.2], not 0.19999999999999998
+    text = "event p\nproperty gap: time - prev(time) >= 0.2\nproperty at: once[0.2, 0.2] p\n"
+    records = [(0.1, {"p": True}), (0.3, {"p": False})]
+    online = compile_properties(text)
+    got = [(v.property, v.index, v.value) for t, rec in records for v in online.step(t, rec)]
+    assert got == [("gap", 0, False), ("at", 0, False), ("gap", 1, True), ("at", 1, True)]
+    runs = compile_properties(text).run(records)
+    assert [run.values for run in runs] == [[False, True], [False, True]]
+    # and on times the float loses: epoch seconds with nine decimals, read from a trace
+    equal = compile_properties("property same: time - prev(time) == 0.000000001\n")
+    first, second = Seconds("1700000000.123456789"), Seconds("1700000000.123456790")
+    assert float(first) == float(second)
+    assert [v.value for t in (first, second) for v in equal.step(t, {})] == [False, True]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_time_arithmetic_agrees_with_an_exact_oracle(data):
+    # sums, differences, negation, abs, min, max and prev of times, with decimal numbers of up
+    # to nine decimals: every comparison as exact as the decimals written (reference.py)
+    unit = data.draw(st.sampled_from(UNITS))
+    formula = data.draw(time_comparisons(unit))
+    exact = data.draw(st.booleans())
+    records = data.draw(decimal_traces(unit, max_size=12, exact=exact))
+    assert_agrees_with_reference(formula, records)
+
+
+def test_a_time_in_products_aggregates_and_explanations_is_its_float_seconds():
+    text = ("input x: float\nproperty scaled: (time - prev(time)) * 10 >= 2\n"
+            "property widest: max[0, 1](time - prev(time)) < 0.2\n")
+    records = [(0.1, {"x": 1.0}), (0.3, {"x": 1.0}), (0.35, {"x": 1.0})]
+    scaled, widest = (run.values for run in compile_properties(text).run(records))
+    assert scaled == [False, True, False]  # 0.2 * 10 is 2.0; 0.05 * 10 is 0.5
+    assert widest == [False, False, False]  # max of nan, 0.2, 0.05: undefined, then 0.2
+    spec = load_specification("property steady: time - prev(time) <= 0.1\n")
+    (report,) = check_records(spec, records).properties
+    assert report.explanations[1].lines == (
+        "time - prev(time) <= 0.1 failed:", "  time - prev(time) = 0.2",  # not ...99999998
+    )
+
+
+def test_fraction_and_decimal_times_are_explained_and_written_as_their_decimals():
+    # check_records takes any exact time; every report writes it as its decimal (format_seconds)
+    spec = load_specification(
+        "input x: float\nproperty low: historically[0, 1] (x < 1)\n"
+        "property seen: once[0, 0.5] (x > 5)\n"
+    )
+    records = [(Fraction(1, 10), {"x": 0.5}), (Fraction(3, 10), {"x": 2.0}),
+               (Decimal("1700000000.123456789"), {"x": 0.5})]
+    report = check_records(spec, records)
+    text = format_text(report)
+    assert "(first: record 1, time 0.3)" in text and "at record 1 (time 0.3):" in text
+    assert "never held in records 2–2 (times 1700000000.123456789–1700000000.123456789)" in text
+    violations = json.loads(format_json(report))["properties"][0]["violations"]
+    assert violations == [{"index": 1, "time": 0.3}]
+    lines = [json.loads(line) for line in format_verdicts(report).splitlines()]
+    assert [line["time"] for line in lines[:3]] == [0.1, 0.3, 1700000000.1234567]
+
+
+@pytest.mark.parametrize("number", ["0.0000000005", "1e-10", "2.0000000001"])
+def test_a_number_finer_than_a_nanosecond_beside_a_time_is_an_error_at_its_place(number):
+    text = f"property fine: time - prev(time) >= {number}\n"
+    with pytest.raises(SourceError) as caught:
+        compile_properties(text, source="fine.rv")
+    message = str(caught.value)
+    assert message.startswith("fine.rv:1:37: ")
+    assert "is finer than a nanosecond, the resolution of times" in message
 
 
 @settings(max_examples=200, deadline=None)
