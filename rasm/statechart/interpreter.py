@@ -76,14 +76,14 @@ class StepFailure:
     exception: BaseException
 
 
-def _waited(since: float, now: float, seconds: float, deadlines: list[float] | None) -> bool:
+def _waited(since: float, now: float, seconds: float, deadlines: list | None) -> bool:
     """``after``/``idle``: true once ``seconds`` have passed since ``since`` (exactly,
-    :mod:`rasm.statechart.timers`); otherwise the time it will be is recorded in ``deadlines``
-    (if any)."""
+    :mod:`rasm.statechart.timers`); otherwise ``(since, seconds)`` is recorded in
+    ``deadlines`` (if any), for :meth:`Interpreter.next_deadline` to add up when asked."""
     if elapsed(since, now, seconds):
         return True
     if deadlines is not None:
-        deadlines.append(deadline(since, seconds))
+        deadlines.append((since, seconds))
     return False
 
 
@@ -121,7 +121,7 @@ class FastGuardEvaluator(ExactTimerEvaluator):
     every step), exposing only the names a guard uses: the same values, the same errors; its
     timers are exact (:class:`~rasm.statechart.timers.ExactTimerEvaluator`)."""
 
-    deadlines: list[float] | None = None  # where DeadlineEvaluator records its timers
+    deadlines: list | None = None  # where DeadlineEvaluator records its timers: (since, seconds)
     #: The event a guard raised on (sismic looks at an event before it takes it from the queue).
     failed_event: Any = None
     #: Called before any action, entry or exit code runs (the atomic layer saves the context
@@ -497,7 +497,7 @@ class Interpreter(AtomicStepMixin, FastInterpreter):
         if not (internal or external or deadlines):
             return None  # the usual answer, after every send: nothing queued, no timer
         candidates = [queue[0][0] for queue in (internal, external) if queue]
-        candidates.extend(deadlines)
+        candidates.extend(deadline(since, seconds) for since, seconds in deadlines)
         due = min(candidates, default=math.inf)
         return None if due == math.inf else due
 

@@ -18,14 +18,24 @@ from typing import Any
 from sismic.code import PythonEvaluator
 from sismic.model import Event, Transition
 
-from rasm.times import from_nanoseconds, nanoseconds
+from rasm.times import FAST, from_nanoseconds, nanoseconds
 
 __all__ = ["ExactTimerEvaluator", "deadline", "elapsed"]
+
+_FAST_NS = int(FAST) * 10**9  # below 2**21 s, every time to the ns is a float of its own
 
 
 def elapsed(since: Any, now: Any, seconds: Any) -> bool:
     """Whether ``seconds`` have passed from ``since`` to ``now`` (``now - seconds >= since``,
     exactly)."""
+    gap = now - seconds - since  # stock's arithmetic first (and its error, for a string)
+    # Binary arithmetic decides unless the gap is within its error (a few nanoseconds, plus
+    # 2**-52 of the times' size): the exact comparison (a function call per time) settles that.
+    slack = 2e-9 + 4e-16 * (abs(now) + abs(seconds) + abs(since))
+    if gap > slack:
+        return True
+    if gap < -slack:
+        return False
     start, current, delay = nanoseconds(since), nanoseconds(now), nanoseconds(seconds)
     if start is None or current is None or delay is None:
         return now - seconds >= since  # stock's arithmetic, and its errors
@@ -45,10 +55,19 @@ def deadline(since: Any, seconds: Any) -> Any:
             return since
         if since.__class__ is int:
             return since + seconds
+    if (
+        since.__class__ is float
+        and (seconds.__class__ is float or seconds.__class__ is int)
+        and -FAST < since < FAST
+        and -FAST < seconds < FAST
+    ):  # nanoseconds() written out for the usual case
+        return (round(since * 1e9) + round(seconds * 1e9)) / 1e9
     start, delay = nanoseconds(since), nanoseconds(seconds)
     if start is None or delay is None:
         return since + seconds  # stock's arithmetic, and its errors
     due = start + delay
+    if -_FAST_NS < due < _FAST_NS:
+        return due / 1e9  # both exact: one rounding, and floats are finer than a ns here
     time = from_nanoseconds(due)
     if math.isfinite(time) and nanoseconds(time) < due:
         time = math.nextafter(time, math.inf)

@@ -56,7 +56,7 @@ from rasm.statechart.fast import tables as ft
 from rasm.statechart.fast.listener import PropertyListener
 from rasm.statechart.fast.meta_guards import NO_EVENT
 from rasm.statechart.timers import ExactTimerEvaluator, deadline
-from rasm.times import to_the_nanosecond
+from rasm.times import FAST, to_the_nanosecond
 
 __all__ = ["FastInterpreter"]
 
@@ -238,7 +238,11 @@ class FastInterpreter(Interpreter):
             self._tables.check(self._statechart)
         # to the nanosecond: a clock moved in steps of 0.1 reads 0.30000000000000004, and every
         # time compared with this one (entry times, queued events) is then the float of "0.3"
-        self._time = to_the_nanosecond(self.clock.time)
+        now = self.clock.time
+        if now.__class__ is float and -FAST < now < FAST:  # to_the_nanosecond's usual case
+            self._time = round(now * 1e9) / 1e9
+        else:
+            self._time = to_the_nanosecond(now)
         self._sent_events.clear()
         # (each meta-event is raised only if someone listens: building it is most of the cost)
         if self._listeners:
@@ -306,7 +310,7 @@ class FastInterpreter(Interpreter):
         event is due at the exact deadline (:func:`~rasm.statechart.timers.deadline`)."""
         internal = isinstance(event, InternalEvent)
         queue: list = self._internal_queue if internal else self._external_queue
-        time = deadline(self._time, delay)
+        time = self._time if delay.__class__ is int and not delay else deadline(self._time, delay)
         position = bisect.bisect_right(queue, (time, not internal), key=_queue_order)
         queue.insert(position, (time, event))
 
