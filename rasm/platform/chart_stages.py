@@ -5,7 +5,7 @@ answers it by sending the stage's outcome events (:data:`STAGE_OUTCOMES`) with `
 that event its context holds, read-only:
 
 ``knowledge``   the knowledge, latest value per key (``knowledge.get('temperature')``)
-``time``        the platform time of the iteration (s)
+``time``        the platform time of the iteration (s, to the nanosecond)
 ``iteration``   the iteration's number
 ``anomaly``     what Analyse found: ``{'reason': ..., **data}``, or None
 ``plan``        the plan's values (a dict), or None
@@ -32,6 +32,7 @@ from rasm.errors import ExecutionError
 from rasm.platform.components import Action, Anomaly, Plan, StageContext, StageError
 from rasm.platform.modes import KnowledgeView
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
+from rasm.times import to_the_nanosecond
 
 __all__ = ["MAX_STEPS", "STAGE_OUTCOMES", "ChartStage", "NoAnswer"]
 
@@ -93,7 +94,7 @@ class ChartStage:
         anomaly = ctx.anomaly
         context.update(
             knowledge=KnowledgeView(ctx.knowledge),
-            time=ctx.time,
+            time=to_the_nanosecond(ctx.time),  # as the chart's clock reads it: 0.3, not 0.1 * 3
             iteration=ctx.iteration,
             anomaly=None if anomaly is None else {**anomaly.data, "reason": anomaly.reason},
             plan=None if ctx.plan is None else dict(ctx.plan.values),

@@ -125,6 +125,12 @@ def test_a_timer_of_a_stage_chart_holds_on_the_iteration_of_its_deadline(start, 
     assert answers[-1] == Anomaly("waited", {})
 
 
+
+def test_the_time_a_stage_chart_reads_is_the_decimal_of_the_iteration_time():
+    stage = chart("monitor", "send('monitored', seen=time, late=time >= 0.3)")
+    assert stage.monitor(ctx(0.1 * 3)) == {"seen": 0.3, "late": True}  # 0.30000000000000004
+
+
 OUTCOMES = sorted({o for outcomes in STAGE_OUTCOMES.values() for o in outcomes})
 
 
