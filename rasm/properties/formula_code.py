@@ -40,6 +40,7 @@ from rasm.properties.ast import (
     Time,
     Unary,
     Until,
+    children,
 )
 from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
 from rasm.properties.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
@@ -60,16 +61,22 @@ __all__ = ["FormulaGenerator", "is_time", "normalise", "signal_variable"]
 
 def is_time(node: Expr) -> bool:
     """Whether ``node``'s value is a time or a duration, carried as exact nanoseconds: ``time``,
-    and the ``prev``, negation, ``abs``, ``min``, ``max``, sums and differences of times."""
+    and the ``prev``, negation, ``abs``, ``min``, ``max``, sums and differences of times.
+
+    Not where a future operator's value takes part in the arithmetic (``time -
+    count[0, 1](eventually p)``): such values come late, through streams that compute in
+    seconds, so there times are the floats of their seconds."""
     if isinstance(node, Time):
         return True
     if isinstance(node, (Prev, Unary)):
         return is_time(node.operand)
-    if isinstance(node, Binary) and node.op in ("+", "-"):
-        return is_time(node.left) or is_time(node.right)
-    if isinstance(node, Call):
-        return any(is_time(arg) for arg in node.args)
+    if isinstance(node, Binary) and node.op in ("+", "-") or isinstance(node, Call):
+        return any(map(is_time, children(node))) and not _looks_ahead(node)
     return False
+
+
+def _looks_ahead(node: Expr) -> bool:
+    return isinstance(node, (Future, Until)) or any(map(_looks_ahead, children(node)))
 
 
 def _as_nanoseconds(value: object) -> object:
@@ -232,7 +239,10 @@ class FormulaGenerator:
         arithmetic and for a comparison with a time (:func:`is_time`), seconds elsewhere."""
         operands = _operands(node)
         exact = is_time(node) or (
-            isinstance(node, Binary) and node.op in COMPARISONS and any(map(is_time, operands))
+            isinstance(node, Binary)
+            and node.op in COMPARISONS
+            and any(map(is_time, operands))
+            and not _looks_ahead(node)
         )
         out = []
         for child, (kind, value) in zip(operands, parts, strict=True):

@@ -12,7 +12,8 @@ raising: the exact result rounded to a float, ±inf beyond the largest one.
 ``time`` is exact too: its value is an :class:`Exact` (the record's time as a fraction), and so
 are the negations, ``abs``, ``min``, ``max``, ``prev``, sums and differences it takes part in,
 with every number in them read as its decimal; comparing an :class:`Exact` with a number is
-exact. Anywhere else (``*``, ``/``, an aggregate) an :class:`Exact` is the float nearest it.
+exact. Anywhere else (``*``, ``/``, an aggregate, arithmetic with a future operator's value
+below it) an :class:`Exact` is the float nearest it.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from rasm.properties.ast import (
     Time,
     Unary,
     Until,
+    children,
 )
 from rasm.properties.loader import signals_of
 from rasm.properties.types import TypeScope
@@ -74,6 +76,13 @@ def exact_arithmetic(op: str, a, b):
     if any(isinstance(v, float) and not math.isfinite(v) for v in (a, b)):
         return arithmetic(op, plain(a), plain(b))
     return Exact(OPERATORS[op](exact_number(a), exact_number(b)))
+
+
+def looks_ahead(node) -> bool:
+    """Whether ``node`` reads a future operator's value."""
+    if isinstance(node, (Future, Until)):
+        return True
+    return any(looks_ahead(child) for child in children(node))
 
 
 def exact_bound(seconds: float):
@@ -231,7 +240,7 @@ class Reference:
                 return k_or(k_not(a), b)
             if a is None or b is None:
                 return None
-            timed = isinstance(a, Exact) or isinstance(b, Exact)
+            timed = (isinstance(a, Exact) or isinstance(b, Exact)) and not looks_ahead(node)
             if node.op in ("+", "-") and timed:
                 return exact_arithmetic(node.op, a, b)
             if node.op in ("+", "-", "*", "/"):
@@ -240,6 +249,8 @@ class Reference:
                 return False
             if timed and all(math.isfinite(v) for v in (a, b)):
                 a, b = exact_number(a), exact_number(b)
+            else:
+                a, b = plain(a), plain(b)
             return {
                 "==": a == b, "!=": a != b, "<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b,
             }[node.op]
@@ -249,7 +260,7 @@ class Reference:
                 return None
             if any(x != x for x in args):
                 return NAN
-            if any(isinstance(x, Exact) for x in args):
+            if any(isinstance(x, Exact) for x in args) and not looks_ahead(node):
                 if all(math.isfinite(x) for x in args):
                     args = [exact_number(x) for x in args]
                     found = {"abs": lambda: abs(args[0]), "min": lambda: min(args),

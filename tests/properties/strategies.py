@@ -131,6 +131,9 @@ def time_comparisons(draw, unit: Decimal | None = None) -> str:
             f"time - prev(prev(time)) {op} {g}",
             f"time + x - prev(time) {op} {g}",
             f"max(time, {g}) - {h} {op} prev(time)",
+            # a future operator's value in the arithmetic: there times are floats of seconds
+            f"time - count[0, 1](eventually[0, 1] p) {op} {g}",
+            f"time {op} count[0, 1](eventually[0, 1] p) + {g}",
         ]))
     right = draw(st.one_of(time_terms(2, unit), grid_decimals(unit), decimals(9, 10**10)))
     return f"{draw(time_terms(2, unit))} {op} {right}"

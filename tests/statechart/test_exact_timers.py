@@ -194,3 +194,35 @@ def test_simulate_writes_times_as_their_decimals():
     ]
     text = format_steps(steps)
     assert " 1234569.5  tick" in text and "e+06" not in text  # not :g's 1.23457e+06
+
+
+CONTRACT = """\
+statechart:
+  name: contract
+  root state:
+    name: root
+    initial: off
+    states:
+      - name: off
+        transitions:
+          - {target: on, event: go}
+      - name: on
+        contract:
+          - always: not after(2)
+        transitions:
+          - {event: poke}
+"""
+
+
+@pytest.mark.parametrize("klass", [Interpreter, FastInterpreter])
+def test_after_in_a_contract_is_exact_too(klass):
+    clock = SimulatedClock()
+    interp = klass(load_statechart(text=CONTRACT), clock=clock)
+    interp.execute()
+    clock.time = 7.7
+    interp.queue("go").execute()
+    clock.time = 9.699999999
+    interp.queue("poke").execute()  # the invariant holds a nanosecond before
+    clock.time = 9.7
+    with pytest.raises(Exception, match="not after\\(2\\)"):
+        interp.queue("poke").execute()
