@@ -66,6 +66,11 @@ def exact_number(value) -> Fraction:
     return Fraction(repr(value)) if isinstance(value, float) else Fraction(value)
 
 
+def finite(value) -> bool:
+    """Not ±inf nor nan (an int of any size is finite)."""
+    return not isinstance(value, float) or math.isfinite(value)
+
+
 def plain(value):
     """An :class:`Exact` where a plain number is needed: the float nearest it."""
     return to_float(value) if isinstance(value, Exact) else value
@@ -73,7 +78,7 @@ def plain(value):
 
 def exact_arithmetic(op: str, a, b):
     """``a op b`` where ``a`` or ``b`` is a time: exact, or undefined / infinite as IEEE says."""
-    if any(isinstance(v, float) and not math.isfinite(v) for v in (a, b)):
+    if not all(map(finite, (a, b))):
         return arithmetic(op, plain(a), plain(b))
     return Exact(OPERATORS[op](exact_number(a), exact_number(b)))
 
@@ -247,7 +252,7 @@ class Reference:
                 return arithmetic(node.op, plain(a), plain(b))
             if a != a or b != b:  # undefined: every comparison is false
                 return False
-            if timed and all(math.isfinite(v) for v in (a, b)):
+            if timed and all(map(finite, (a, b))):
                 a, b = exact_number(a), exact_number(b)
             else:
                 a, b = plain(a), plain(b)
@@ -261,7 +266,7 @@ class Reference:
             if any(x != x for x in args):
                 return NAN
             if any(isinstance(x, Exact) for x in args) and not looks_ahead(node):
-                if all(math.isfinite(x) for x in args):
+                if all(map(finite, args)):
                     args = [exact_number(x) for x in args]
                     found = {"abs": lambda: abs(args[0]), "min": lambda: min(args),
                              "max": lambda: max(args)}[node.func]()
