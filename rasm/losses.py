@@ -20,8 +20,10 @@ import logging
 import sqlite3
 from dataclasses import dataclass, field
 
+from rasm.times import format_nanoseconds, format_seconds
+
 __all__ = [
-    "Damage", "WriteFailure", "WriteGuard", "describe_error", "lost_messages", "seconds_text",
+    "Damage", "WriteFailure", "WriteGuard", "describe_error", "lost_messages",
 ]
 
 
@@ -59,13 +61,13 @@ class WriteFailure:
 
     def message(self, consequence: str = "") -> str:
         """The line logged at the first failure."""
-        when = f" at t={self.time:g} s" if self.time is not None else ""
+        when = f" at t={format_seconds(self.time)} s" if self.time is not None else ""
         text = f"{self.what} {self.target}: {self.operation} failed{when}: {self.reason}"
         return f"{text}; {consequence}" if consequence else text
 
     def describe(self) -> str:
         """One line for the run summary."""
-        when = f" from t={self.time:g} s" if self.time is not None else ""
+        when = f" from t={format_seconds(self.time)} s" if self.time is not None else ""
         times = "" if self.failures == 1 else f" ({self.failures:,} failed writes)"
         lost = f"; {_count(self.lost, self.unit)} lost" if self.lost else ""
         back = "; it took writes again later" if self.recovered else ""
@@ -159,17 +161,11 @@ class Damage:
         if self.messages != 0:
             text += f": {lost} lost"
         if self.start_ns is not None and self.end_ns is not None:
-            text += f", from t={seconds_text(self.start_ns)} to {seconds_text(self.end_ns)} s"
+            text += (f", from t={format_nanoseconds(self.start_ns)} "
+                     f"to {format_nanoseconds(self.end_ns)} s")
         elif self.start_ns is not None:
-            text += f", after t={seconds_text(self.start_ns)} s"
+            text += f", after t={format_nanoseconds(self.start_ns)} s"
         return text
-
-
-def seconds_text(ns: int) -> str:
-    """Nanoseconds as exact decimal seconds: ``1700000000.5``."""
-    sign, ns = ("-", -ns) if ns < 0 else ("", ns)
-    whole, part = divmod(ns, 1_000_000_000)
-    return f"{sign}{whole}" + (f".{part:09d}".rstrip("0") if part else "")
 
 
 def lost_messages(damages: list[Damage]) -> int | None:
