@@ -31,8 +31,8 @@ from rasm.properties.outcome import (
     PropertyOutcome,
 )
 from rasm.properties.printer import format_value
+from rasm.properties.times import format_seconds, seconds_value
 from rasm.properties.vacuity import Vacuity
-from rasm.properties.times import format_seconds, nanoseconds, seconds_value
 
 __all__ = ["CheckReport", "PropertyReport", "check_file", "check_records", "check_stream",
            "format_json", "format_text", "format_verdicts"]

@@ -437,7 +437,12 @@ class _Explainer:
             return
         self.say(depth, f"{text} {failed}")
 
-        return f"record {j} (time {format_seconds(self.time(j))})"
+    def span(self, window: range) -> str:
+        if not window:
+            return "(no record in the window)"
+        first, last = min(window), max(window)
+        return (f"in records {first}–{last} "
+                f"(times {format_seconds(self.time(first))}–{format_seconds(self.time(last))})")
 
 
 def explain(

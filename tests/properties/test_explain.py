@@ -16,6 +16,7 @@ from rasm.properties import explain as explain_module
 from rasm.properties.check import check_records, format_text
 from rasm.properties.explain import ABRIDGE, explain
 from rasm.properties.loader import load_specification
+from rasm.times import format_seconds
 
 from .strategies import HEADER, formulas, traces
 
@@ -107,4 +108,4 @@ def test_times_of_any_number_type_are_printed(time):
     spec = load_specification("input v: float\nproperty p: always (v < 1)\n")
     report = check_records(spec, [(Fraction(0), {"v": 0.5}), (time, {"v": 2.0})])
     text = format_text(report)
-    assert f"at record 1 (time {float(time):g})" in text
+    assert f"at record 1 (time {format_seconds(time)})" in text
