@@ -493,6 +493,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--count", type=int, default=20_000, help="messages per run")
     parser.add_argument("--seconds", type=float, default=30.0, help="latency run length")
     parser.add_argument("--only", choices=["ingest", "latency", "check"], default=None)
+    parser.add_argument("--middleware", choices=["zenoh", "dds"], action="append", default=None,
+                        help="ingest over this middleware only (repeatable; default both)")
     options = parser.parse_args(args)
     if options.only in (None, "latency"):
         delays = latency(options.seconds)
@@ -512,7 +514,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = {}
     cases = {"bare": "bare + rosbags", "transport": "rasm transport",
              "platform": "rasm platform"}
-    for middleware in ("zenoh", "dds"):
+    middlewares = options.middleware or ["zenoh", "dds"]
+    for middleware in middlewares:
         # the cases take turns, so that a change in the machine's other load over the minute
         # weighs on all three alike and the ratios stay comparable
         results: dict[str, list[tuple[float, int]]] = {kind: [] for kind in cases}
@@ -533,7 +536,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'rosbags AnyReader':<28} {theirs:>10,.0f}")
     print(f"{'rasm BagReader':<28} {ours:>10,.0f}")
     print("\nRatios (rasm / bare)")
-    for middleware in ("zenoh", "dds"):
+    for middleware in middlewares:
         bare = rows[f"{middleware} bare + rosbags"]
         goal = "   (goal >= 0.50)" if middleware == "zenoh" else ""
         print(f"{middleware}_transport_ratio {rows[f'{middleware} rasm transport'] / bare:.2f}")

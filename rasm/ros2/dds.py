@@ -31,9 +31,10 @@ import itertools
 import logging
 import re
 import threading
+from collections import deque
 from collections.abc import Iterator
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import urlsplit
 
 from cyclonedds._clayer import ddspy_take, ddspy_write  # raw CDR in and out (see _wire_send)
 from cyclonedds.builtin import (
@@ -41,7 +42,15 @@ from cyclonedds.builtin import (
     BuiltinTopicDcpsParticipant,
     BuiltinTopicDcpsPublication,
 )
-from cyclonedds.core import DDSException, InstanceState, Listener, SampleState, ViewState
+from cyclonedds.core import (
+    DDSException,
+    GuardCondition,
+    InstanceState,
+    ReadCondition,
+    SampleState,
+    ViewState,
+    WaitSet,
+)
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl import types as idl
@@ -54,16 +63,24 @@ from rosbags.typesys.base import normalize_fieldname
 
 from rasm.errors import CommError
 from rasm.ros2.qos import QosProfile
-from rasm.ros2.transport import RosTopic, RosTransport, check_domain, node_of
+from rasm.ros2.transport import (
+    RosTopic,
+    RosTransport,
+    merge_settings,
+    node_of,
+    oversize,
+    url_settings,
+)
 from rasm.ros2.types import PLACEHOLDER_FIELD, FieldType, TypeStore, ros_type_name
 
 __all__ = ["DdsTransport", "parse_dds_url", "dds_topic_name", "idl_struct"]
 
 _log = logging.getLogger("rasm.ros2.dds")
 
-ACCEPTED_FORM = "'dds://' or 'dds://?domain=N'"
+ACCEPTED_FORM = "'dds://' or 'dds://?domain=N', optionally with &max_payload=BYTES"
 _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
 _TAKE_BATCH = 64
+_WAIT = duration(seconds=1)  # the taking thread's longest sleep; closing wakes it at once
 _MAX_SEEN = 10_000  # publications remembered from discovery
 _TYPEHASH = re.compile(rb"typehash=([^;]*);")
 GRAPH_TOPIC = "ros_discovery_info"  # where rmw_cyclonedds publishes each participant's nodes
@@ -78,8 +95,9 @@ _PRIMITIVES: dict[str, Any] = {
 _IDL_CLASSES: dict[tuple[str, str], type[IdlStruct]] = {}
 
 
-def parse_dds_url(url: str) -> int | None:
-    """The domain of a ``dds://`` URL (None if it names none); :class:`CommError` otherwise."""
+def parse_dds_url(url: str) -> dict[str, int]:
+    """The settings of a ``dds://`` URL's query (``domain``, ``max_payload``: those it names);
+    :class:`CommError` for anything else."""
     def bad(why: str) -> CommError:
         return CommError(f"bad transport URL {url!r}: {why}; expected {ACCEPTED_FORM}")
 
@@ -89,10 +107,7 @@ def parse_dds_url(url: str) -> int | None:
     if parts.netloc or parts.path not in ("", "/") or parts.fragment:
         raise bad("a DDS domain has no host, path or fragment (the network is set by "
                   "CYCLONEDDS_URI)")
-    query = parse_qs(parts.query, keep_blank_values=True)
-    if set(query) - {"domain"} or any(len(v) != 1 for v in query.values()):
-        raise bad("the only query parameter is domain=N, given once")
-    return check_domain(query["domain"][0], f"domain= in {url!r}") if "domain" in query else None
+    return url_settings(parts.query, url, bad)
 
 
 def dds_topic_name(topic: str) -> str:
@@ -224,19 +239,25 @@ class DdsTransport(RosTransport):
 
     def __init__(
         self, url: str = "dds://", *, config: str | None = None, domain: int | None = None,
-        **options: Any,
+        max_payload: int | None = None, **options: Any,
     ) -> None:
-        url_domain = parse_dds_url(url)
-        if url_domain is not None and domain is not None and url_domain != domain:
-            raise CommError(f"{url}: domain={domain} contradicts the URL's domain")
-        super().__init__(domain=url_domain if url_domain is not None else domain, **options)
+        settings = {"domain": domain, "max_payload": max_payload}
+        super().__init__(**merge_settings(url, parse_dds_url(url), settings), **options)
         self.url = url
         self.config = config
         self._domain: Domain | None = None
         self._participant: DomainParticipant | None = None
         self._dds_topics: dict[str, Topic] = {}
         self._writers: dict[str, DataWriter] = {}
-        self._readers: dict[str, DataReader] = {}
+        # topic -> (declared topic, reader): replaced whole, never changed in place, as the
+        # taking thread reads it while another subscribes
+        self._reading: dict[str, tuple[RosTopic, DataReader]] = {}
+        self._conditions: dict[str, ReadCondition] = {}
+        self._fresh: deque[str] = deque()  # topics whose reader the taking thread has not seen
+        self._waitset: WaitSet | None = None
+        self._wake: GuardCondition | None = None  # wakes the taking thread
+        self._stopping = threading.Event()
+        self._taker: threading.Thread | None = None
         # publication handle -> (reason, why) its samples are refused, or None: fine
         self._publications: dict[int, tuple[str, str] | None] = {}
         self._foreign: set[Any] = set()  # publications of another type already counted
@@ -255,10 +276,11 @@ class DdsTransport(RosTransport):
             if self.config is not None:
                 self._domain = Domain(self.domain, self.config)
             self._participant = DomainParticipant(self.domain)
-            self._discovery = BuiltinDataReader(
-                self._participant, BuiltinTopicDcpsPublication,
-                listener=Listener(on_data_available=lambda _: self._on_publications()),
-            )
+            self._discovery = BuiltinDataReader(self._participant, BuiltinTopicDcpsPublication)
+            self._waitset = WaitSet(self._participant)
+            self._wake = GuardCondition(self._participant)
+            self._waitset.attach(self._wake)
+            self._waitset.attach(ReadCondition(self._discovery, _ANY_SAMPLE))
             if GRAPH_TYPE in self.store:
                 graph = Topic(self._participant, GRAPH_TOPIC, idl_struct(self.store, GRAPH_TYPE))
                 self._graph = DataWriter(self._participant, graph, qos=_GRAPH_QOS)
@@ -272,19 +294,31 @@ class DdsTransport(RosTransport):
             raise CommError(
                 f"could not join DDS domain {self.domain}: {exc} (check CYCLONEDDS_URI)"
             ) from None
+        self._taker = threading.Thread(
+            target=self._take_loop, name=f"rasm-dds-{self.url}", daemon=True
+        )
+        self._taker.start()
 
     def _close_wire(self) -> None:
+        self._stopping.set()
+        taker = self._taker
+        if taker is not None:
+            if self._wake is not None:
+                self._wake.set(True)
+            taker.join(timeout=5.0)  # it never waits for a callback: it ends within _WAIT
         self._delete_all()
 
     def _delete_all(self) -> None:
         # Cyclone deletes an entity when its Python object is collected; delete the participant
         # (and with it every reader, writer and topic) now, so that peers see us leave at once.
         entities = [self._participant, self._domain]
-        self._readers.clear()
+        self._reading = {}
+        self._conditions.clear()
         self._writers.clear()
         self._dds_topics.clear()
         self._discovery = self._participant = self._domain = self._graph = None
         self._graph_view = None
+        self._waitset = self._wake = None
         for entity in entities:
             if entity is not None:
                 entity.__del__()
@@ -310,6 +344,9 @@ class DdsTransport(RosTransport):
             self._announce()
         return writer
 
+    def _wire_size(self, data: bytes) -> int:
+        return len(data) + -len(data) % 4  # padded, as _wire_send sends it
+
     def _wire_send(self, topic: RosTopic, data: bytes) -> None:
         writer = self._writers.get(topic.name) or self._wire_publisher(topic)
         # Cyclone's typed write() would re-encode a Python object; the codec's CDR goes as is,
@@ -328,26 +365,31 @@ class DdsTransport(RosTransport):
         return topic in self._writers
 
     def _wire_subscribe(self, topic: RosTopic) -> None:
-        if topic.name in self._readers:
+        if topic.name in self._reading:
             return
-        reader = self._readers[topic.name] = DataReader(
-            self._participant, self._dds_topic(topic),
-            qos=_qos(topic.qos, topic.codec.type_hash),
-            listener=Listener(on_data_available=lambda _: self._on_data(topic)),
+        assert self._waitset is not None and self._wake is not None
+        reader = DataReader(
+            self._participant, self._dds_topic(topic), qos=_qos(topic.qos, topic.codec.type_hash)
         )
+        # no listener: Cyclone's threads never run Python; the condition wakes the taking thread
+        # while the reader holds samples (also those that came while it was being made)
+        condition = self._conditions[topic.name] = ReadCondition(reader, _ANY_SAMPLE)
+        self._waitset.attach(condition)
+        self._reading = {**self._reading, topic.name: (topic, reader)}
+        self._fresh.append(topic.name)  # publishers discovered before it are judged there
+        self._wake.set(True)
         self._announce()
-        # publishers discovered before this reader existed are judged now
-        for key, type_name in dict(self._seen.get(dds_topic_name(topic.name), {})).items():
-            self._judge(topic, key, type_name)
-        # Data can arrive while the reader is being made (a latched message), before Cyclone's
-        # Python layer knows the reader: the listener then gets None; take what is there now.
-        self._on_data(topic, reader)
 
     def _wire_unsubscribe(self, topic: RosTopic) -> None:
-        reader = self._readers.pop(topic.name, None)
-        if reader is not None:
-            reader.__del__()  # as in _delete_all: stop receiving now, not at collection
-            self._announce()
+        entry = self._reading.get(topic.name)
+        if entry is None:
+            return
+        self._reading = {k: v for k, v in self._reading.items() if k != topic.name}
+        condition = self._conditions.pop(topic.name)
+        if self._waitset is not None:
+            self._waitset.detach(condition)
+        entry[1].__del__()  # as in _delete_all: stop receiving now, not at collection
+        self._announce()
 
     def _announce(self) -> None:
         """Publish this participant's node and its readers' and writers' GIDs on
@@ -367,7 +409,7 @@ class DdsTransport(RosTransport):
                 "node_namespace": self.namespace,
                 "node_name": self.node_name,
                 # copies: another thread may add a reader or writer meanwhile
-                "reader_gid_seq": [gid(r) for r in list(self._readers.values())],
+                "reader_gid_seq": [gid(reader) for _, reader in self._reading.values()],
                 "writer_gid_seq": [gid(w) for w in list(self._writers.values())],
             }],
         }
@@ -375,27 +417,48 @@ class DdsTransport(RosTransport):
         if ddspy_write(self._graph._ref, data + b"\0" * (-len(data) % 4)) < 0:
             _log.warning("could not publish rasm's node on %s", GRAPH_TOPIC)
 
-    # -- receiving (on Cyclone's threads: never raise) ------------------------------------------
-    def _on_data(self, topic: RosTopic, reader: DataReader | None = None) -> None:
-        reader = reader or self._readers.get(topic.name)
-        if reader is None:
-            return  # not made yet: _wire_subscribe takes what arrived meanwhile
-        try:
-            while True:
-                samples = ddspy_take(reader._ref, _ANY_SAMPLE, _TAKE_BATCH)
-                if isinstance(samples, int) or not samples:
+    # -- receiving (on the taking thread; never raises) -----------------------------------------
+    def _take_loop(self) -> None:
+        """Wait (GIL released) until a reader holds samples, take them all, again, until the
+        transport closes. The only thread that takes from the readers and reads discovery."""
+        waitset, wake, stopping = self._waitset, self._wake, self._stopping
+        assert waitset is not None and wake is not None
+        while not stopping.is_set():
+            try:
+                waitset.wait(_WAIT)
+                wake.take()  # reset: it only wakes this thread (closing, a new reader)
+                while self._fresh:
+                    self._judge_seen(self._fresh.popleft())
+                self._take_publications()
+                for topic, reader in self._reading.values():
+                    self._take_samples(topic, reader)
+            except Exception:
+                if stopping.is_set():
                     return
-                for data, info in samples:
-                    if not info.valid_data:
-                        continue  # a writer left or disposed: no message
-                    refused = self._publication_check(topic, reader, info.publication_handle)
-                    if refused is None:
-                        uid = self._own_uid(info.publication_handle)
-                        self._received(topic, data, uid, info.source_timestamp / 1e9)
-                    else:
-                        self._reject(topic.name, *refused)
-        except Exception:
-            _log.exception("error receiving a message on %s", topic.name)
+                _log.exception("error receiving DDS data")
+                stopping.wait(0.1)  # not a hot loop should the error repeat
+
+    def _take_samples(self, topic: RosTopic, reader: DataReader) -> None:
+        """Hand what waits in ``reader`` to the dispatcher; count what is refused."""
+        limit = self.max_payload
+        while True:
+            samples = ddspy_take(reader._ref, _ANY_SAMPLE, _TAKE_BATCH)
+            if isinstance(samples, int) or not samples:
+                return  # empty, or the reader is gone (an error code)
+            for data, info in samples:
+                if not info.valid_data:
+                    continue  # a writer left or disposed: no message
+                handle = info.publication_handle
+                uid = self._own_uid(handle)
+                refused = self._publication_check(topic, reader, handle)
+                if refused is not None:
+                    self._reject(topic.name, *refused)
+                elif len(data) > limit:
+                    self._reject(topic.name, *oversize(len(data), limit))
+                else:
+                    self._received(topic, data, uid, info.source_timestamp / 1e9)
+            if len(samples) < _TAKE_BATCH:
+                return
 
     def _sent_here(self, uid: str | None) -> bool:
         return uid is not None  # only this participant's samples get a uid (_own_uid)
@@ -480,16 +543,13 @@ class DdsTransport(RosTransport):
             f"a publisher of {ros_name} (declared type: {topic.typename})"
         )
 
-    def _on_publications(self) -> None:
+    def _take_publications(self) -> None:
         """Count publishers of another type on our topics (DDS never matches them)."""
         reader = self._discovery
         if reader is None:
             return
-        try:
-            while endpoints := reader.take(_TAKE_BATCH):
-                self._check_publications(endpoints)
-        except Exception:
-            _log.exception("error reading DDS discovery data")
+        while endpoints := reader.take(_TAKE_BATCH):
+            self._check_publications(endpoints)
 
     def _check_publications(self, endpoints: list[Any]) -> None:
         for endpoint in endpoints:
@@ -501,8 +561,15 @@ class DdsTransport(RosTransport):
             if sum(map(len, self._seen.values())) < _MAX_SEEN:  # bounded memory
                 self._seen.setdefault(name, {})[endpoint.key] = endpoint.type_name
             topic = self._topics.get(name[2:])
-            if topic is not None and name[2:] in self._readers:
+            if topic is not None and name[2:] in self._reading:
                 self._judge(topic, endpoint.key, endpoint.type_name)
+
+    def _judge_seen(self, name: str) -> None:
+        """Judge the publishers discovery saw on ``name`` before its reader existed."""
+        topic = self._topics.get(name)
+        if topic is not None:
+            for key, type_name in self._seen.get(dds_topic_name(name), {}).items():
+                self._judge(topic, key, type_name)
 
     def _judge(self, topic: RosTopic, key: Any, type_name: str) -> None:
         """Count a publisher of ``topic`` with another type, once."""

@@ -30,7 +30,9 @@ from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
+from urllib.parse import parse_qs
 
+from rasm.comm.envelope import MAX_PAYLOAD
 from rasm.comm.message import Message
 from rasm.comm.topics import topic_matches
 from rasm.comm.transport import Transport
@@ -45,8 +47,10 @@ __all__ = [
     "REJECTIONS",
     "RosTopic",
     "RosTransport",
+    "check_max_payload",
     "domain_from_env",
     "node_of",
+    "oversize",
     "validate_node_name",
     "validate_ros_topic",
 ]
@@ -54,7 +58,9 @@ __all__ = [
 _log = logging.getLogger("rasm.ros2")
 
 #: Why a received message was not delivered (the keys of :attr:`RosTransport.rejected`).
-REJECTIONS = ("malformed", "wrong_hash", "unknown_type", "type_conflict", "foreign_publisher")
+REJECTIONS = (
+    "malformed", "wrong_hash", "unknown_type", "type_conflict", "foreign_publisher", "oversize",
+)
 
 _NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 MAX_DOMAIN = 232  # the highest ROS domain id DDS can map to UDP ports
@@ -98,6 +104,53 @@ def check_domain(domain: Any, where: str = "ROS domain id") -> int:
     if not text.isdigit() or int(text) > MAX_DOMAIN:
         raise CommError(f"{where} must be an integer from 0 to {MAX_DOMAIN}, got {domain!r}")
     return int(text)
+
+
+def check_max_payload(value: Any, where: str = "max_payload") -> int:
+    """``value`` as a positive number of bytes, else :class:`CommError`."""
+    text = str(value).strip()
+    if isinstance(value, bool) or not text.isdigit() or int(text) < 1:
+        raise CommError(f"{where} must be a positive whole number of bytes, got {value!r}")
+    return int(text)
+
+
+# what a ROS 2 transport URL's query may set, and how each value is checked
+_URL_SETTINGS: dict[str, Callable[[Any, str], int]] = {
+    "domain": check_domain, "max_payload": check_max_payload,
+}
+
+
+def url_settings(query: str, url: str, bad: Callable[[str], CommError]) -> dict[str, int]:
+    """The settings a ROS 2 transport URL's query gives (``domain=N``, ``max_payload=BYTES``,
+    each at most once): only those it names. ``bad(why)`` makes the error for a bad query."""
+    found = parse_qs(query, keep_blank_values=True)
+    unknown = sorted(set(found) - set(_URL_SETTINGS))
+    if unknown:
+        raise bad(f"unknown query parameter {unknown[0]!r} (the parameters are domain=N and "
+                  "max_payload=BYTES)")
+    if any(len(values) != 1 for values in found.values()):
+        raise bad("each query parameter is given once")
+    return {
+        key: _URL_SETTINGS[key](values[0], f"{key}= in {url!r}") for key, values in found.items()
+    }
+
+
+def merge_settings(url: str, from_url: Mapping[str, int], given: Mapping[str, Any]) -> dict:
+    """The keyword settings ``given`` (None: not given) with those of ``url``'s query; a
+    keyword that contradicts the URL raises :class:`CommError`."""
+    merged = {key: value for key, value in given.items() if value is not None}
+    for key, value in from_url.items():
+        if merged.get(key, value) != value:
+            raise CommError(f"{url}: {key}={merged[key]} contradicts the URL's {key}={value}")
+        merged[key] = value
+    return merged
+
+
+def oversize(size: int, limit: int) -> tuple[str, str]:
+    """The rejection of a received message of ``size`` bytes over ``limit``: never decoded."""
+    return "oversize", (
+        f"{size} bytes, over the {limit}-byte limit (max_payload), not decoded"
+    )
 
 
 def domain_from_env(environ: Mapping[str, str] | None = None) -> int:
@@ -235,9 +288,11 @@ class RosTransport(Transport):
         node_name: str = "rasm",
         namespace: str = "/",
         max_pending: int = 10_000,
+        max_payload: int | None = None,
     ) -> None:
         super().__init__()
         self.store = store if store is not None else default_store()
+        self.max_payload = MAX_PAYLOAD if max_payload is None else check_max_payload(max_payload)
         self.domain = domain_from_env() if domain is None else check_domain(domain)
         if not _NAME_TOKEN.fullmatch(node_name or ""):
             raise CommError(f"{node_name!r} is not a valid ROS node name")
@@ -434,6 +489,12 @@ class RosTransport(Transport):
             data = declared.codec.encode(payload)
         except MessageError as exc:
             raise MessageError(f"publishing on {topic}: {exc}") from None
+        size = self._wire_size(data)
+        if size > self.max_payload:  # its receivers would refuse it: not sent
+            raise MessageError(
+                f"publishing on {topic}: the {declared.typename} is {size} bytes, over the "
+                f"{self.max_payload}-byte limit (max_payload)"
+            )
         self._wire_send(declared, data)
         self.stats.incr("published")
 
@@ -503,6 +564,10 @@ class RosTransport(Transport):
 
     def _wire_matched(self, topic: RosTopic, publisher: Any) -> bool:
         raise NotImplementedError
+
+    def _wire_size(self, data: bytes) -> int:
+        """The size of ``data`` on the wire, as receivers measure it against ``max_payload``."""
+        return len(data)
 
     # -- the dispatcher -------------------------------------------------------------------------
     def _dispatch_loop(self) -> None:

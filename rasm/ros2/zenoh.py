@@ -34,7 +34,7 @@ import threading
 import time
 from collections.abc import Sequence
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import urlsplit
 from weakref import WeakSet
 
 import xxhash
@@ -42,14 +42,23 @@ import zenoh
 import zenoh.ext
 
 from rasm.errors import CommError
-from rasm.ros2.transport import RosTopic, RosTransport, check_domain, node_of
+from rasm.ros2.transport import (
+    RosTopic,
+    RosTransport,
+    merge_settings,
+    node_of,
+    oversize,
+    url_settings,
+)
 from rasm.ros2.types import ros_type_name
 
 __all__ = ["ZenohTransport", "parse_zenoh_url", "topic_key", "liveliness_key", "attachment"]
 
 _log = logging.getLogger("rasm.ros2.zenoh")
 
-ACCEPTED_FORM = "'zenoh://HOST:PORT' or 'zenoh://HOST:PORT?domain=N'"
+ACCEPTED_FORM = (
+    "'zenoh://HOST:PORT' or 'zenoh://HOST:PORT?domain=N', optionally with &max_payload=BYTES"
+)
 DEFAULT_PORT = 7447  # where rmw_zenoh's router listens
 
 _ATTACHMENT = struct.Struct("<qqB16s")  # sequence number, source time (ns), GID length, GID
@@ -64,8 +73,9 @@ _HISTORY = {"keep_last": "", "keep_all": "2"}
 _DEFAULT_DEPTH = 42
 
 
-def parse_zenoh_url(url: str) -> tuple[str, int, int | None]:
-    """``(host, port, domain or None)`` of a ``zenoh://`` URL; :class:`CommError` otherwise."""
+def parse_zenoh_url(url: str) -> tuple[str, int, dict[str, int]]:
+    """``(host, port, settings)`` of a ``zenoh://`` URL, the settings those its query names
+    (``domain``, ``max_payload``); :class:`CommError` for anything else."""
     def bad(why: str) -> CommError:
         return CommError(f"bad transport URL {url!r}: {why}; expected {ACCEPTED_FORM}")
 
@@ -82,11 +92,8 @@ def parse_zenoh_url(url: str) -> tuple[str, int, int | None]:
         raise bad(str(exc)) from None
     if not parts.hostname:
         raise bad("no host")
-    query = parse_qs(parts.query, keep_blank_values=True, strict_parsing=False)
-    if set(query) - {"domain"} or any(len(v) != 1 for v in query.values()):
-        raise bad("the only query parameter is domain=N, given once")
-    domain = check_domain(query["domain"][0], f"domain= in {url!r}") if "domain" in query else None
-    return parts.hostname, port if port is not None else DEFAULT_PORT, domain
+    settings = url_settings(parts.query, url, bad)
+    return parts.hostname, port if port is not None else DEFAULT_PORT, settings
 
 
 def topic_key(domain: int, topic: str, dds_name: str, type_hash: str) -> str:
@@ -246,12 +253,12 @@ class ZenohTransport(RosTransport):
         config_file: str | None = None,
         connect_timeout: float = 5.0,
         domain: int | None = None,
+        max_payload: int | None = None,
         **options: Any,
     ) -> None:
-        self.host, self.port, url_domain = parse_zenoh_url(url)
-        if url_domain is not None and domain is not None and url_domain != domain:
-            raise CommError(f"{url}: domain={domain} contradicts the URL's domain")
-        super().__init__(domain=url_domain if url_domain is not None else domain, **options)
+        self.host, self.port, from_url = parse_zenoh_url(url)
+        settings = {"domain": domain, "max_payload": max_payload}
+        super().__init__(**merge_settings(url, from_url, settings), **options)
         self.url = url
         self.listen = list(listen)
         self.config_file = config_file
@@ -484,8 +491,9 @@ class ZenohTransport(RosTransport):
                     _log.exception("error receiving a message on %s", topic.name)
 
     def _take(self, topic: RosTopic, sample: Any, gaps: _SequenceGaps) -> None:
-        """Deliver one sample of the right type, counting what its publisher sent before it
-        that never came."""
+        """Deliver one sample of the right type and size, counting what its publisher sent
+        before it that never came."""
+        uid = stamp = None
         sender = _sender(sample.attachment)
         node = self._restricted.get(topic.name)
         if node is not None:
@@ -499,14 +507,17 @@ class ZenohTransport(RosTransport):
                     who = f"{known[0]} (on {known[1]})"
                 self._foreign(topic, who)
                 return
-        if sender is None:
-            self._dispatch(topic, sample.payload.to_bytes(), None, None)
+        if sender is not None:
+            gid, sequence, stamp = sender
+            missed = gaps.missed(gid, sequence)
+            if missed:
+                self.stats.incr("dropped", missed)
+            uid = f"{gid.hex()}.{sequence}"
+        size = len(sample.payload)  # Zenoh's own buffer: measured before it is copied or decoded
+        if size > self.max_payload:
+            self._reject(topic.name, *oversize(size, self.max_payload))
             return
-        gid, sequence, stamp = sender
-        missed = gaps.missed(gid, sequence)
-        if missed:
-            self.stats.incr("dropped", missed)
-        self._dispatch(topic, sample.payload.to_bytes(), f"{gid.hex()}.{sequence}", stamp)
+        self._dispatch(topic, sample.payload.to_bytes(), uid, stamp)
 
     def _right_type(self, topic: RosTopic, key: str) -> bool:
         """Whether ``key`` names the topic's type and type hash; a wrong one is rejected."""

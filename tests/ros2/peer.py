@@ -10,20 +10,23 @@ received, ``{"event": "published", "n": N}`` after each round of publishing, and
 closes.
 
 CONFIG keys: ``middleware`` (zenoh | dds), ``role`` (pub | sub | graph: the liveliness tokens
-over Zenoh, ``ros_discovery_info`` and the endpoints discovered over DDS), ``listen`` (Zenoh
-endpoint), ``connect`` (Zenoh endpoints to connect to as well), ``domain``, ``repeat``
-(publish again and again until stdin closes), ``msg`` (``[[file, package], ...]`` custom
-.msg files) and ``topics``: a list of ``{"topic", "type",
-"messages"}`` (dicts to publish), where ``raw`` (hex payloads sent as they are), ``key`` (a
-Zenoh key expression), ``type_name`` (a DDS type name) and ``type_hash`` (announced in DDS
-user data) override what the peer would send, and ``stamp`` (true) sets the messages'
-``header.stamp`` to the time each round is sent; ``"wait": false`` publishes without
-waiting for a DDS reader to match (one of another type never does); ``"latched": true`` makes
-a DDS reader or writer transient local. ``node`` (``/name`` or ``/ns/name``) makes a publishing
-peer a ROS node as rmw_zenoh and rmw_cyclonedds make one: over Zenoh its node and publisher
-liveliness tokens, and each message's GID the XXH3-128 of its publisher's token; over DDS its
-node and writers announced on ``ros_discovery_info``. ``gid`` (hex) sends that GID instead,
-as a forger would.
+over Zenoh, ``ros_discovery_info`` and the endpoints discovered over DDS | churn: over DDS,
+``rounds`` times a participant comes with a reader and a writer per topic, publishes the
+messages once its writers match, leaves and says ``{"event": "round", "n": N}``),
+``listen`` (Zenoh endpoint), ``connect`` (Zenoh endpoints to connect to as well),
+``domain``, ``repeat`` (publish again and again until stdin closes), ``msg`` (``[[file,
+package], ...]`` custom .msg files) and ``topics``: a list of ``{"topic", "type",
+"messages"}`` (dicts to publish; ``strings``: sizes of ``{"data": "xxx..."}`` messages to
+add), where ``raw`` (hex payloads sent as they are), ``junk`` (sizes of payloads of 0xff
+bytes), ``key`` (a Zenoh key expression), ``type_name`` (a DDS type name) and
+``type_hash`` (announced in DDS user data) override what the peer would send, and
+``stamp`` (true) sets the messages' ``header.stamp`` to the time each round is sent;
+``"wait": false`` publishes without waiting for a DDS reader to match (one of another type
+never does); ``"latched": true`` makes a DDS reader or writer transient local. ``node``
+(``/name`` or ``/ns/name``) makes a publishing peer a ROS node as rmw_zenoh and
+rmw_cyclonedds make one: over Zenoh its node and publisher liveliness tokens, and each
+message's GID the XXH3-128 of its publisher's token; over DDS its node and writers announced
+on ``ros_discovery_info``. ``gid`` (hex) sends that GID instead, as a forger would.
 """
 
 from __future__ import annotations
@@ -122,8 +125,11 @@ def zenoh_key(config, entry):
 def payloads_of(entry):
     if "raw" in entry:
         return [bytes.fromhex(h) for h in entry["raw"]]
+    if "junk" in entry:  # that many bytes, no valid CDR of any message
+        return [b"\xff" * size for size in entry["junk"]]
+    messages = entry.get("messages", []) + [{"data": "x" * n} for n in entry.get("strings", [])]
     return [bytes(STORE.serialize_cdr(to_object(entry["type"], m), entry["type"]))
-            for m in entry["messages"]]
+            for m in messages]
 
 
 def this_round(entry, payloads):
@@ -267,15 +273,11 @@ def dds_main(config):
             )
         return made[key]
 
-    participant = DomainParticipant(config.get("domain", 0))
     done = stdin_closed()
     mask = SampleState.Any | ViewState.Any | InstanceState.Any
-    if config["role"] == "graph":
-        dds_graph(participant, struct_of, done)
-        return
-    endpoints = []
-    for entry in config["topics"]:
-        qos = Qos(
+
+    def qos_of(entry):
+        return Qos(
             Policy.Reliability.Reliable(10**8), Policy.History.KeepLast(100),
             Policy.Durability.TransientLocal if entry.get("latched")
             else Policy.Durability.Volatile,
@@ -283,6 +285,37 @@ def dds_main(config):
             *([Policy.Userdata(f"typehash={entry['type_hash']};".encode())]
               if entry.get("type_hash") else []),
         )
+
+    if config["role"] == "churn":
+        # participants that come, match, publish and leave, round after round
+        for n in range(config["rounds"]):
+            participant = DomainParticipant(config.get("domain", 0))
+            writers = []
+            for entry in config["topics"]:
+                qos = qos_of(entry)
+                topic = Topic(participant, "rt" + entry["topic"], struct_of(entry["type"]),
+                              qos=qos)
+                DataReader(participant, topic, qos=qos)  # a reader too: rasm's writer matches it
+                writers.append((DataWriter(participant, topic, qos=qos), entry))
+            for writer, _ in writers:
+                while not writer.get_matched_subscriptions() and not done.is_set():
+                    done.wait(0.002)
+            for writer, entry in writers:
+                for payload in payloads_of(entry):
+                    ddspy_write(writer._ref, payload + b"\0" * (-len(payload) % 4))
+            participant.__del__()  # leaves now, its readers and writers with it
+            say(event="round", n=n + 1)
+            if done.is_set():
+                return
+        done.wait()
+        return
+    participant = DomainParticipant(config.get("domain", 0))
+    if config["role"] == "graph":
+        dds_graph(participant, struct_of, done)
+        return
+    endpoints = []
+    for entry in config["topics"]:
+        qos = qos_of(entry)
         topic = Topic(participant, "rt" + entry["topic"],
                       struct_of(entry["type"], entry.get("type_name")), qos=qos)
         if config["role"] == "sub":

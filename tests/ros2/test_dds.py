@@ -26,9 +26,11 @@ def test_ros_names_on_dds():
     assert dds_topic_name("/odom") == "rt/odom"
     assert dds_topic_name("/robot1/scan") == "rt/robot1/scan"
     assert TypeStore().codec("nav_msgs/Odometry").dds_name == "nav_msgs::msg::dds_::Odometry_"
-    assert parse_dds_url("dds://") is None
-    assert parse_dds_url("dds://?domain=7") == 7
-    for bad in ("dds://host", "dds://?domain=233", "dds://?domain=1&domain=2", "dds:///x"):
+    assert parse_dds_url("dds://") == {}
+    assert parse_dds_url("dds://?domain=7") == {"domain": 7}
+    assert parse_dds_url("dds://?max_payload=4096&domain=7") == {"domain": 7, "max_payload": 4096}
+    for bad in ("dds://host", "dds://?domain=233", "dds://?domain=1&domain=2", "dds:///x",
+                "dds://?max_payload=0", "dds://?max_payload=1MiB", "dds://?depth=3"):
         with pytest.raises(CommError, match="dds://"):
             parse_dds_url(bad)
 

@@ -6,14 +6,16 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from rasm.testing.servers import free_port
-from tests.ros2.conftest import CYCLONE_LOOPBACK, DATA
+from tests.ros2.conftest import CYCLONE_LOOPBACK, DATA, wait_until
 
 GUARD = DATA / "guard"
 GUARD_MSG = [[str(GUARD / "msg" / "GuardState.msg"), "guard"]]
@@ -202,3 +204,80 @@ def test_verdicts_go_out_when_they_change_and_a_late_subscriber_gets_the_current
     # some 50 records judged at 0.8 m/s: speed_limit held throughout, said once
     assert [m["data"]["data"] for m in watcher.messages("/rasm/verdict/speed_limit")] == [True]
     assert [m["data"]["data"] for m in late.messages()] == [True]
+
+
+ECHO = DATA / "echo"  # rasm both writes and reads /level and /push (its simulator runs in it)
+# what each foreign participant publishes before it leaves: values the echo app never makes
+FOREIGN = [{"topic": "/level", "type": "std_msgs/msg/Float64", "messages": [{"data": 5000.0}]},
+           {"topic": "/push", "type": "std_msgs/msg/Float64", "messages": [{"data": 7000.0}]}]
+
+
+def churn(peers, domain: int, trace: Path, rounds: int = 100):
+    """Once the run's loop is going, a hundred Cyclone participants in another process come,
+    read and publish on rasm's own topics and leave (the traffic that deadlocked a run whose
+    listener ran Python on Cyclone's thread while a write held the GIL)."""
+    wait_until(lambda: trace.exists() and '"executed"' in trace.read_text(), timeout=60,
+               what="the loop to act")
+    return peers({"middleware": "dds", "role": "churn", "domain": domain, "rounds": rounds,
+                  "topics": FOREIGN})
+
+
+@pytest.fixture
+def runs():
+    """``runs(process)``: the process, killed at teardown if still running (a hung run)."""
+    started: list[subprocess.Popen] = []
+
+    def keep(process: subprocess.Popen) -> subprocess.Popen:
+        started.append(process)
+        return process
+
+    yield keep
+    for process in started:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+def rounds_done(peer, n: int) -> bool:
+    return any(e["event"] == "round" and e["n"] >= n for e in list(peer.events))
+
+
+def test_foreign_participants_coming_publishing_and_leaving_never_stop_a_dds_run(
+    peers, runs, tmp_path, dds_domain
+):
+    trace = tmp_path / "trace.jsonl"
+    started = time.monotonic()
+    run = runs(rasm_run(ECHO, f"dds://?domain={dds_domain}", tmp_path, "--duration", "20",
+                        "--trace", str(trace)))
+    foreign = churn(peers, dds_domain, trace)
+    foreign.wait_for(lambda p: rounds_done(p, 100), timeout=60, what="a hundred participants")
+    assert run.poll() is None, "the run ended before the participants were done"
+    code, output = finish(run, timeout=60)
+    # on time (20 s, and the start-up and shutdown of a loaded machine), with its summary
+    assert time.monotonic() - started < 45, output
+    assert code in (0, 1) and "Traceback" not in output, output
+    assert "echo: 20 s on the wall clock" in output and "stopped by" not in output, output
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    # the participants' messages came in (and the loop pushed the level back after them)
+    assert any(r.get("level") == 5000.0 for r in records)
+    after = next(i for i, r in enumerate(records) if r.get("level") == 5000.0)
+    assert any(r.get("executed") for r in records[after:])
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_ends_a_dds_run_while_foreign_participants_come_and_go(
+    peers, runs, tmp_path, dds_domain, signum
+):
+    trace = tmp_path / "trace.jsonl"
+    run = runs(rasm_run(ECHO, f"dds://?domain={dds_domain}", tmp_path, "--duration", "120",
+                        "--trace", str(trace)))
+    foreign = churn(peers, dds_domain, trace, rounds=1000)
+    foreign.wait_for(lambda p: rounds_done(p, 50), timeout=60, what="fifty participants")
+    run.send_signal(signum)
+    signalled = time.monotonic()
+    code, output = finish(run, timeout=30)
+    assert time.monotonic() - signalled < 20, output
+    assert code in (0, 1) and "Traceback" not in output, (code, output)
+    # the summary, saying what ended the run
+    assert f"(stopped by {signal.Signals(signum).name})" in output, output
+    assert "trace records" in output, output

@@ -99,13 +99,14 @@ def test_topics_are_declared_once_with_one_type():
 
 
 def test_zenoh_urls():
-    assert parse_zenoh_url("zenoh://127.0.0.1:7448") == ("127.0.0.1", 7448, None)
-    assert parse_zenoh_url("zenoh://localhost") == ("localhost", 7447, None)
-    assert parse_zenoh_url("zenoh://[::1]:7447?domain=9") == ("::1", 7447, 9)
+    assert parse_zenoh_url("zenoh://127.0.0.1:7448") == ("127.0.0.1", 7448, {})
+    assert parse_zenoh_url("zenoh://localhost") == ("localhost", 7447, {})
+    assert parse_zenoh_url("zenoh://[::1]:7447?domain=9") == ("::1", 7447, {"domain": 9})
+    assert parse_zenoh_url("zenoh://h:1?max_payload=2048") == ("h", 1, {"max_payload": 2048})
     transport = open_transport("zenoh://127.0.0.1:7449?domain=2")
     assert (type(transport), transport.port, transport.domain) == (ZenohTransport, 7449, 2)
     for bad in ("zenoh://", "zenoh://h:1/path", "zenoh://h:1?domain=1&x=2", "zenoh://u:p@h:1",
-                "zenoh://h:1?domain=-1"):
+                "zenoh://h:1?domain=-1", "zenoh://h:1?max_payload=-5"):
         with pytest.raises(CommError, match="zenoh://"):
             parse_zenoh_url(bad)
     with pytest.raises(CommError, match="dds://"):
@@ -155,3 +156,4 @@ def test_a_zenoh_session_that_cannot_listen_says_so_not_that_no_router_answered(
         with pytest.raises(CommError, match=f"could not listen on tcp/127.0.0.1:{port}") as err:
             t.connect()
     assert "router" not in str(err.value)
+

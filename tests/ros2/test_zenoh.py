@@ -204,7 +204,7 @@ def test_wrong_hash_unknown_type_and_other_type_are_counted_not_delivered(
         peer.wait_ready()
         wait_until(lambda: sum(transport.rejected.values()) == 9, what="nine rejections")
     assert transport.rejected == {"malformed": 0, "wrong_hash": 3, "unknown_type": 3,
-                                  "type_conflict": 3, "foreign_publisher": 0}
+                                  "type_conflict": 3, "foreign_publisher": 0, "oversize": 0}
     assert delivered == []
     assert transport.stats.malformed == 9
     warnings = [r.getMessage() for r in caplog.records if r.name == "rasm.ros2"]
