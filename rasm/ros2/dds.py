@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import os
 import re
 import threading
 from collections import deque
@@ -61,6 +62,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 from rosbags.typesys.base import normalize_fieldname
 
+from rasm.comm.envelope import MAX_PAYLOAD
 from rasm.errors import CommError
 from rasm.ros2.qos import QosProfile
 from rasm.ros2.transport import (
@@ -93,6 +95,61 @@ _PRIMITIVES: dict[str, Any] = {
 }
 # the IDL classes built so far, by type name and hash (a hash names one definition)
 _IDL_CLASSES: dict[tuple[str, str], type[IdlStruct]] = {}
+
+
+class _Domains:
+    """The Cyclone domains rasm's transports made in this process, by id: each made with a
+    configuration that caps a sample's size (Cyclone's ``Internal/MaxSampleSize``), so that
+    Cyclone drops a bigger one as its first fragment arrives, before it holds any of it; the
+    rest of the configuration is ``config=`` or ``CYCLONEDDS_URI``, read after the cap (what
+    it sets wins). A domain goes with the last transport on it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        # domain id -> [the domain, its sample cap, its config=, how many transports use it]
+        self._made: dict[int, list[Any]] = {}
+
+    def join(self, domain: int, config: str | None, max_payload: int) -> bool:
+        """Count one more transport on ``domain``, making the domain if need be; False when
+        the process already has the domain from elsewhere (its configuration stands)."""
+        cap = max(max_payload + -max_payload % 4, MAX_PAYLOAD)  # padded; discovery fits
+        with self._lock:
+            made = self._made.get(domain)
+            if made is None:
+                text = ",".join(part for part in (
+                    _SAMPLE_CAP.format(cap), config or os.environ.get("CYCLONEDDS_URI", "")
+                ) if part)
+                try:
+                    made = self._made[domain] = [Domain(domain, text), cap, config, 0]
+                except DDSException as exc:
+                    if exc.code != _ALREADY_THERE or config is not None:
+                        raise
+                    return False  # another part of this process joined it first
+            elif made[2] != config or cap > made[1]:
+                raise CommError(
+                    f"DDS domain {domain} is already open in this process with another "
+                    "configuration or a smaller max_payload; give the transports on one domain "
+                    "the same config= and max_payload"
+                )
+            made[3] += 1
+            return True
+
+    def leave(self, domain: int) -> None:
+        """One transport less on ``domain``; the last one deletes it."""
+        with self._lock:
+            made = self._made[domain]
+            made[3] -= 1
+            if made[3] == 0:
+                del self._made[domain]
+                made[0].__del__()
+
+
+_SAMPLE_CAP = (
+    '<CycloneDDS><Domain id="any"><Internal><MaxSampleSize>{}B</MaxSampleSize></Internal>'
+    "</Domain></CycloneDDS>"
+)
+_ALREADY_THERE = -4  # DDS_RETCODE_PRECONDITION_NOT_MET: the domain exists
+_DOMAINS = _Domains()
 
 
 def parse_dds_url(url: str) -> dict[str, int]:
@@ -245,7 +302,7 @@ class DdsTransport(RosTransport):
         super().__init__(**merge_settings(url, parse_dds_url(url), settings), **options)
         self.url = url
         self.config = config
-        self._domain: Domain | None = None
+        self._joined = False  # whether _DOMAINS counts this transport as a user of its domain
         self._participant: DomainParticipant | None = None
         self._dds_topics: dict[str, Topic] = {}
         self._writers: dict[str, DataWriter] = {}
@@ -273,8 +330,7 @@ class DdsTransport(RosTransport):
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
         try:
-            if self.config is not None:
-                self._domain = Domain(self.domain, self.config)
+            self._joined = _DOMAINS.join(self.domain, self.config, self.max_payload)
             self._participant = DomainParticipant(self.domain)
             self._discovery = BuiltinDataReader(self._participant, BuiltinTopicDcpsPublication)
             self._waitset = WaitSet(self._participant)
@@ -311,17 +367,19 @@ class DdsTransport(RosTransport):
     def _delete_all(self) -> None:
         # Cyclone deletes an entity when its Python object is collected; delete the participant
         # (and with it every reader, writer and topic) now, so that peers see us leave at once.
-        entities = [self._participant, self._domain]
+        participant = self._participant
         self._reading = {}
         self._conditions.clear()
         self._writers.clear()
         self._dds_topics.clear()
-        self._discovery = self._participant = self._domain = self._graph = None
+        self._discovery = self._participant = self._graph = None
         self._graph_view = None
         self._waitset = self._wake = None
-        for entity in entities:
-            if entity is not None:
-                entity.__del__()
+        if participant is not None:
+            participant.__del__()
+        if self._joined:
+            self._joined = False
+            _DOMAINS.leave(self.domain)
 
     def _dds_topic(self, topic: RosTopic) -> Topic:
         found = self._dds_topics.get(topic.name)

@@ -224,3 +224,27 @@ def test_the_node_and_its_endpoints_are_on_ros_discovery_info(peers, transports,
     assert [g[:32] for g in info["readers"]] == [reader["key"]]
     odom.cancel()
     peer.wait_for(lambda p: node()[1]["readers"] == [], what="the reader gone from the node")
+
+
+def test_transports_of_one_process_share_the_domain_rasm_makes(transports, dds_domain, monkeypatch):
+    url = f"dds://?domain={dds_domain}"
+    types = {"/count": "std_msgs/msg/Int32"}
+    first, second = (transports(DdsTransport(url, types=types)) for _ in range(2))
+    first.connect()
+    second.connect()
+    got = []
+    second.subscribe("/count", lambda m: got.append(m.payload["data"]))
+    first.close()  # the transport that made the domain leaves; the domain stays for the others
+    third = transports(DdsTransport(url, types=types))
+    third.connect()
+    wait_until(lambda: third.has_subscribers("/count"), what="a match")
+    third.publish("/count", {"data": 7})
+    wait_until(lambda: got == [7], what="the message")
+    # Cyclone's sample cap is the domain's: a transport that takes bigger ones is refused
+    with pytest.raises(CommError, match="already open in this process with another configu"):
+        DdsTransport(f"{url}&max_payload={2 << 20}").connect()
+    # a configuration Cyclone refuses is named as before
+    monkeypatch.setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><Bogus/></Domain></CycloneDDS>")
+    with pytest.raises(CommError, match=r"could not join DDS domain \d+: .*CYCLONEDDS_URI"):
+        DdsTransport(f"dds://?domain={(dds_domain + 1) % 233}").connect()
+

@@ -281,3 +281,26 @@ def test_a_signal_ends_a_dds_run_while_foreign_participants_come_and_go(
     # the summary, saying what ended the run
     assert f"(stopped by {signal.Signals(signum).name})" in output, output
     assert "trace records" in output, output
+
+
+def test_messages_over_max_payload_never_reach_knowledge_or_the_trace(
+    peers, runs, tmp_path, dds_domain
+):
+    # the attack in small: strings of 5 MB (before max_payload, 58 of 20 MB took 1.5 GB of
+    # memory and a 1.1 GB trace); the foreign writer keeps them for a late reader (latched).
+    # Cyclone, capped by the domain rasm makes, drops each as it arrives and says so.
+    trace = tmp_path / "trace.jsonl"
+    run = runs(rasm_run(ECHO, f"dds://?domain={dds_domain}", tmp_path, "--duration", "6",
+                        "--trace", str(trace)))
+    wait_until(lambda: trace.exists() and '"executed"' in trace.read_text(), timeout=60,
+               what="the loop to act")
+    notes = [{"topic": "/note", "type": "std_msgs/msg/String", "latched": True,
+              "strings": [5 << 20] * 10, "messages": [{"data": "small"}]}]
+    peers({"middleware": "dds", "role": "pub", "domain": dds_domain, "topics": notes})
+    code, output = finish(run)
+    assert code in (0, 1) and "Traceback" not in output, output
+    assert output.count("dropping oversize (5242892 > 1048576)") == 10, output
+    assert trace.stat().st_size < 2 << 20
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert [r["note"] for r in records if "note" in r] == ["small"]
+

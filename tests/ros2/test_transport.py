@@ -156,4 +156,3 @@ def test_a_zenoh_session_that_cannot_listen_says_so_not_that_no_router_answered(
         with pytest.raises(CommError, match=f"could not listen on tcp/127.0.0.1:{port}") as err:
             t.connect()
     assert "router" not in str(err.value)
-
