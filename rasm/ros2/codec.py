@@ -46,6 +46,8 @@ _INT_RANGES = {
     "uint64": (0, 2**64 - 1),
 }
 _FLOATS = {"float32", "float64"}
+_FLOAT32 = struct.Struct("<f")
+_FLOAT_MAX = {name: float(np.finfo(name).max) for name in _FLOATS}
 _DTYPES = {
     "bool": np.bool_, "byte": np.int8, "char": np.uint8, "uint8": np.uint8, "int8": np.int8,
     "uint16": np.uint16, "int16": np.int16, "uint32": np.uint32, "int32": np.int32,
@@ -268,12 +270,23 @@ def _element_encoder(store: TypeStore, ftype: FieldType, made: dict) -> Encoder:
             return bool(value)
         return encode_bool
     if base in _FLOATS:
+        single = base == "float32"
+
         def encode_float(value: Any, path: str) -> float:
             if value is None:
                 return 0.0
             if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
                 raise _Invalid(path, f"expected {base}, got {_show(value)}")
-            return float(value)
+            try:
+                number = float(value)
+                if single:
+                    _FLOAT32.pack(number)  # a finite value that rounds past float32's largest
+            except OverflowError:
+                raise _Invalid(
+                    path, f"{_show(value)} is out of range for {base} (its largest finite "
+                    f"value is {_FLOAT_MAX[base]!r})"
+                ) from None
+            return number
         return encode_float
     if base == "string":
         bound = ftype.string_bound

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rasm.comm import CommError, open_transport
-from rasm.ros2 import TypeStore
+from rasm.ros2 import MessageError, TypeStore
 from rasm.ros2.dds import DdsTransport, dds_topic_name, parse_dds_url
 from tests.ros2.conftest import wait_until
 from tests.ros2.samples import MSG_FILES, SAMPLES, app_store, expected
@@ -248,3 +248,14 @@ def test_transports_of_one_process_share_the_domain_rasm_makes(transports, dds_d
     with pytest.raises(CommError, match=r"could not join DDS domain \d+: .*CYCLONEDDS_URI"):
         DdsTransport(f"dds://?domain={(dds_domain + 1) % 233}").connect()
 
+
+def test_publishing_a_float32_beyond_its_range_names_the_field_and_sends_nothing(
+    transports, dds_domain
+):
+    transport = transports(DdsTransport(f"dds://?domain={dds_domain}",
+                                        types={"/speed": "std_msgs/msg/Float32"}))
+    transport.connect()
+    with pytest.raises(MessageError, match=r"publishing on /speed: field 'data' of "
+                                           r"std_msgs/msg/Float32: 1e\+39 \(float\) is out of"):
+        transport.publish("/speed", {"data": 1e39})
+    assert transport.stats.published == 0

@@ -304,3 +304,21 @@ def test_messages_over_max_payload_never_reach_knowledge_or_the_trace(
     records = [json.loads(line) for line in trace.read_text().splitlines()]
     assert [r["note"] for r in records if "note" in r] == ["small"]
 
+
+def test_an_action_beyond_its_field_s_range_fails_naming_why_and_the_loop_goes_on(tmp_path):
+    trace = tmp_path / "trace.jsonl"
+    run = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "run", str(DATA / "wide"), "--duration", "5",
+         "--clock", "simulated", "--trace", str(trace)],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert run.returncode in (0, 1) and "Traceback" not in run.stderr, run.stderr
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    dropped = [r["explanation"] for r in records if r.get("dropped")]
+    executed = [r for r in records if r.get("executed")]
+    assert len(dropped) == len(executed) == 5  # every other of ten iterations
+    assert set(dropped) == {
+        "effector unreachable: effector drive: field 'data' of std_msgs/msg/Float32: 1e+39 "
+        "(float) is out of range for float32 (its largest finite value is "
+        "3.4028234663852886e+38)"
+    }

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from rasm.errors import SourceError
@@ -128,10 +129,33 @@ def test_unset_fields_are_zero():
     ("sensor_msgs/msg/LaserScan", {"ranges": "far"}, "expected float32\\[\\] \\(a list\\)"),
     ("sensor_msgs/msg/LaserScan", {"ranges": [1.0, None, "x"]},
      "field 'ranges\\[2\\]' of sensor_msgs/msg/LaserScan: expected float32"),
+    ("std_msgs/msg/Float32", {"data": 1e39},
+     "field 'data' of std_msgs/msg/Float32: 1e\\+39 \\(float\\) is out of range for float32 "
+     "\\(its largest finite value is 3.4028234663852886e\\+38\\)"),
+    ("sensor_msgs/msg/LaserScan", {"ranges": [1.0, -4e38]},
+     "field 'ranges\\[1\\]' of sensor_msgs/msg/LaserScan: -4e\\+38 \\(float\\) is out of range "
+     "for float32"),
+    ("std_msgs/msg/Float64", {"data": 10**400}, "1000.* \\(int\\) is out of range for float64"),
 ])
 def test_messages_that_do_not_fit_their_type_are_refused(typename, message, says):
     with pytest.raises(MessageError, match=says):
         STORE.codec(typename).encode(message)
+
+
+_FLOAT32_OVERFLOW = 2.0**128 - 2.0**103  # halfway past float32's largest: rounds to infinity
+
+
+@given(st.floats(allow_nan=False, allow_infinity=False))
+@example(3.4028235e38)  # above float32's largest, rounds to it
+@example(-_FLOAT32_OVERFLOW)
+@example(math.nextafter(_FLOAT32_OVERFLOW, 0))
+def test_a_float32_field_takes_what_rounds_to_a_finite_float32_and_refuses_the_rest(x):
+    codec = STORE.codec("std_msgs/msg/Float32")
+    if abs(x) < _FLOAT32_OVERFLOW:
+        assert codec.decode(codec.encode({"data": x}))["data"] == float(np.float32(x))
+    else:
+        with pytest.raises(MessageError, match="out of range for float32"):
+            codec.encode({"data": x})
 
 
 # strategies for a few types' values, to check encode/decode round trips for all inputs
