@@ -64,6 +64,7 @@ DEFAULT_PORT = 7447  # where rmw_zenoh's router listens
 _ATTACHMENT = struct.Struct("<qqB16s")  # sequence number, source time (ns), GID length, GID
 _GID_SIZE = 16
 _BATCH = 1000  # messages a receiving thread takes from its channel at once, at most
+_FRAMING = 64 * 1024  # room for a message's key expression, attachment and headers
 
 # rmw_zenoh writes each QoS policy into the token only where it differs from its defaults:
 # reliable, volatile, keep last 42 (its default depth), infinite deadline, lifespan and lease.
@@ -290,6 +291,10 @@ class ZenohTransport(RosTransport):
             "connect/timeout_ms": int(self.connect_timeout * 1000),
             "connect/exit_on_failure": True,
             "timestamping/enabled": True,  # transient_local's publication cache needs it
+            # a message over this arriving in fragments is dropped before it is reassembled
+            # (its publisher's next sequence number tells the gap); those that come whole, as
+            # through shared memory on one machine, are measured in _take
+            "transport/link/rx/max_message_size": self.max_payload + _FRAMING,
         }
         try:
             for key, value in settings.items():

@@ -22,11 +22,12 @@ bytes), ``key`` (a Zenoh key expression), ``type_name`` (a DDS type name) and
 ``type_hash`` (announced in DDS user data) override what the peer would send, and
 ``stamp`` (true) sets the messages' ``header.stamp`` to the time each round is sent;
 ``"wait": false`` publishes without waiting for a DDS reader to match (one of another type
-never does); ``"latched": true`` makes a DDS reader or writer transient local. ``node``
-(``/name`` or ``/ns/name``) makes a publishing peer a ROS node as rmw_zenoh and
-rmw_cyclonedds make one: over Zenoh its node and publisher liveliness tokens, and each
-message's GID the XXH3-128 of its publisher's token; over DDS its node and writers announced
-on ``ros_discovery_info``. ``gid`` (hex) sends that GID instead, as a forger would.
+never does); ``"latched": true`` makes a DDS reader or writer transient local; ``"shm":
+false`` turns Zenoh's shared memory off. ``node`` (``/name`` or ``/ns/name``) makes a
+publishing peer a ROS node as rmw_zenoh and rmw_cyclonedds make one: over Zenoh its node and
+publisher liveliness tokens, and each message's GID the XXH3-128 of its publisher's token;
+over DDS its node and writers announced on ``ros_discovery_info``. ``gid`` (hex) sends that
+GID instead, as a forger would.
 """
 
 from __future__ import annotations
@@ -151,6 +152,8 @@ def zenoh_main(config):
     if config.get("connect"):
         conf.insert_json5("connect/endpoints", json.dumps(config["connect"]))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    if config.get("shm") is False:  # big messages then go in fragments, even on one machine
+        conf.insert_json5("transport/shared_memory/enabled", "false")
     session = zenoh.open(conf)
     say(event="listening")
     done = stdin_closed()
