@@ -22,6 +22,7 @@ from rasm.cli.commands import (
 )
 from rasm.cli.live import _byte_size, _cmd_monitor, _cmd_run, _count
 from rasm.errors import RasmError, SourceErrors, printable, raise_interrupted
+from rasm.extras import missing_extra
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -163,6 +164,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = signal.signal(signal.SIGINT, raise_interrupted)
     try:
         return args.func(args)
+    except ModuleNotFoundError as exc:  # a package of an extra (rasm[ros2]) not installed
+        missing = missing_extra(exc, f"rasm {args.command}")
+        if missing is None:
+            raise
+        print(f"rasm: {missing}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except SourceErrors as exc:
         for error in exc.errors:
             print(f"rasm: {printable(str(error))}", file=sys.stderr)

@@ -10,6 +10,7 @@ from urllib.parse import urlsplit
 
 from rasm.comm.transport import Transport
 from rasm.errors import CommError
+from rasm.extras import missing_extra
 
 __all__ = ["open_transport", "parse_mqtt_url", "credentials_from_env", "ACCEPTED_FORMS"]
 
@@ -68,11 +69,11 @@ def open_transport(url: str, **options: Any) -> Transport:
         try:
             from rasm.ros2.dds import DdsTransport
             from rasm.ros2.zenoh import ZenohTransport
-        except ImportError as exc:
-            raise CommError(
-                f"{scheme}:// needs rasm's ROS 2 support, which is not installed ({exc}); "
-                "install it with: pip install 'rasm[ros2]'"
-            ) from None
+        except ModuleNotFoundError as exc:
+            missing = missing_extra(exc, f"{scheme}://")
+            if missing is None:
+                raise
+            raise CommError(str(missing)) from None
         return (ZenohTransport if scheme == "zenoh" else DdsTransport)(url, **options)
     parse_mqtt_url(url)  # raises with the accepted forms
     from rasm.comm.mqtt import MqttTransport  # imported lazily: paho is not needed for 'local'

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rasm.errors import Location, RasmError, SourceError
+from rasm.extras import missing_extra
 from rasm.values import TYPES
 from rasm.yamltext import YamlSource
 
@@ -79,14 +80,13 @@ def check_messages(
     try:
         from rasm.platform.messages import app_type_store
         from rasm.ros2 import RosError
-    except ImportError as exc:
+    except ModuleNotFoundError as exc:
+        missing = missing_extra(exc, "a ROS 2 interface type")
+        if missing is None:
+            raise
         first = next(i for i, p in enumerate(probes) if p.type) if probes else None
         where = src.at(["probes", first, "type"]) if first is not None else src.start()
-        problems.append(src.error(
-            f"ROS 2 interface types need rasm's ROS 2 support, which is not installed "
-            f"({exc}): pip install 'rasm[ros2]'",
-            where,
-        ))
+        problems.append(src.error(str(missing), where))
         return None, effectors
     try:
         store = app_type_store(folder, base)

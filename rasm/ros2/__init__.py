@@ -14,18 +14,23 @@
 The transports and bags load their middleware libraries only when first used.
 """
 
-from rasm.ros2.codec import MessageCodec
-from rasm.ros2.errors import (
-    BagError,
-    FieldPathError,
-    MalformedMessage,
-    MessageError,
-    RosError,
-    UnknownTypeError,
-)
-from rasm.ros2.fields import FieldPath, field_type, read_field, set_fields
-from rasm.ros2.qos import DEFAULT_QOS, QosProfile
-from rasm.ros2.types import FieldType, TypeStore, dds_type_name, normalize_type
+from rasm.extras import missing_extra
+
+try:  # every part of rasm.ros2 needs the type store and the CDR codec (rosbags, numpy)
+    from rasm.ros2.codec import MessageCodec
+    from rasm.ros2.errors import (
+        BagError,
+        FieldPathError,
+        MalformedMessage,
+        MessageError,
+        RosError,
+        UnknownTypeError,
+    )
+    from rasm.ros2.fields import FieldPath, field_type, read_field, set_fields
+    from rasm.ros2.qos import DEFAULT_QOS, QosProfile
+    from rasm.ros2.types import FieldType, TypeStore, dds_type_name, normalize_type
+except ModuleNotFoundError as exc:
+    raise (missing_extra(exc, "rasm.ros2") or exc) from None
 
 __all__ = [
     "BagError",
