@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-from rasm.cli import main
 from rasm.extras import EXTRAS
 from tests.ros2.conftest import DATA
 from tests.ros2.test_replay import record
@@ -26,26 +25,28 @@ TOPICS = "probes:\n  - topic: /odom\n    type: nav_msgs/msg/Odometry\n    signal
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory) -> Path:
-    """What the commands read, made with the extra installed: a rasm MCAP trace, rosbag2
-    recordings (MCAP and SQLite3) and a topic map."""
+    """What the commands read, made with the extra installed: rosbag2 recordings (MCAP and
+    SQLite3) and a topic map."""
     folder = tmp_path_factory.mktemp("inputs")
-    assert main(["run", str(WIDE), "--duration", "1", "--clock", "simulated", "--trace",
-                 str(folder / "trace.mcap")]) in (0, 1)
     record(folder / "bag", "mcap")
     record(folder / "bagdb", "sqlite3")
     (folder / "topics.yaml").write_text(TOPICS)
     return folder
 
 
+def without_extra(*args: object, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(WITHOUT), *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=120)
+
+
 # the arguments of rasm (files in the inputs folder by name), the module it finds missing
 COMMANDS = {
-    "check an MCAP trace": (["check", WIDE / "properties" / "wide.rv", "trace.mcap"], "mcap"),
-    "check an MCAP bag": (["check", GUARD_RV, "bag/bag.mcap", "--app", GUARD], "mcap"),
+    "check an MCAP bag": (["check", GUARD_RV, "bag/bag.mcap", "--app", GUARD], "numpy"),
+    "check an MCAP bag by topics": (["check", GUARD_RV, "bag/bag.mcap", "--topics",
+                                     "topics.yaml"], "numpy"),
     "check an SQLite3 bag": (["check", GUARD_RV, "bagdb", "--topics", "topics.yaml"], "numpy"),
     "check a bag folder": (["check", GUARD_RV, "bag", "--app", GUARD], "numpy"),
     "run with ROS 2 types": (["run", WIDE, "--duration", "1", "--clock", "simulated"], "numpy"),
-    "run an MCAP trace": (["run", HOTBOX, "--duration", "1", "--clock", "simulated",
-                           "--trace", "out.mcap"], "mcap"),
     "run a replay": (["run", GUARD, "--replay", "bag/bag.mcap"], "numpy"),
     "monitor over DDS": (["monitor", GUARD_RV, "--transport", "dds://", "--duration", "1"],
                          "numpy"),
@@ -56,8 +57,7 @@ COMMANDS = {
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_a_command_that_needs_the_ros2_extra_says_which_to_install(inputs, command):
     args, module = COMMANDS[command]
-    done = subprocess.run([sys.executable, str(WITHOUT), *map(str, args)], cwd=inputs,
-                          capture_output=True, text=True, timeout=120)
+    done = without_extra(*args, cwd=inputs)
     assert done.returncode == 2, (done.stdout, done.stderr)
     assert "Traceback" not in done.stdout + done.stderr, done.stderr
     assert done.stderr.startswith("rasm: ")
@@ -65,9 +65,24 @@ def test_a_command_that_needs_the_ros2_extra_says_which_to_install(inputs, comma
             "'rasm[ros2]'") in done.stderr
 
 
+def test_the_message_names_the_command(inputs):
+    done = without_extra("check", GUARD_RV, "bagdb", "--topics", "topics.yaml", cwd=inputs)
+    assert done.stderr == (
+        "rasm: rasm check needs rasm's ROS 2 support, which is not installed (no module named "
+        "'numpy'); install it with: pip install 'rasm[ros2]'\n"
+    )
+
+
+def test_rasm_s_own_mcap_traces_need_no_extra(inputs):
+    run = without_extra("run", HOTBOX, "--duration", "1", "--clock", "simulated", "--trace",
+                        "out.mcap", cwd=inputs)
+    assert run.returncode in (0, 1), run.stderr
+    check = without_extra("check", HOTBOX / "properties" / "hotbox.rv", "out.mcap", cwd=inputs)
+    assert check.returncode in (0, 1) and "records of out.mcap" in check.stdout, check.stderr
+
+
 def test_lint_reports_an_app_with_ros2_types_at_the_type(inputs):
-    done = subprocess.run([sys.executable, str(WITHOUT), "lint", str(GUARD)], cwd=inputs,
-                          capture_output=True, text=True, timeout=120)
+    done = without_extra("lint", GUARD, cwd=inputs)
     assert done.returncode == 1 and "Traceback" not in done.stdout + done.stderr
     assert (f"{GUARD / 'app.yaml'}:13:11: a ROS 2 interface type needs rasm's ROS 2 support, "
             "which is not installed (no module named 'numpy')") in done.stdout
