@@ -9,6 +9,12 @@
   should Cyclone match it (a type of the same shape: Cyclone matches types by structure), its
   samples are refused and counted too.
 - QoS: reliability, durability, history and depth map to the DDS policies of the same names.
+- Receiving: no listener, so Cyclone's threads never run Python (a listener waiting for the
+  GIL while a write holding it waited for the listener deadlocked the process). One taking
+  thread per transport waits on a waitset, GIL released, takes what the readers hold and
+  hands it to the dispatcher (:mod:`rasm.ros2.transport`).
+- Sizes: a sample over ``max_payload`` is refused unread; in a domain rasm makes, Cyclone
+  itself drops it before reassembling it (``Internal/MaxSampleSize``, :class:`_Domains`).
 - The ROS graph: as rmw_cyclonedds does, the participant publishes its node (namespace, name)
   and the GIDs (DDS GUIDs) of its readers and writers as an
   ``rmw_dds_common/msg/ParticipantEntitiesInfo`` on ``ros_discovery_info`` (reliable,
@@ -34,6 +40,7 @@ import re
 import threading
 from collections import deque
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -97,6 +104,14 @@ _PRIMITIVES: dict[str, Any] = {
 _IDL_CLASSES: dict[tuple[str, str], type[IdlStruct]] = {}
 
 
+@dataclass
+class _MadeDomain:
+    domain: Domain
+    cap: int  # Cyclone's MaxSampleSize in it
+    config: str | None  # the config= it was made with
+    users: int = 0  # the transports on it
+
+
 class _Domains:
     """The Cyclone domains rasm's transports made in this process, by id: each made with a
     configuration that caps a sample's size (Cyclone's ``Internal/MaxSampleSize``), so that
@@ -106,8 +121,7 @@ class _Domains:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        # domain id -> [the domain, its sample cap, its config=, how many transports use it]
-        self._made: dict[int, list[Any]] = {}
+        self._made: dict[int, _MadeDomain] = {}
 
     def join(self, domain: int, config: str | None, max_payload: int) -> bool:
         """Count one more transport on ``domain``, making the domain if need be; False when
@@ -120,28 +134,28 @@ class _Domains:
                     _SAMPLE_CAP.format(cap), config or os.environ.get("CYCLONEDDS_URI", "")
                 ) if part)
                 try:
-                    made = self._made[domain] = [Domain(domain, text), cap, config, 0]
+                    made = self._made[domain] = _MadeDomain(Domain(domain, text), cap, config)
                 except DDSException as exc:
                     if exc.code != _ALREADY_THERE or config is not None:
                         raise
                     return False  # another part of this process joined it first
-            elif made[2] != config or cap > made[1]:
+            elif made.config != config or cap > made.cap:
                 raise CommError(
                     f"DDS domain {domain} is already open in this process with another "
                     "configuration or a smaller max_payload; give the transports on one domain "
                     "the same config= and max_payload"
                 )
-            made[3] += 1
+            made.users += 1
             return True
 
     def leave(self, domain: int) -> None:
         """One transport less on ``domain``; the last one deletes it."""
         with self._lock:
             made = self._made[domain]
-            made[3] -= 1
-            if made[3] == 0:
+            made.users -= 1
+            if made.users == 0:
                 del self._made[domain]
-                made[0].__del__()
+                made.domain.__del__()
 
 
 _SAMPLE_CAP = (
@@ -286,8 +300,9 @@ class _DdsGraph:
 class DdsTransport(RosTransport):
     """ROS 2 topics over Cyclone DDS (see the module docstring).
 
-    ``url`` is ``dds://`` or ``dds://?domain=N``. ``config`` is a Cyclone XML configuration
-    (or a ``file://`` URL of one) for this domain; without it Cyclone reads ``CYCLONEDDS_URI``.
+    ``url`` is ``dds://`` or ``dds://?domain=N``, optionally with ``&max_payload=BYTES``.
+    ``config`` is a Cyclone XML configuration (or a ``file://`` URL of one) for this domain;
+    without it Cyclone reads ``CYCLONEDDS_URI``.
     The other keywords are :class:`~rasm.ros2.transport.RosTransport`'s. Its own samples come
     back to its own readers with its writers' handles, so it knows them.
     """

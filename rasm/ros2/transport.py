@@ -14,9 +14,10 @@ never stalls the middleware's own threads. Where they wait is the subclass's cho
 channel per subscription, with one receiving thread each (:mod:`rasm.ros2.zenoh`), or this
 module's inbox with one dispatcher thread per transport (:mod:`rasm.ros2.dds`). Either way the
 callbacks of one transport run one at a time. Bad input from the wire (bytes that do not
-decode, a wrong type hash, a type the store does not know, a topic published with another type)
-is never delivered and never fatal: it is counted in ``stats.malformed`` and in
-:attr:`RosTransport.rejected` by reason, and logged once per topic and reason.
+decode, a wrong type hash, a type the store does not know, a topic published with another type,
+a message over ``max_payload`` bytes) is never delivered and never fatal: it is counted in
+``stats.malformed`` and in :attr:`RosTransport.rejected` by reason, and logged once per topic
+and reason.
 """
 
 from __future__ import annotations
