@@ -9,7 +9,9 @@ __all__ = ["EXTRAS", "MissingExtra", "missing_extra"]
 
 #: extra -> what it adds, and the top-level modules of the packages only it installs
 #: (pyproject.toml)
-EXTRAS = {"ros2": ("ROS 2 support", ("zenoh", "cyclonedds", "rosbags", "mcap", "numpy"))}
+EXTRAS = {
+    "ros2": ("ROS 2 support", ("zenoh", "cyclonedds", "rosbags", "mcap", "numpy", "xxhash")),
+}
 _EXTRA_OF = {module: extra for extra, (_, modules) in EXTRAS.items() for module in modules}
 
 
