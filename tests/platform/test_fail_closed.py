@@ -50,7 +50,7 @@ def test_a_property_whose_signal_never_arrives_is_not_judged_and_fails(tmp_path)
     assert not summary.ok
     assert {"name": "steady", "verdict": "not judged", "violations": 0, "judged": 0,
             "inconclusive": 0, "errors": 0, "first_error": None,
-            "missing": ["heading"]} in summary.properties()
+            "missing": ["heading"], "vacuous": []} in summary.properties()
     with pytest.raises(PropertyViolation) as caught:
         assert_properties(app / "properties" / "robot.rv", trace)
     assert str(caught.value).startswith("not judged: steady (no value for heading)")

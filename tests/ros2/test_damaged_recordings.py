@@ -222,6 +222,9 @@ def test_a_cut_mcap_gives_the_chunks_before_the_cut_and_says_the_rest_is_lost(tm
         read = [(t, d) for _, t, d in reader.messages()]
         damage = reader.damage
     assert set(read) == expected and len(read) == len(expected)
+    everything = sum(1 for _ in McapReader(bag).messages())
+    if len(read) == everything and not damage:
+        return  # cut past the end of the data (its DataEnd record was read): nothing is lost
     (lost,) = damage  # one place: the cut record, or the end where the summary is missing
     assert lost.where.startswith(("a chunk at byte", "the end of the file", "a "))
     if read and lost.start_ns is not None:
