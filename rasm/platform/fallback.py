@@ -54,12 +54,19 @@ class LoopStats(Protocol):
     timeouts: Counter[str]
 
 
-class PlanRegistry(Protocol):
-    """What holds the plans actions may come from: the Trustworthiness Manager."""
+class Vetoes(Protocol):
+    """What holds the plans actions may come from and says which veto properties stop
+    actions: the Trustworthiness Manager."""
 
     def accept_plan(self, plan: Plan) -> None: ...
 
     def forget_plan(self, plan_id: str) -> None: ...
+
+    def vetoing(self) -> dict[str, str]:
+        """The veto properties that stop actions now, each with why."""
+
+    def veto_reason(self, name: str, verdict: Verdict | None) -> str | None:
+        """Why ``verdict`` of veto property ``name`` stops actions (None: it vouches)."""
 
 
 def prove_fallback(
@@ -142,8 +149,7 @@ class FallbackSwitch(Block):
         *,
         spec: Fallback,
         am: Sender,
-        tm: PlanRegistry,
-        vetoes: Callable[[], list[str]],
+        tm: Vetoes,
         online: Callable[[], bool],
         stats: Callable[[], LoopStats],
         emit: Callable[[float, dict[str, Any]], Any],
@@ -155,10 +161,13 @@ class FallbackSwitch(Block):
         self.spec = spec
         self.am = am
         self.tm = tm
-        self.vetoes = vetoes
         self.veto_properties = veto_properties
         self.submit = submit  # hands a job to the loop, to run after the job in hand
         self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
+        # the first verdict of each veto property that did not vouch since the triggers were
+        # last read: a later verdict of the same batch that vouches again must not hide it
+        self._unread: dict[str, Verdict] = {}
+        self._evaluation_due = False  # an evaluation is submitted and has not run yet
         self.online = online
         self.stats = stats
         self.emit = emit
@@ -184,6 +193,8 @@ class FallbackSwitch(Block):
             return None
         state = self.state
         if state == "nominal":
+            if self._unread:  # the evaluation that engages the fallback has not run yet
+                return f"the fallback is engaging: {'; '.join(self._unread_reasons())}"
             return None
         if state in ("fallback", "recovering"):
             return f"the fallback holds the effectors ({state}): {self.trigger_reason()}"
@@ -212,15 +223,24 @@ class FallbackSwitch(Block):
                 )
                 kinds.add("stage_failures")
         if "veto" in when:
-            vetoes = self.vetoes()
+            vetoing = self.tm.vetoing()
+            # a veto that held only between two readings of the triggers counts too
+            vetoes = [*vetoing.values(), *self._unread_reasons(skip=vetoing)]
+            self._unread.clear()
             held.extend(vetoes)
             if vetoes:
                 kinds.add("veto")
         self.kinds = kinds
         return held
 
+    def _unread_reasons(self, skip: Collection[str] = ()) -> list[str]:
+        reasons = (self.tm.veto_reason(name, verdict) for name, verdict in self._unread.items()
+                   if name not in skip)
+        return [why for why in reasons if why is not None]
+
     def evaluate(self) -> None:
         """Read the triggers and tell the chart; retry fallback actions not delivered yet."""
+        self._evaluation_due = False
         if self.mode != "initialized":
             return
         held = self.triggers()
@@ -234,13 +254,23 @@ class FallbackSwitch(Block):
 
     def watch_verdict(self, verdict: Verdict) -> None:
         """A veto property that starts or stops vouching has the triggers read at once (on the
-        loop, after the job in hand) rather than at the next tick."""
+        loop, after the job in hand) rather than at the next tick.
+
+        Every verdict that does not vouch reaches the triggers, whatever follows it: it is kept
+        until they are read (and holds the loop's actions back meanwhile), so a violation that
+        a later verdict of the same batch clears still engages the fallback."""
         name = verdict.property
-        if name in self.veto_properties:
-            good = verdict.value is True and verdict.error is None
-            if self._veto_good.get(name) != good:
-                self._veto_good[name] = good
-                self.submit(self.evaluate)
+        if name not in self.veto_properties:
+            return
+        good = verdict.value is True and verdict.error is None
+        changed = self._veto_good.get(name) != good
+        self._veto_good[name] = good
+        # (engaged already, the switch need not remember one: the fallback holds anyway)
+        if not good and "veto" in self.spec.when and self.state != "fallback":
+            self._unread.setdefault(name, verdict)
+        if (changed or self._unread) and not self._evaluation_due:
+            self._evaluation_due = True
+            self.submit(self.evaluate)
 
     # ------------------------------------------------------------------ chart hooks
 

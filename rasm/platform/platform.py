@@ -444,7 +444,6 @@ class Platform:
             spec=m.fallback,
             am=self.am,
             tm=self.tm,
-            vetoes=self.tm.vetoes,
             online=self.watch.online,
             stats=lambda: self.ao.stats,
             emit=self._emit,

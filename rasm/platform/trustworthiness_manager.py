@@ -147,13 +147,21 @@ class TrustworthinessManager(Block):
 
     def vetoes(self) -> list[str]:
         """Why each veto property the checker cannot vouch for now stops actions."""
-        vetoes = [
-            self._veto(name, self.checker.latest_verdict(name)) for name in self.veto_properties
-        ]
-        return [why for why in vetoes if why is not None]
+        return list(self.vetoing().values())
 
-    def _veto(self, name: str, verdict: Verdict | None) -> str | None:
-        """Why veto property ``name`` stops the action, or None when it holds."""
+    def vetoing(self) -> dict[str, str]:
+        """The veto properties the checker cannot vouch for now, each with why it stops
+        actions."""
+        vetoing = {}
+        for name in self.veto_properties:
+            why = self.veto_reason(name, self.checker.latest_verdict(name))
+            if why is not None:
+                vetoing[name] = why
+        return vetoing
+
+    def veto_reason(self, name: str, verdict: Verdict | None) -> str | None:
+        """Why veto property ``name`` stops actions when ``verdict`` is its latest (None: it
+        has none yet), or None when that verdict vouches for it."""
         if verdict is None:
             waits = self.checker.missing(name)
             if waits:

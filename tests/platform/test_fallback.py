@@ -352,3 +352,84 @@ def test_the_stage_failures_trigger_follows_its_rule_for_any_run_of_iterations(o
                 failures = 0
         holding = failures >= n
         assert counter.holds == holding, (outcome, failures, clean)
+
+
+# ---------------------------------------------------------------- a violation inside a batch
+
+BURST = '''
+
+class BurstSimulator(GuardedSimulator):
+    """At the scenario's burst times, one step publishes a fast reading and then a slow one:
+    two messages that reach the loop together, as a transport delivers a batch."""
+
+    def __init__(self, scenario=None, seed=0):
+        super().__init__(scenario, seed)
+        self.bursts = [float(t) for t in (scenario or {}).get("bursts", [])]
+
+    def step(self, time, dt):
+        readings = super().step(time, dt)
+        if any(abs(time - t) < dt / 2 for t in self.bursts):
+            return {"robot/sensors": {"speed": 2.0, "x": 1.0}, "robot/again": {"speed": 0.5}}
+        return readings
+'''
+
+
+def write_burst_app(folder):
+    app = write_app(folder, when="veto", dwell=1.0)
+    (app / "components.py").write_text((app / "components.py").read_text() + BURST)
+    text = (app / "app.yaml").read_text().replace(
+        "simulator: components:GuardedSimulator", "simulator: components:BurstSimulator"
+    ).replace(
+        "effectors:",
+        "  - topic: robot/again\n    signals:\n      speed: {type: float, min: 0, max: 10}\n"
+        "effectors:",
+    )
+    (app / "app.yaml").write_text(text)
+    return app
+
+
+def test_a_veto_violated_then_satisfied_in_one_batch_engages_the_fallback(tmp_path):
+    app = write_burst_app(tmp_path / "app")
+    bursts = [2.0, 4.0, 6.0]
+    trace = run_app(app, seed=1, duration=9, scenario={"bursts": bursts})
+    # each burst: the fast reading violates `slow`, the slow one right after it satisfies it
+    violated = [r["time"] for r in trace if r.get("speed") == 2.0]
+    assert violated == bursts
+    # every violation engaged the fallback at its instant, with the violation as the reason
+    engaged = [r for r in trace if r.get("fallback") == "engaged"]
+    assert [r["time"] for r in engaged] == bursts
+    assert all("veto property slow violated at t=" in r["explanation"] for r in engaged)
+    assert [what for _, what in switches(trace)] == ["engaged", "released"] * 3
+    assert_only_fallback_while_engaged(trace)
+    # from the violating record to the engagement nothing but the fallback acted
+    for burst in bursts:
+        at_burst = [r for r in trace if r["time"] == burst]
+        fast = next(k for k, r in enumerate(at_burst) if r.get("speed") == 2.0)
+        engaged_at = next(k for k, r in enumerate(at_burst) if r.get("fallback") == "engaged")
+        between = at_burst[fast:engaged_at]
+        assert not any(r.get("executed") for r in between), between
+
+
+def test_between_a_violation_and_the_engagement_the_loop_s_actions_are_held(tmp_path):
+    from rasm.platform.components import Action
+    from rasm.properties import Verdict
+
+    app = write_app(tmp_path / "app", when="veto")
+    platform = Platform(app, clock="simulated", seed=1, knowledge="memory")
+    platform.start()
+    try:
+        switch, loop_action = platform.fb, Action("motor", {"level": 1}, "p1")
+        assert switch.state == "nominal" and switch.holds(loop_action) is None
+        # a violation and, in the same batch, the verdict that clears it: the switch has not
+        # read its triggers yet (that is the next job), yet it holds the loop's actions
+        platform.tc.take(Verdict("slow", 3, 1.5, False))
+        platform.tc.take(Verdict("slow", 4, 1.5, True))
+        assert switch.state == "nominal"
+        assert "veto property slow violated at t=1.5" in switch.holds(loop_action)
+        assert switch.holds(Action("motor", {"level": 0}, "f1", "fallback")) is None
+        platform.scheduler.run_until(platform.clock.time)  # the jobs submitted: the evaluation
+        assert switch.state == "fallback" and switch.engagements == 1
+        assert "veto property slow violated at t=1.5" in switch.trigger_reason()
+    finally:
+        platform.stop()
+
