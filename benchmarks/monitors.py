@@ -10,6 +10,8 @@ record) and produces one verdict per record. Reported, in events (records) per s
   compiling (~5–10 ms) is not timed, as building reelay's and rtamt's monitors is not;
 * ``rasm step`` — ``Monitor.step(t, values)`` once per record, the online path (a list of
   ``Verdict`` objects per call);
+* properties whose operators get their operands' values late and in any order (``LATE``;
+  no peer monitors them online), on the same trace;
 * properties that read ``time`` (``TIME_READING``; no peer has that expression) on the same
   trace at 10 Hz, times k / 10, beside the same shapes over a signal: what exact time costs;
 * ``reelay``    — ``reelay.discrete_timed_monitor(pattern, condense=False).update(record)``;
@@ -57,6 +59,17 @@ TIME_READING = [
     "historically (a -> time >= 5)",
     "historically (a -> x >= 0.05)",
     "a -> eventually[0, 1] (b and time - prev(time) <= 0.1)",
+]
+
+
+# operators whose operands' values come late, and in any order (no peer monitors these online)
+LATE = [
+    "(always[0, 3] (x <= 0.5)) and (eventually[0, 50] b)",
+    "a -> eventually[0, 10] (b and always[0, 2] (x <= 0.5))",
+    "eventually[0, 5] (always[0, 2] b)",
+    "once[0, 10] (eventually[0, 5] b)",
+    "(eventually[0, 2] a) until[0, 10] (b)",
+    "count[0, 10](eventually[0, 5] b) >= 2",
 ]
 
 
@@ -217,6 +230,10 @@ def main(argv=None) -> int:
         rtamt_rate = None if args.no_rtamt else measure_rtamt(
             rt, ["x", "a", "b"], trace[:n_rtamt], "eventually" in rt, repeat)
         report(name, run, step, reelay_rate, rtamt_rate)
+
+    for formula in LATE:
+        run, step, _ = measure_case(basic_header, formula, None, trace, repeat)
+        report(formula, run, step, None, None)
 
     decimal = decimal_trace(n)
     for formula in TIME_READING:

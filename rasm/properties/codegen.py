@@ -1,7 +1,10 @@
 """Compiling a checked specification to Python source: one step function for all properties.
 
 Each property's lines come from :class:`rasm.properties.formula_code.FormulaGenerator`; this
-module puts them together with the record checks into one program.
+module puts them together with the record checks into one program. A property whose formula
+looks into the future gets its verdicts off its top stream as they are decided, in any order:
+``step`` gives each as a Verdict at once, ``run`` puts them back in record order
+(:class:`rasm.properties.streams.InOrder`).
 
 Windows compare times as exact integer nanoseconds: the generated code turns each record's time
 ``t`` (seconds, as given) into ``tn`` (:mod:`rasm.properties.times`); the bounds are
@@ -36,8 +39,11 @@ class Program:
     reads: list[tuple[str, ...]] = field(default_factory=list)  # warm-up signals per property
     # per property: the names of its constants and closure variables, which a reset renews
     owned: list[list[str]] = field(default_factory=list)
-    # per property with a stream root: its deque of the (index, time) owed a verdict online
+    # per property with a stream root: what holds the records owed a verdict online (a dict
+    # index -> time, or a deque of (index, time) where verdicts come in record order), and
+    # the InOrder that hands its values on in record order offline (None: they come so)
     owed: list[str | None] = field(default_factory=list)
+    orders: list[str | None] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- whole programs
@@ -76,7 +82,7 @@ def generate(
         gen.root = normalise(prop.formula)
         gen.root_number = number
         gen.owned.append([])
-        gen.owed = None
+        gen.owed = gen.order = None
         kind, value = gen.emit(gen.root)
         value = gen.property_value(gen.root, kind, value)
         if reads is None:
@@ -87,24 +93,35 @@ def generate(
         program.reads.append(warm)
         body: list = list(gen.lines)
         finish: list = list(gen.finish_lines)
+        order = None
         if kind == "imm":
-            body.append(("EMIT", number, "i", "t", value, "", False))
+            body.append(("EMIT", number, "i", "t", value, "", None))
         else:
             root = gen.constant("r", value.out)
-            if gen.owed is None:
+            # verdicts that may come out of record order go back in order offline
+            order = None if value.ordered else gen.in_order()
+            if gen.owed is not None:  # the root gives early verdicts: it owes the others
+                forget = f"    del {gen.owed}[_j]"
+            elif value.ordered:  # owed in record order: a queue
                 gen.owed = gen.constant("owed", deque())
                 body.insert(0, ("ONLINE", f"{gen.owed}.append((i, t))", None))
+                forget = f"    {gen.owed}.popleft()"
+            else:
+                gen.owed = gen.constant("owed", {})
+                body.insert(0, ("ONLINE", f"{gen.owed}[i] = t", None))
+                forget = f"    del {gen.owed}[_j]"
             # a verdict given, the record is no longer owed (in this order: a verdict that
             # fails to be made leaves its record owed)
             drain = [
                 f"while {root}:",
                 f"    _j, _tj, _tn, _v = {root}.popleft()",
-                ("EMIT", number, "_j", "_tj", "_v", "    ", False),
-                ("ONLINE", f"    {gen.owed}.popleft()", None),
+                ("EMIT", number, "_j", "_tj", "_v", "    ", order),
+                ("ONLINE", forget, None),
             ]
             body += drain
             finish += drain
         program.owed.append(gen.owed if kind == "stream" else None)
+        program.orders.append(order)
         if hook:
             body.insert(0, f"FAULT_HOOK(NAME_{number}, i)")
         guarded = _guarded(body, number, finishing=False)
@@ -113,11 +130,14 @@ def generate(
             ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in warm)
             block: list = [f"if not {started} and {ready}:", f"    {started} = True"]
             block.append(f"    STARTS[{number}] = i")
+            if order is not None:
+                block.append(f"    {order}.next = i")
             block.append(f"if {started}:")
             block += [_indent(line) for line in guarded]
         else:
             started = "i >= 0"
-            block = [f"if i == 0: STARTS[{number}] = 0", *guarded]
+            first = f"STARTS[{number}] = 0" + (f"; {order}.next = 0" if order is not None else "")
+            block = [f"if i == 0: {first}", *guarded]
         blocks.append(block)
         if kind == "stream":
             finishes.append(
@@ -140,8 +160,8 @@ def _indent(line, pad: str = "    "):
         _, online, offline = line
         return ("ONLINE", pad + online, None if offline is None else pad + offline)
     if line[0] == "EMIT":
-        kind, number, index, time, value, indent, online_only = line
-        return (kind, number, index, time, value, pad + indent, online_only)
+        kind, number, index, time, value, indent, order = line
+        return (kind, number, index, time, value, pad + indent, order)
     kind, number, indent, finishing = line  # FAULT
     return (kind, number, pad + indent, finishing)
 
@@ -150,9 +170,10 @@ def _render(line, mode: str) -> str | None:
     """A generated line for ``mode`` (step or run); None where the line is online-only.
 
     Line kinds: a string (both modes); ``("ONLINE", step_text, run_text)`` (``run_text`` None:
-    step only); ``("EMIT", property, index, time, value, indent, online_only)`` (a verdict:
-    a Verdict object online, a plain value in ``run``); ``("FAULT", property, indent,
-    finishing)`` (the handler of a property's exception).
+    step only); ``("EMIT", property, index, time, value, indent, order)`` (a verdict: a
+    Verdict object online, a plain value in ``run``, through ``order`` — an InOrder — where
+    verdicts come in any order); ``("FAULT", property, indent, finishing)`` (the handler of a
+    property's exception).
     """
     online = mode == "step"
     if isinstance(line, str):
@@ -160,10 +181,17 @@ def _render(line, mode: str) -> str | None:
     if line[0] == "ONLINE":
         return line[1] if online else line[2]
     if line[0] == "EMIT":
-        _, number, index, time, value, pad, online_only = line
+        _, number, index, time, value, pad, order = line
         if online:
             return f"{pad}out.append(Verdict(NAME_{number}, {index}, {time}, {value}))"
-        return None if online_only else f"{pad}values_{number}({value})"
+        if order is not None:
+            if index == "i":
+                return f"{pad}{order}.put(i, {value}, values_{number})"
+            # values in record order go straight on (the common case: one call less)
+            return (f"{pad}if {index} == {order}.next and not {order}.waiting: "
+                    f"values_{number}({value}); {order}.next += 1\n"
+                    f"{pad}else: {order}.put({index}, {value}, values_{number})")
+        return f"{pad}values_{number}({value})"
     _, number, pad, finishing = line
     if online:
         if finishing:
@@ -194,7 +222,7 @@ def _assemble(spec, gen: FormulaGenerator, blocks, finishes, events, reads) -> s
                 continue
             if reject:
                 text = text.replace("REJECT(", reject + "(")
-            lines.append(text)
+            lines += text.split("\n")  # (a verdict given in record order is two lines)
         return lines
 
     step = ["def step(t, rec):", "    nonlocal " + ", ".join(cells), "    out = []"]

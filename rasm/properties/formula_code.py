@@ -3,8 +3,9 @@
 Sub-formulas that only look at the past are *immediate*: their value at record i is known at
 record i, and they become straight-line code with their state in closure variables (a last
 witness time, a deque of not-yet-old-enough witnesses). Anything above a future operator is a
-*stream* (``rasm.properties.streams``) whose values come late; the generated code feeds the
-streams their immediate inputs and reads the property's verdicts off the top stream.
+*stream* (``rasm.properties.streams``) whose values come late, each as soon as it is decided
+and in any order; the generated code feeds the streams their immediate inputs and reads the
+property's verdicts off the top stream.
 :mod:`rasm.properties.codegen` puts the properties' lines together into one program.
 
 ``time`` is exact (:func:`is_time`): its value is the record's time in integer nanoseconds
@@ -43,15 +44,17 @@ from rasm.properties.ast import (
     children,
 )
 from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, HELPERS, _max2, _min2
-from rasm.properties.operators import EventuallyCore, OnceCore, SinceCore, UntilCore, WindowCore
+from rasm.properties.operators import WindowCore
 from rasm.properties.printer import unparse
 from rasm.properties.streams import (
     AggregateStream,
-    PointwiseStream,
+    InOrder,
+    JoinStream,
     PrevStream,
+    SinceStream,
     Source,
-    TemporalStream,
-    kleene_function,
+    UntilStream,
+    WindowStream,
 )
 from rasm.properties.times import NS_PER_SECOND, from_nanoseconds, nanoseconds
 from rasm.properties.types import TypeScope
@@ -148,12 +151,13 @@ class FormulaGenerator:
         self.root: Expr | None = None  # the property's formula being compiled
         self.root_number = 0
         self.owned: list[list[str]] = []  # per property: its constants and closure variables
-        # the root's deque of the records it owes a verdict (online): made by the root when it
-        # gives early verdicts (inline_pointwise), else by generate()
+        # the root's dict of the records it owes a verdict (online), and its InOrder: made by
+        # the root when it gives early verdicts (inline_pointwise), else by generate()
         self.owed: str | None = None
+        self.order: str | None = None
         # inline future windows by their Source (kept alive here, so never confused with a
         # later one): (index of their first line, pending deque, upper bound), for the parent
-        # that may keep the records it decides out of them (online_skip)
+        # that may keep the records it decides out of them (skip_window)
         self.windows: dict[Source, tuple[int, str, int]] = {}
         self.prevs: dict[tuple[int, str], str] = {}  # (property, operand) -> its prev's value
 
@@ -188,13 +192,13 @@ class FormulaGenerator:
             a, b = node.bound.low_ns, node.bound.high_ns
             if kind == "imm":
                 return self.inline_future(a, b, None, value)
-            return self.stream(TemporalStream, [(kind, value)], EventuallyCore(a, b))
+            return self.stream(WindowStream, [(kind, value)], False, a, b)
         if isinstance(node, Until):
             left, right = self.emit(node.left), self.emit(node.right)
             a, b = node.bound.low_ns, node.bound.high_ns
             if left[0] == right[0] == "imm":
                 return self.inline_future(a, b, left[1], right[1])
-            return self.stream(TemporalStream, [left, right], UntilCore(a, b))
+            return self.stream(UntilStream, [left, right], a, b)
         parts = self.in_units(node, [self.emit(c) for c in _operands(node)])
         streams = [k for k, (kind, _) in enumerate(parts) if kind == "stream"]
         if len(streams) == 1 and isinstance(node, (Not, Unary, Binary, Call)):
@@ -353,23 +357,20 @@ class FormulaGenerator:
 
     # ----------------------------------------------------------------- streams
     def stream_of(self, node: Expr, parts):
-        if isinstance(node, Not):
-            return self.stream(PointwiseStream, parts, kleene_function("not", None))
-        if isinstance(node, Unary):
-            return self.stream(PointwiseStream, parts, kleene_function("-", lambda a: -a))
+        """``node`` over two streams, or a temporal operator or ``prev`` over one."""
         if isinstance(node, Binary):
             plain = _ARITH.get(node.op) or _COMPARE.get(node.op)
-            return self.stream(PointwiseStream, parts, kleene_function(node.op, plain))
+            return self.stream(JoinStream, parts, node.op, plain)
         if isinstance(node, Call):
             plain = {"abs": abs, "min": _min2, "max": _max2}[node.func]
-            return self.stream(PointwiseStream, parts, kleene_function(node.func, plain))
+            return self.stream(JoinStream, parts, node.func, plain)
         if isinstance(node, Prev):
             return self.stream(PrevStream, parts, self.undefined(node.operand))
         a, b = node.bound.low_ns, node.bound.high_ns
         if isinstance(node, Past):
-            return self.stream(TemporalStream, parts, OnceCore(a, b))
+            return self.stream(WindowStream, parts, True, a, b)
         if isinstance(node, Since):
-            return self.stream(TemporalStream, parts, SinceCore(a, b))
+            return self.stream(SinceStream, parts, a, b)
         if isinstance(node, Aggregate):
             return self.stream(AggregateStream, parts, node.op, a, b)
         raise TypeError(f"cannot compile {node!r}")
@@ -387,10 +388,12 @@ class FormulaGenerator:
     def inline_future(self, a: int, b: int, left: str | None, right: str):
         """``eventually[a,b] right`` (left None) or ``left until[a,b] right``, both immediate.
 
-        Same algorithm as :class:`EventuallyCore`/:class:`UntilCore`, written into the step
-        function: open records wait in ``pending``; decided ones go to the output queue.
+        Written into the step function: open records wait in ``pending``, oldest first; a
+        witness decides those old enough true, a record beyond the oldest ones' window (or, for
+        until, a false left side) decides them false; decided ones go to the output queue,
+        in record order.
         """
-        source = Source()
+        source = Source(ordered=True)  # open records are decided oldest first
         out = self.constant("o", source.out)
         pending = self.constant("w", deque())
         lines = [
@@ -426,87 +429,90 @@ class FormulaGenerator:
         return "stream", source
 
     def inline_pointwise(self, node: Expr, parts, position: int):
-        """A non-temporal operator over one stream and immediate values, in Kleene logic."""
-        source = Source()
+        """A non-temporal operator over one stream and at most one immediate value, in
+        Kleene logic.
+
+        Where the immediate value alone decides (a false side of ``and``, a true side of ``or``,
+        a false trigger of ``->``) the value is given at once; the stream's value for that record
+        is then skipped when it comes (or never made, :meth:`skip_window`). Other records wait
+        for the stream's value. At the property's root the early value is a verdict.
+        """
+        immediate = [value for kind, value in parts if kind == "imm"]
+        decides = _decider(node, position) if immediate else None
+        # in record order if its operand's values are and none is given early
+        source = Source(ordered=parts[position][1].ordered and decides is None)
         out = self.constant("o", source.out)
         child = self.constant("c", parts[position][1].out)
-        names = []
-        held = None
-        immediate = [value for kind, value in parts if kind == "imm"]
-        decides = _decider(node, position) if len(immediate) == 1 else None
-        early = None
-        if decides is not None and node is self.root:
-            early = decides[0].format(w=immediate[0])
-        if immediate:
-            held = self.constant("b", deque())
-            if len(immediate) == 1:
-                append = f"{held}.append({immediate[0]})"
-                if early is not None and self.online_skip(parts[position][1], position, early):
-                    append = ("ONLINE", f"if not ({early}): {append}", append)
-                self.lines.append(append)
-            else:
-                self.lines.append(f"{held}.append(({', '.join(immediate)},))")
-        k = 0
-        for kind, _ in parts:
-            if kind == "stream":
-                names.append("_v")
-            elif len(immediate) == 1:
-                names.append("_w")
-            else:
-                names.append(f"_w[{k}]")
-                k += 1
+        names = ["_v" if kind == "stream" else "_w" for kind, _ in parts]
         drain = [f"while {child}:", f"    _j, _tj, _tn, _v = {child}.popleft()"]
-        if held is not None:
-            drain.append(f"    _w = {held}.popleft()")
-        if early is not None:
-            # online, the immediate side alone may decide the verdict (a false trigger of
-            # "trigger -> eventually …"): say it now, and skip it when the stream catches up;
-            # any other record is owed a verdict by the stream
-            test, value = decides
-            self.owed = self.constant("owed", deque())
-            self.lines += [
-                ("ONLINE", f"if {early}:", None),
-                ("EMIT", self.root_number, "i", "t", value, "    ", True),
-                ("ONLINE", "else:", None),
-                ("ONLINE", f"    {self.owed}.append((i, t))", None),
-            ]
-            drain.append(("ONLINE", f"    if {test.format(w='_w')}: continue", None))
+        if decides is None:
+            if immediate:  # each record's immediate value waits for the stream's
+                held = self.constant("b", {})
+                self.lines.append(f"{held}[i] = {immediate[0]}")
+                drain.append(f"    _w = {held}.pop(_j)")
+        else:
+            early, value, other = decides
+            early = early.format(w=immediate[0])
+            # a record the immediate value does not decide had the one value that does not
+            # decide: nothing to hold but which records wait (none when the window skips the
+            # others: it never gives them)
+            names = ["_v" if kind == "stream" else other for kind, _ in parts]
+            if not self.skip_window(parts[position][1], position, early):
+                waiting = self.constant("b", set())
+                self.lines.append(f"if not ({early}): {waiting}.add(i)")
+                drain += [f"    if _j not in {waiting}: continue  # given at once",
+                          f"    {waiting}.discard(_j)"]
+            if node is self.root:
+                # the verdict now; online, any other record is owed a verdict by the stream
+                self.owed = self.constant("owed", {})
+                self.lines += [
+                    f"if {early}:",
+                    ("EMIT", self.root_number, "i", "t", value, "    ", self.in_order()),
+                    ("ONLINE", "else:", None),
+                    ("ONLINE", f"    {self.owed}[i] = t", None),
+                ]
+            else:
+                self.lines.append(f"if {early}: {out}.append((i, t, tn, {value}))")
         drain.append(f"    {out}.append((_j, _tj, _tn, {_kleene(node, names, position)}))")
         self.lines += drain
         self.finish_lines += drain
         return "stream", source
 
-    def online_skip(self, child: Source, position: int, early: str) -> bool:
-        """Online, keep the records ``early`` decides out of the inline window ``child``.
+    def in_order(self) -> str:
+        """The property's :class:`InOrder`: its verdicts in record order, offline."""
+        if self.order is None:
+            self.order = self.constant("order", InOrder())
+        return self.order
 
-        Their verdict is given at once, so the window need not wait for their witness: the
-        step function then does no window work for them (most records: a trigger is rare).
-        Only for an inline window (a stream class is stepped every record) whose record is
-        decided by the operand before it (its lines, computing ``early``, come first). The
-        window and the held operand values skip the same records, so they stay aligned;
-        ``run()`` keeps every record (it gives no early verdicts).
+    def skip_window(self, child: Source, position: int, early: str) -> bool:
+        """Keep the records ``early`` decides out of the inline window ``child``.
+
+        Their value is given at once, so the window need not wait for their witness: the
+        step function then does no window work for them. Only for an inline window (a stream
+        class is stepped every record) whose record is decided by the operand before it (its
+        lines, computing ``early``, come first).
         """
         window = self.windows.pop(child, None)
         if window is None or position != 1:
             return False
         start, pending, b = window
-        append = self.lines[start]
-        self.lines[start] = ("ONLINE", f"if not ({early}): {append}", append)
+        self.lines[start] = f"if not ({early}): {self.lines[start]}"
         # the window may now be empty: the current record is not always in it
         self.lines[start + 1] = f"while {pending} and tn - {pending}[0][2] > {_number(b)}:"
         return True
 
 
-def _decider(node: Expr, position: int) -> tuple[str, str] | None:
-    """When the immediate operand ``w`` alone decides ``node``: (test on w, verdict)."""
+def _decider(node: Expr, position: int) -> tuple[str, str, str] | None:
+    """When the immediate operand ``w`` alone decides ``node``: (test on w, the value then,
+    w's value otherwise)."""
     if not isinstance(node, Binary):
         return None
     if node.op == "and":
-        return "not {w}", "False"
+        return "not {w}", "False", "True"
     if node.op == "or":
-        return "{w}", "True"
+        return "{w}", "True", "False"
     if node.op == "->":
-        return ("not {w}", "True") if position == 1 else ("{w}", "True")
+        return ("not {w}", "True", "True") if position == 1 else ("{w}", "True", "False")
     return None
 
 

@@ -242,7 +242,10 @@ class Monitor:
         if recovery is not None:  # what it decided at this record before it raised
             self._taint(k, recovery, out)
         owed_name = self.program.owed[k]
-        owed = list(self._namespace[owed_name]) if owed_name is not None else []
+        owed = []
+        if owed_name is not None:
+            held = self._namespace[owed_name]
+            owed = list(held.items()) if isinstance(held, dict) else list(held)
         if index is not None and all(j != index for j, _ in owed) and not any(
             v.property == name and v.index == index for v in out
         ):
@@ -272,18 +275,27 @@ class Monitor:
                 recovery.given += 1
 
     def _fault_run(self, k: int, index: int, ns: int | None, exc: Exception) -> None:
-        """:meth:`_fault` offline: values are in record order, so the property owes a value to
-        every record from its last one to ``index``; ``ns`` None: while finishing."""
+        """:meth:`_fault` offline: values go out in record order, so every record from the
+        property's last value given to ``index`` gets its value now: the one decided before
+        the fault where there is one (as online), else an error; ``ns`` None: while
+        finishing."""
         values, errors = self._values[k], self._errors[k]
         why = _why(exc, index if ns is not None else None)
         recovery = self._recovering.pop(k, None)
         if recovery is not None:
             recovery.until = index
+        order = self.program.orders[k]
+        decided = self._namespace[order].waiting if order is not None else {}
         for j in range(self.starts[k] + self._taken[k] + len(values), index + 1):
-            values.append(False)
-            errors[j] = why
+            if j in decided:
+                values.append(decided.pop(j))
+            else:
+                values.append(False)
+                errors[j] = why
         if ns is not None:
             self._reset(k)
+            if order is not None:  # the values decided from now on follow this record's
+                self._namespace[order].next = index + 1
             recovery = Recovery(self.spec.properties[k].formula, index, ns, why)
             self._recovering[k] = recovery
             self._resets_run[k].append(recovery)

@@ -433,3 +433,27 @@ def test_between_a_violation_and_the_engagement_the_loop_s_actions_are_held(tmp_
     finally:
         platform.stop()
 
+
+
+def test_a_future_veto_property_engages_the_fallback_as_soon_as_its_verdict_is_decided(
+    tmp_path,
+):
+    """``always[0, 1] slow and eventually[0, 20] flare`` (a flare at 3.0 s and 8.0 s): at the
+    first fast record, 5.0 s, the records from 4.0 s on are false — their always fails —
+    though their eventually still waits for the flare at 8.0 s. The fallback engages at 5.0 s,
+    not when the eventually is decided."""
+    app = write_app(tmp_path / "app", when="veto", dwell=1.0, veto=("settles",))
+    (app / "properties" / "robot.rv").write_text(
+        "input speed: float\n"
+        "input x: float\n"
+        "property settles:\n"
+        "    (always[0, 1] (speed <= 1.0)) and (eventually[0, 20] (x > 1e300))\n"
+    )
+    trace = run_app(app, seed=1, duration=12,
+                    scenario={"fast": [[5.0, 9.0]], "overflow_at": [3.0, 8.0]})
+    # no verdict until the first flare (3.0 s): engaged at the first tick, released after
+    # the dwell once verdicts vouch, engaged again at the first fast record
+    assert switches(trace)[:3] == [(0.5, "engaged"), (4.0, "released"), (5.0, "engaged")]
+    engaged = next(r for r in trace if r.get("fallback") == "engaged" and r["time"] == 5.0)
+    assert "veto property settles violated at t=4" in engaged["explanation"]
+    assert_only_fallback_while_engaged(trace)

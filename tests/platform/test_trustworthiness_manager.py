@@ -104,6 +104,24 @@ def test_a_bounded_future_veto_property_vetoes_from_the_decision_of_a_failure_to
     assert tc.outcomes["timely"].state == "violated"  # the run's verdict keeps the failure
 
 
+def test_a_veto_property_vetoes_as_soon_as_its_verdict_is_decided():
+    """``(always[0, 0.3] q) and (eventually[0, 5] p)`` is false at a record once q fails
+    within 0.3 s of it, whatever its eventually still waits for: the action is refused from
+    that record on, not 5 s later."""
+    tc, tm = checker_and_manager(
+        [compile_properties("event p\nevent q\n"
+                            "property guard: (always[0, 0.3] q) and (eventually[0, 5] p)\n")],
+        ["guard"],
+    )
+    tc.observe(0.0, {"q": True, "p": True})
+    tc.observe(0.4, {"q": True, "p": True})  # record 0's always is over: true
+    tc.observe(0.8, {"q": True})  # record 1's: true; record 2 waits for p (until 5.8 s)
+    assert tm.check_trustworthiness(ACTION)[0] is True
+    decided = tc.observe(0.9, {})  # q fails within 0.3 s of record 2 (and at 3 itself)
+    assert sorted((v.index, v.value) for v in decided) == [(2, False), (3, False)]
+    assert tm.check_trustworthiness(ACTION) == (False, "veto property guard violated at t=0.8")
+
+
 VALUE = st.sampled_from([True, False, None])
 STEPS = st.lists(
     st.one_of(

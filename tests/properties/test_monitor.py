@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import deque
+
 import pytest
 
 from rasm.errors import SpecError
@@ -159,3 +161,55 @@ def test_a_prev_shared_within_a_property_is_not_shared_across_properties(order):
     records = [(0, {"p": True}), (1, {"x": 1.0, "p": True}), (2, {"x": 1.0})]
     got = {(v.property, v.index): v.value for t, rec in records for v in mon.step(t, rec)}
     assert got == {("a", 0): False, ("a", 1): True, ("a", 2): True, ("b", 1): False, ("b", 2): True}
+
+
+def held(monitor) -> int:
+    """How many items the monitor's windows and streams hold: the lengths of the lists,
+    deques, dicts and sets among its constants and their objects' attributes, all the way
+    down."""
+    seen: set[int] = set()
+
+    def walk(thing) -> int:
+        if id(thing) in seen or isinstance(thing, type) or callable(thing):
+            return 0
+        seen.add(id(thing))
+        if isinstance(thing, (list, deque, dict, set)):
+            return len(thing)
+        if hasattr(thing, "__dict__"):
+            return sum(walk(part) for part in vars(thing).values())
+        return 0
+
+    return sum(walk(value) for value in monitor.program.constants.values())
+
+
+LATE = [
+    "eventually[0, B] (p and always[0, 1] q)",
+    "(always[0, 2] q) and (eventually[0, B] p)",
+    "once[0, B] (eventually[0, 1] p)",
+    "historically (eventually[0, 1] q)",
+    "(eventually[0, 1] p) until[0, B] (q)",
+    "(eventually[0, 1] q) until[2, B] (p)",
+    "(eventually[0, 1] q) since[0, B] (p)",
+    "(eventually[0, 1] q) since[2, inf] (p)",
+    "count[0, B](eventually[0, 1] p) >= 1",
+    "prev(eventually[0, B] p)",
+]
+
+
+@pytest.mark.parametrize("formula", LATE)
+@pytest.mark.parametrize("bound", [10, 40])
+def test_operators_over_late_values_hold_what_their_windows_reach_not_the_trace(
+    formula, bound
+):
+    """Memory follows the bounds, not the trace: over 100 windows' worth of records (two a
+    second), a monitor never holds more than a few windows' worth (plus what each window
+    structure keeps until it next forgets in a batch)."""
+    monitor = compile_properties(
+        "event p\nevent q\nproperty late: " + formula.replace("B", str(bound)) + "\n"
+    )
+    most = 0
+    for k in range(200 * bound):
+        monitor.step(k / 2, {"p": k % 7 == 0, "q": k % 5 != 0})
+        if k % 25 == 0:
+            most = max(most, held(monitor))
+    assert most <= 12 * bound + 2500, (formula, most)
