@@ -11,9 +11,12 @@
   names written ``%``: one for rasm's node and one per publisher and subscription, so
   ``ros2 node list`` and ``ros2 topic list`` on the Zenoh network see them.
 
-The session is a Zenoh peer that connects to ``HOST:PORT`` (rmw_zenoh's router listens on
-7447) with multicast scouting off, as rmw_zenoh's sessions are; gossip scouting through the
-router finds the other peers.
+The session is configured as rmw_zenoh's default node session: a Zenoh peer that connects to
+the router at ``HOST:PORT`` (``rmw_zenohd`` listens on 7447), listens on an ephemeral loopback
+port, has multicast scouting off and learns of the other nodes by the router's gossip, then
+connects to them directly (to a peer only when its own zid is the greater, so the other one
+connects to rasm). ``ZENOH_SESSION_CONFIG_URI`` names a file that replaces those defaults, as it
+does for rmw_zenoh.
 
 Received messages wait in Zenoh's own channel of each subscription, which is the topic's
 history: a ring of ``depth`` for keep-last (the oldest goes), a queue of ``max_pending`` for
@@ -29,6 +32,7 @@ import atexit
 import itertools
 import json
 import logging
+import os
 import struct
 import threading
 import time
@@ -72,6 +76,27 @@ _RELIABILITY = {"reliable": "", "best_effort": "2"}
 _DURABILITY = {"volatile": "", "transient_local": "1"}
 _HISTORY = {"keep_last": "", "keep_all": "2"}
 _DEFAULT_DEPTH = 42
+
+#: The variable naming a Zenoh configuration file that replaces rmw_zenoh's session defaults.
+SESSION_CONFIG_ENV = "ZENOH_SESSION_CONFIG_URI"
+_LOOPBACK_LISTEN = "tcp/127.0.0.1:0"
+#: rmw_zenoh's default node session (DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5): a peer with
+#: multicast scouting off that finds the other nodes through the router's gossip and then
+#: connects to them directly (to a peer only when its own zid is the greater). One difference:
+#: rasm gossips to peers as well as routers, since its URL may name a peer (a robot's own
+#: session) rather than a router, and the others then learn of rasm's endpoint only from it.
+RMW_ZENOH_SESSION: dict[str, Any] = {
+    "mode": "peer",
+    "scouting/multicast/enabled": False,
+    "scouting/gossip/enabled": True,
+    "scouting/gossip/multihop": False,
+    "scouting/gossip/target": {"router": ["router", "peer"], "peer": ["router", "peer"]},
+    "scouting/gossip/autoconnect": {"router": [], "peer": ["router", "peer"]},
+    "scouting/gossip/autoconnect_strategy": {
+        "peer": {"to_router": "always", "to_peer": "greater-zid"}
+    },
+    "timestamping/enabled": True,  # transient_local's publication cache needs it
+}
 
 
 def parse_zenoh_url(url: str) -> tuple[str, int, dict[str, int]]:
@@ -232,12 +257,12 @@ class ZenohTransport(RosTransport):
     """ROS 2 topics over Zenoh with rmw_zenoh's conventions (see the module docstring).
 
     ``url`` is ``zenoh://HOST:PORT[?domain=N]``: the Zenoh router or peer to connect to.
-    ``listen`` adds endpoints this session listens on (``["tcp/127.0.0.1:7448"]``), so that
-    other peers can connect to it; listening on the URL's own ``tcp/HOST:PORT`` makes this
+    ``listen`` replaces the ephemeral loopback endpoint this session listens on
+    (``["tcp/127.0.0.1:7448"]``); listening on the URL's own ``tcp/HOST:PORT`` makes this
     session the meeting point the others connect to (as rmw_zenoh's router is), connecting
-    to nothing itself. ``config_file`` starts from a Zenoh JSON5 configuration
-    (rmw_zenoh's ``ZENOH_SESSION_CONFIG_URI`` files work); mode, endpoints and multicast
-    scouting are then set as described. ``connect()`` fails with :class:`CommError` if nothing
+    to nothing itself. ``config_file`` (else the file ``ZENOH_SESSION_CONFIG_URI`` names)
+    replaces rmw_zenoh's defaults: the session is configured as the file says, with the URL's
+    endpoint added to its connect endpoints and ``listen`` to its listen endpoints. ``connect()`` fails with :class:`CommError` if nothing
     answers at ``HOST:PORT`` within ``connect_timeout`` seconds. The other keywords are
     :class:`~rasm.ros2.transport.RosTransport`'s. Its own messages come back to its own
     subscriptions with their publisher's gid and sequence number, so it knows them.
@@ -279,23 +304,43 @@ class ZenohTransport(RosTransport):
 
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
-        config = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
+        config_file = self.config_file or os.environ.get(SESSION_CONFIG_ENV) or None
         host = f"[{self.host}]" if ":" in self.host else self.host
         endpoint = f"tcp/{host}:{self.port}"
-        settings = {
-            "mode": "peer",
-            # a session listening on HOST:PORT itself is the meeting point others connect to
-            "connect/endpoints": [] if endpoint in self.listen else [endpoint],
-            "listen/endpoints": self.listen,
-            "scouting/multicast/enabled": False,
+        meeting_point = endpoint in self.listen  # others connect to it; it connects to nothing
+        if config_file:
+            # the file replaces rmw_zenoh's defaults, as ZENOH_SESSION_CONFIG_URI does for
+            # rmw_zenoh; the URL's router and the listen= endpoints are added to its own
+            try:
+                config = zenoh.Config.from_file(config_file)
+            except (zenoh.ZError, OSError) as exc:
+                raise CommError(
+                    f"{config_file}: not a usable Zenoh configuration: {exc}"
+                ) from None
+            connect = _endpoints(config, "connect/endpoints")
+            listen = _endpoints(config, "listen/endpoints")
+            settings: dict[str, Any] = {
+                "connect/endpoints": [e for e in connect if e != endpoint]
+                + ([] if meeting_point else [endpoint]),
+                "listen/endpoints": listen + [e for e in self.listen if e not in listen],
+            }
+        else:
+            config = zenoh.Config()
+            settings = {
+                **RMW_ZENOH_SESSION,
+                "connect/endpoints": [] if meeting_point else [endpoint],
+                # an ephemeral loopback port, as rmw_zenoh's tcp/localhost:0: a node that the
+                # router's gossip tells about rasm connects to it (greater-zid decides who)
+                "listen/endpoints": self.listen or [_LOOPBACK_LISTEN],
+            }
+        settings.update({
             "connect/timeout_ms": int(self.connect_timeout * 1000),
             "connect/exit_on_failure": True,
-            "timestamping/enabled": True,  # transient_local's publication cache needs it
             # a message over this arriving in fragments is dropped before it is reassembled
             # (its publisher's next sequence number tells the gap); those that come whole, as
             # through shared memory on one machine, are measured in _take
             "transport/link/rx/max_message_size": self.max_payload + _FRAMING,
-        }
+        })
         try:
             for key, value in settings.items():
                 config.insert_json5(key, json.dumps(value))
@@ -303,7 +348,7 @@ class ZenohTransport(RosTransport):
         except zenoh.ZError as exc:
             if "listener" in str(exc):  # the session's own listen address, not the peer
                 raise CommError(
-                    f"could not listen on {', '.join(self.listen)}: {exc}"
+                    f"could not listen on {', '.join(settings['listen/endpoints'])}: {exc}"
                 ) from None
             raise CommError(
                 f"could not reach a Zenoh router or peer at {self.host}:{self.port} within "
@@ -553,6 +598,17 @@ class ZenohTransport(RosTransport):
                 topic.name, "type_conflict",
                 f"published as {ros_name}, but declared as {topic.typename}",
             )
+
+
+def _endpoints(config: Any, key: str) -> list[str]:
+    """A configuration's endpoint list (a plain list; the per-mode form gives its peer list)."""
+    try:
+        found = json.loads(config.get_json(key))
+    except (zenoh.ZError, ValueError):
+        return []
+    if isinstance(found, dict):
+        found = found.get("peer", [])
+    return [str(e) for e in found] if isinstance(found, list) else []
 
 
 def _take_batch(channel: Any) -> list[Any] | None:

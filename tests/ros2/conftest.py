@@ -146,3 +146,25 @@ def transports() -> Iterator[Callable[[Any], Any]]:
     yield keep
     for transport in made:
         transport.close()
+
+
+@pytest.fixture
+def zenoh_router(zenoh_port: int) -> Iterator[int]:
+    """A Zenoh router configured as rmw_zenoh's ``rmw_zenohd`` is (its default router config:
+    gossip on, multicast off, failover brokering between peers), listening on a loopback port
+    (yielded); opened with eclipse-zenoh only."""
+    import zenoh
+
+    config = zenoh.Config()
+    for key, value in {
+        "mode": "router",
+        "listen/endpoints": [f"tcp/127.0.0.1:{zenoh_port}"],
+        "scouting/multicast/enabled": False,
+        "scouting/gossip/enabled": True,
+        "routing/router/peers_failover_brokering": True,
+        "timestamping/enabled": True,
+    }.items():
+        config.insert_json5(key, json.dumps(value))
+    router = zenoh.open(config)
+    yield zenoh_port
+    router.close()

@@ -13,7 +13,8 @@ CONFIG keys: ``middleware`` (zenoh | dds), ``role`` (pub | sub | graph: the live
 over Zenoh, ``ros_discovery_info`` and the endpoints discovered over DDS | churn: over DDS,
 ``rounds`` times a participant comes with a reader and a writer per topic, publishes the
 messages once its writers match, leaves and says ``{"event": "round", "n": N}``),
-``listen`` (Zenoh endpoint), ``connect`` (Zenoh endpoints to connect to as well),
+``listen`` (Zenoh endpoint), ``connect`` (Zenoh endpoints to connect to as well), ``rmw``
+(true: scouting and timestamping as rmw_zenoh's default node session sets them),
 ``domain``, ``repeat`` (publish again and again until stdin closes), ``msg`` (``[[file,
 package], ...]`` custom .msg files) and ``topics``: a list of ``{"topic", "type",
 "messages"}`` (dicts to publish; ``strings``: sizes of ``{"data": "xxx..."}`` messages to
@@ -48,6 +49,20 @@ PRIMITIVE_DTYPES = {
     "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "uint8": np.uint8, "int8": np.int8,
     "uint16": np.uint16, "int16": np.int16, "uint32": np.uint32, "int32": np.int32,
     "uint64": np.uint64, "int64": np.int64, "float32": np.float32, "float64": np.float64,
+}
+
+
+# what rmw_zenoh's DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5 sets besides mode, connect (the
+# router) and listen (tcp/localhost:0): written out here, never taken from rasm
+RMW_SESSION = {
+    "scouting/gossip/enabled": True,
+    "scouting/gossip/multihop": False,
+    "scouting/gossip/target": {"router": ["router", "peer"], "peer": ["router"]},
+    "scouting/gossip/autoconnect": {"router": [], "peer": ["router", "peer"]},
+    "scouting/gossip/autoconnect_strategy": {
+        "peer": {"to_router": "always", "to_peer": "greater-zid"},
+    },
+    "timestamping/enabled": True,
 }
 
 
@@ -152,6 +167,9 @@ def zenoh_main(config):
     if config.get("connect"):
         conf.insert_json5("connect/endpoints", json.dumps(config["connect"]))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    if config.get("rmw"):  # rmw_zenoh's default node session (DEFAULT_RMW_ZENOH_SESSION_CONFIG)
+        for key, value in RMW_SESSION.items():
+            conf.insert_json5(key, json.dumps(value))
     if config.get("shm") is False:  # big messages then go in fragments, even on one machine
         conf.insert_json5("transport/shared_memory/enabled", "false")
     session = zenoh.open(conf)
