@@ -262,8 +262,9 @@ class ZenohTransport(RosTransport):
     session the meeting point the others connect to (as rmw_zenoh's router is), connecting
     to nothing itself. ``config_file`` (else the file ``ZENOH_SESSION_CONFIG_URI`` names)
     replaces rmw_zenoh's defaults: the session is configured as the file says, with the URL's
-    endpoint added to its connect endpoints and ``listen`` to its listen endpoints. ``connect()`` fails with :class:`CommError` if nothing
-    answers at ``HOST:PORT`` within ``connect_timeout`` seconds. The other keywords are
+    endpoint added to its connect endpoints and ``listen`` to its listen endpoints.
+    ``connect()`` fails with :class:`CommError` if nothing answers at ``HOST:PORT`` within
+    ``connect_timeout`` seconds. The other keywords are
     :class:`~rasm.ros2.transport.RosTransport`'s. Its own messages come back to its own
     subscriptions with their publisher's gid and sequence number, so it knows them.
     """
