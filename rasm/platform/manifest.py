@@ -56,6 +56,17 @@ class Signal:
     maximum: float | None = None
     history: int = 100
     field: str | None = None  # its field path in a ROS 2 message (None: the payload's key)
+    scale: float = 1  # value = field x scale + offset (a number field only)
+    offset: float = 0
+
+    def scaled(self, value: Any) -> Any:
+        """``value`` (read from the field) x scale + offset; a value that is no number (or a
+        bool) is left as it is, for the type check to judge."""
+        if (self.scale == 1 and self.offset == 0) or isinstance(value, bool) or not isinstance(
+            value, int | float
+        ):
+            return value
+        return value * self.scale + self.offset
 
 
 @dataclass(frozen=True)
@@ -284,6 +295,8 @@ def _probes(src: YamlSource, problems: list[SourceError]) -> list[Probe]:
                 spec.get("max"),
                 spec.get("history", 100),
                 spec.get("field"),
+                spec.get("scale", 1),
+                spec.get("offset", 0),
             )
             if str(key) in LOOP_KEYS:
                 problems.append(

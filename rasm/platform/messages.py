@@ -76,14 +76,13 @@ def takes(signal_type: str, field_type: str) -> bool:
 
 def app_type_store(folder: Path, base: TypeStore | None = None) -> TypeStore:
     """The standard interfaces (or ``base``, which gets them added) plus the app's own
-    ``msg/*.msg`` files (package: the app folder's name). A definition that does not parse
-    raises :class:`SourceError` at its place."""
+    ``msg/*.msg``, ``srv/*.srv`` and ``action/*.action`` files (package: the app folder's
+    name). A definition that does not parse raises :class:`SourceError` at its place."""
     from rasm.ros2 import TypeStore
 
     store = base if base is not None else TypeStore()
-    msg = folder / "msg"
-    if msg.is_dir() and any(msg.glob("*.msg")):
-        store.add_msg_dir(msg, package=_package(folder))
+    if any(any((folder / kind).glob(f"*.{kind}")) for kind in ("msg", "srv", "action")):
+        store.add_interface_dir(folder, package=_package(folder))
     return store
 
 
@@ -107,8 +106,8 @@ def header_stamp(message: Mapping[str, Any]) -> float | None:
 
 class MessageReader:
     """Reads one probe's signals out of its decoded messages: ``read(message)`` gives
-    ``{signal: value}`` and the signals whose field the message did not have (an index past
-    the end of an array)."""
+    ``{signal: value}`` (scaled as the signal says) and the signals whose field the message
+    did not have (an index past the end of an array)."""
 
     def __init__(self, probe: Probe) -> None:
         from rasm.ros2 import FieldPath
@@ -116,15 +115,16 @@ class MessageReader:
         self.topic = probe.topic
         self.typename = probe.type or ""
         self._reads = [
-            (key, FieldPath.parse(signal.field or key)) for key, signal in probe.signals.items()
+            (key, FieldPath.parse(signal.field or key), signal)
+            for key, signal in probe.signals.items()
         ]
 
     def read(self, message: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
         values: dict[str, Any] = {}
         missing: list[str] = []
-        for key, path in self._reads:
+        for key, path, signal in self._reads:
             try:
-                values[key] = path.read(message, self.typename)
+                values[key] = signal.scaled(path.read(message, self.typename))
             except RasmError:  # a FieldPathError: the message has no such field
                 missing.append(key)
         return values, missing

@@ -179,8 +179,8 @@ class RecordedTrace:
                     continue
                 try:
                     record[key] = fit(
-                        value, signal.type, minimum=signal.minimum, maximum=signal.maximum,
-                        int_as_float=False,
+                        signal.scaled(value), signal.type, minimum=signal.minimum,
+                        maximum=signal.maximum, int_as_float=False,
                     )
                 except Misfit as misfit:
                     left.refused[f"{topic} {key}: {misfit.reason}"] += 1

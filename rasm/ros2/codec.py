@@ -5,10 +5,11 @@ arrays and sequences are lists (never numpy arrays), ``byte`` and ``char`` are i
 stamps are ``{"sec": ..., "nanosec": ...}``. Floats keep what the sender sent, ``inf`` and
 ``nan`` included (a LaserScan marks "no echo" with ``inf``).
 
-Encoding takes such a dict, possibly partial: a field that is not given is zero (``0``,
-``0.0``, ``False``, ``""``, an empty sequence, a fixed array of zeros), as in ROS. A value of
-the wrong kind, an integer out of its range, a fixed array of the wrong length or an unknown
-field name raises :class:`MessageError` naming the field path and the type.
+Encoding takes such a dict, possibly partial: a field that is not given takes its ``.msg``
+default, else zero (``0``, ``0.0``, ``False``, ``""``, an empty sequence, a fixed array of
+zeros), as in ROS. A ``wstring`` is a str (UTF-16 on the wire, its bound in UTF-16 units).
+A value of the wrong kind, an integer out of its range, a fixed array of the wrong length or
+an unknown field name raises :class:`MessageError` naming the field path and the type.
 
 Both directions run rosbags' serializer (its CDR is byte-identical to ROS 2's) with converters
 between its message objects and dicts, built once per type from the type's fields.
@@ -16,6 +17,7 @@ between its message objects and dicts, built once per type from the type's field
 
 from __future__ import annotations
 
+import copy
 import numbers
 import struct
 from collections.abc import Callable, Mapping
@@ -26,7 +28,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys.base import normalize_fieldname
 
 from rasm.ros2.errors import MalformedMessage, MessageError
-from rasm.ros2.types import PLACEHOLDER_FIELD, FieldType, dds_type_name
+from rasm.ros2.types import PLACEHOLDER_FIELD, WSTRING_TYPE, FieldType, dds_type_name
 
 if TYPE_CHECKING:
     from rasm.ros2.types import TypeStore
@@ -107,7 +109,8 @@ class MessageCodec:
         return self._to_dict(message)
 
     def encode(self, message: Mapping[str, Any]) -> bytes:
-        """CDR bytes (little endian, with the header) of ``message``; unset fields are zero."""
+        """CDR bytes (little endian, with the header) of ``message``; unset fields take their
+        default."""
         return bytes(self._rosbags.serialize_cdr(self._message_object(message), self.typename))
 
     def check(self, message: Mapping[str, Any]) -> None:
@@ -122,7 +125,8 @@ class MessageCodec:
             raise MessageError(f"{where}: {exc.reason}") from None
 
     def zero(self) -> dict[str, Any]:
-        """A message with every field zero, as a dict (a fresh one each call)."""
+        """A message with every field at its default (zero where the definition gives none),
+        as a dict (a fresh one each call)."""
         return self._zero()
 
     def __repr__(self) -> str:
@@ -154,6 +158,8 @@ def _value_converter(store: TypeStore, ftype: FieldType, made: dict) -> Callable
         if ftype.array:
             return lambda values: [nested(v) for v in values]
         return nested
+    if ftype.base == "wstring":
+        return (lambda values: [_wstring_text(v) for v in values]) if ftype.array else _wstring_text
     if ftype.base == "byte":  # rosbags reads a byte as int8; ROS 2's byte is 0..255
         return _bytes_to_list if ftype.array else _unsigned_byte
     if ftype.array:
@@ -161,6 +167,10 @@ def _value_converter(store: TypeStore, ftype: FieldType, made: dict) -> Callable
             return list
         return _to_list  # rosbags gives numpy arrays for primitive arrays and sequences
     return None
+
+
+def _wstring_text(value: Any) -> str:
+    return np.asarray(value.data, dtype="<u2").tobytes().decode("utf-16-le", "replace")
 
 
 def _unsigned_byte(value: int) -> int:
@@ -182,6 +192,7 @@ def _object_maker(store: TypeStore, typename: str, made: dict) -> Encoder:
     fields: dict[str, tuple[str, Encoder]] = {}
     message_class = store.rosbags.types[typename]
     placeholder = PLACEHOLDER_FIELD in dict(store.rosbags.fielddefs[typename][1])
+    defaults = store.defaults(typename)
 
     def make(value: Any, path: str) -> Any:
         if value is None:
@@ -201,7 +212,8 @@ def _object_maker(store: TypeStore, typename: str, made: dict) -> Encoder:
                     f"(its fields: {known})"
                 )
         kwargs = {
-            attribute: encode(value.get(name), _join(path, name))
+            attribute: encode(value[name] if name in value else defaults.get(name),
+                              _join(path, name))
             for name, (attribute, encode) in fields.items()
         }
         if placeholder:
@@ -230,7 +242,7 @@ def _value_encoder(store: TypeStore, ftype: FieldType, made: dict) -> Encoder:
     if not ftype.array:
         return element
     kind = str(ftype)
-    dtype = None if ftype.is_message or ftype.base == "string" else _DTYPES[ftype.base]
+    dtype = None if ftype.is_message or ftype.base in ("string", "wstring") else _DTYPES[ftype.base]
 
     def encode_array(values: Any, path: str) -> Any:
         if values is None:
@@ -288,6 +300,25 @@ def _element_encoder(store: TypeStore, ftype: FieldType, made: dict) -> Encoder:
                 ) from None
             return number
         return encode_float
+    if base == "wstring":
+        wstring_class = store.rosbags.types[WSTRING_TYPE]
+        bound = ftype.string_bound
+
+        def encode_wstring(value: Any, path: str) -> Any:
+            if value is None:
+                value = ""
+            if not isinstance(value, str):
+                raise _Invalid(path, f"expected wstring, got {_show(value)}")
+            try:
+                units = np.frombuffer(value.encode("utf-16-le"), dtype="<u2")
+            except UnicodeEncodeError:
+                raise _Invalid(path, f"{_show(value)} is not Unicode text") from None
+            if bound and len(units) > bound:
+                raise _Invalid(path, f"expected wstring<={bound}, got {len(units)} UTF-16 units")
+            if 0 in units:
+                raise _Invalid(path, "a ROS wstring cannot hold a NUL character")
+            return wstring_class(data=units.astype(np.uint16))
+        return encode_wstring
     if base == "string":
         bound = ftype.string_bound
 
@@ -333,8 +364,12 @@ def _element_encoder(store: TypeStore, ftype: FieldType, made: dict) -> Encoder:
 # -- zero messages ------------------------------------------------------------------------------
 def _zero_maker(store: TypeStore, typename: str) -> Callable[[], dict]:
     parts: list[tuple[str, Callable[[], Any]]] = []
+    defaults = store.defaults(typename)
     for name, ftype in store.fields(typename).items():
-        parts.append((name, _zero_value(store, ftype)))
+        if name in defaults:
+            parts.append((name, lambda value=defaults[name]: copy.deepcopy(value)))
+        else:
+            parts.append((name, _zero_value(store, ftype)))
     return lambda: {name: make() for name, make in parts}
 
 
@@ -354,6 +389,6 @@ def _zero_element(store: TypeStore, ftype: FieldType) -> Callable[[], Any]:
         return lambda: False
     if ftype.base in _FLOATS:
         return lambda: 0.0
-    if ftype.base == "string":
+    if ftype.base in ("string", "wstring"):
         return str
     return int

@@ -80,7 +80,13 @@ from rasm.ros2.transport import (
     oversize,
     url_settings,
 )
-from rasm.ros2.types import PLACEHOLDER_FIELD, FieldType, TypeStore, ros_type_name
+from rasm.ros2.types import (
+    PLACEHOLDER_FIELD,
+    WSTRING_TYPE,
+    FieldType,
+    TypeStore,
+    ros_type_name,
+)
 
 __all__ = ["DdsTransport", "parse_dds_url", "dds_topic_name", "idl_struct"]
 
@@ -204,6 +210,8 @@ def idl_struct(store: TypeStore, typename: str) -> type[IdlStruct]:
 def _idl_type(store: TypeStore, ftype: FieldType) -> Any:
     if ftype.is_message:
         element = idl_struct(store, ftype.base)
+    elif ftype.base == "wstring":  # the same CDR as a struct of one uint16 sequence
+        element = idl_struct(store, WSTRING_TYPE)
     elif ftype.base == "string":
         element = idl.bounded_str[ftype.string_bound] if ftype.string_bound else str
     else:
