@@ -386,6 +386,11 @@ class ZenohTransport(RosTransport):
                 except Exception:
                     _log.exception("error reading the ROS graph's liveliness tokens")
 
+    @property
+    def session(self) -> Any:
+        """The open Zenoh session (None before ``connect()`` and after ``close()``)."""
+        return self._session
+
     def node_alive(self, node: str) -> bool:
         """Whether ROS node ``node`` has a liveliness token on the network now."""
         return self._graph.alive(node)

@@ -189,6 +189,8 @@ def zenoh_main(config):
             entities.append(session.declare_subscriber(zenoh_key(config, entry), on_sample))
         say(event="ready")
         done.wait()
+    elif role == "server":
+        entities.extend(server_main(config, session, done))
     elif role == "graph":
         entities.append(session.liveliness().declare_subscriber(
             "@ros2_lv/**", lambda s: say(event="token", key=str(s.key_expr), kind=str(s.kind)),
@@ -452,6 +454,187 @@ def main():
         path = Path(file)
         STORE.register(get_types_from_msg(path.read_text(), f"{package}/msg/{path.stem}"))
     (zenoh_main if config["middleware"] == "zenoh" else dds_main)(config)
+
+
+
+# -- a service and action server (role "server") -----------------------------------------------
+# Written with eclipse-zenoh and rosbags alone: test_msgs' BasicTypes service (the response
+# echoes the request with int32_value doubled) and Fibonacci action (feedback after each step,
+# result when done; "hang": never done unless cancelled). Keys: rmw_zenoh's, the data types
+# hashed by rosbags; the service keys are matched with wildcards for type and hash.
+BASIC = """bool bool_value
+byte byte_value
+char char_value
+float32 float32_value
+float64 float64_value
+int8 int8_value
+uint8 uint8_value
+int16 int16_value
+uint16 uint16_value
+int32 int32_value
+uint32 uint32_value
+int64 int64_value
+uint64 uint64_value
+string string_value
+"""
+
+
+def _server_types():
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    name = (Nodetype.NAME, "unique_identifier_msgs/msg/UUID")
+    ints = (Nodetype.SEQUENCE, ((Nodetype.BASE, ("int32", 0)), 0))
+    defs = dict(get_types_from_msg(BASIC, "peer/msg/Basic"))
+    defs.update({
+        "peer/msg/SendGoalRequest": ([], [("goal_id", name),
+                                          ("order", (Nodetype.BASE, ("int32", 0)))]),
+        "peer/msg/SendGoalResponse": ([], [
+            ("accepted", (Nodetype.BASE, ("bool", 0))),
+            ("stamp", (Nodetype.NAME, "builtin_interfaces/msg/Time")),
+        ]),
+        "peer/msg/GoalIdOnly": ([], [("goal_id", name)]),
+        "peer/msg/ResultResponse": ([], [("status", (Nodetype.BASE, ("int8", 0))),
+                                         ("sequence", ints)]),
+        "test_msgs/action/Fibonacci_Feedback": ([], [("sequence", ints)]),
+        "test_msgs/action/Fibonacci_FeedbackMessage": ([], [
+            ("goal_id", name), ("feedback", (Nodetype.NAME, "test_msgs/action/Fibonacci_Feedback"))
+        ]),
+        "peer/msg/CancelResponse": ([], [
+            ("return_code", (Nodetype.BASE, ("int8", 0))),
+            ("goals_canceling",
+             (Nodetype.SEQUENCE, ((Nodetype.NAME, "action_msgs/msg/GoalInfo"), 0))),
+        ]),
+    })
+    store.register(defs)
+    return store
+
+
+def server_main(config, session, done):
+    import zenoh
+
+    store = _server_types()
+    domain = config.get("domain", 0)
+    types = store.types
+
+    def encode(typename, **fields):
+        return bytes(store.serialize_cdr(types[typename](**fields), typename))
+
+    def uuid(goal_id):
+        return bytes(goal_id.uuid).hex()
+
+    entities = []
+    service = config.get("service")
+    if service:
+        def on_basic(query):
+            request = store.deserialize_cdr(query.payload.to_bytes(), "peer/msg/Basic")
+            say(event="request", key=str(query.key_expr), int32_value=int(request.int32_value))
+            request.int32_value *= 2
+            query.reply(query.key_expr, bytes(store.serialize_cdr(request, "peer/msg/Basic")),
+                        attachment=query.attachment)
+
+        entities.append(session.declare_queryable(f"{domain}/{service.strip('/')}/*/*",
+                                                  on_basic))
+    action = config.get("action")
+    if action:
+        base = f"{domain}/{action.strip('/')}/_action"
+        fb_type = "test_msgs/action/Fibonacci_FeedbackMessage"
+        feedback_pub = session.declare_publisher(
+            f"{base}/feedback/test_msgs::action::dds_::Fibonacci_FeedbackMessage_/"
+            f"{store.hash_rihs01(fb_type)}"
+        )
+        goals = {}  # goal id (hex) -> {"cancelled": Event, "results": [queries], "outcome"}
+        lock = threading.Lock()
+
+        def finish(goal, status, sequence):
+            with lock:
+                goal["outcome"] = (status, sequence)
+                waiting, goal["results"] = goal["results"], []
+            for query in waiting:
+                reply_result(query, status, sequence)
+
+        def reply_result(query, status, sequence):
+            query.reply(query.key_expr, encode("peer/msg/ResultResponse", status=status,
+                                               sequence=np.array(sequence, dtype=np.int32)),
+                        attachment=query.attachment)
+            query.drop()
+
+        def pursue(goal_id, order, goal):
+            sequence = [0, 1][:max(order, 0)]
+            step = 0
+            while goal["hang"] or len(sequence) < order:
+                if goal["cancelled"].wait(config.get("period", 0.05)):
+                    finish(goal, 5, sequence)
+                    return
+                if not goal["hang"]:
+                    sequence.append(sequence[-1] + sequence[-2] if len(sequence) > 1 else 1)
+                step += 1
+                feedback_pub.put(encode(
+                    fb_type, goal_id=types["unique_identifier_msgs/msg/UUID"](
+                        uuid=np.frombuffer(bytes.fromhex(goal_id), dtype=np.uint8)),
+                    feedback=types["test_msgs/action/Fibonacci_Feedback"](
+                        sequence=np.array(sequence, dtype=np.int32)),
+                ))
+            finish(goal, 4, sequence)
+
+        def on_send_goal(query):
+            request = store.deserialize_cdr(query.payload.to_bytes(), "peer/msg/SendGoalRequest")
+            goal_id = uuid(request.goal_id)
+            say(event="goal", key=str(query.key_expr), goal=goal_id, order=int(request.order))
+            accepted = request.order >= 0
+            goal = {"cancelled": threading.Event(), "results": [], "outcome": None,
+                    "hang": bool(config.get("hang"))}
+            if accepted:
+                with lock:
+                    goals[goal_id] = goal
+            query.reply(query.key_expr, encode(
+                "peer/msg/SendGoalResponse", accepted=accepted,
+                stamp=types["builtin_interfaces/msg/Time"](sec=0, nanosec=0)),
+                attachment=query.attachment)
+            if accepted:
+                threading.Thread(target=pursue, args=(goal_id, int(request.order), goal),
+                                 daemon=True).start()
+
+        def take_results(queryable):
+            while True:
+                try:
+                    query = queryable.handler.recv()
+                except zenoh.ZError:
+                    return
+                request = store.deserialize_cdr(query.payload.to_bytes(), "peer/msg/GoalIdOnly")
+                with lock:
+                    goal = goals.get(uuid(request.goal_id))
+                    outcome = goal and goal["outcome"]
+                    if goal is not None and outcome is None:
+                        goal["results"].append(query)
+                if goal is None:
+                    reply_result(query, 0, [])
+                elif outcome is not None:
+                    reply_result(query, *outcome)
+
+        def on_cancel(query):
+            request = store.deserialize_cdr(query.payload.to_bytes(), "action_msgs/msg/GoalInfo")
+            goal_id = uuid(request.goal_id)
+            say(event="cancelled", key=str(query.key_expr), goal=goal_id)
+            with lock:
+                goal = goals.get(goal_id)
+            if goal is not None:
+                goal["cancelled"].set()
+            query.reply(query.key_expr, encode(
+                "peer/msg/CancelResponse", return_code=0 if goal else 2,
+                goals_canceling=[request] if goal else []), attachment=query.attachment)
+
+        results = session.declare_queryable(f"{base}/get_result/*/*",
+                                            zenoh.handlers.FifoChannel(64))
+        threading.Thread(target=take_results, args=(results,), daemon=True).start()
+        entities += [
+            session.declare_queryable(f"{base}/send_goal/*/*", on_send_goal),
+            session.declare_queryable(f"{base}/cancel_goal/*/*", on_cancel),
+            results, feedback_pub,
+        ]
+    say(event="ready")
+    done.wait()
+    return entities
 
 
 if __name__ == "__main__":
