@@ -41,6 +41,7 @@ from rasm.errors import CommError, Location, RasmError, SourceError
 from rasm.properties import Verdict, load_specification
 from rasm.properties.monitor import Monitor
 from rasm.properties.outcome import PropertyOutcome
+from rasm.times import format_seconds
 
 __all__ = [
     "Attachment",
@@ -229,7 +230,7 @@ class MonitorSummary:
             if o.errors:
                 line += f", {o.errors} in error (first: {o.first_error})"
             if name in self.first_violations:
-                line += f" (first violation at t={self.first_violations[name]:g})"
+                line += f" (first violation at t={format_seconds(self.first_violations[name])})"
             if o.missing:
                 line += f" (no value for {', '.join(o.missing)})"
             out.append(line)
@@ -419,7 +420,7 @@ class Attachment:
         with its traceback; the summary counts them all)."""
         why = f"the monitor raised {type(exc).__name__}: {exc}"
         if not any(o.errors for o in self.summary.outcomes.values()):
-            _log.error("monitor failed at t=%g: %s", time, why, exc_info=exc)
+            _log.error("monitor failed at t=%s: %s", format_seconds(time), why, exc_info=exc)
         index = self.summary.records
         return [Verdict(name, index, time, False, why) for name in self.monitor.properties]
 

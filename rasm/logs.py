@@ -23,6 +23,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from rasm.times import format_seconds
+
 __all__ = ["RepeatedLogs"]
 
 
@@ -108,7 +110,7 @@ class RepeatedLogs:
             what,
             failure.unreported,
             "" if failure.unreported == 1 else "s",
-            f"{round(now - failure.reported_at, 1):g}",
+            format_seconds(round(now - failure.reported_at, 1)),
         )
         failure.unreported = 0
         failure.reported_at = now

@@ -42,7 +42,7 @@ from rasm.errors import (
 )
 from rasm.jsontext import JsonProblem, parse_json
 from rasm.losses import WriteFailure, WriteGuard, describe_error
-from rasm.properties.times import FAST, Seconds, nanoseconds
+from rasm.properties.times import FAST, Seconds, format_seconds, nanoseconds
 from rasm.values import fit, wanted
 
 if TYPE_CHECKING:
@@ -405,7 +405,8 @@ def parse_records(
             ns = nanoseconds(time)
         if ns < last_ns:
             fail(
-                f"time {time} goes back in time (the previous record has {last_time})",
+                f"time {format_seconds(time)} goes back in time (the previous record has "
+                f"{format_seconds(last_time)})",
                 number,
                 _column(line, "time"),
             )

@@ -157,12 +157,13 @@ def test_the_command_runs_until_interrupted_and_summarises(broker, mqtt, tmp_pat
         robot = mqtt()
         limit = Inbox()
         robot.subscribe("velocity_limit", limit, qos=1)
-        for time, value in ((1.0, 0.2), (2.0, 0.8), (3.0, 0.1)):
+        # epoch times: written as the decimals they are (1700000002.3, not 1.7e+09)
+        for time, value in ((1700000001.1, 0.2), (1700000002.3, 0.8), (1700000003.0, 0.1)):
             robot.publish("velocity", {"value": value, "time": time}, qos=0)
         assert [m.payload["value"] for m in limit.take(3)] == [True, False, True]
         robot.publish("velocity", {"value": 0.1, "time": 0.5}, qos=0)  # refused, not fatal
-        robot.publish("velocity", {"value": 0.1, "time": 4.0}, qos=0)
-        assert limit.get().payload == {"value": True, "time": 4.0}
+        robot.publish("velocity", {"value": 0.1, "time": 1700000004.0}, qos=0)
+        assert limit.get().payload == {"value": True, "time": 1700000004.0}
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=30)
     finally:
@@ -170,9 +171,10 @@ def test_the_command_runs_until_interrupted_and_summarises(broker, mqtt, tmp_pat
             process.kill()
             process.wait()
     assert process.returncode == 1, err  # a property was violated
-    assert out.splitlines()[0] == "violated velocity_limit at t=2"
+    assert out.splitlines()[0] == "violated velocity_limit at t=1700000002.3"
     assert "5 message(s), 4 record(s)" in out and "1 refused by the monitor" in out
     assert "velocity_limit     violated     3 true, 1 false" in out
+    assert "(first violation at t=1700000002.3)" in out
 
 
 def test_the_command_reports_bad_input(broker, tmp_path):

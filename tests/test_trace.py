@@ -270,3 +270,14 @@ def test_an_mcap_trace_reads_back_in_the_mcap_library_and_in_rasm(tmp_path):
     assert crc == zlib.crc32(data[summary_start:len(data) - 12])
     trace = McapTrace(path)
     assert list(trace) == lines and trace.damage == []
+
+
+def test_a_time_going_back_is_named_to_the_nanosecond():
+    # the float nearest 1700000000.123456789 would print 1700000000.1234567: the text is kept
+    lines = ['{"time": 1700000000.123456789}', '{"time": 1700000000.123456788}']
+    with pytest.raises(SourceErrors) as caught:
+        parse_trace(lines, {}, source="t.jsonl")
+    assert [str(e) for e in caught.value.errors] == [
+        "t.jsonl:2:2: time 1700000000.123456788 goes back in time (the previous record has "
+        "1700000000.123456789)",
+    ]

@@ -15,6 +15,7 @@ from rasm.platform.platform import Platform
 from rasm.platform.summary import RunSummary
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PASSING
+from rasm.times import format_seconds
 
 __all__ = ["LiveView", "print_summary", "timeline_note"]
 
@@ -67,7 +68,7 @@ class LiveView:
         start = p.timeline_start
         head = Text.assemble(
             (f"{p.manifest.name}", "bold"),
-            f"  t={time - start:7.2f}s / {self.duration:g}s  ",
+            f"  t={time - start:7.2f}s / {format_seconds(self.duration)}s  ",
             f"iteration {stats.iterations}  stage {self.stage}  ",
             f"anomalies {stats.anomalies}  executed {stats.executed}  rejected {stats.rejected}",
         )
@@ -93,11 +94,11 @@ class LiveView:
 
 def timeline_note(platform: Platform, time: float | None = None) -> str:
     """Where a live run's timeline comes from, when it continues persisted knowledge."""
-    start = platform.timeline_start
-    now = f"; trace time now {time:.2f} s" if time is not None else ""
+    start = format_seconds(platform.timeline_start)
+    now = f"; trace time now {format_seconds(time)} s" if time is not None else ""
     return (
-        f"timeline continued from {platform.restored_from} (knowledge up to t={start:.2f} s): "
-        f"this run's trace times start at {start:.2f} s{now}"
+        f"timeline continued from {platform.restored_from} (knowledge up to t={start} s): "
+        f"this run's trace times start at {start} s{now}"
     )
 
 
@@ -118,7 +119,8 @@ def print_summary(summary: RunSummary, console: Console) -> None:
     s = summary.stats
     stopped = f" (stopped by {summary.stopped_by})" if summary.stopped_by else ""
     console.print(
-        f"[bold]{summary.app}[/bold]: {summary.duration:g} s on the {summary.clock} clock"
+        f"[bold]{summary.app}[/bold]: {format_seconds(summary.duration)} s on the "
+        f"{summary.clock} clock"
         f"{stopped}, "
         f"{s.iterations} loop iterations, {summary.records} trace records"
         + (f" -> {summary.trace}" if summary.trace else ""),

@@ -180,6 +180,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     from rasm.comm import open_transport
     from rasm.comm.url import credentials_from_env
     from rasm.properties import load_specification
+    from rasm.times import format_seconds
 
     duration = getattr(args, "duration", None)
     if duration is not None and not 0 < duration < math.inf:
@@ -193,10 +194,11 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
 
     def show(verdict) -> None:
+        at = format_seconds(verdict.time)
         if verdict.error is not None:
-            print(f"error {verdict.property} at t={verdict.time:g}: {verdict.error}", flush=True)
+            print(f"error {verdict.property} at t={at}: {verdict.error}", flush=True)
         elif verdict.value is False:
-            print(f"violated {verdict.property} at t={verdict.time:g}", flush=True)
+            print(f"violated {verdict.property} at t={at}", flush=True)
 
     attachment = Attachment(
         text, transport, source=args.props, topics=topics, on_verdict=show

@@ -31,6 +31,7 @@ from rasm.comm.topics import TopicIndex, validate_pattern, validate_topic
 from rasm.comm.transport import Transport, check_qos
 from rasm.comm.url import parse_mqtt_url
 from rasm.errors import CommError
+from rasm.times import format_seconds
 
 __all__ = ["MqttTransport", "Will"]
 
@@ -192,7 +193,8 @@ class MqttTransport(Transport):
             self._shutdown()
             raise CommError(
                 f"could not connect to the MQTT broker at {self.url} within "
-                f"{self.connect_timeout:g} s ({self._last_failure}); is a broker running there? "
+                f"{format_seconds(self.connect_timeout)} s ({self._last_failure}); is a broker "
+                "running there? "
                 f"(try: mosquitto -p {self.port})"
             )
         self._state = "open"
@@ -274,7 +276,7 @@ class MqttTransport(Transport):
             if self._ready.is_set():
                 raise CommError(
                     f"{self.url}: the broker did not confirm the subscription to {pattern!r} "
-                    f"within {self.connect_timeout:g} s"
+                    f"within {format_seconds(self.connect_timeout)} s"
                 )
 
     def _pattern_removed(self, pattern: str) -> None:

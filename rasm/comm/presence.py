@@ -45,6 +45,7 @@ from rasm.comm.topics import validate_topic
 from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError
 from rasm.logs import RepeatedLogs
+from rasm.times import format_seconds
 
 __all__ = [
     "PRESENCE_PREFIX",
@@ -378,7 +379,9 @@ class PresenceTracker:
         if state == "offline":
             _log.info("node %s is offline", node)
         elif state == "silent":
-            _log.warning("node %s is silent (no heartbeat for %g s)", node, self.timeout)
+            _log.warning(
+                "node %s is silent (no heartbeat for %s s)", node, format_seconds(self.timeout)
+            )
         if self.on_change is not None:
             try:
                 self.on_change(node, state)

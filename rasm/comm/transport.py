@@ -12,6 +12,7 @@ from rasm.comm.message import Message, TransportStats
 from rasm.comm.own_deliveries import OwnDeliveries
 from rasm.comm.topics import TopicIndex, validate_pattern
 from rasm.errors import CommError
+from rasm.times import format_seconds
 
 __all__ = ["Transport", "Subscription", "Callback"]
 
@@ -158,8 +159,8 @@ class Transport(ABC):
         if missing:
             raise CommError(
                 f"{self.url}: messages this process published did not come back within "
-                f"{timeout:g} s ({_per_topic(missing)}); a run on the simulated clock moves its "
-                "clock only once every one of them is delivered"
+                f"{format_seconds(timeout)} s ({_per_topic(missing)}); a run on the simulated "
+                "clock moves its clock only once every one of them is delivered"
             )
 
     def _own_sent(self, uid: str, topic: str) -> None:

@@ -37,6 +37,7 @@ from rasm.platform.components import (
 )
 from rasm.platform.stages import StageOutcome, StageRunner
 from rasm.resources import platform_monitors
+from rasm.times import format_seconds
 
 if TYPE_CHECKING:
     from rasm.rules import RuleSet
@@ -198,11 +199,11 @@ class AdaptationOrchestrator(Block):
                 self.logs.log(
                     _log,
                     logging.WARNING,
-                    f"{stage} stage overran its {self.stage_budget:.3g} s budget",
-                    "%s stage overran its %.3g s budget (%.3g s): iteration cancelled",
+                    f"{stage} stage overran its {format_seconds(self.stage_budget)} s budget",
+                    "%s stage overran its %s s budget (%s s): iteration cancelled",
                     stage,
-                    self.stage_budget,
-                    outcome.duration,
+                    format_seconds(self.stage_budget),
+                    format_seconds(outcome.duration),
                 )
                 why = f"{stage} stage overran its time budget"
             self.emit(start, {"explanation": why})

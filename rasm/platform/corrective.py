@@ -17,6 +17,7 @@ from typing import Any
 from rasm.errors import SourceError, SourceErrors, is_interrupt
 from rasm.platform.manifest import AppManifest, manifest_location
 from rasm.properties import Monitor, load_specification
+from rasm.times import format_seconds
 
 __all__ = ["CorrectiveCheck", "corrective_check", "recovery_times"]
 
@@ -96,9 +97,11 @@ class CorrectiveCheck:
             mine, base = ours.get(name), theirs.get(name)
             if mine is None or base is None or not mine < base:
                 return None
-            without = f"{base:.1f} s" if math.isfinite(base) else "not within the horizon"
+            without = (
+                f"{format_seconds(base)} s" if math.isfinite(base) else "not within the horizon"
+            )
             reasons.append(
-                f"the twin predicts {name} holds again {mine:.1f} s after the plan "
+                f"the twin predicts {name} holds again {format_seconds(mine)} s after the plan "
                 f"({without} without it)"
             )
         return "; ".join(reasons)

@@ -36,6 +36,7 @@ from typing import Any
 from rasm.logs import RepeatedLogs
 from rasm.platform.manifest import ExternalVerdict
 from rasm.properties.monitor import Verdict
+from rasm.times import format_seconds
 
 __all__ = ["ExternalVerdicts", "MessageCheck"]
 
@@ -168,8 +169,8 @@ class ExternalVerdicts:
         heard = self._heard[name]
         if time >= heard.last + source.freshness:
             return False, (
-                f"stale: no verdict on {source.topic} for {source.freshness:g} s (the last "
-                f"at t={heard.last:g})"
+                f"stale: no verdict on {source.topic} for {format_seconds(source.freshness)} "
+                f"s (the last at t={format_seconds(heard.last)})"
             )
         if time < heard.bad + source.freshness:
             return False, heard.bad_why

@@ -21,6 +21,7 @@ from rasm.errors import SourceError, SourceErrors
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import AppManifest, Fallback, manifest_location
+from rasm.times import format_seconds
 
 if TYPE_CHECKING:
     from collections import Counter
@@ -300,12 +301,13 @@ class FallbackSwitch(Block):
 
     def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
         if name == "released":
-            _log.warning("fallback released after %g s without a trigger", data.get("held_for"))
+            held_for = format_seconds(data.get("held_for"))
+            _log.warning("fallback released after %s s without a trigger", held_for)
             self.emit(
                 self.clock.time,
                 {
                     "fallback": "released",
-                    "explanation": f"control handed back: no trigger for {data.get('held_for')} s",
+                    "explanation": f"control handed back: no trigger for {held_for} s",
                 },
             )
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 from rasm.errors import SourceError
 from rasm.platform.manifest import AppManifest, Probe, manifest_location
+from rasm.times import format_seconds
 
 __all__ = [
     "ManagedSystemWatch",
@@ -137,12 +138,15 @@ class ManagedSystemWatch:
             return f"probe {topic}: its publisher {probe.publisher} is not in the ROS graph"
         if probe.staleness is not None and now - watched.last >= probe.staleness:
             silent = now - watched.last
-            return f"probe {topic} silent for {_seconds(silent)} (staleness {probe.staleness:g} s)"
+            return (
+                f"probe {topic} silent for {_seconds(silent)} "
+                f"(staleness {format_seconds(probe.staleness)} s)"
+            )
         return None
 
 
 def _seconds(value: float) -> str:
-    return f"{value:.3g} s" if math.isfinite(value) else "ever"
+    return f"{format_seconds(value)} s" if math.isfinite(value) else "ever"
 
 
 def _is_ros(transport: str) -> bool:

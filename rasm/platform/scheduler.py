@@ -28,6 +28,8 @@ from typing import Any
 
 from sismic.clock import Clock, SimulatedClock
 
+from rasm.times import format_seconds
+
 __all__ = ["Scheduler"]
 
 Job = Callable[[], Any]
@@ -81,7 +83,8 @@ class Scheduler:
         first = self.clock.time if start is None else start
         if first + period <= first:  # the job would run forever at one instant
             raise ValueError(
-                f"a period of {period:g} s is too short to move the clock at {first:g} s"
+                f"a period of {format_seconds(period)} s is too short to move the clock at "
+                f"{format_seconds(first)} s"
             )
 
         def tick(n: int = 0) -> None:

@@ -11,6 +11,7 @@ from rasm.platform.components import Action
 from rasm.platform.manifest import Effector
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PropertyOutcome, Untested
+from rasm.times import format_seconds
 
 __all__ = ["AntecedentWatch", "PropertyMonitor", "TrustworthinessChecker"]
 
@@ -151,8 +152,8 @@ class TrustworthinessChecker(Block):
     def _watch_failed(self, watch: AntecedentWatch, time: float, exc: Exception) -> None:
         self.vacuity.remove(watch)
         self._dropped_watches.append(watch)
-        _log.error("watching the antecedents of %s failed at t=%g: %s: %s; those that have not "
-                   "held so far are reported vacuous", _origin(watch), time,
+        _log.error("watching the antecedents of %s failed at t=%s: %s: %s; those that have not "
+                   "held so far are reported vacuous", _origin(watch), format_seconds(time),
                    type(exc).__name__, exc, exc_info=exc)
 
     def _unless_stale(self, verdict: Verdict) -> Verdict:
@@ -238,17 +239,18 @@ class TrustworthinessChecker(Block):
         self._failing[monitor] = failed + 1
         if not failed:
             _log.error(
-                "monitor of %s failed at t=%g: %s; its properties (%s) are in error until it "
+                "monitor of %s failed at t=%s: %s; its properties (%s) are in error until it "
                 "works again",
-                _origin(monitor), time, why, ", ".join(monitor.properties), exc_info=exc,
+                _origin(monitor), format_seconds(time), why, ", ".join(monitor.properties),
+                exc_info=exc,
             )
         return [Verdict(name, index, time, False, why) for name in monitor.properties]
 
     def _recovered(self, monitor: PropertyMonitor, time: float) -> None:
         failed = self._failing.pop(monitor)
         _log.warning(
-            "monitor of %s works again at t=%g, after failing on %d record(s)",
-            _origin(monitor), time, failed,
+            "monitor of %s works again at t=%s, after failing on %d record(s)",
+            _origin(monitor), format_seconds(time), failed,
         )
 
     def register_action(self, action: Action | None) -> tuple[bool, str]:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.properties.monitor import Verdict
+from rasm.times import format_seconds
 
 if TYPE_CHECKING:
     from rasm.rules import RuleSet
@@ -167,10 +168,11 @@ class TrustworthinessManager(Block):
             if waits:
                 return f"veto property {name} not judged yet: no value for {', '.join(waits)}"
             return f"veto property {name} not judged yet: no verdict decided so far"
+        if verdict.value is True and verdict.error is None:
+            return None
+        at = format_seconds(verdict.time)
         if verdict.error is not None:
-            return f"veto property {name} in error at t={verdict.time:g}: {verdict.error}"
+            return f"veto property {name} in error at t={at}: {verdict.error}"
         if verdict.value is False:
-            return f"veto property {name} violated at t={verdict.time:g}"
-        if verdict.value is None:
-            return f"veto property {name} inconclusive at t={verdict.time:g}"
-        return None
+            return f"veto property {name} violated at t={at}"
+        return f"veto property {name} inconclusive at t={at}"

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Union
 
 from rasm.errors import Location
-from rasm.properties.times import nanoseconds
+from rasm.properties.times import format_nanoseconds, nanoseconds
 
 __all__ = [
     "Aggregate",
@@ -157,10 +157,10 @@ class Bound:
             object.__setattr__(self, "high_ns", _nanoseconds(self.high))
 
     def __str__(self) -> str:
-        def fmt(x: float) -> str:
-            return "inf" if x == INF else f"{x:g}"
+        def fmt(ns: int | float) -> str:  # exact: 1e6 s is 1000000, not 1e+06
+            return "inf" if ns == INF else format_nanoseconds(ns)
 
-        return f"[{fmt(self.low)}, {fmt(self.high)}]"
+        return f"[{fmt(self.low_ns)}, {fmt(self.high_ns)}]"
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from rasm.properties.ast import Specification
 from rasm.properties.codegen import UNSET, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
-from rasm.properties.times import nanoseconds, seconds_value
+from rasm.properties.times import format_seconds, nanoseconds, seconds_value
 from rasm.values import fit, wanted
 
 __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties"]
@@ -88,7 +88,7 @@ def describe_rejection(time, record, signal: str | None, kind: str) -> str:
             return f"'time' must be finite, not {time!r}"
         return f"'time' must be a number, not {time!r}"
     if kind == "backwards":
-        return f"time {time!r} goes back in time"
+        return f"time {format_seconds(time)} goes back in time"
     value = record.get(signal)
     return f"{signal!r} must be {wanted(kind)}, not {json_repr(value)}"
 

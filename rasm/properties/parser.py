@@ -41,7 +41,7 @@ from rasm.properties.ast import (
     Unary,
     Until,
 )
-from rasm.properties.times import bound_nanoseconds
+from rasm.properties.times import bound_nanoseconds, format_nanoseconds
 
 __all__ = ["parse_declarations", "parse_expression"]
 
@@ -342,7 +342,8 @@ class _Build(Transformer):
             raise self._error("the lower bound of a window cannot be inf", meta)
         if high_ns < low_ns:
             raise self._error(
-                f"empty window [{low:g}, {high:g}]: the upper bound is smaller than the lower",
+                f"empty window [{format_nanoseconds(low_ns)}, {format_nanoseconds(high_ns)}]: "
+                "the upper bound is smaller than the lower",
                 meta,
             )
         return Bound(low, high, location=location, low_ns=low_ns, high_ns=high_ns)

@@ -55,6 +55,7 @@ from rasm.ros2.transport import (
     url_settings,
 )
 from rasm.ros2.types import ros_type_name
+from rasm.times import format_seconds
 
 __all__ = ["ZenohTransport", "parse_zenoh_url", "topic_key", "liveliness_key", "attachment"]
 
@@ -353,7 +354,7 @@ class ZenohTransport(RosTransport):
                 ) from None
             raise CommError(
                 f"could not reach a Zenoh router or peer at {self.host}:{self.port} within "
-                f"{self.connect_timeout:g} s ({exc}); is one running there? (ROS 2: "
+                f"{format_seconds(self.connect_timeout)} s ({exc}); is one running there? (ROS 2: "
                 "ros2 run rmw_zenoh_cpp rmw_zenohd)"
             ) from None
         self._session_id = str(self._session.zid())

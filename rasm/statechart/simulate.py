@@ -114,10 +114,11 @@ def _parse_events(lines: Iterable[str], file: str) -> list[TimedEvent]:
             bad('"time" must be a finite number of seconds')
             continue
         if time < 0:
-            bad(f"time {time} is negative")
+            bad(f"time {format_seconds(time)} is negative")
             continue
         if time < last_time:
-            bad(f"time {time} goes back (the previous event is at {last_time})")
+            bad(f"time {format_seconds(time)} goes back (the previous event is at "
+                f"{format_seconds(last_time)})")
             continue
         name = record.get("event")
         if name is None and "event" not in record:

@@ -35,6 +35,7 @@ from rasm.errors import ExecutionError, RasmError
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 from rasm.testing.failures import is_final_example, save_jsonl
 from rasm.testing.monitors import applicable_monitors
+from rasm.times import format_seconds
 
 __all__ = ["ChartState", "ChartFailure", "statechart_machine", "chart_events", "timer_delays"]
 
@@ -355,7 +356,7 @@ def _format_sequence(events: Sequence[dict[str, Any]]) -> list[str]:
     lines = []
     for k, item in enumerate(events, start=1):
         data = f"  {item['data']}" if item.get("data") else ""
-        lines.append(f"    {k}. t={item['time']:g}  {item['event']}{data}")
+        lines.append(f"    {k}. t={format_seconds(item['time'])}  {item['event']}{data}")
     return lines
 
 

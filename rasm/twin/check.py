@@ -7,6 +7,7 @@ from math import inf
 from typing import Any
 
 from rasm.properties import Monitor, load_specification
+from rasm.times import format_seconds
 
 __all__ = ["PredictionChecker", "predicted_violations", "worse_than_baseline"]
 
@@ -84,10 +85,12 @@ def worse_than_baseline(
     worse = {}
     for name, when in ours.items():
         if name not in theirs:
-            worse[name] = f"the twin predicts {name} is violated {when:.1f} s after the plan"
+            worse[name] = (
+                f"the twin predicts {name} is violated {format_seconds(when)} s after the plan"
+            )
         elif when < theirs[name]:
             worse[name] = (
-                f"the twin predicts {name} is violated {when:.1f} s after the plan, "
-                f"{theirs[name] - when:.1f} s earlier than without it"
+                f"the twin predicts {name} is violated {format_seconds(when)} s after the plan, "
+                f"{format_seconds(theirs[name] - when)} s earlier than without it"
             )
     return worse

@@ -193,3 +193,12 @@ def test_a_signed_monitor_bound_to_the_loop_speaks_and_a_dead_one_goes_stale(tmp
     assert stale and max(executed) < stale[0]["time"]
     assert summary.verdicts["checker_ok"] == "error"
     assert json.dumps(summary.properties())  # the summary stays JSON-able
+
+
+def test_a_stale_source_names_its_last_verdicts_time_exactly():
+    sources = ExternalVerdicts({"ok": ExternalVerdict("ok", "checker/ok", freshness=0.5)})
+    assert sources.receive("ok", {"value": True}, 1700000000.3).value is True
+    [stale] = sources.step(1700000000.8, {})
+    assert (stale.value, stale.error) == (
+        False, "stale: no verdict on checker/ok for 0.5 s (the last at t=1700000000.3)"
+    )

@@ -12,6 +12,7 @@ from rich.console import Console
 from rasm import Platform
 from rasm.cli.console import LiveView
 from rasm.platform.manifest import load_manifest
+from rasm.times import format_seconds
 
 from .conftest import HOTBOX
 
@@ -87,4 +88,4 @@ def test_a_live_run_says_its_timeline_continues_the_persisted_one(tmp_path, monk
     text = console.export_text()
     assert "t=   1.50s / 40s" in text  # the time of this run, not of the timeline
     assert "timeline continued from sqlite:.rasm/hotbox/knowledge.sqlite" in text
-    assert f"trace times start at {second.timeline_start:.2f} s" in text
+    assert f"trace times start at {format_seconds(second.timeline_start)} s" in text

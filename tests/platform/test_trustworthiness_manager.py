@@ -4,6 +4,8 @@ which property and why."""
 
 from __future__ import annotations
 
+from decimal import Decimal
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -155,3 +157,18 @@ def test_an_action_passes_only_while_the_veto_propertys_latest_verdicts_hold(ste
             else:
                 expected = "inconclusive"
             assert why.startswith(f"veto property guard {expected}"), why
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    time=st.decimals(min_value=0, max_value=2_000_000_000, places=3),
+    kind=st.sampled_from([False, "raise", None]),
+)
+def test_a_veto_names_the_time_of_its_verdict_exactly(time, kind):
+    """Epoch times and decimals are written as the decimals they are (1700000000.3, not
+    1.7e+09; 0.3, not 0.30000000000000004), whatever the verdict that vetoes."""
+    tc, tm = checker_and_manager([Scripted([kind])], ["guard"])
+    tc.observe(float(time), {})
+    ok, why = tm.check_trustworthiness(ACTION)
+    written = why.split(" at t=")[1].split(":")[0]
+    assert not ok and Decimal(written) == time, why

@@ -12,6 +12,9 @@ CASES = [
     ("property p: x >", 1, 16, "unexpected end of input"),
     ("property p: x >> 2", 1, 16, "unexpected '>'"),
     ("property p:\n  once[5, 2] x", 2, 7, "upper bound is smaller"),
+    # bounds as the decimals written, not 5e+06
+    ("property p: once[5000000, 0.000001] x", 1, 17, "empty window [5000000, 0.000001]"),
+    ("property p: eventually[1000000, inf] x", 1, 23, "(eventually[1000000, inf])"),
     ("property p: once[-1, 2] x", 1, 18, "cannot be negative"),
     ("property p: eventually[0, inf] x", 1, 23, "infinite bound"),
     ("property p: always[1, inf] x", 1, 19, "infinite bound"),

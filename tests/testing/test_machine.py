@@ -18,6 +18,7 @@ from rasm.testing import (
     watched_states,
 )
 from rasm.testing.machine import chart_events, timer_delays
+from rasm.times import format_seconds
 
 from . import charts
 
@@ -281,3 +282,38 @@ def test_bad_arguments_say_what_to_pass(kwargs, error, message):
     with pytest.raises(error) as caught:
         statechart_machine(charts.DOOR_FIXED, **kwargs)
     assert str(caught.value).startswith(message)
+
+
+LONG_TIMER = """
+statechart:
+  name: kiln
+  root state:
+    name: kiln
+    initial: cold
+    states:
+      - name: cold
+        transitions:
+          - target: firing
+            event: light
+      - name: firing
+        transitions:
+          - target: cracked
+            guard: after(1000000.5)
+          - target: cold
+            event: quench
+      - name: cracked
+"""
+
+
+def test_the_sequence_names_its_times_exactly(tmp_path):
+    """The failure message writes each event's time as the decimal it is (1000000.5, not
+    1e+06), so the sequence can be read and replayed as written."""
+    chart = write(tmp_path, "kiln", LONG_TIMER)
+    failure = run(statechart_machine(chart, invariant=lambda s: "cracked" not in s.configuration))
+    assert failure is not None
+    times = [e["time"] for e in failure.events]
+    assert times[-1] - times[0] >= 1000000.5
+    message = str(failure)
+    for k, event in enumerate(failure.events, start=1):
+        assert f"{k}. t={format_seconds(event['time'])}  {event['event']}" in message
+    assert "e+" not in message
