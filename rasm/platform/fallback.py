@@ -34,6 +34,8 @@ __all__ = ["FallbackSwitch", "FailedIterations", "check_fallback_legitimate", "p
 
 _log = logging.getLogger("rasm.fallback")
 
+PROVED = "the fallback actions, proved legitimate in every context before the run"
+
 
 class Sender(Protocol):
     """What sends an action down the one path to the effectors: the Adaptation Manager."""
@@ -313,8 +315,11 @@ class FallbackSwitch(Block):
 
     def _deliver(self) -> None:
         plan = self._plan
-        if plan is None:
+        if plan is None or not self.pending:
             return
+        # z3 proved the plan legitimate in every context before the run: its record says so
+        # before each delivery, as Legitimate's acceptance comes before a loop plan's actions
+        self.emit(self.clock.time, {"legitimate": True, "plan": plan.id, "explanation": PROVED})
         for effector, payload in list(self.pending.items()):
             action = Action(effector, dict(payload), plan.id, "fallback")
             ok, why = self.am.perform_adaptation(action)

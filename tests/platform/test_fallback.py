@@ -68,6 +68,14 @@ def executed_plans(trace):
     return [(r["time"], r["plan"]) for r in trace if r.get("executed")]
 
 
+def assert_guarantees(trace):
+    """The platform's guarantees hold with the fallback's actions among the loop's: nothing
+    executed unless legitimate and registered, no rejected plan executed (SPEC §9)."""
+    verdicts = trace.summary.verdicts
+    assert verdicts["execute_only_legitimate_plans"] == "satisfied"
+    assert verdicts["rejected_plans_stay_rejected"] == "satisfied"
+
+
 def assert_only_fallback_while_engaged(trace):
     """Between an engagement and its release, every executed action is a fallback action."""
     engaged = False
@@ -176,6 +184,25 @@ def test_a_faulty_planner_always_ends_in_fallback_within_its_deadline(
     assert first_faulty <= engaged[0] <= first_faulty + after * PERIOD + 1e-9
     assert switches(trace)[-1][1] == "engaged"  # still faulty: no hand-back
     assert_only_fallback_while_engaged(trace)
+    assert_guarantees(trace)
+
+
+def test_a_fallback_engaged_right_after_a_rejection_keeps_the_platforms_guarantees(tmp_path):
+    """Every plan breaks a rule: after three cancelled adaptations the fallback engages right
+    after a rejection, and no plan was ever accepted. Its plan was proved legitimate in every
+    context before the run, and its records say so before its action goes out."""
+    app = write_app(tmp_path / "app", when="stage_failures", after=3)
+    trace = run_app(app, seed=1, duration=4, components={"plan": BreaksRules()})
+    assert [what for _, what in switches(trace)] == ["engaged"]
+    assert not [r for r in trace if r.get("legitimate") and r["plan"] != "f1"]
+    events = [(r.get("plan"), key) for r in trace
+              for key in ("planned", "rejected", "legitimate", "trusted", "executed") if r.get(key)]
+    start = events.index(("f1", "legitimate"))
+    assert events[start - 1][1] == "rejected"  # the last word on a plan before: a rejection
+    assert events[start:start + 3] == [("f1", "legitimate"), ("f1", "trusted"), ("f1", "executed")]
+    proved = next(r for r in trace if r.get("legitimate"))
+    assert "proved legitimate in every context before the run" in proved["explanation"]
+    assert_guarantees(trace)
 
 
 def test_a_planner_that_overruns_its_budget_ends_in_fallback(tmp_path):
@@ -204,6 +231,7 @@ def test_a_lost_managed_system_engages_the_fallback_and_its_return_hands_back(tm
           for r in trace if r.get("plan") == "f1" and ("executed" in r or "dropped" in r)]
     assert f1[0] == (4.5, "dropped") and f1[-1] == (8.0, "executed")
     assert_only_fallback_while_engaged(trace)
+    assert_guarantees(trace)  # each delivery tried says the plan is legitimate first
     # nothing but the fallback's action was sent to the silent robot
     assert not [r for r in trace if r.get("executed") and 4.5 <= r["time"] < 8.0]
 
@@ -289,6 +317,7 @@ def test_while_a_veto_holds_nothing_but_the_fallback_acts(tmp_path_factory, wind
     fast = [[start, start + length] for start, length in windows]
     trace = run_app(app, seed=1, duration=16, scenario={"fast": fast})
     assert_only_fallback_while_engaged(trace)
+    assert_guarantees(trace)
     engaged, last_fast = False, None
     for record in trace:
         if record.get("fallback") == "engaged":

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rasm.platform.manifest import load_manifest
 from rasm.testing import run_app
 
 HOTBOX = Path(__file__).resolve().parents[2] / "examples" / "hotbox"
@@ -23,6 +24,20 @@ def test_the_fallback_engages_and_hands_back_with_its_guarantees():
     assert verdicts["execute_only_legitimate_plans"] == "satisfied"
     assert verdicts["temperature_band"] == "violated"  # the scenario: the lid stays open
     assert trace.summary.fallback_engagements == 2
+
+
+def test_a_fallback_engaged_before_any_plan_keeps_the_platforms_guarantees():
+    """The box starts cold: the fallback engages at t=0, before the loop has planned anything.
+    Its plan is legitimate by proof, and its first records say so before its action goes out."""
+    scenario = {**load_manifest(HOTBOX / "app.fallback.yaml").scenario, "initial_temperature": 30}
+    trace = run_app(HOTBOX / "app.fallback.yaml", seed=1, duration=10, scenario=scenario)
+    assert [(r["time"], r["fallback"]) for r in trace if "fallback" in r][0] == (0, "engaged")
+    first = [(r.get("plan"), key) for r in trace if r["time"] == 0
+             for key in ("planned", "legitimate", "trusted", "executed") if r.get(key)]
+    assert first == [("f1", "legitimate"), ("f1", "trusted"), ("f1", "executed")]
+    verdicts = trace.summary.verdicts
+    assert verdicts["execute_only_legitimate_plans"] == "satisfied"
+    assert verdicts["rejected_plans_stay_rejected"] == "satisfied"
 
 
 def test_a_repaired_plan_is_executed_instead_of_a_cancelled_adaptation():
