@@ -298,16 +298,16 @@ class PresenceTracker:
 
     def known_epochs(self, *, role: str | None = None, app: str | None = None) -> list[str]:
         """With a gate: the epochs of the nodes (of ``role`` and ``app`` when given) that
-        introduced themselves with a correctly signed message, online or not yet verified;
-        what a :class:`Presence` binds its own heartbeats to. Without a gate: :meth:`epochs`."""
+        introduced themselves with a correctly signed message and have not gone offline since,
+        online or not yet verified; what a :class:`Presence` binds its own heartbeats to.
+        Without a gate: :meth:`epochs`."""
         if self.gate is None:
             return sorted(self.epochs(role=role, app=app).values())
         with self._cond:
             return sorted(
                 epoch
-                for name, (known_role, known_app, epoch) in self._introduced.items()
+                for known_role, known_app, epoch in self._introduced.values()
                 if (role is None or known_role == role) and (app is None or known_app == app)
-                and self._nodes.get(name, NodeState(name, "online")).state != "offline"
             )
 
     def state(self, node: str) -> str | None:
@@ -334,6 +334,10 @@ class PresenceTracker:
             return
         reason = payload.get("reason")
         with self._cond:
+            if state == "offline":
+                # that incarnation is gone; one under the same name (a restart, a container's
+                # pid) introduces itself anew, even while this tracker still holds it offline
+                self._introduced.pop(node, None)
             known = self._nodes.get(node)
             if known is None:
                 known = self._nodes[node] = NodeState(node, "new")

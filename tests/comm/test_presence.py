@@ -261,3 +261,27 @@ def test_with_a_gate_only_a_signed_heartbeat_bound_to_the_tracker_counts(kinds):
     introduced = any(k in ("bound", "elsewhere") for k in kinds)  # a replay follows a bound
     assert tracker.known_epochs(app="a") == (["e1"] if introduced else [])
     assert tracker.epochs(app="a") == ({"robot": "e1"} if sent_bound else {})
+
+
+@given(st.lists(st.one_of(st.just("offline"), st.integers(0, 3)), max_size=12))
+def test_a_node_that_introduces_itself_again_after_going_offline_is_known_again(messages):
+    """A node restarted under the same name (a container's pid, a crashed process whose will
+    the broker published): whatever came before, after a correctly signed introduction its new
+    epoch is the one to bind to, and after an offline message none is."""
+    from rasm.comm import BoundSigner, SignedGate
+    from rasm.comm.message import Message
+
+    tracker = PresenceTracker(LocalTransport(), gate=SignedGate(_KEY))
+    topic = presence_topic("loop")
+    expected: list[str] = []
+    for message in messages:
+        if message == "offline":  # a shutdown or the broker's will: unsigned
+            payload = {"state": "offline", "role": "all", "reason": "lost"}
+            expected = []
+        else:  # an incarnation's introduction, bound to nobody (it does not know the tracker)
+            epoch = f"e{message}"
+            online = {"state": "online", "role": "all", "period": 1.0, "app": "a", "epoch": epoch}
+            payload = BoundSigner(_KEY).sign(online, topic=topic, epochs=[], unbound=True)
+            expected = [epoch]
+        tracker._receive(Message(topic, payload))
+        assert tracker.known_epochs(role="all") == expected
