@@ -94,7 +94,7 @@ def mqtt_case(url: str, rate: int, count: int, props: Path) -> tuple[list[float]
             verdicts.put(time.perf_counter() - message.payload["time"])
 
         receiver.subscribe("velocity", on_hop)
-        receiver.subscribe("velocity_limit", on_verdict)
+        receiver.subscribe("rasm/verdict/velocity_limit", on_verdict)
         for i in paced(rate, count):
             sender.publish("velocity", {"value": 0.1 + (i % 5) * 0.1, "time": time.perf_counter()})
         hop = [hops.get(timeout=30) for _ in range(count)]

@@ -2,9 +2,19 @@
 
 An :class:`Attachment` subscribes to the topics the properties read, turns every message into
 one trace record, steps a compiled monitor and publishes each verdict as
-``{"value": true|false, "time": t}`` on a topic named after the property — the convention of the
-public RoboSAPIENS Trustworthiness Checker, so its dashboards and subscribers work unchanged. A
-verdict the monitor could not evaluate is ``{"value": false, "time": t, "error": "why"}``.
+``{"value": true|false, "time": t}`` on ``rasm/verdict/<property>`` (SPEC §10: under ``rasm/``,
+so that no verdict lands on an app's effector topic; ``verdict_topic="{property}"`` gives the
+public RoboSAPIENS Trustworthiness Checker's topic named after the property). A verdict the
+monitor could not evaluate is ``{"value": false, "time": t, "error": "why"}``.
+
+With a ``seal`` (:class:`SignedVerdicts`, what ``rasm monitor`` builds from ``RASM_ACTION_KEY``)
+every verdict is signed and bound to the rasm loops on the bus, so that a loop with the key takes
+the attachment as an external verdict source (``trustworthiness.external_verdicts``) and nobody
+else's messages on its topics. A verdict no loop can be bound to yet is not sent, only counted:
+the loop's source stays not judged, which vetoes.
+
+The summary names, like ``rasm run``'s, the properties satisfied only vacuously: those with an
+``->`` whose left side never held on a judged record (:mod:`rasm.properties.vacuity`).
 
 Where a signal comes from (a :class:`TopicMap`): by default from a rasm loop's trace topic,
 ``rasm/trace`` (field ``x`` of each trace record), and from topic ``x`` (the payload's ``value``
@@ -35,17 +45,24 @@ from pathlib import Path
 from typing import Any
 
 from rasm.comm.message import Message
-from rasm.comm.topics import validate_pattern, validate_topic
+from rasm.comm.presence import PresenceTracker
+from rasm.comm.signing import BoundSigner, SignedGate
+from rasm.comm.topics import topic_matches, validate_pattern, validate_topic
 from rasm.comm.transport import Subscription, Transport
 from rasm.errors import CommError, Location, RasmError, SourceError
+from rasm.logs import RepeatedLogs
 from rasm.properties import Verdict, load_specification
 from rasm.properties.monitor import Monitor
 from rasm.properties.outcome import PropertyOutcome
+from rasm.properties.vacuity import Vacuity
 from rasm.times import format_seconds
 
 __all__ = [
+    "VERDICT_TOPIC",
     "Attachment",
     "MonitorSummary",
+    "Seal",
+    "SignedVerdicts",
     "Source",
     "TopicMap",
     "default_topic_map",
@@ -80,6 +97,50 @@ TopicMap = dict[str, Source]
 
 ALL = "*"
 TRACE_TOPIC = "rasm/trace"  # where a rasm loop on a broker publishes every trace record
+VERDICT_TOPIC = "rasm/verdict/{property}"  # where rasm publishes a property's verdicts (SPEC §10)
+
+Seal = Callable[[str, dict[str, Any]], dict[str, Any]]
+"""``seal(topic, payload)``: the payload as it goes on ``topic`` (e.g. signed); raises
+:class:`CommError` when it cannot be sent yet."""
+
+
+class SignedVerdicts:
+    """A :data:`Seal` for the loops that take verdicts as external verdict sources over MQTT with
+    ``RASM_ACTION_KEY``: each verdict is signed with ``key`` and bound (:class:`BoundSigner`) to
+    its topic and to the epochs of the managing processes (role ``all`` or ``managing``) that
+    introduced themselves with a correctly signed presence message, as those loops require.
+
+    Call :meth:`start` (it follows ``rasm/presence/+``) before the first verdict and :meth:`stop`
+    after the last. Until a loop has introduced itself there is nobody to bind to: the seal
+    raises :class:`CommError` and the verdict is not sent.
+    """
+
+    ROLES = ("all", "managing")
+
+    def __init__(self, transport: Transport, key: bytes) -> None:
+        # its own gate only tells signed introductions from forged ones: nobody binds to it
+        self.tracker = PresenceTracker(transport, gate=SignedGate(key))
+        self.signer = BoundSigner(key)
+
+    def start(self) -> SignedVerdicts:
+        self.tracker.start()
+        return self
+
+    def stop(self) -> None:
+        self.tracker.stop()
+
+    def epochs(self) -> list[str]:
+        """The epochs of the loops that introduced themselves and have not gone offline."""
+        return sorted({e for role in self.ROLES for e in self.tracker.known_epochs(role=role)})
+
+    def __call__(self, topic: str, payload: dict[str, Any]) -> dict[str, Any]:
+        epochs = self.epochs()
+        if not epochs:
+            raise CommError(
+                "no rasm loop has announced its epoch on rasm/presence/ with a signed message "
+                "yet: a verdict is bound to the loop that takes it"
+            )
+        return self.signer.sign(payload, topic=topic, epochs=epochs)
 
 
 def default_topic_map(signals: list[str]) -> TopicMap:
@@ -173,6 +234,7 @@ class MonitorSummary:
     malformed: int = 0
     rejected: int = 0
     published: int = 0
+    unsent: int = 0  # verdicts the seal could not seal (no loop to bind them to yet)
     outcomes: dict[str, PropertyOutcome] = field(default_factory=dict)
     first_violations: dict[str, float] = field(default_factory=dict)
     properties: list[str] = field(default_factory=list)
@@ -218,13 +280,19 @@ class MonitorSummary:
             f"{self.messages} message(s), {self.records} record(s) in {self.seconds:.1f} s; "
             f"{self.malformed} malformed, {self.rejected} refused by the monitor; "
             f"{self.published} verdict(s) published"
+            + (f", {self.unsent} not sent (no loop to bind them to)" if self.unsent else "")
         ]
         width = max((len(p) for p in self.properties), default=0)
+        untested = []
         for name in self.properties:
             o = self.outcome(name)
             true = o.judged - o.violations - o.errors - o.inconclusive
+            state = o.state
+            if o.passed and o.vacuous:  # passing, but part of it was never put to the test
+                untested.append(o)
+                state += "*"
             line = (
-                f"  {name:<{width}}  {o.state:<12} {true} true, {o.violations} false, "
+                f"  {name:<{width}}  {state:<12} {true} true, {o.violations} false, "
                 f"{o.inconclusive} inconclusive"
             )
             if o.errors:
@@ -234,15 +302,21 @@ class MonitorSummary:
             if o.missing:
                 line += f" (no value for {', '.join(o.missing)})"
             out.append(line)
+        if untested:  # as rasm run's summary says it
+            out.append("* never put to the test:")
+            out += [f"  {o.name}: {o.word}" for o in untested]
         return "\n".join(out) + "\n"
 
 
 class Attachment:
     """Monitors of one property file attached to a transport (see the module doc).
 
-    ``verdict_topic`` is a format string with ``{property}`` (default: the property's name).
-    ``on_verdict(verdict)`` is called for every decided verdict, after it is published. Call
-    :meth:`start`, then :meth:`stop` (which settles the monitor and returns the summary).
+    ``verdict_topic`` is a format string with ``{property}`` (default
+    :data:`VERDICT_TOPIC`, ``rasm/verdict/{property}``); a verdict topic the attachment reads
+    itself is refused. ``seal`` (e.g. :class:`SignedVerdicts`) turns each verdict's payload
+    into what is published. ``on_verdict(verdict)`` is called for every decided verdict, after
+    it is published. Call :meth:`start`, then :meth:`stop` (which settles the monitor and
+    returns the summary).
     """
 
     def __init__(
@@ -252,12 +326,16 @@ class Attachment:
         *,
         source: str = "<properties>",
         topics: TopicMap | None = None,
-        verdict_topic: str = "{property}",
+        verdict_topic: str = VERDICT_TOPIC,
+        seal: Seal | None = None,
         on_verdict: Callable[[Verdict], object] | None = None,
         qos: int = 0,
     ) -> None:
         self.spec = load_specification(text, source=source)
         self.monitor = Monitor(self.spec)
+        # watches the antecedents of the properties' ->; a failed watch is kept in _dropped
+        self.vacuity: Vacuity | None = Vacuity(self.spec)
+        self._dropped: Vacuity | None = None
         self.signals = list(self.spec.signals)
         # no map: a rasm loop's trace topic, and each signal's own topic besides
         self._default = topics is None
@@ -269,19 +347,45 @@ class Attachment:
             self.topics = default_topic_map(self.signals)
         for signal in self.signals:
             self.topics.setdefault(signal, _fallback(signal, self._everything))
-        for name in self.monitor.properties:
-            validate_topic(verdict_topic.format(property=name))
         self.transport = transport
         self.verdict_topic = verdict_topic
+        self.seal = seal
         self.on_verdict = on_verdict
         self.qos = qos
         self.summary = MonitorSummary(properties=self.monitor.properties)
         self._by_topic = self._route(self.signals)
+        self._check_verdict_topics(self.monitor.properties, self._by_topic)
+        self.logs = RepeatedLogs()
         self._lock = threading.Lock()
+        self._publishing = threading.Lock()  # one verdict sealed and sent at a time, in order
         self._subscriptions: dict[str, Subscription] = {}
         self._started = 0.0
         self._transport_malformed: int | None = None  # the transport's count at start()
         self._stopped = False
+
+    def _check_verdict_topics(self, properties: list[str], read: dict[str, list[Source]]) -> None:
+        """Each property's verdict topic is a topic, and none the attachment reads (it would
+        take its own verdicts for records)."""
+        if "{property}" not in self.verdict_topic:
+            raise CommError(
+                f"the verdict topic {self.verdict_topic!r} must name the property with "
+                "{property} (on one topic for all, a verdict would not say whose it is)"
+            )
+        for name in properties:
+            try:
+                topic = self.verdict_topic.format(property=name)
+            except (KeyError, IndexError, ValueError) as exc:
+                raise CommError(
+                    f"the verdict topic {self.verdict_topic!r} must be a topic with "
+                    f"{{property}} for the property's name ({type(exc).__name__}: {exc})"
+                ) from None
+            validate_topic(topic)
+            for pattern in read:
+                if topic_matches(pattern, topic):
+                    raise CommError(
+                        f"the verdicts of {name} would go on {topic}, which the monitor reads "
+                        f"({pattern}): give the verdicts another topic"
+                    )
 
     @property
     def subscribed_topics(self) -> list[str]:
@@ -292,14 +396,18 @@ class Attachment:
         """The topic whose every message is a trace record (``"*"``; ``rasm/trace`` by default)."""
         return self._everything.topic if self._everything is not None else None
 
-    def _route(self, signals: list[str]) -> dict[str, list[Source]]:
-        """Topic -> the sources of ``signals`` read from it (the trace topic always listed)."""
+    def _route(
+        self, signals: list[str], topics: TopicMap | None = None
+    ) -> dict[str, list[Source]]:
+        """Topic -> the sources of ``signals`` read from it (the trace topic always listed);
+        ``topics``: the topic map (default: the attachment's)."""
+        topics = self.topics if topics is None else topics
         by_topic: dict[str, list[Source]] = defaultdict(list)
         trace = self.trace_topic
         if trace is not None:
             by_topic[trace] = []
         for signal in signals:
-            src = self.topics[signal]
+            src = topics[signal]
             by_topic[src.topic].append(src)
             if self._default and src.topic != trace:
                 by_topic[trace].append(Source(signal, trace, signal))
@@ -337,21 +445,27 @@ class Attachment:
         try:
             spec = load_specification(text, source=source)
             monitor = Monitor(spec)
-            for name in monitor.properties:
-                validate_topic(self.verdict_topic.format(property=name))
+            vacuity = Vacuity(spec)
         except RasmError as exc:
             return False, f"properties kept: the new file does not load: {exc}"
         signals = list(spec.signals)
+        topics = dict(self.topics)
         for signal in signals:
             default = Source(signal, signal) if self._default else None
-            self.topics.setdefault(signal, default or _fallback(signal, self._everything))
-        by_topic = self._route(signals)
+            topics.setdefault(signal, default or _fallback(signal, self._everything))
+        by_topic = self._route(signals, topics)
+        try:
+            self._check_verdict_topics(monitor.properties, by_topic)
+        except CommError as exc:
+            return False, f"properties kept: {exc}"
+        self.topics = topics
         self._subscribe(sorted(by_topic))  # before the swap: no record of the new set is missed
         with self._lock:
             if self._stopped:
                 return False, "properties kept: the monitor is stopped"
             settled = self._settle()
             self.spec, self.monitor, self.signals = spec, monitor, signals
+            self.vacuity, self._dropped = vacuity, None
             self._by_topic = by_topic
             known = self.summary.properties
             known += [name for name in monitor.properties if name not in known]
@@ -402,17 +516,43 @@ class Attachment:
                 return
             self.summary.records += 1
             self._count(verdicts)
+            self._watch(float(stamp), record)
         self._publish(verdicts)
+
+    def _watch(self, time: float, record: dict[str, Any]) -> None:
+        """Step the antecedents' watch; one that fails is dropped (logged), and what has not
+        held by then is reported vacuous: said, not hidden."""
+        if self.vacuity is None:
+            return
+        try:
+            self.vacuity.step(time, record)
+        except Exception as exc:
+            _log.error("watching the antecedents of %s failed at t=%s: %s: %s; those that have "
+                       "not held so far are reported vacuous", self.spec.source,
+                       format_seconds(time), type(exc).__name__, exc, exc_info=exc)
+            self._dropped, self.vacuity = self.vacuity, None
 
     def _settle(self) -> list[Verdict]:
         """Finish the monitor: count the verdicts still open, name the signals each property
-        never judged waits for. Returns the verdicts to publish."""
+        never judged waits for and the antecedents that never held. Returns the verdicts to
+        publish."""
         verdicts = self.monitor.finish()
         self._count(verdicts)
+        vacuity = self.vacuity
+        if vacuity is not None:
+            try:
+                vacuity.finish()
+            except Exception as exc:
+                _log.error("watching the antecedents of %s failed at the end: %s: %s",
+                           self.spec.source, type(exc).__name__, exc, exc_info=exc)
+        else:
+            vacuity = self._dropped
         for name in self.monitor.properties:
             outcome = self.summary.outcome(name)
             if not outcome.judged:
                 outcome.missing = self.monitor.missing(name)
+            if vacuity is not None:
+                outcome.vacuous = vacuity.vacuous(name)
         return verdicts
 
     def _failed(self, time: float, exc: Exception) -> list[Verdict]:
@@ -439,17 +579,32 @@ class Attachment:
             payload: dict[str, Any] = {"value": verdict.value, "time": verdict.time}
             if verdict.error is not None:  # value false: the checker could not vouch for it
                 payload["error"] = verdict.error
-            try:
-                self.transport.publish(topic, payload, qos=self.qos)
-                with self._lock:
-                    self.summary.published += 1
-            except CommError as exc:
-                _log.warning("verdict of %s not published: %s", verdict.property, exc)
+            self._send(verdict.property, topic, payload)
             if self.on_verdict is not None:
                 try:
                     self.on_verdict(verdict)
                 except Exception:
                     _log.exception("on_verdict raised on %r", verdict)
+
+    def _send(self, name: str, topic: str, payload: dict[str, Any]) -> None:
+        # sealed and sent under one lock: a signed verdict's sequence is its order on the bus
+        with self._publishing:
+            if self.seal is not None:
+                try:
+                    payload = self.seal(topic, payload)
+                except CommError as exc:  # nobody to bind it to yet: the loop's source vetoes
+                    with self._lock:
+                        self.summary.unsent += 1
+                    self.logs.log(_log, logging.WARNING, "verdicts not sent",
+                                  "verdict of %s not sent: %s", name, exc)
+                    return
+            try:
+                self.transport.publish(topic, payload, qos=self.qos)
+            except CommError as exc:
+                _log.warning("verdict of %s not published: %s", name, exc)
+                return
+        with self._lock:
+            self.summary.published += 1
 
     # -- the end --------------------------------------------------------------------------------
     def stop(self) -> MonitorSummary:

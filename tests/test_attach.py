@@ -7,14 +7,15 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time as clock
 from pathlib import Path
 
 import paho.mqtt.publish as paho_publish
 import pytest
 
-from rasm.attach import Attachment, Source, default_topic_map, load_topic_map
-from rasm.errors import SourceError
+from rasm.attach import Attachment, SignedVerdicts, Source, default_topic_map, load_topic_map
+from rasm.errors import CommError, SourceError
 from tests.comm.support import Inbox
 
 PROPS = """
@@ -27,11 +28,12 @@ property timely_adaptation:
 """
 
 
-def test_verdicts_are_published_on_topics_named_after_the_properties(mqtt):
+def test_verdicts_are_published_on_rasm_verdict_topics(mqtt):
+    """SPEC §10: a verdict goes on rasm/verdict/<property>, where no app's effector is."""
     bus, robot = mqtt(), mqtt()
     limit, timely = Inbox(), Inbox()
-    robot.subscribe("velocity_limit", limit, qos=1)
-    robot.subscribe("timely_adaptation", timely, qos=1)
+    robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
+    robot.subscribe("rasm/verdict/timely_adaptation", timely, qos=1)
     attachment = Attachment(PROPS, bus, qos=1).start()
     assert attachment.subscribed_topics == ["adapted", "anomaly", "mode", "rasm/trace", "velocity"]
 
@@ -58,10 +60,64 @@ def test_verdicts_are_published_on_topics_named_after_the_properties(mqtt):
     assert "velocity_limit     violated     6 true, 1 false" in summary.format()
 
 
+def test_the_public_checkers_topics_named_after_the_properties_are_an_option(mqtt):
+    bus, robot = mqtt(), mqtt()
+    bare, spec = Inbox(), Inbox()
+    robot.subscribe("velocity_limit", bare, qos=1)
+    robot.subscribe("rasm/verdict/velocity_limit", spec, qos=1)
+    attachment = Attachment(PROPS, bus, verdict_topic="{property}", qos=1).start()
+    robot.publish("velocity", {"value": 0.7, "time": 2.0}, qos=1)
+    assert bare.get().payload == {"value": False, "time": 2.0}
+    attachment.stop()
+    assert spec.empty()  # only where the option says
+
+
+@pytest.mark.parametrize(("template", "words"), [
+    ("verdicts", "must name the property with {property}"),  # one topic for all: whose?
+    ("{prop}{property}", "must be a topic with {property}"),
+    ("{property}{", "must be a topic with {property}"),
+    ("{property}/+", "wildcard"),
+    ("robot/{property}", None),
+    ("rasm/{property}", None),
+    ("{property}", "which the monitor reads (velocity)"),  # a property named like a topic read
+])
+def test_a_verdict_topic_is_a_topic_of_its_own_for_each_property(mqtt, template, words):
+    text = PROPS + "property velocity:\n    always (velocity < 2)\n"
+    if words is None:
+        Attachment(text, mqtt(), verdict_topic=template)
+        return
+    with pytest.raises(CommError) as caught:
+        Attachment(text, mqtt(), verdict_topic=template)
+    assert words in str(caught.value)
+
+
+def test_the_summary_names_the_properties_satisfied_only_vacuously(mqtt):
+    """As rasm run's summary: a property whose `->` was never put to the test is marked and
+    what never happened is said."""
+    bus, robot = mqtt(), mqtt()
+    limit = Inbox()
+    robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
+    attachment = Attachment(PROPS, bus, qos=1).start()
+    for time in (1.0, 2.0, 5.0):  # no anomaly ever
+        robot.publish("rasm/trace", {"time": time, "velocity": 0.1, "adapted": False}, qos=1)
+    assert len(limit.take(3)) == 3  # every record was stepped
+    summary = attachment.stop()
+    outcome = summary.outcome("timely_adaptation")
+    assert outcome.state == "satisfied" and [u.text for u in outcome.vacuous] == ["anomaly"]
+    assert summary.outcome("velocity_limit").vacuous == ()  # no ->: nothing left untested
+    text = summary.format()
+    assert "timely_adaptation  satisfied*   3 true" in text
+    assert text.endswith(
+        "* never put to the test:\n"
+        "  timely_adaptation: satisfied (vacuously: anomaly never happened)\n"
+    )
+    assert "velocity_limit     satisfied    3 true" in text
+
+
 def test_malformed_and_refused_messages_are_counted_never_fatal(mqtt, broker):
     bus, robot = mqtt(), mqtt()
     limit = Inbox()
-    robot.subscribe("velocity_limit", limit, qos=1)
+    robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
     attachment = Attachment(PROPS, bus, qos=1).start()
     robot.publish("velocity", {"speed": 0.1, "time": 1.0}, qos=1)  # no mapped field
     robot.publish("velocity", {"value": 0.1, "time": "soon"}, qos=1)  # bad time
@@ -84,7 +140,7 @@ def test_malformed_and_refused_messages_are_counted_never_fatal(mqtt, broker):
 def test_time_falls_back_to_the_envelope_timestamp(mqtt):
     bus, robot = mqtt(), mqtt()
     limit = Inbox()
-    robot.subscribe("velocity_limit", limit, qos=1)
+    robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
     attachment = Attachment(PROPS, bus, qos=1).start()
     robot.publish("velocity", {"value": 0.1}, qos=1)
     message = limit.get()
@@ -109,7 +165,7 @@ def test_a_topic_map_moves_signals_and_fields(mqtt, tmp_path):
     }
     bus, robot = mqtt(), mqtt()
     limit = Inbox()
-    robot.subscribe("velocity_limit", limit, qos=1)
+    robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
     attachment = Attachment(PROPS, bus, topics=mapping, qos=1).start()
     robot.publish("robot/odometry", {"value": 0.9, "time": 1.0}, qos=1)
     assert limit.get().payload == {"value": False, "time": 1.0}
@@ -156,7 +212,7 @@ def test_the_command_runs_until_interrupted_and_summarises(broker, mqtt, tmp_pat
         assert ready.startswith("rasm monitor: 2 properties on 5 topic(s)"), ready
         robot = mqtt()
         limit = Inbox()
-        robot.subscribe("velocity_limit", limit, qos=1)
+        robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
         # epoch times: written as the decimals they are (1700000002.3, not 1.7e+09)
         for time, value in ((1700000001.1, 0.2), (1700000002.3, 0.8), (1700000003.0, 0.1)):
             robot.publish("velocity", {"value": value, "time": time}, qos=0)
@@ -214,6 +270,23 @@ def test_the_command_reports_bad_input(broker, tmp_path):
         timeout=60,
     )
     assert done.returncode == 2 and "bad transport URL" in done.stderr
+    for option, env, words in [
+        (["--verdict-topic", "verdicts"], {}, "must name the property with {property}"),
+        (["--verdict-topic", "{property}/#"], {}, "contains a wildcard"),
+        ([], {"RASM_ACTION_KEY": "not hex"}, "RASM_ACTION_KEY must be the signing key in hex"),
+    ]:
+        done = subprocess.run(
+            [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", broker.url,
+             *option],
+            capture_output=True, text=True, timeout=60, env={**os.environ, **env},
+        )
+        assert done.returncode == 2 and words in done.stderr, (option, done.stderr)
+        assert "Traceback" not in done.stderr
+    done = subprocess.run(
+        [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", "zenoh://127.0.0.1:1"],
+        capture_output=True, text=True, timeout=60, env={**os.environ, "RASM_ACTION_KEY": "ab"},
+    )
+    assert done.returncode == 2 and "RASM_ACTION_KEY signs verdicts over MQTT" in done.stderr
 
 
 NEW_PROPS = """
@@ -228,8 +301,8 @@ def test_signed_property_updates_replace_the_monitors(mqtt):
     key = b"operator key"
     bus, operator = mqtt(), mqtt()
     limit, slow, results = Inbox(), Inbox(), Inbox()
-    operator.subscribe("velocity_limit", limit, qos=1)
-    operator.subscribe("slow", slow, qos=1)
+    operator.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
+    operator.subscribe("rasm/verdict/slow", slow, qos=1)
     operator.subscribe("rasm/update/result", results, qos=1)
     attachment = Attachment(PROPS, bus, qos=1).start()
     receiver = UpdateReceiver(bus, key, properties=attachment.replace).start()
@@ -269,8 +342,8 @@ def test_a_whole_trace_on_one_topic(mqtt):
     assert mapping["mode"] == Source("mode", "robot/state", "mode")
     bus, loop = mqtt(), mqtt()
     limit, timely = Inbox(), Inbox()
-    loop.subscribe("velocity_limit", limit, qos=1)
-    loop.subscribe("timely_adaptation", timely, qos=1)
+    loop.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
+    loop.subscribe("rasm/verdict/timely_adaptation", timely, qos=1)
     attachment = Attachment(PROPS, bus, topics=mapping, qos=1).start()
     assert attachment.subscribed_topics == ["rasm/trace", "robot/state"]
     records = [
@@ -288,7 +361,7 @@ def test_a_whole_trace_on_one_topic(mqtt):
     ok, _ = attachment.replace("property quick: always (latency <= 1)")
     assert ok and attachment.subscribed_topics == ["rasm/trace"]
     quick = Inbox()
-    loop.subscribe("quick", quick, qos=1)
+    loop.subscribe("rasm/verdict/quick", quick, qos=1)
     loop.publish("rasm/trace", {"time": 5.0, "latency": 3}, qos=1)
     loop.publish("rasm/trace", {"time": 6.0, "latency": 0.5}, qos=1)
     assert [m.payload for m in quick.take(2)] == [
@@ -365,7 +438,7 @@ def test_an_update_replayed_into_a_restarted_monitor_process_is_refused(broker, 
 def test_a_property_whose_signal_never_arrives_is_not_judged_and_fails(mqtt, broker, tmp_path):
     bus, robot = mqtt(), mqtt()
     limit = Inbox()
-    robot.subscribe("velocity_limit", limit, qos=1)
+    robot.subscribe("rasm/verdict/velocity_limit", limit, qos=1)
     text = PROPS + "property steady:\n    always (heading <= 90)\n"
     attachment = Attachment(text, bus, qos=1).start()
     robot.publish("velocity", {"value": 0.3, "time": 1.0}, qos=1)
@@ -406,8 +479,8 @@ def test_two_readings_of_1e308_never_give_a_satisfied_budget_and_the_monitor_rec
     property, never a true one for the overflowed window, and true ones again after it."""
     bus, robot = mqtt(), mqtt()
     budget, calm = Inbox(), Inbox()
-    robot.subscribe("budget", budget, qos=1)
-    robot.subscribe("calm", calm, qos=1)
+    robot.subscribe("rasm/verdict/budget", budget, qos=1)
+    robot.subscribe("rasm/verdict/calm", calm, qos=1)
     attachment = Attachment(OVERFLOW, bus, qos=1).start()
     sent = [("y", 0.5, 0.0), ("x", 1.0, 0.5), ("x", 1e308, 1.0), ("x", 1e308, 2.0),
             ("y", 0.5, 2.5), ("x", 1.0, 3.0)] + [("x", 1.0, t) for t in (4.0, 5.0, 6.0, 7.0, 8.0)]
@@ -466,3 +539,147 @@ def test_with_no_topic_map_a_rasm_loop_is_monitored_from_its_trace_topic(broker,
         "properties"]}
     online = {name: (o.state, o.judged) for name, o in summary.outcomes.items()}
     assert online == offline and set(online) >= {"temperature_band", "back_to_normal"}
+
+
+# ------------------------------------------- rasm monitor as a loop's external verdict source
+
+CALM = """
+input speed: float
+property calm:
+    always (speed <= 1.0)
+"""
+
+CALM_SOURCE = """
+  external_verdicts:
+    calm: {topic: rasm/verdict/calm, freshness: 0.5}
+"""
+
+
+class _Liar:
+    """An outsider without the key: says "true" on the source's topic at 50 Hz, unsigned."""
+
+    def __init__(self, transport):
+        self.transport, self.sent = transport, 0
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        while not self.stop.wait(0.02):
+            self.transport.publish("rasm/verdict/calm", {"value": True, "time": 0.0})
+            self.sent += 1
+
+    def close(self):
+        self.stop.set()
+        self.thread.join()
+
+
+def _monitored_run(broker, mqtt, tmp_path, key, *, fast):
+    """`rasm monitor` (with ``key``) started, then a loop with the key run for 3 s beside an
+    outsider's unsigned trues; returns the loop's platform, summary and records, and the
+    monitor's exit code and output."""
+    from rasm import Platform
+    from tests.platform.guarded import write_guarded_app
+
+    folder = tmp_path / ("fast" if fast else "slow")
+    app = write_guarded_app(folder / "app", period=0.1, veto=())
+    (app / "app.yaml").write_text((app / "app.yaml").read_text() + CALM_SOURCE)
+    props = folder / "calm.rv"
+    props.write_text(CALM)
+    monitor = subprocess.Popen(
+        [sys.executable, "-m", "rasm.cli", "monitor", str(props), "--transport", broker.url],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "RASM_ACTION_KEY": key},
+    )
+    liar = _Liar(mqtt())
+    try:
+        ready = monitor.stderr.readline()
+        assert "verdicts on rasm/verdict/<property>, signed for the loops" in ready, ready
+        platform = Platform(app, transport=broker.url, clock="wall", knowledge="memory",
+                            state_dir=folder / "state", role="all",
+                            scenario={"fast": [[0, 100]]} if fast else {})
+        records: list[dict] = []
+        platform.on_record.append(lambda t, r: records.append({"time": t, **r}))
+        summary = platform.run(3.0)
+        monitor.send_signal(signal.SIGINT)
+        out, err = monitor.communicate(timeout=30)
+    finally:
+        liar.close()
+        if monitor.poll() is None:
+            monitor.kill()
+            monitor.wait()
+    return platform, summary, records, liar.sent, monitor.returncode, out + err
+
+
+def test_a_loop_with_the_action_key_takes_rasm_monitor_as_its_external_verdict_source(
+    broker, mqtt, tmp_path, monkeypatch
+):
+    """`rasm monitor` with RASM_ACTION_KEY signs its verdicts for the loops on the bus: the
+    loop's source counts them (its trues let actions through, its falses veto every one), and
+    an outsider's unsigned trues beside them are refused, clearing nothing."""
+    key = "5a" * 32
+    monkeypatch.setenv("RASM_ACTION_KEY", key)
+
+    platform, summary, records, lies, code, output = _monitored_run(
+        broker, mqtt, tmp_path, key, fast=False
+    )
+    assert summary.verdicts["calm"] == "satisfied"  # the monitor's signed trues were taken
+    assert [r for r in records if r.get("executed")], "the monitor's trues let the loop act"
+    refused = platform.external.refused["calm"]
+    assert 0 < refused <= lies  # the outsider's, none of the monitor's
+    assert code == 0 and "calm  satisfied" in output and "not sent" not in output
+
+    platform, summary, records, lies, code, output = _monitored_run(
+        broker, mqtt, tmp_path, key, fast=True
+    )
+    assert summary.verdicts["calm"] == "violated", (output[-3000:], platform.external.refused, lies)
+    assert not [r for r in records if r.get("executed")]  # whatever the outsider said
+    dropped = [r for r in records if r.get("dropped")]
+    assert dropped and all("calm" in r["explanation"] for r in dropped)
+    assert 0 < platform.external.refused["calm"] <= lies
+    assert code == 1 and "calm  violated" in output
+
+
+def test_signed_verdicts_are_bound_to_the_loops_that_introduced_themselves(mqtt):
+    """The seal binds each verdict to the managing processes that introduced themselves with a
+    correctly signed presence message: none yet, and the verdict is not sent (counted); a
+    forged (unsigned) loop is never bound to; a loop gone offline no longer is."""
+    from rasm.comm import BoundSigner, Presence, SignedGate
+
+    key = bytes.fromhex("6b" * 32)
+    bus, robot, loop_side = mqtt(), mqtt(), mqtt()
+    calm = Inbox()
+    robot.subscribe("rasm/verdict/calm", calm, qos=1)
+    seal = SignedVerdicts(bus, key).start()
+    attachment = Attachment(CALM, bus, seal=seal, qos=1).start()
+    try:
+        robot.publish("speed", {"value": 0.5, "time": 1.0}, qos=1)
+        deadline = clock.monotonic() + 30
+        while attachment.summary.unsent < 1 and clock.monotonic() < deadline:
+            clock.sleep(0.01)  # waiting for a condition: the record to be stepped
+        assert attachment.summary.unsent == 1 and calm.empty()
+
+        forged = Presence(robot, "liar", role="all", info={"app": "x", "epoch": "e" * 32}).start()
+        gate = SignedGate(key)  # the loop's: its epoch is what verdicts must be bound to
+        loop = Presence(loop_side, "loop", role="all", info={"app": "x", "epoch": gate.epoch},
+                        signer=BoundSigner(key)).start()
+        deadline = clock.monotonic() + 30
+        while not seal.epochs() and clock.monotonic() < deadline:
+            clock.sleep(0.01)  # waiting for a condition: the loop's introduction to arrive
+        assert seal.epochs() == [gate.epoch]  # the forged node is not among them
+        robot.publish("speed", {"value": 2.0, "time": 2.0}, qos=1)
+        payload = calm.get().payload
+        assert payload["value"] is False and payload["binding"]["epochs"] == [gate.epoch]
+        assert gate.check(payload, "rasm/verdict/calm") is None  # what the loop admits
+        assert gate.check(payload, "rasm/verdict/calm") is not None  # once
+
+        loop.stop()  # offline: not bound to any more
+        deadline = clock.monotonic() + 30
+        while seal.epochs() and clock.monotonic() < deadline:
+            clock.sleep(0.01)  # waiting for a condition: the shutdown message to arrive
+        assert seal.epochs() == []
+        forged.stop()
+    finally:
+        summary = attachment.stop()
+        seal.stop()
+    assert summary.published == 1 and "1 not sent (no loop to bind them to)" in summary.format()

@@ -168,6 +168,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_monitor(args: argparse.Namespace) -> int:
     # runs until Ctrl-C / SIGTERM (or --duration S); exit 1 iff some property was violated, in
     # error or never judged.
+    # With RASM_ACTION_KEY (hex) set, every verdict is signed and bound to the rasm loops that
+    # announce their epoch, so a loop with the key takes it as an external verdict source.
     # With RASM_UPDATE_KEY (hex) set, HMAC-signed {"spec": …} on rasm/update/properties, bound
     # to the epoch this process announces on rasm/presence/monitor-<pid>, replace the properties
     # at run time (the public checker's unsigned `reconfig`, made safe).
@@ -176,9 +178,10 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     import signal
     import threading
 
-    from rasm.attach import Attachment, load_topic_map
+    from rasm.attach import Attachment, SignedVerdicts, load_topic_map
     from rasm.comm import open_transport
     from rasm.comm.url import credentials_from_env
+    from rasm.platform.distribution import key_from_env
     from rasm.properties import load_specification
     from rasm.times import format_seconds
 
@@ -188,6 +191,13 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     text = read_utf8(args.props)
     signals = list(load_specification(text, source=args.props).signals)
     topics = load_topic_map(args.topics, signals) if args.topics else None
+    key = key_from_env("RASM_UPDATE_KEY")
+    action_key = key_from_env("RASM_ACTION_KEY")
+    if action_key and not args.transport.strip().startswith(("mqtt://", "mqtts://")):
+        raise UsageError(
+            "RASM_ACTION_KEY signs verdicts over MQTT, where rasm loops announce the epochs to "
+            "bind them to: unset it, or monitor over mqtt://"
+        )
     transport = open_transport(args.transport, **credentials_from_env(args.transport))
     stop = threading.Event()
     if threading.current_thread() is threading.main_thread():
@@ -200,30 +210,33 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         elif verdict.value is False:
             print(f"violated {verdict.property} at t={at}", flush=True)
 
+    seal = SignedVerdicts(transport, action_key) if action_key else None
     attachment = Attachment(
-        text, transport, source=args.props, topics=topics, on_verdict=show
+        text, transport, source=args.props, topics=topics, on_verdict=show,
+        verdict_topic=args.verdict_topic, seal=seal,
     )
-    key_text = os.environ.get("RASM_UPDATE_KEY")
-    try:
-        key = bytes.fromhex(key_text) if key_text else None
-    except ValueError:
-        raise UsageError("RASM_UPDATE_KEY must be the signing key in hexadecimal") from None
     transport.connect()
     presence = None
     try:
+        if seal is not None:
+            seal.start()  # before the first verdict: the loops' retained presence comes at once
         attachment.start()
         if key:
-            from rasm.comm import Presence, UpdateReceiver
+            from rasm.comm import BoundSigner, Presence, UpdateReceiver
 
             receiver = UpdateReceiver(transport, key, properties=attachment.replace).start()
-            # senders bind updates to the epoch announced here (a replayed one is refused)
+            # senders bind updates to the epoch announced here (a replayed one is refused);
+            # with the action key it is signed, as the loops on the bus require of presence
             presence = Presence(
-                transport, f"monitor-{os.getpid()}", role="monitor", info={"epoch": receiver.epoch}
+                transport, f"monitor-{os.getpid()}", role="monitor", info={"epoch": receiver.epoch},
+                signer=BoundSigner(action_key) if action_key else None,
             ).start()
+        where = args.verdict_topic.format(property="<property>")
         print(
             f"rasm monitor: {len(attachment.monitor.properties)} properties on "
-            f"{len(attachment.subscribed_topics)} topic(s) of {args.transport}; "
-            "verdicts on the topics named after the properties; Ctrl-C stops",
+            f"{len(attachment.subscribed_topics)} topic(s) of {args.transport}; verdicts on "
+            f"{where}{', signed for the loops that announce their epoch' if seal else ''}; "
+            "Ctrl-C stops",
             file=sys.stderr,
             flush=True,
         )
@@ -234,6 +247,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         summary = attachment.stop()
     finally:
         attachment.stop()
+        if seal is not None:
+            seal.stop()
         if presence is not None:
             presence.stop()
         transport.close()

@@ -118,6 +118,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("props")
     p.add_argument("--transport", required=True)
     p.add_argument("--topics", default=None, metavar="MAP.yaml")
+    p.add_argument(
+        "--verdict-topic", default="rasm/verdict/{property}", metavar="TEMPLATE",
+        help="where each property's verdicts go (default rasm/verdict/{property}; "
+        "'{property}' is the public RoboSAPIENS checker's topic named after the property)",
+    )
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
 
     p = command("report", _cmd_report, "render a trace as a self-contained HTML page")
