@@ -28,6 +28,7 @@ import zenoh
 
 from rasm.errors import CommError
 from rasm.ros2.types import dds_type_name
+from rasm.times import format_seconds
 
 __all__ = ["ActionGoal", "CallFailed", "GOAL_STATUS", "ZenohCalls"]
 
@@ -99,7 +100,7 @@ class ZenohCalls:
                 reply = None
                 if time.monotonic() - started >= timeout * 0.9:
                     raise CallFailed(
-                        f"service {service}: no response within {timeout:g} s"
+                        f"service {service}: no response within {format_seconds(timeout)} s"
                     ) from None
                 raise CallFailed(
                     f"service {service}: no server answers ({typename} on this network)"
@@ -112,7 +113,9 @@ class ZenohCalls:
             if reply.ok is None:
                 error = reply.err.payload.to_string()[:200]
                 if error == "Timeout":  # what Zenoh itself replies when the query times out
-                    raise CallFailed(f"service {service}: no response within {timeout:g} s")
+                    raise CallFailed(
+                        f"service {service}: no response within {format_seconds(timeout)} s"
+                    )
                 raise CallFailed(f"service {service} answered an error: {error}")
             try:
                 return self.transport.store.codec(f"{typename}_Response").decode(
@@ -169,7 +172,8 @@ class ZenohCalls:
                     if "no response within" in str(exc):
                         self._cancel(base, goal_id, deadline + 1.0)
                         raise CallFailed(
-                            f"action {action}: no result within {timeout:g} s (goal cancelled)"
+                            f"action {action}: no result within {format_seconds(timeout)} s "
+                            "(goal cancelled)"
                         ) from None
                     raise
             self._drain_feedback(subscriber, fb_codec, goal.goal_id, feedback)
