@@ -5,6 +5,11 @@ file, so that type errors and explanations name the place. The expression nodes 
 ``Call``) are the sub-language shared with the legitimacy rules; ``Time``, ``Prev``
 and the temporal nodes exist only in property files.
 
+The node classes are listed in :data:`NODES`; each names the fields that hold its
+sub-expressions (``_operand_fields``), from which :func:`children`, :func:`walk` and
+:func:`rebuild` work for every node alike. What a node *means* is up to each pass over the tree
+(:mod:`rasm.properties.visitor`: one method per node class).
+
 Operators are plain strings:
 
 * ``Unary.op``: ``"-"`` (numeric negation);
@@ -17,13 +22,17 @@ Operators are plain strings:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Union
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from typing import ClassVar, Union
 
 from rasm.errors import Location
 from rasm.properties.times import format_nanoseconds, nanoseconds
 
 __all__ = [
+    "EXPRESSIONS",
+    "NODES",
+    "TEMPORAL",
     "Aggregate",
     "Binary",
     "Bound",
@@ -46,6 +55,8 @@ __all__ = [
     "Unary",
     "Until",
     "children",
+    "rebuild",
+    "walk",
 ]
 
 UNKNOWN = Location("<text>")
@@ -63,8 +74,15 @@ def _loc():
 # --------------------------------------------------------------------------- expressions
 
 
+class Expr:
+    """A node of a formula's syntax tree (every node class below derives from it)."""
+
+    # the fields holding the node's sub-expressions, left to right (a tuple field: several)
+    _operand_fields: ClassVar[tuple[str, ...]] = ()
+
+
 @dataclass(frozen=True)
-class Literal:
+class Literal(Expr):
     """A constant: ``int``, ``float``, ``bool`` (``true``/``false``) or ``str``."""
 
     value: int | float | bool | str
@@ -72,7 +90,7 @@ class Literal:
 
 
 @dataclass(frozen=True)
-class Name:
+class Name(Expr):
     """A signal (or, in a property file, a ``let``-defined name) read at the current record."""
 
     name: str
@@ -80,26 +98,29 @@ class Name:
 
 
 @dataclass(frozen=True)
-class Unary:
+class Unary(Expr):
     """Numeric negation ``-operand`` (``op`` is always ``"-"``)."""
 
+    _operand_fields = ("operand",)
     op: str
     operand: Expr
     location: Location = _loc()
 
 
 @dataclass(frozen=True)
-class Not:
+class Not(Expr):
     """Boolean negation ``not operand``."""
 
+    _operand_fields = ("operand",)
     operand: Expr
     location: Location = _loc()
 
 
 @dataclass(frozen=True)
-class Binary:
+class Binary(Expr):
     """``left op right`` for arithmetic, comparison and ``and``/``or``/``->`` operators."""
 
+    _operand_fields = ("left", "right",)
     op: str
     left: Expr
     right: Expr
@@ -107,9 +128,10 @@ class Binary:
 
 
 @dataclass(frozen=True)
-class Call:
+class Call(Expr):
     """A function call ``func(args…)``: ``abs(e)``, ``min(a, b)``, ``max(a, b)``."""
 
+    _operand_fields = ("args",)
     func: str
     args: tuple[Expr, ...]
     location: Location = _loc()
@@ -119,16 +141,17 @@ class Call:
 
 
 @dataclass(frozen=True)
-class Time:
+class Time(Expr):
     """``time``: the timestamp of the current record, in seconds."""
 
     location: Location = _loc()
 
 
 @dataclass(frozen=True)
-class Prev:
+class Prev(Expr):
     """``prev(operand)``: the operand's value at the previous record (undefined at the first)."""
 
+    _operand_fields = ("operand",)
     operand: Expr
     location: Location = _loc()
 
@@ -164,9 +187,10 @@ class Bound:
 
 
 @dataclass(frozen=True)
-class Past:
+class Past(Expr):
     """``once[bound] operand`` or ``historically[bound] operand`` (``op`` names which)."""
 
+    _operand_fields = ("operand",)
     op: str
     bound: Bound
     operand: Expr
@@ -174,13 +198,14 @@ class Past:
 
 
 @dataclass(frozen=True)
-class Future:
+class Future(Expr):
     """``eventually[bound] operand`` or ``always[bound] operand`` (``op`` names which).
 
     An unbounded ``always`` (``bound.high`` infinite) is only valid as the outermost operator
     of a property, where it means "at every record"; the loader strips it.
     """
 
+    _operand_fields = ("operand",)
     op: str
     bound: Bound
     operand: Expr
@@ -188,9 +213,10 @@ class Future:
 
 
 @dataclass(frozen=True)
-class Since:
+class Since(Expr):
     """``left since[bound] right``: right held in the window and left ever since."""
 
+    _operand_fields = ("left", "right",)
     left: Expr
     right: Expr
     bound: Bound
@@ -198,9 +224,10 @@ class Since:
 
 
 @dataclass(frozen=True)
-class Until:
+class Until(Expr):
     """``left until[bound] right``: right will hold in the window and left until then."""
 
+    _operand_fields = ("left", "right",)
     left: Expr
     right: Expr
     bound: Bound
@@ -208,29 +235,51 @@ class Until:
 
 
 @dataclass(frozen=True)
-class Aggregate:
+class Aggregate(Expr):
     """``op[bound](operand)`` with ``op`` in count, sum, avg, min, max, over the past window."""
 
+    _operand_fields = ("operand",)
     op: str
     bound: Bound
     operand: Expr
     location: Location = _loc()
 
 
-Expr = Union[  # noqa: UP007 - a runtime alias, used with isinstance by callers
-    Literal, Name, Unary, Not, Binary, Call, Time, Prev, Past, Future, Since, Until, Aggregate
-]
+# the sub-language shared with the legitimacy rules, and the nodes only property files have
+EXPRESSIONS: tuple[type[Expr], ...] = (Literal, Name, Unary, Not, Binary, Call)
+TEMPORAL: tuple[type[Expr], ...] = (Time, Prev, Past, Future, Since, Until, Aggregate)
+NODES = EXPRESSIONS + TEMPORAL  # every node class: each pass has a method for each
 
 
 def children(node: Expr) -> tuple[Expr, ...]:
     """The direct sub-expressions of ``node``, left to right."""
-    if isinstance(node, (Unary, Not, Prev, Past, Future, Aggregate)):
-        return (node.operand,)
-    if isinstance(node, (Binary, Since, Until)):
-        return (node.left, node.right)
-    if isinstance(node, Call):
-        return node.args
-    return ()
+    found: tuple[Expr, ...] = ()
+    for name in node._operand_fields:
+        value = getattr(node, name)
+        found += value if isinstance(value, tuple) else (value,)
+    return found
+
+
+def walk(node: Expr) -> Iterator[Expr]:
+    """``node`` and every node below it, parents before children, left to right (without
+    recursing: formulas may nest deeper than Python's recursion limit allows)."""
+    stack = [node]
+    while stack:
+        node = stack.pop()
+        yield node
+        stack.extend(reversed(children(node)))
+
+
+def rebuild(node: Expr, new: Sequence[Expr]) -> Expr:
+    """``node`` with its sub-expressions replaced by ``new`` (as many, in the same order)."""
+    if not node._operand_fields:
+        return node
+    rest = iter(new)
+    changes: dict[str, object] = {}
+    for name in node._operand_fields:
+        value = getattr(node, name)
+        changes[name] = tuple(next(rest) for _ in value) if isinstance(value, tuple) else next(rest)
+    return replace(node, **changes)
 
 
 def _nanoseconds(seconds: float) -> int | float:

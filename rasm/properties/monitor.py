@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 from rasm.errors import Misfit, SpecError
 from rasm.properties.ast import Specification
-from rasm.properties.codegen import UNSET, generate
+from rasm.properties.codegen import UNSET, Runtime, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
 from rasm.properties.times import format_seconds, nanoseconds, seconds_value
@@ -147,22 +147,21 @@ class Monitor:
         self._resets_run: list[list[Recovery]] = [[] for _ in self.names]
         self._pristine: dict[int, dict[str, object]] = {}
         self._finished = False
-        namespace = dict(self.program.constants)
-        namespace.update(
+        runtime = Runtime(
             STATE=self.program.state,
             Verdict=Verdict,
             NAMES=self.names,
             STARTS=self.starts,
             VALUES=self._values,
-            REJECT_STEP=self._reject_step,
-            REJECT_RUN=self._reject_run,
+            UNSET=UNSET,
             NUMERIC=NUMERIC,
             SCALAR=SCALAR,
-            UNSET=UNSET,
             COERCE=coerce,
             BAD=BAD,
             NANOSECONDS=nanoseconds,
             SECONDS=seconds_value,
+            REJECT_STEP=self._reject_step,
+            REJECT_RUN=self._reject_run,
             FAULT=self._fault,
             FAULT_RUN=self._fault_run,
             RECOVERING=self._recovering,
@@ -170,6 +169,7 @@ class Monitor:
             RECOVER_RUN=self._recover_run,
             FAULT_HOOK=fault_hook,
         )
+        namespace = {**self.program.constants, **runtime._asdict()}
         self._namespace = namespace
         code = compile_source(self.program.source, spec.source)
         exec(code, namespace)

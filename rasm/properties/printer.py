@@ -23,6 +23,7 @@ from rasm.properties.ast import (
     Until,
 )
 from rasm.properties.times import format_nanoseconds
+from rasm.properties.visitor import Transformer
 
 __all__ = ["unparse", "format_value"]
 
@@ -30,20 +31,6 @@ __all__ = ["unparse", "format_value"]
 _LEVEL = {"->": 1, "or": 2, "and": 3, "since": 4, "until": 4, "unary": 5, "compare": 6,
           "+": 7, "-": 7, "*": 8, "/": 8, "neg": 9, "atom": 10}
 _COMPARE = ("==", "!=", "<", "<=", ">", ">=")
-
-
-def _level(node: Expr) -> int:
-    if isinstance(node, Binary):
-        return _LEVEL["compare"] if node.op in _COMPARE else _LEVEL[node.op]
-    if isinstance(node, (Since, Until)):
-        return _LEVEL["since"]
-    if isinstance(node, (Not, Past, Future)):
-        return _LEVEL["unary"]
-    if isinstance(node, Unary):
-        return _LEVEL["neg"]
-    if isinstance(node, Literal) and isinstance(node.value, (int, float)) and node.value < 0:
-        return _LEVEL["neg"]
-    return _LEVEL["atom"]
 
 
 def _bound(bound: Bound, default_unbounded: bool = True) -> str:
@@ -74,41 +61,70 @@ def format_value(value: object) -> str:
     return str(value)
 
 
-def _wrap(node: Expr, minimum: int) -> str:
-    text = unparse(node)
-    return f"({text})" if _level(node) < minimum else text
+# a node printed: how tightly its text binds (a _LEVEL), and the text
+Printed = tuple[int, str]
 
 
-def unparse(node: Expr) -> str:  # noqa: C901 - one case per node
-    """Property-language text for ``node`` (parentheses only where needed)."""
-    if isinstance(node, Literal):
-        return format_value(node.value)
-    if isinstance(node, Name):
-        return node.name
-    if isinstance(node, Time):
-        return "time"
-    if isinstance(node, Prev):
-        return f"prev({unparse(node.operand)})"
-    if isinstance(node, Not):
-        return f"not {_wrap(node.operand, _LEVEL['unary'])}"
-    if isinstance(node, Unary):
-        return f"-{_wrap(node.operand, _LEVEL['neg'])}"
-    if isinstance(node, Call):
-        return f"{node.func}({', '.join(unparse(a) for a in node.args)})"
-    if isinstance(node, Aggregate):
-        return f"{node.op}{_bound(node.bound, False)}({unparse(node.operand)})"
-    if isinstance(node, (Past, Future)):
-        return f"{node.op}{_bound(node.bound)} {_wrap(node.operand, _LEVEL['unary'])}"
-    if isinstance(node, (Since, Until)):
+def _wrap(printed: Printed, minimum: int) -> str:
+    level, text = printed
+    return f"({text})" if level < minimum else text
+
+
+class _Printer(Transformer[Printed]):
+    """Each node's text, from its sub-expressions' (parentheses only where needed)."""
+
+    def literal(self, node: Literal) -> Printed:
+        value = node.value
+        negative = isinstance(value, (int, float)) and value < 0
+        return _LEVEL["neg" if negative else "atom"], format_value(value)
+
+    def name(self, node: Name) -> Printed:
+        return _LEVEL["atom"], node.name
+
+    def time(self, node: Time) -> Printed:
+        return _LEVEL["atom"], "time"
+
+    def prev(self, node: Prev, operand: Printed) -> Printed:
+        return _LEVEL["atom"], f"prev({operand[1]})"
+
+    def not_(self, node: Not, operand: Printed) -> Printed:
+        return _LEVEL["unary"], f"not {_wrap(operand, _LEVEL['unary'])}"
+
+    def unary(self, node: Unary, operand: Printed) -> Printed:
+        return _LEVEL["neg"], f"-{_wrap(operand, _LEVEL['neg'])}"
+
+    def call(self, node: Call, *args: Printed) -> Printed:
+        return _LEVEL["atom"], f"{node.func}({', '.join(text for _, text in args)})"
+
+    def aggregate(self, node: Aggregate, operand: Printed) -> Printed:
+        return _LEVEL["atom"], f"{node.op}{_bound(node.bound, False)}({operand[1]})"
+
+    def past(self, node: Past | Future, operand: Printed) -> Printed:
+        return _LEVEL["unary"], f"{node.op}{_bound(node.bound)} {_wrap(operand, _LEVEL['unary'])}"
+
+    future = past
+
+    def since(self, node: Since | Until, left: Printed, right: Printed) -> Printed:
         word = "since" if isinstance(node, Since) else "until"
         level = _LEVEL["since"]
-        return (f"{_wrap(node.left, level)} {word}{_bound(node.bound)} "
-                f"{_wrap(node.right, level + 1)}")
-    if isinstance(node, Binary):
-        level = _level(node)
-        if node.op == "->":  # right-associative
-            return f"{_wrap(node.left, level + 1)} -> {_wrap(node.right, level)}"
-        if node.op in _COMPARE:
-            return f"{_wrap(node.left, level + 1)} {node.op} {_wrap(node.right, level + 1)}"
-        return f"{_wrap(node.left, level)} {node.op} {_wrap(node.right, level + 1)}"
-    raise TypeError(f"not an expression node: {node!r}")
+        return level, f"{_wrap(left, level)} {word}{_bound(node.bound)} {_wrap(right, level + 1)}"
+
+    until = since
+
+    def binary(self, node: Binary, left: Printed, right: Printed) -> Printed:
+        op = node.op
+        if op in _COMPARE:
+            level = _LEVEL["compare"]
+            return level, f"{_wrap(left, level + 1)} {op} {_wrap(right, level + 1)}"
+        level = _LEVEL[op]
+        if op == "->":  # right-associative
+            return level, f"{_wrap(left, level + 1)} -> {_wrap(right, level)}"
+        return level, f"{_wrap(left, level)} {op} {_wrap(right, level + 1)}"
+
+
+_PRINTER = _Printer()
+
+
+def unparse(node: Expr) -> str:
+    """Property-language text for ``node`` (parentheses only where needed)."""
+    return _PRINTER.visit(node)[1]
