@@ -21,29 +21,27 @@ from dataclasses import dataclass
 from itertools import islice
 
 from rasm.properties.ast import (
+    BOOLEAN,
     COMPARISONS,
-    Aggregate,
     Binary,
-    Call,
     Expr,
     Future,
     Literal,
     Name,
     Not,
     Past,
-    Prev,
     Property,
     Since,
     Specification,
-    Time,
-    Unary,
     Until,
     children,
+    walk,
 )
 from rasm.properties.loader import signals_of
 from rasm.properties.monitor import Monitor
 from rasm.properties.printer import format_value, unparse
 from rasm.properties.times import format_seconds, nanoseconds
+from rasm.properties.visitor import Transformer, Visitor
 
 __all__ = ["ABRIDGE", "KEEP", "Explainer", "Explanation", "abridge", "explain"]
 
@@ -73,33 +71,47 @@ class Explanation:
 
 
 def _subformulas(node: Expr) -> list[Expr]:
-    found: list[Expr] = []
-
-    def walk(n: Expr) -> None:
-        # a literal is its own explanation, but the property itself needs its table (its start)
-        if not isinstance(n, Literal) or n is node:
-            found.append(n)
-        for c in children(n):
-            walk(c)
-
-    walk(node)
-    return found
+    # a literal is its own explanation, but the property itself needs its table (its start)
+    return [n for n in walk(node) if not isinstance(n, Literal) or n is node]
 
 
-def _reach(node: Expr) -> tuple[int | float, int | float]:
-    """How far before and after a record (ns) an explanation of ``node`` there may look: it
-    walks down through ``not``, ``and``, ``or``, ``->`` and the windows of the temporal
-    operators; every other node is shown by its value at the record itself."""
-    if isinstance(node, Past):
-        back, ahead = _reach(node.operand)
+# how far before and after a record (ns) an explanation of a node there may look
+Reach = tuple[int | float, int | float]
+
+
+class _Reach(Transformer[Reach]):
+    """How far an explanation may look: it walks down through ``not``, ``and``, ``or``,
+    ``->`` and the windows of the temporal operators; every other node is shown by its value
+    at the record itself."""
+
+    def past(self, node: Past, operand: Reach) -> Reach:
+        back, ahead = operand
         return back + node.bound.high_ns, ahead
-    if isinstance(node, Future):
-        back, ahead = _reach(node.operand)
+
+    def future(self, node: Future, operand: Reach) -> Reach:
+        back, ahead = operand
         return back, ahead + node.bound.high_ns
-    if isinstance(node, Not) or (isinstance(node, Binary) and node.op in ("and", "or", "->")):
-        reaches = [_reach(child) for child in children(node)]
-        return max(r[0] for r in reaches), max(r[1] for r in reaches)
-    return 0, 0
+
+    def not_(self, node: Not, operand: Reach) -> Reach:
+        return operand
+
+    def binary(self, node: Binary, left: Reach, right: Reach) -> Reach:
+        if node.op in BOOLEAN:
+            return max(left[0], right[0]), max(left[1], right[1])
+        return 0, 0
+
+    def _here(self, node: Expr, *operands: Reach) -> Reach:
+        return 0, 0
+
+    literal = name = time = unary = call = prev = since = until = aggregate = _here
+
+
+_REACH = _Reach()
+
+
+def _reach(node: Expr) -> Reach:
+    """How far before and after a record (ns) an explanation of ``node`` there may look."""
+    return _REACH.visit(node)
 
 
 class _Rows:
@@ -318,8 +330,9 @@ class _Snapshots:
                 self.taken[index] = {n: current[n] for n in self.names if n in current}
 
 
-class _Explainer:
-    """One explanation, read from the records kept (``rows``)."""
+class _Explainer(Visitor[None]):
+    """One explanation, read from the records kept (``rows``): a pass whose methods say why
+    a node was ``not want`` at record ``i``, ``depth`` levels in."""
 
     def __init__(self, rows: _Rows, number: Mapping[Expr, int], start: int) -> None:
         self.rows = rows
@@ -331,11 +344,11 @@ class _Explainer:
         if len(self.lines) < MAX_LINES:
             self.lines.append("  " * depth + text)
 
-    def time(self, j: int):
+    def time_of(self, j: int):
         return self.rows.times[j - self.rows.first]
 
     def at(self, j: int) -> str:
-        return f"record {j} (time {format_seconds(self.time(j))})"
+        return f"record {j} (time {format_seconds(self.time_of(j))})"
 
     def val(self, node: Expr, j: int):
         if isinstance(node, Literal):
@@ -377,72 +390,90 @@ class _Explainer:
             if not isinstance(child, Literal):
                 self.say(depth, self.shown(child, i))
 
-    def explain(self, node: Expr, i: int, want: bool, depth: int) -> None:  # noqa: C901
+    def explain(self, node: Expr, i: int, want: bool, depth: int) -> None:
         """Say why ``node`` was ``not want`` at record ``i``."""
-        if len(self.lines) >= MAX_LINES or depth > 8:
-            return
-        text = unparse(node)
-        failed = "held" if not want else "failed"
-        if isinstance(node, Name):
-            self.say(depth, f"{node.name} was {format_value(abridge(self.val(node, i)))}")
-            return
-        if isinstance(node, Not):
-            self.say(depth, f"{text} {failed}:")
-            self.explain(node.operand, i, not want, depth + 1)
-            return
-        if isinstance(node, Binary) and node.op in ("and", "or", "->"):
-            self.say(depth, f"{text} {failed}:")
-            parts = [(node.left, want), (node.right, want)]
-            if node.op == "->":
-                parts = [(node.left, not want), (node.right, want)]
-            decisive = (node.op == "and") == want or (node.op == "->" and want)
-            for child, child_want in parts:
-                if self.val(child, i) is (not child_want):
-                    self.explain(child, i, child_want, depth + 1)
-                    if decisive and node.op != "->":
-                        return
-            return
-        if isinstance(node, Binary) and node.op in COMPARISONS:
-            self.say(depth, f"{text} {failed}:")
+        if len(self.lines) < MAX_LINES and depth <= 8:
+            self.visit(node, i, want, depth)
+
+    def name(self, node: Name, i: int, want: bool, depth: int) -> None:
+        self.say(depth, f"{node.name} was {format_value(abridge(self.val(node, i)))}")
+
+    def not_(self, node: Not, i: int, want: bool, depth: int) -> None:
+        self.say(depth, f"{unparse(node)} {_failed(want)}:")
+        self.explain(node.operand, i, not want, depth + 1)
+
+    def binary(self, node: Binary, i: int, want: bool, depth: int) -> None:
+        if node.op in COMPARISONS:
+            self.say(depth, f"{unparse(node)} {_failed(want)}:")
             self.leaves(node, i, depth + 1)
             return
-        if isinstance(node, Past) or isinstance(node, Future):
-            window, clipped = (
-                self.past_window if isinstance(node, Past) else self.future_window
-            )(node, i)
-            exists = node.op in ("once", "eventually")
-            if exists == want:
-                # nothing in the window did it
-                where = self.span(window)
-                if clipped:
-                    where += f"; its records before record {self.rows.first} were not kept"
-                self.say(depth, f"{text} {failed}: {unparse(node.operand)} never "
-                                f"{'held' if want else 'failed'} {where}")
-                return
-            witness = next((j for j in window if self.val(node.operand, j) is (not want)), None)
-            self.say(depth, f"{text} {failed}:")
-            if witness is not None:
-                self.say(depth + 1, f"at {self.at(witness)}:")
-                self.explain(node.operand, witness, want, depth + 2)
-            elif clipped:
-                self.say(depth + 1, f"at a record before record {self.rows.first} (not kept)")
-            return
-        if isinstance(node, (Since, Until)):
-            self.say(depth, f"{text} {failed}")
-            self.say(depth + 1, self.shown(node.left, i))
-            self.say(depth + 1, self.shown(node.right, i))
-            return
-        if isinstance(node, (Aggregate, Prev, Call, Unary, Binary, Time)):
+        if node.op not in BOOLEAN:  # arithmetic: its value
             self.say(depth, self.shown(node, i))
             return
-        self.say(depth, f"{text} {failed}")
+        self.say(depth, f"{unparse(node)} {_failed(want)}:")
+        parts = [(node.left, want), (node.right, want)]
+        if node.op == "->":
+            parts = [(node.left, not want), (node.right, want)]
+        decisive = (node.op == "and") == want or (node.op == "->" and want)
+        for child, child_want in parts:
+            if self.val(child, i) is (not child_want):
+                self.explain(child, i, child_want, depth + 1)
+                if decisive and node.op != "->":
+                    return
+
+    def past(self, node: Past, i: int, want: bool, depth: int) -> None:
+        self.window(node, *self.past_window(node, i), want, depth)
+
+    def future(self, node: Future, i: int, want: bool, depth: int) -> None:
+        self.window(node, *self.future_window(node, i), want, depth)
+
+    def window(self, node: Past | Future, window: range, clipped: bool, want: bool,
+               depth: int) -> None:
+        """``node`` at a record whose ``window`` of records is this (``clipped``: judged
+        records in it are no longer kept)."""
+        text, failed = unparse(node), _failed(want)
+        exists = node.op in ("once", "eventually")
+        if exists == want:
+            # nothing in the window did it
+            where = self.span(window)
+            if clipped:
+                where += f"; its records before record {self.rows.first} were not kept"
+            self.say(depth, f"{text} {failed}: {unparse(node.operand)} never "
+                            f"{'held' if want else 'failed'} {where}")
+            return
+        witness = next((j for j in window if self.val(node.operand, j) is (not want)), None)
+        self.say(depth, f"{text} {failed}:")
+        if witness is not None:
+            self.say(depth + 1, f"at {self.at(witness)}:")
+            self.explain(node.operand, witness, want, depth + 2)
+        elif clipped:
+            self.say(depth + 1, f"at a record before record {self.rows.first} (not kept)")
+
+    def since(self, node: Since | Until, i: int, want: bool, depth: int) -> None:
+        self.say(depth, f"{unparse(node)} {_failed(want)}")
+        self.say(depth + 1, self.shown(node.left, i))
+        self.say(depth + 1, self.shown(node.right, i))
+
+    until = since
+
+    def _value(self, node: Expr, i: int, want: bool, depth: int) -> None:
+        self.say(depth, self.shown(node, i))
+
+    aggregate = prev = call = unary = time = _value
+
+    def literal(self, node: Literal, i: int, want: bool, depth: int) -> None:
+        self.say(depth, f"{unparse(node)} {_failed(want)}")
 
     def span(self, window: range) -> str:
         if not window:
             return "(no record in the window)"
         first, last = min(window), max(window)
-        return (f"in records {first}–{last} "
-                f"(times {format_seconds(self.time(first))}–{format_seconds(self.time(last))})")
+        since, until = format_seconds(self.time_of(first)), format_seconds(self.time_of(last))
+        return f"in records {first}–{last} (times {since}–{until})"
+
+
+def _failed(want: bool) -> str:
+    return "failed" if want else "held"
 
 
 def explain(

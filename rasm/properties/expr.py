@@ -16,9 +16,11 @@ import operator
 import sys
 from collections.abc import Callable, Mapping
 from fractions import Fraction
+from typing import NoReturn
 
 from rasm.errors import SpecError
 from rasm.properties.ast import Binary, Call, Expr, Literal, Name, Not, Unary
+from rasm.properties.visitor import Visitor
 
 __all__ = ["NAN", "compile_expression", "evaluate", "python_source", "HELPERS"]
 
@@ -119,37 +121,53 @@ _COMPARE = {
 def evaluate(expr: Expr, env: Mapping[str, object]) -> object:
     """Evaluate a non-temporal expression directly (slow, plain; see :func:`compile_expression`)."""
     try:
-        return _eval(expr, env)
+        return _Evaluate(env).visit(expr)
     except (TypeError, ValueError) as exc:
         raise SpecError(f"{expr.location}: cannot evaluate: {exc}") from None
 
 
-def _eval(node: Expr, env: Mapping[str, object]) -> object:  # noqa: C901 - one case per node
-    if isinstance(node, Literal):
+def _temporal(self: Visitor, node: Expr) -> NoReturn:
+    # the passes' method for every temporal node: the sub-language has none
+    raise SpecError(f"{node.location}: temporal operator not allowed here")
+
+
+class _Evaluate(Visitor[object]):
+    """A node's value, its operands evaluated only as far as needed (``p and q`` reads no
+    ``q`` where ``p`` is false)."""
+
+    def __init__(self, env: Mapping[str, object]) -> None:
+        self.env = env
+
+    def literal(self, node: Literal) -> object:
         return node.value
-    if isinstance(node, Name):
+
+    def name(self, node: Name) -> object:
         try:
-            return env[node.name]
+            return self.env[node.name]
         except KeyError:
             raise SpecError(f"{node.location}: no value for {node.name!r}") from None
-    if isinstance(node, Not):
-        return not _eval(node.operand, env)
-    if isinstance(node, Unary):
-        return -_eval(node.operand, env)
-    if isinstance(node, Binary):
+
+    def not_(self, node: Not) -> object:
+        return not self.visit(node.operand)
+
+    def unary(self, node: Unary) -> object:
+        return -self.visit(node.operand)
+
+    def binary(self, node: Binary) -> object:
         op = node.op
         if op == "and":
-            return bool(_eval(node.left, env)) and bool(_eval(node.right, env))
+            return bool(self.visit(node.left)) and bool(self.visit(node.right))
         if op == "or":
-            return bool(_eval(node.left, env)) or bool(_eval(node.right, env))
+            return bool(self.visit(node.left)) or bool(self.visit(node.right))
         if op == "->":
-            return (not _eval(node.left, env)) or bool(_eval(node.right, env))
-        left, right = _eval(node.left, env), _eval(node.right, env)
+            return (not self.visit(node.left)) or bool(self.visit(node.right))
+        left, right = self.visit(node.left), self.visit(node.right)
         if op in _ARITH:
             return _ARITH[op](left, right)
         return _COMPARE[op](left, right)
-    if isinstance(node, Call):
-        args = [_eval(a, env) for a in node.args]
+
+    def call(self, node: Call) -> object:
+        args = [self.visit(a) for a in node.args]
         if node.func == "abs" and len(args) == 1:
             return abs(args[0])
         if node.func == "min" and len(args) == 2:
@@ -157,21 +175,30 @@ def _eval(node: Expr, env: Mapping[str, object]) -> object:  # noqa: C901 - one 
         if node.func == "max" and len(args) == 2:
             return _max2(*args)
         raise SpecError(f"{node.location}: unknown function {node.func!r}")
-    raise SpecError(f"{node.location}: temporal operator not allowed here")
+
+    time = prev = past = future = since = until = aggregate = _temporal
 
 
-def python_source(node: Expr, name: Callable[[str], str]) -> str:
-    """Python source computing ``node``; ``name(signal)`` gives the source reading a signal."""
-    if isinstance(node, Literal):
+class _Source(Visitor[str]):
+    """Python source computing a node."""
+
+    def __init__(self, name: Callable[[str], str]) -> None:
+        self.read = name  # the source reading a signal
+
+    def literal(self, node: Literal) -> str:
         return repr(node.value)
-    if isinstance(node, Name):
-        return name(node.name)
-    if isinstance(node, Not):
-        return f"(not {python_source(node.operand, name)})"
-    if isinstance(node, Unary):
-        return f"(-{python_source(node.operand, name)})"
-    if isinstance(node, Binary):
-        left, right = python_source(node.left, name), python_source(node.right, name)
+
+    def name(self, node: Name) -> str:
+        return self.read(node.name)
+
+    def not_(self, node: Not) -> str:
+        return f"(not {self.visit(node.operand)})"
+
+    def unary(self, node: Unary) -> str:
+        return f"(-{self.visit(node.operand)})"
+
+    def binary(self, node: Binary) -> str:
+        left, right = self.visit(node.left), self.visit(node.right)
         op = node.op
         if op == "and":
             return f"({left} and {right})"
@@ -184,14 +211,21 @@ def python_source(node: Expr, name: Callable[[str], str]) -> str:
         if op == "!=":
             return f"_ne({left}, {right})"
         return f"({left} {op} {right})"
-    if isinstance(node, Call):
-        args = ", ".join(python_source(a, name) for a in node.args)
-        if node.func == "abs" and len(node.args) == 1:
-            return f"abs({args})"
-        if node.func in ("min", "max") and len(node.args) == 2:
-            return f"_{node.func}2({args})"
+
+    def call(self, node: Call) -> str:
+        args = [self.visit(a) for a in node.args]
+        if node.func == "abs" and len(args) == 1:
+            return f"abs({args[0]})"
+        if node.func in ("min", "max") and len(args) == 2:
+            return f"_{node.func}2({', '.join(args)})"
         raise SpecError(f"{node.location}: unknown function {node.func!r}")
-    raise SpecError(f"{node.location}: temporal operator not allowed here")
+
+    time = prev = past = future = since = until = aggregate = _temporal
+
+
+def python_source(node: Expr, name: Callable[[str], str]) -> str:
+    """Python source computing ``node``; ``name(signal)`` gives the source reading a signal."""
+    return _Source(name).visit(node)
 
 
 def compile_expression(expr: Expr) -> Callable[[Mapping[str, object]], object]:

@@ -13,24 +13,17 @@ from pathlib import PurePath
 from rasm.errors import SourceError, mark
 from rasm.properties.ast import (
     INF,
-    Aggregate,
-    Binary,
-    Call,
     Event,
     Expr,
     Future,
     Input,
     Let,
     Name,
-    Not,
-    Past,
-    Prev,
     Property,
-    Since,
     Specification,
-    Unary,
-    Until,
     children,
+    rebuild,
+    walk,
 )
 from rasm.properties.parser import parse_declarations
 from rasm.properties.types import TypeScope
@@ -98,7 +91,7 @@ def _load(text: str, source: str) -> Specification:
                 raise SourceError(f"let {defining!r} refers to itself", node.location)
             used_as_signal.setdefault(node.name, node)
             return node
-        return _rebuild(node, [expand(c, defining) for c in children(node)])
+        return rebuild(node, [expand(c, defining) for c in children(node)])
 
     def shallow(root: Expr, what: str, where) -> Expr:
         depth, stack = 0, [(root, 1)]
@@ -132,7 +125,7 @@ def _load(text: str, source: str) -> Specification:
             define(item.name, item)
             shallow(item.expr, f"let {item.name!r}", item.location)
             body = shallow(expand(item.expr, item.name), f"let {item.name!r}", item.location)
-            _check_always(body, outermost=False)
+            _check_always(body)
             scope.check(body)
             lets[item.name] = replace(item, expr=body)
         elif isinstance(item, Property):
@@ -146,7 +139,7 @@ def _load(text: str, source: str) -> Specification:
             shallow(item.formula, where, item.location)
             formula = shallow(expand(item.formula), where, item.location)
             formula = _strip_always(formula)
-            _check_always(formula, outermost=False)
+            _check_always(formula)
             scope.check(formula, "bool")
             properties.append(replace(item, formula=formula))
             property_names[item.name] = item
@@ -191,38 +184,16 @@ def _strip_always(formula: Expr) -> Expr:
     return formula
 
 
-def _check_always(node: Expr, *, outermost: bool) -> None:
-    if isinstance(node, Future) and node.bound.high == INF:
-        raise SourceError(
-            "an unbounded 'always' is allowed only as the outermost operator of a property; "
-            "give it a bound, always[a, b]",
-            node.location,
-        )
-    for child in children(node):
-        _check_always(child, outermost=False)
-
-
-def _rebuild(node: Expr, new: list[Expr]) -> Expr:
-    if not new:
-        return node
-    if isinstance(node, (Unary, Not, Prev, Past, Future, Aggregate)):
-        return replace(node, operand=new[0])
-    if isinstance(node, (Binary, Since, Until)):
-        return replace(node, left=new[0], right=new[1])
-    if isinstance(node, Call):
-        return replace(node, args=tuple(new))
-    return node
+def _check_always(formula: Expr) -> None:
+    for node in walk(formula):
+        if isinstance(node, Future) and node.bound.high == INF:
+            raise SourceError(
+                "an unbounded 'always' is allowed only as the outermost operator of a property; "
+                "give it a bound, always[a, b]",
+                node.location,
+            )
 
 
 def signals_of(node: Expr) -> list[str]:
     """The signal names ``node`` reads, in order of first appearance."""
-    seen: dict[str, None] = {}
-
-    def walk(n: Expr) -> None:
-        if isinstance(n, Name):
-            seen.setdefault(n.name, None)
-        for c in children(n):
-            walk(c)
-
-    walk(node)
-    return list(seen)
+    return list(dict.fromkeys(n.name for n in walk(node) if isinstance(n, Name)))

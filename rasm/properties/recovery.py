@@ -22,6 +22,7 @@ from __future__ import annotations
 from bisect import bisect_left
 
 from rasm.properties.ast import INF, Aggregate, Expr, Past, Prev, Since, children
+from rasm.properties.visitor import Transformer, Visitor
 
 __all__ = ["Recovery"]
 
@@ -68,19 +69,56 @@ class Recovery:
 
     def _exact(self, node: Expr, x: int) -> bool:
         """Whether ``node``'s value at record ``x`` depends only on records after the reset."""
-        if x <= self.reset:
-            return False
-        if isinstance(node, Prev):
-            return self._exact(node.operand, x - 1)
-        if isinstance(node, (Past, Since, Aggregate)):
-            times = self.times
-            first = self.reset + bisect_left(times, times[x - self.reset] - node.bound.high_ns)
-            return all(self._exact(child, first) for child in children(node))
-        return all(self._exact(child, x) for child in children(node))
+        assert self.times is not None
+        return _After(self.reset, self.times).visit(node, x)
+
+
+class _After(Visitor[bool]):
+    """Whether a node's value at record ``x`` depends only on records after ``reset``."""
+
+    def __init__(self, reset: int, times: list[int]) -> None:
+        self.reset = reset
+        self.times = times  # of records reset, reset + 1, …
+
+    def visit(self, node: Expr, x: int) -> bool:  # type: ignore[override]
+        return x > self.reset and super().visit(node, x)
+
+    def prev(self, node: Prev, x: int) -> bool:
+        return self.visit(node.operand, x - 1)
+
+    def past(self, node: Past | Since | Aggregate, x: int) -> bool:
+        # its operands from the first record no more than its upper bound before x on
+        reset, times = self.reset, self.times
+        first = reset + bisect_left(times, times[x - reset] - node.bound.high_ns)
+        return all(self.visit(child, first) for child in children(node))
+
+    since = aggregate = past
+
+    def _pointwise(self, node: Expr, x: int) -> bool:
+        # its operands at x (a future operator's from x on: dependence only moves
+        # forward with x, so x decides)
+        return all(self.visit(child, x) for child in children(node))
+
+    literal = name = time = unary = not_ = binary = call = future = until = _pointwise
+
+
+class _Bounded(Transformer[bool]):
+    """No past operator or aggregate without an upper bound: the property can recover."""
+
+    def past(self, node: Past | Since | Aggregate, *operands: bool) -> bool:
+        return node.bound.high_ns != INF and all(operands)
+
+    since = aggregate = past
+
+    def _others(self, node: Expr, *operands: bool) -> bool:
+        return all(operands)
+
+    literal = name = time = unary = not_ = binary = call = prev = future = until = _others
+
+
+_BOUNDED = _Bounded()
 
 
 def _bounded(node: Expr) -> bool:
     """No past operator or aggregate without an upper bound: the property can recover."""
-    if isinstance(node, (Past, Since, Aggregate)) and node.bound.high_ns == INF:
-        return False
-    return all(_bounded(child) for child in children(node))
+    return _BOUNDED.visit(node)

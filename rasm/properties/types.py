@@ -29,6 +29,7 @@ from rasm.properties.ast import (
     Unary,
     Until,
 )
+from rasm.properties.visitor import Visitor
 
 __all__ = ["Typing", "infer_types", "TypeScope"]
 
@@ -49,8 +50,9 @@ class Typing:
     signals: dict[str, str] = field(default_factory=dict)
 
 
-class TypeScope:
-    """Signal types shared by several expressions (all properties of one file)."""
+class TypeScope(Visitor[str]):
+    """Signal types shared by several expressions (all properties of one file); a pass whose
+    methods type a node given the type it must have."""
 
     def __init__(self, declared: Mapping[str, str]) -> None:
         for name, kind in declared.items():
@@ -63,8 +65,8 @@ class TypeScope:
     # ----------------------------------------------------------------- public
     def check(self, expr: Expr, expected: str | None = None) -> str:
         """Type ``expr`` (twice: uses further right may fix names used on the left)."""
-        self._infer(expr, expected)
-        return self._infer(expr, expected)
+        self.visit(expr, expected)
+        return self.visit(expr, expected)
 
     def signals(self) -> dict[str, str]:
         return {name: self.types.get(name, "any") for name in self.seen}
@@ -93,63 +95,72 @@ class TypeScope:
             )
         return kind
 
-    def _infer(self, node: Expr, expected: str | None) -> str:  # noqa: C901 - one case per node
-        if isinstance(node, Name):
-            self.seen.setdefault(node.name, node.location)
-            if expected is not None:
-                return self._fix(node, expected)
-            return self.types.get(node.name, "any")
-        if isinstance(node, Literal):
-            kind = _literal_type(node.value)
-            return self._expect(node, kind, expected, f"{node.value!r}")
-        if isinstance(node, Time):
-            return self._expect(node, "float", expected, "time")
-        if isinstance(node, Prev):
-            return self._infer(node.operand, expected)
-        if isinstance(node, Not):
-            self._infer(node.operand, "bool")
-            return self._expect(node, "bool", expected, "'not …'")
-        if isinstance(node, Unary):
-            kind = self._number(node.operand, "'-'")
-            return self._expect(node, kind, expected, "'-…'")
-        if isinstance(node, Binary):
-            return self._binary(node, expected)
-        if isinstance(node, Call):
-            return self._call(node, expected)
-        if isinstance(node, (Past, Future)):
-            self._infer(node.operand, "bool")
-            return self._expect(node, "bool", expected, f"'{node.op} …'")
-        if isinstance(node, (Since, Until)):
-            self._infer(node.left, "bool")
-            self._infer(node.right, "bool")
-            return self._expect(node, "bool", expected, "'since'/'until'")
-        if isinstance(node, Aggregate):
-            if node.op == "count":
-                self._infer(node.operand, "bool")
-                kind = "int"
-            else:
-                kind = self._number(node.operand, node.op)
-                if node.op == "avg":
-                    kind = "float"
-            return self._expect(node, kind, expected, f"'{node.op}[…](…)'")
-        raise TypeError(f"not an expression node: {node!r}")
+    # ----------------------------------------------------------------- the nodes
+    # each method types its node given the type it must have (``expected``, None: any)
+
+    def name(self, node: Name, expected: str | None) -> str:
+        self.seen.setdefault(node.name, node.location)
+        if expected is not None:
+            return self._fix(node, expected)
+        return self.types.get(node.name, "any")
+
+    def literal(self, node: Literal, expected: str | None) -> str:
+        kind = _literal_type(node.value)
+        return self._expect(node, kind, expected, f"{node.value!r}")
+
+    def time(self, node: Time, expected: str | None) -> str:
+        return self._expect(node, "float", expected, "time")
+
+    def prev(self, node: Prev, expected: str | None) -> str:
+        return self.visit(node.operand, expected)
+
+    def not_(self, node: Not, expected: str | None) -> str:
+        self.visit(node.operand, "bool")
+        return self._expect(node, "bool", expected, "'not …'")
+
+    def unary(self, node: Unary, expected: str | None) -> str:
+        kind = self._number(node.operand, "'-'")
+        return self._expect(node, kind, expected, "'-…'")
+
+    def past(self, node: Past | Future, expected: str | None) -> str:
+        self.visit(node.operand, "bool")
+        return self._expect(node, "bool", expected, f"'{node.op} …'")
+
+    future = past
+
+    def since(self, node: Since | Until, expected: str | None) -> str:
+        self.visit(node.left, "bool")
+        self.visit(node.right, "bool")
+        return self._expect(node, "bool", expected, "'since'/'until'")
+
+    until = since
+
+    def aggregate(self, node: Aggregate, expected: str | None) -> str:
+        if node.op == "count":
+            self.visit(node.operand, "bool")
+            kind = "int"
+        else:
+            kind = self._number(node.operand, node.op)
+            if node.op == "avg":
+                kind = "float"
+        return self._expect(node, kind, expected, f"'{node.op}[…](…)'")
 
     def _number(self, node: Expr, what: str) -> str:
         if isinstance(node, Name):
             self.seen.setdefault(node.name, node.location)
             return self._fix(node, "float")
-        kind = self._infer(node, None)
+        kind = self.visit(node, None)
         if kind == "any":
             return "float"
         if kind not in NUMBER:
             raise SourceError(f"{what} needs a number, not {_WORD[kind]}", node.location)
         return kind
 
-    def _binary(self, node: Binary, expected: str | None) -> str:
+    def binary(self, node: Binary, expected: str | None) -> str:
         op = node.op
         if op in ("and", "or", "->"):
-            self._infer(node.left, "bool")
-            self._infer(node.right, "bool")
+            self.visit(node.left, "bool")
+            self.visit(node.right, "bool")
             return self._expect(node, "bool", expected, f"'{op}'")
         if op in ARITHMETIC:
             left = self._number(node.left, f"arithmetic '{op}'")
@@ -161,19 +172,19 @@ class TypeScope:
             self._number(node.left, f"comparison '{op}'")
             self._number(node.right, f"comparison '{op}'")
             return self._expect(node, "bool", expected, f"'{op}'")
-        left = self._infer(node.left, None)
-        right = self._infer(node.right, None)
+        left = self.visit(node.left, None)
+        right = self.visit(node.right, None)
         if left == "any" and right != "any":
-            left = self._infer(node.left, right)
+            left = self.visit(node.left, right)
         elif right == "any" and left != "any":
-            right = self._infer(node.right, left)
+            right = self.visit(node.right, left)
         if left != "any" and right != "any" and not _compatible(left, right):
             raise SourceError(
                 f"cannot compare {_WORD[left]} with {_WORD[right]} ('{op}')", node.location
             )
         return self._expect(node, "bool", expected, f"'{op}'")
 
-    def _call(self, node: Call, expected: str | None) -> str:
+    def call(self, node: Call, expected: str | None) -> str:
         arity = FUNCTIONS.get(node.func)
         if arity is None:
             known = ", ".join(sorted(FUNCTIONS))

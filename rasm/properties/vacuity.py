@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
-from rasm.properties.ast import Binary, Expr, Name, Specification, children
+from rasm.properties.ast import Binary, Expr, Name, Specification, walk
 from rasm.properties.ast import Property as PropertyNode
 from rasm.properties.loader import signals_of
 from rasm.properties.monitor import Monitor
@@ -27,12 +27,9 @@ __all__ = ["Vacuity", "antecedents"]
 def antecedents(formula: Expr) -> list[Expr]:
     """The left side of every ``->`` in ``formula``, outermost first, each once."""
     found: list[Expr] = []
-    stack = [formula]
-    while stack:
-        node = stack.pop()
+    for node in walk(formula):
         if isinstance(node, Binary) and node.op == "->" and node.left not in found:
             found.append(node.left)
-        stack.extend(reversed(children(node)))
     return found
 
 

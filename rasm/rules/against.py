@@ -10,21 +10,19 @@ does not; such a point is the witness. Other properties are listed as skipped, w
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import z3
 
 from rasm.errors import Location, SourceError, SourceErrors
 from rasm.properties import ast
 from rasm.properties.parser import parse_declarations
+from rasm.properties.visitor import Transformer
 from rasm.rules.model import Rules
 from rasm.rules.mus import SolverGaveUp, check, new_solver
 from rasm.rules.report import Violation
 from rasm.rules.smt import Encoder
 from rasm.rules.typing import check_rule_expression
 from rasm.rules.verify import Undecided, likely_cause
-
-_TEMPORAL = (ast.Time, ast.Prev, ast.Past, ast.Future, ast.Since, ast.Until, ast.Aggregate)
 
 
 def check_against(rules: Rules, path: str | Path) -> list[Violation]:
@@ -103,56 +101,52 @@ def _judge(
 
 def _expand(expr: ast.Expr, lets: dict[str, ast.Expr]) -> ast.Expr:
     """``expr`` with every ``let`` name replaced by its (already expanded) definition."""
-    import dataclasses
-
-    if isinstance(expr, ast.Name) and expr.name in lets:
-        return lets[expr.name]
-    changes: dict[str, Any] = {}
-    for field in dataclasses.fields(expr):
-        value = getattr(expr, field.name)
-        if isinstance(value, tuple) and value and all(_is_expr(v) for v in value):
-            changes[field.name] = tuple(_expand(v, lets) for v in value)
-        elif _is_expr(value):
-            changes[field.name] = _expand(value, lets)
-    return dataclasses.replace(expr, **changes) if changes else expr
-
-
-def _is_expr(value: Any) -> bool:
-    return isinstance(value, (ast.Literal, ast.Name, ast.Unary, ast.Not, ast.Binary, ast.Call)
-                      + _TEMPORAL)
+    if isinstance(expr, ast.Name):
+        return lets.get(expr.name, expr)
+    return ast.rebuild(expr, [_expand(child, lets) for child in ast.children(expr)])
 
 
 def _temporal(expr: ast.Expr) -> bool:
-    return isinstance(expr, _TEMPORAL) or any(_temporal(c) for c in ast.children(expr))
+    return any(isinstance(node, ast.TEMPORAL) for node in ast.walk(expr))
 
 
 def _names(expr: ast.Expr) -> set[str]:
-    found = {expr.name} if isinstance(expr, ast.Name) else set()
-    for child in ast.children(expr):
-        found |= _names(child)
-    return found
+    return {node.name for node in ast.walk(expr) if isinstance(node, ast.Name)}
 
 
-def _show(expr: ast.Expr) -> str:
-    """The expression as text (fully parenthesised where it matters)."""
-    if isinstance(expr, ast.Literal):
+class _Show(Transformer[str]):
+    """An expression as text (fully parenthesised where it matters)."""
+
+    def literal(self, expr: ast.Literal) -> str:
         value = expr.value
         if isinstance(value, bool):
             return "true" if value else "false"
         return f'"{value}"' if isinstance(value, str) else repr(value)
-    if isinstance(expr, ast.Name):
+
+    def name(self, expr: ast.Name) -> str:
         return expr.name
-    if isinstance(expr, ast.Not):
-        return f"not {_wrap(expr.operand)}"
-    if isinstance(expr, ast.Unary):
-        return f"-{_wrap(expr.operand)}"
-    if isinstance(expr, ast.Binary):
-        return f"{_wrap(expr.left)} {expr.op} {_wrap(expr.right)}"
-    if isinstance(expr, ast.Call):
-        return f"{expr.func}(" + ", ".join(_show(a) for a in expr.args) + ")"
-    return "?"
+
+    def not_(self, expr: ast.Not, operand: str) -> str:
+        return f"not {_wrap(expr.operand, operand)}"
+
+    def unary(self, expr: ast.Unary, operand: str) -> str:
+        return f"-{_wrap(expr.operand, operand)}"
+
+    def binary(self, expr: ast.Binary, left: str, right: str) -> str:
+        return f"{_wrap(expr.left, left)} {expr.op} {_wrap(expr.right, right)}"
+
+    def call(self, expr: ast.Call, *args: str) -> str:
+        return f"{expr.func}(" + ", ".join(args) + ")"
+
+    def _temporal(self, expr: ast.Expr, *operands: str) -> str:
+        return "?"  # (never shown: a property with one is skipped before)
+
+    time = prev = past = future = since = until = aggregate = _temporal
 
 
-def _wrap(expr: ast.Expr) -> str:
-    text = _show(expr)
+def _show(expr: ast.Expr) -> str:
+    return _Show().visit(expr)
+
+
+def _wrap(expr: ast.Expr, text: str) -> str:
     return f"({text})" if isinstance(expr, ast.Binary) else text

@@ -22,6 +22,7 @@ from typing import Any
 import z3
 
 from rasm.properties import ast
+from rasm.properties.visitor import Visitor
 from rasm.rules.model import Rule, Rules, Variable
 
 #: At most this many combinations of values of finite plan fields are enumerated when asking
@@ -122,25 +123,57 @@ class Encoder:
 
     def condition(self, expr: ast.Expr) -> z3.BoolRef:
         """A boolean expression as a z3 formula."""
-        if isinstance(expr, ast.Literal):
-            return z3.BoolVal(bool(expr.value))
-        if isinstance(expr, ast.Name):
-            return self.terms[expr.name]
-        if isinstance(expr, ast.Not):
-            return z3.Not(self.condition(expr.operand))
-        if isinstance(expr, ast.Binary):
-            if expr.op == "and":
-                return z3.And(self.condition(expr.left), self.condition(expr.right))
-            if expr.op == "or":
-                return z3.Or(self.condition(expr.left), self.condition(expr.right))
-            if expr.op == "->":
-                return z3.Implies(self.condition(expr.left), self.condition(expr.right))
-            return self.comparison(expr)
-        raise TypeError(f"not a rule condition: {expr!r}")  # the type checker rules this out
+        return _Condition(self).visit(expr)
+
+    def value(self, expr: ast.Expr, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        """A numeric, enum or boolean value; divisors' non-zero conditions go to ``guards``."""
+        return _Value(self).visit(expr, guards)
+
+    def decode(self, model: z3.ModelRef, names: Any) -> dict[str, Any]:
+        """Python values of ``names`` in ``model`` (enums by name, reals as floats)."""
+        back = {i: v for v, i in self.ids.items()}
+        result: dict[str, Any] = {}
+        for name in names:
+            variable, value = self.variables[name], model.eval(self.terms[name], True)
+            if variable.type == "bool":
+                result[name] = z3.is_true(value)
+            elif variable.type == "int":
+                result[name] = value.as_long()
+            elif variable.type == "enum":
+                result[name] = back.get(value.as_long(), variable.values[0])
+            else:
+                result[name] = _to_float(value)
+        return result
+
+
+class _Condition(Visitor[z3.BoolRef]):
+    """A boolean expression as a z3 formula."""
+
+    def __init__(self, encoder: Encoder) -> None:
+        self.encoder = encoder
+
+    def literal(self, expr: ast.Literal) -> z3.BoolRef:
+        return z3.BoolVal(bool(expr.value))
+
+    def name(self, expr: ast.Name) -> z3.BoolRef:
+        return self.encoder.terms[expr.name]
+
+    def not_(self, expr: ast.Not) -> z3.BoolRef:
+        return z3.Not(self.visit(expr.operand))
+
+    def binary(self, expr: ast.Binary) -> z3.BoolRef:
+        if expr.op == "and":
+            return z3.And(self.visit(expr.left), self.visit(expr.right))
+        if expr.op == "or":
+            return z3.Or(self.visit(expr.left), self.visit(expr.right))
+        if expr.op == "->":
+            return z3.Implies(self.visit(expr.left), self.visit(expr.right))
+        return self.comparison(expr)
 
     def comparison(self, expr: ast.Binary) -> z3.BoolRef:
         guards: list[z3.BoolRef] = []
-        left, right = self.value(expr.left, guards), self.value(expr.right, guards)
+        left = self.encoder.value(expr.left, guards)
+        right = self.encoder.value(expr.right, guards)
         op = expr.op
         if z3.is_bool(left) or z3.is_bool(right):
             left, right = self.as_bool(expr.left, left), self.as_bool(expr.right, right)
@@ -159,58 +192,62 @@ class Encoder:
         return z3.And(*guards, result) if guards else result
 
     def as_bool(self, expr: ast.Expr, term: z3.ExprRef) -> z3.BoolRef:
-        return term if z3.is_bool(term) else self.condition(expr)
+        return term if z3.is_bool(term) else self.visit(expr)
 
-    def value(self, expr: ast.Expr, guards: list[z3.BoolRef]) -> z3.ExprRef:
-        """A numeric, enum or boolean value; divisors' non-zero conditions go to ``guards``."""
-        if isinstance(expr, ast.Literal):
-            value = expr.value
-            if isinstance(value, bool):
-                return z3.BoolVal(value)
-            if isinstance(value, str):
-                return z3.IntVal(self.id(value))
-            return _number(value)
-        if isinstance(expr, ast.Name):
-            return self.terms[expr.name]
-        if isinstance(expr, ast.Unary):
-            return -self.value(expr.operand, guards)
-        if isinstance(expr, ast.Call):
-            args = [self.value(arg, guards) for arg in expr.args]
-            if expr.func == "abs":
-                return z3.If(args[0] >= 0, args[0], -args[0])
-            a, b = _same_sort(args[0], args[1])
-            if expr.func == "min":
-                return z3.If(a <= b, a, b)
-            return z3.If(a >= b, a, b)
-        if isinstance(expr, ast.Binary) and expr.op in ast.ARITHMETIC:
-            left, right = self.value(expr.left, guards), self.value(expr.right, guards)
-            if expr.op == "+":
-                return left + right
-            if expr.op == "-":
-                return left - right
-            if expr.op == "*":
-                return left * right
-            left, right = z3.ToReal(left) if _is_int(left) else left, right
-            right = z3.ToReal(right) if _is_int(right) else right
-            guards.append(right != 0)
-            return left / right
-        return self.condition(expr)
+    def _no_condition(self, expr: ast.Expr) -> z3.BoolRef:
+        raise TypeError(f"not a rule condition: {expr!r}")  # the type checker rules this out
 
-    def decode(self, model: z3.ModelRef, names: Any) -> dict[str, Any]:
-        """Python values of ``names`` in ``model`` (enums by name, reals as floats)."""
-        back = {i: v for v, i in self.ids.items()}
-        result: dict[str, Any] = {}
-        for name in names:
-            variable, value = self.variables[name], model.eval(self.terms[name], True)
-            if variable.type == "bool":
-                result[name] = z3.is_true(value)
-            elif variable.type == "int":
-                result[name] = value.as_long()
-            elif variable.type == "enum":
-                result[name] = back.get(value.as_long(), variable.values[0])
-            else:
-                result[name] = _to_float(value)
-        return result
+    unary = call = time = prev = past = future = since = until = aggregate = _no_condition
+
+
+class _Value(Visitor[z3.ExprRef]):
+    """A numeric, enum or boolean value; divisors' non-zero conditions go to ``guards``."""
+
+    def __init__(self, encoder: Encoder) -> None:
+        self.encoder = encoder
+
+    def literal(self, expr: ast.Literal, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        value = expr.value
+        if isinstance(value, bool):
+            return z3.BoolVal(value)
+        if isinstance(value, str):
+            return z3.IntVal(self.encoder.id(value))
+        return _number(value)
+
+    def name(self, expr: ast.Name, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        return self.encoder.terms[expr.name]
+
+    def unary(self, expr: ast.Unary, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        return -self.visit(expr.operand, guards)
+
+    def call(self, expr: ast.Call, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        args = [self.visit(arg, guards) for arg in expr.args]
+        if expr.func == "abs":
+            return z3.If(args[0] >= 0, args[0], -args[0])
+        a, b = _same_sort(args[0], args[1])
+        if expr.func == "min":
+            return z3.If(a <= b, a, b)
+        return z3.If(a >= b, a, b)
+
+    def binary(self, expr: ast.Binary, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        if expr.op not in ast.ARITHMETIC:
+            return self.encoder.condition(expr)
+        left, right = self.visit(expr.left, guards), self.visit(expr.right, guards)
+        if expr.op == "+":
+            return left + right
+        if expr.op == "-":
+            return left - right
+        if expr.op == "*":
+            return left * right
+        left, right = z3.ToReal(left) if _is_int(left) else left, right
+        right = z3.ToReal(right) if _is_int(right) else right
+        guards.append(right != 0)
+        return left / right
+
+    def _condition(self, expr: ast.Expr, guards: list[z3.BoolRef]) -> z3.ExprRef:
+        return self.encoder.condition(expr)
+
+    not_ = time = prev = past = future = since = until = aggregate = _condition
 
 
 def _number(value: int | float) -> z3.ArithRef:

@@ -13,12 +13,15 @@ import difflib
 
 from rasm.errors import Location, SourceError, SourceErrors, mark
 from rasm.properties import ast
+from rasm.properties.visitor import Visitor
 from rasm.rules.model import Variable
 
 _NUMERIC = ("int", "real")
 
 
-class _Checker:
+class _Checker(Visitor[str | None]):
+    """A rule expression's pass: each method types its node and notes what is wrong."""
+
     def __init__(
         self,
         variables: dict[str, Variable],
@@ -40,40 +43,42 @@ class _Checker:
         excerpt = mark(self.text, loc.line, loc.col, width) if loc.file == self.source else None
         self.errors.append(SourceError(message, loc, excerpt))
 
-    def type_of(self, node: ast.Expr) -> str | None:
-        """The node's type: int, real, bool, or enum (strings); None after an error."""
-        if isinstance(node, ast.Literal):
-            value = node.value
-            if isinstance(value, bool):
-                return "bool"
-            if isinstance(value, int):
-                return "int"
-            if isinstance(value, float):
-                return "real"
-            return "enum"
-        if isinstance(node, ast.Name):
-            return self.name(node)
-        if isinstance(node, ast.Unary):
-            operand = self.type_of(node.operand)
-            if operand is not None and operand not in _NUMERIC:
-                self.fail(f"arithmetic on {_a(operand)}: '-' needs a number", node)
-                return None
-            return operand
-        if isinstance(node, ast.Not):
-            operand = self.type_of(node.operand)
-            if operand is not None and operand != "bool":
-                self.fail(f"'not' needs a condition, not {_a(operand)}", node, 3)
+    # ----------------------------------------------------------------- the nodes
+    # each method gives its node's type: int, real, bool, or enum (strings); None after an error
+
+    def literal(self, node: ast.Literal) -> str | None:
+        value = node.value
+        if isinstance(value, bool):
             return "bool"
-        if isinstance(node, ast.Binary):
-            return self.binary(node)
-        if isinstance(node, ast.Call):
-            return self.call(node)
-        if isinstance(node, ast.Time | ast.Prev):
-            word = "time" if isinstance(node, ast.Time) else "prev()"
-            self.fail(f"{word} reads a trace: a rule judges one plan, so it cannot use it", node)
+        if isinstance(value, int):
+            return "int"
+        if isinstance(value, float):
+            return "real"
+        return "enum"
+
+    def unary(self, node: ast.Unary) -> str | None:
+        operand = self.visit(node.operand)
+        if operand is not None and operand not in _NUMERIC:
+            self.fail(f"arithmetic on {_a(operand)}: '-' needs a number", node)
             return None
+        return operand
+
+    def not_(self, node: ast.Not) -> str | None:
+        operand = self.visit(node.operand)
+        if operand is not None and operand != "bool":
+            self.fail(f"'not' needs a condition, not {_a(operand)}", node, 3)
+        return "bool"
+
+    def time(self, node: ast.Time) -> None:
+        self.fail("time reads a trace: a rule judges one plan, so it cannot use it", node)
+
+    def prev(self, node: ast.Prev) -> None:
+        self.fail("prev() reads a trace: a rule judges one plan, so it cannot use it", node)
+
+    def past(self, node: ast.Expr) -> None:
         self.fail("temporal operators are not allowed in a rule (it judges one plan)", node)
-        return None
+
+    future = since = until = aggregate = past
 
     def name(self, node: ast.Name) -> str | None:
         variable = self.variables.get(node.name)
@@ -96,7 +101,7 @@ class _Checker:
         return f"unknown variable {name!r}{hint}; declared variables: {declared}"
 
     def binary(self, node: ast.Binary) -> str | None:
-        left, right = self.type_of(node.left), self.type_of(node.right)
+        left, right = self.visit(node.left), self.visit(node.right)
         op = node.op
         if left is None or right is None:
             return "bool" if op in ast.COMPARISONS + ast.BOOLEAN else None
@@ -153,7 +158,7 @@ class _Checker:
             self.fail(f"{node.func}() takes {arity} argument{'s' if arity > 1 else ''}, "
                       f"not {len(node.args)}", node, len(node.func))
             return None
-        types = [self.type_of(arg) for arg in node.args]
+        types = [self.visit(arg) for arg in node.args]
         if None in types:
             return None
         for t in types:
@@ -187,7 +192,7 @@ def check_rule_expression(
     not reported again as unknown.
     """
     checker = _Checker(variables, source, text, strict_enums, broken)
-    result = checker.type_of(expr)
+    result = checker.visit(expr)
     if result is not None and result != "bool" and not checker.errors:
         checker.fail(f"'{what}' must be a condition (true or false), not {_a(result)}", expr)
     if checker.errors:

@@ -38,6 +38,7 @@ from rasm.properties.ast import (
     INF,
     Aggregate,
     Binary,
+    Bound,
     Expr,
     Future,
     Literal,
@@ -46,8 +47,9 @@ from rasm.properties.ast import (
     Since,
     Specification,
     Until,
-    children,
+    walk,
 )
+from rasm.properties.visitor import Transformer
 from rasm.testing._props import PropertyFile, property_file
 from rasm.values import fit
 
@@ -80,12 +82,6 @@ class Domain:
         return st.floats(self.low, self.high, allow_nan=False, allow_infinity=False)
 
 
-def _walk(node: Expr):
-    yield node
-    for child in children(node):
-        yield from _walk(child)
-
-
 def _formulas(spec: Specification) -> list[Expr]:
     return [p.formula for p in spec.properties] + [let.expr for let in spec.lets]
 
@@ -94,7 +90,7 @@ def _constants(spec: Specification) -> dict[str, list[Any]]:
     """Constants each signal is compared with anywhere in the file (in order of appearance)."""
     found: dict[str, list[Any]] = {}
     for formula in _formulas(spec):
-        for node in _walk(formula):
+        for node in walk(formula):
             if not (isinstance(node, Binary) and node.op in COMPARISONS):
                 continue
             for a, b in ((node.left, node.right), (node.right, node.left)):
@@ -105,15 +101,31 @@ def _constants(spec: Specification) -> dict[str, list[Any]]:
     return found
 
 
+class _Windows(Transformer[list[Bound]]):
+    """The bounds of the windows a node and the nodes below it open."""
+
+    def past(
+        self, node: Past | Future | Since | Until | Aggregate, *below: list[Bound]
+    ) -> list[Bound]:
+        return [node.bound, *(bound for bounds in below for bound in bounds)]
+
+    future = since = until = aggregate = past
+
+    def _below(self, node: Expr, *below: list[Bound]) -> list[Bound]:
+        return [bound for bounds in below for bound in bounds]
+
+    literal = name = time = unary = not_ = binary = call = prev = _below
+
+
 def _largest_bound(spec: Specification) -> float | None:
-    largest = None
-    for formula in _formulas(spec):
-        for node in _walk(formula):
-            if isinstance(node, (Past, Future, Since, Until, Aggregate)):
-                for x in (node.bound.low, node.bound.high):
-                    if x != INF and (largest is None or x > largest):
-                        largest = x
-    return largest
+    ends = [
+        end
+        for formula in _formulas(spec)
+        for bound in _Windows().visit(formula)
+        for end in (bound.low, bound.high)
+        if end != INF
+    ]
+    return max(ends, default=None)
 
 
 def _comment_ranges(file: PropertyFile) -> dict[str, tuple[float, float]]:
