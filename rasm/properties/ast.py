@@ -5,8 +5,8 @@ file, so that type errors and explanations name the place. The expression nodes 
 ``Call``) are the sub-language shared with the legitimacy rules; ``Time``, ``Prev``
 and the temporal nodes exist only in property files.
 
-The node classes are listed in :data:`NODES`; each names the fields that hold its
-sub-expressions (``_operand_fields``), from which :func:`children`, :func:`walk` and
+The node classes are listed in :data:`NODES`; the fields of a node typed ``Expr`` (or
+``tuple[Expr, ...]``) hold its sub-expressions, so :func:`children`, :func:`walk` and
 :func:`rebuild` work for every node alike. What a node *means* is up to each pass over the tree
 (:mod:`rasm.properties.visitor`: one method per node class).
 
@@ -22,9 +22,11 @@ Operators are plain strings:
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
-from typing import ClassVar, Union
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field, fields, replace
+from itertools import chain
+from operator import attrgetter, is_
+from typing import Union
 
 from rasm.errors import Location
 from rasm.properties.times import format_nanoseconds, nanoseconds
@@ -75,10 +77,8 @@ def _loc():
 
 
 class Expr:
-    """A node of a formula's syntax tree (every node class below derives from it)."""
-
-    # the fields holding the node's sub-expressions, left to right (a tuple field: several)
-    _operand_fields: ClassVar[tuple[str, ...]] = ()
+    """A node of a formula's syntax tree (every node class below derives from it); its fields
+    typed ``Expr`` or ``tuple[Expr, ...]`` hold its sub-expressions, left to right."""
 
 
 @dataclass(frozen=True)
@@ -101,7 +101,6 @@ class Name(Expr):
 class Unary(Expr):
     """Numeric negation ``-operand`` (``op`` is always ``"-"``)."""
 
-    _operand_fields = ("operand",)
     op: str
     operand: Expr
     location: Location = _loc()
@@ -111,7 +110,6 @@ class Unary(Expr):
 class Not(Expr):
     """Boolean negation ``not operand``."""
 
-    _operand_fields = ("operand",)
     operand: Expr
     location: Location = _loc()
 
@@ -120,7 +118,6 @@ class Not(Expr):
 class Binary(Expr):
     """``left op right`` for arithmetic, comparison and ``and``/``or``/``->`` operators."""
 
-    _operand_fields = ("left", "right",)
     op: str
     left: Expr
     right: Expr
@@ -131,7 +128,6 @@ class Binary(Expr):
 class Call(Expr):
     """A function call ``func(args…)``: ``abs(e)``, ``min(a, b)``, ``max(a, b)``."""
 
-    _operand_fields = ("args",)
     func: str
     args: tuple[Expr, ...]
     location: Location = _loc()
@@ -151,7 +147,6 @@ class Time(Expr):
 class Prev(Expr):
     """``prev(operand)``: the operand's value at the previous record (undefined at the first)."""
 
-    _operand_fields = ("operand",)
     operand: Expr
     location: Location = _loc()
 
@@ -190,7 +185,6 @@ class Bound:
 class Past(Expr):
     """``once[bound] operand`` or ``historically[bound] operand`` (``op`` names which)."""
 
-    _operand_fields = ("operand",)
     op: str
     bound: Bound
     operand: Expr
@@ -205,7 +199,6 @@ class Future(Expr):
     of a property, where it means "at every record"; the loader strips it.
     """
 
-    _operand_fields = ("operand",)
     op: str
     bound: Bound
     operand: Expr
@@ -216,7 +209,6 @@ class Future(Expr):
 class Since(Expr):
     """``left since[bound] right``: right held in the window and left ever since."""
 
-    _operand_fields = ("left", "right",)
     left: Expr
     right: Expr
     bound: Bound
@@ -227,7 +219,6 @@ class Since(Expr):
 class Until(Expr):
     """``left until[bound] right``: right will hold in the window and left until then."""
 
-    _operand_fields = ("left", "right",)
     left: Expr
     right: Expr
     bound: Bound
@@ -238,7 +229,6 @@ class Until(Expr):
 class Aggregate(Expr):
     """``op[bound](operand)`` with ``op`` in count, sum, avg, min, max, over the past window."""
 
-    _operand_fields = ("operand",)
     op: str
     bound: Bound
     operand: Expr
@@ -251,13 +241,37 @@ TEMPORAL: tuple[type[Expr], ...] = (Time, Prev, Past, Future, Since, Until, Aggr
 NODES = EXPRESSIONS + TEMPORAL  # every node class: each pass has a method for each
 
 
+def _operands(cls: type[Expr]) -> tuple[tuple[str, bool], ...]:
+    """The fields of ``cls`` holding sub-expressions, each with whether it holds several
+    (the annotations are strings: this module postpones them)."""
+    kinds = {"Expr": False, "tuple[Expr, ...]": True}
+    return tuple((f.name, kinds[f.type]) for f in fields(cls) if f.type in kinds)
+
+
+def _reader(operands: tuple[tuple[str, bool], ...]) -> Callable[[Expr], tuple[Expr, ...]]:
+    """A fast reader of a node's sub-expressions, given its class's operand fields."""
+    names = [name for name, _ in operands]
+    if not operands:
+        return lambda node: ()
+    if operands == ((names[0], True),):
+        return attrgetter(names[0])  # a tuple already
+    if not any(several for _, several in operands):
+        if len(names) == 1:
+            name = names[0]
+            return lambda node: (getattr(node, name),)
+        return attrgetter(*names)  # a tuple of them
+    return lambda node: tuple(chain.from_iterable(
+        getattr(node, name) if several else (getattr(node, name),) for name, several in operands
+    ))
+
+
+_OPERANDS = {cls: _operands(cls) for cls in NODES}
+_CHILDREN = {cls: _reader(operands) for cls, operands in _OPERANDS.items()}
+
+
 def children(node: Expr) -> tuple[Expr, ...]:
     """The direct sub-expressions of ``node``, left to right."""
-    found: tuple[Expr, ...] = ()
-    for name in node._operand_fields:
-        value = getattr(node, name)
-        found += value if isinstance(value, tuple) else (value,)
-    return found
+    return _CHILDREN[node.__class__](node)
 
 
 def walk(node: Expr) -> Iterator[Expr]:
@@ -267,18 +281,22 @@ def walk(node: Expr) -> Iterator[Expr]:
     while stack:
         node = stack.pop()
         yield node
-        stack.extend(reversed(children(node)))
+        stack.extend(reversed(_CHILDREN[node.__class__](node)))
 
 
 def rebuild(node: Expr, new: Sequence[Expr]) -> Expr:
-    """``node`` with its sub-expressions replaced by ``new`` (as many, in the same order)."""
-    if not node._operand_fields:
+    """``node`` with its sub-expressions replaced by ``new`` (as many, in the same order);
+    ``node`` itself where they are its own."""
+    operands = _OPERANDS[node.__class__]
+    if all(map(is_, new, children(node))):  # (a leaf: nothing to replace)
         return node
     rest = iter(new)
     changes: dict[str, object] = {}
-    for name in node._operand_fields:
-        value = getattr(node, name)
-        changes[name] = tuple(next(rest) for _ in value) if isinstance(value, tuple) else next(rest)
+    for name, several in operands:
+        if several:
+            changes[name] = tuple(next(rest) for _ in getattr(node, name))
+        else:
+            changes[name] = next(rest)
     return replace(node, **changes)
 
 

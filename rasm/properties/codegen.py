@@ -1,9 +1,11 @@
 """Compiling a checked specification to Python source: one step function for all properties.
 
-Each property's lines come from :class:`rasm.properties.formula_code.FormulaGenerator`; this
-module puts them together with the record checks into one program. A property whose formula
-looks into the future gets its verdicts off its top stream as they are decided, in any order:
-``step`` gives each as a Verdict at once, ``run`` puts them back in record order
+Each property's lines (:mod:`rasm.properties.lines`) come from
+:class:`rasm.properties.formula_code.FormulaGenerator`; this module puts them together with the
+record checks into one program. What the program reads besides its own constants, the monitor
+provides: the names of :class:`Runtime`. A property whose formula looks into the future gets
+its verdicts off its top stream as they are decided, in any order: ``step`` gives each as a
+Verdict at once, ``run`` puts them back in record order
 (:class:`rasm.properties.streams.InOrder`).
 
 Windows compare times as exact integer nanoseconds: the generated code turns each record's time
@@ -18,13 +20,14 @@ verdicts and resets its state (``rasm.properties.monitor``), and the other prope
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 from rasm.properties.ast import Specification
-from rasm.properties.emitter import signal_variable
+from rasm.properties.emitter import Names, signal_variable
 from rasm.properties.formula_code import FormulaGenerator
-from rasm.properties.lines import Code, Fault, Line, Reject, indent, render
+from rasm.properties.lines import Block, Code, Fault, Line, Reject, render
 from rasm.properties.loader import signals_of
 from rasm.properties.times import FAST
 
@@ -99,12 +102,13 @@ def generate(
     the caller, from a fresh :func:`generate`). It reads the names in ``Program.constants`` and
     those of :class:`Runtime`, which the monitor provides.
     """
-    gen = FormulaGenerator(spec)
+    names = Names()
+    gen = FormulaGenerator(spec, names)
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     events = {item.name for item in spec.events}
     blocks: list[list[Line]] = []
     finishes: list[list[Line]] = []
-    program = Program("", gen.constants, {}, owned=gen.owned)
+    program = Program("", names.constants, {}, owned=names.owned)
     for number, prop in enumerate(spec.properties):
         code = gen.compile(number, prop.formula)
         needed = signals_of(prop.formula) if reads is None else reads[number]
@@ -117,17 +121,15 @@ def generate(
             body.insert(0, Code(f"FAULT_HOOK(NAME_{number}, i)"))
         guarded = _guarded(body, number, finishing=False)
         if warm:
-            started = gen.variable("started", False, owned=False)
+            started = names.variable(None, "started", False)
             ready = " and ".join(f"{signal_variable(n)} is not UNSET" for n in warm)
-            block: list[Line] = [
-                Code(f"if not {started} and {ready}:"),
-                Code(f"    {started} = True"),
-                Code(f"    STARTS[{number}] = i"),
-            ]
+            start = [Code(f"{started} = True"), Code(f"STARTS[{number}] = i")]
             if code.order is not None:
-                block.append(Code(f"    {code.order}.next = i"))
-            block.append(Code(f"if {started}:"))
-            block += indent(guarded)
+                start.append(Code(f"{code.order}.next = i"))
+            block: list[Line] = [
+                Block(f"if not {started} and {ready}:", tuple(start)),
+                Block(f"if {started}:", tuple(guarded)),
+            ]
         else:
             started = "i >= 0"
             first = f"STARTS[{number}] = 0"
@@ -136,15 +138,13 @@ def generate(
             block = [Code(f"if i == 0: {first}"), *guarded]
         blocks.append(block)
         if code.late:
-            finishes.append(
-                [Code(f"if {started}:"), *indent(_guarded(list(code.finish), number, True))]
-            )
+            finishes.append([Block(f"if {started}:", tuple(_guarded(code.finish, number, True)))])
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure.
     # A warm-up may wait for a signal no formula reads (``reads``): it is held all the same.
     used = checked_signals(spec)
     used += dict.fromkeys(name for warm in program.reads for name in warm if name not in used)
-    program.state = dict(gen.state)
+    program.state = dict(names.state)
     for name in used:
         if name not in events:
             program.state[signal_variable(name)] = defaults.get(name, UNSET)
@@ -152,10 +152,10 @@ def generate(
     return program
 
 
-def _guarded(body: list[Line], number: int, finishing: bool) -> list[Line]:
+def _guarded(body: Sequence[Line], number: int, finishing: bool) -> list[Line]:
     """``body`` in a ``try`` whose failure is property ``number``'s fault, not the file's."""
-    return [Code("try:"), *indent(body), Code("except Exception as _exc:"),
-            Fault(number, finishing, "    ")]
+    return [Block("try:", tuple(body)),
+            Block("except Exception as _exc:", (Fault(number, finishing),))]
 
 
 def _assemble(
@@ -172,13 +172,13 @@ def _assemble(
     body += [line for block in blocks for line in block]
 
     step = ["def step(t, rec):", "    nonlocal " + ", ".join(cells), "    out = []"]
-    step += ["    " + text for text in render(body, online=True)]
+    step += render(body, online=True, pad="    ")
     # a property recovering from a fault: its verdicts that depend on records from before
     # its reset are errors (rasm.properties.recovery)
     step += ["    if RECOVERING: return RECOVER(i, tn, out)", "    return out"]
 
     run = ["def run(records):", "    nonlocal " + ", ".join(cells), "    for t, rec in records:"]
-    run += ["        " + text for text in render(body, online=False)]
+    run += render(body, online=False, pad="        ")
     run += ["        if RECOVERING: RECOVER_RUN(i, tn)", "    return None"]
 
     factory = ["def factory():"]
@@ -196,7 +196,7 @@ def _assemble(
             "        out = []",
         ]
         for block in finishes:
-            factory += ["        " + text for text in render(block, online)]
+            factory += render(block, online, pad="        ")
         factory.append("        return out")
     # which held signals have had a value so far (a property not judged names the missing ones)
     held = [name for name in used if name not in events]
@@ -238,14 +238,15 @@ def _update_lines(spec: Specification, used: list[str], events: set[str]) -> lis
     which converts what it can and refuses the rest.
     """
     checks: list[Line] = [
-        Code(f"if t.__class__ is float and {-FAST!r} < t < {FAST!r}:"),
-        Code("    tn = round(t * 1e9)"),
-        Code("elif t.__class__ is int:"),
-        Code("    tn = t * 1000000000"),
-        Code("else:"),
-        Code("    tn = NANOSECONDS(t)"),
-        Reject("tn is None", None, "time", "    "),
-        Code("    t = SECONDS(t)"),
+        Block(f"if t.__class__ is float and {-FAST!r} < t < {FAST!r}:", (
+            Code("tn = round(t * 1e9)"),
+        )),
+        Block("elif t.__class__ is int:", (Code("tn = t * 1000000000"),)),
+        Block("else:", (
+            Code("tn = NANOSECONDS(t)"),
+            Reject("tn is None", None, "time"),
+            Code("t = SECONDS(t)"),
+        )),
         Reject("tn < last_tn", None, "backwards"),
     ]
     assigns: list[Line] = []
@@ -256,9 +257,10 @@ def _update_lines(spec: Specification, used: list[str], events: set[str]) -> lis
         if name in events:  # a local: a rejected record leaves no trace of it
             checks += [
                 Code(f"{var} = rec.get({name!r}, False)"),
-                Code(f"if {var} is not True and {var} is not False:"),
-                Code(f"    {var} = COERCE({var}, 'bool')"),
-                Reject(f"{var} is BAD", name, "bool", "    "),
+                Block(f"if {var} is not True and {var} is not False:", (
+                    Code(f"{var} = COERCE({var}, 'bool')"),
+                    Reject(f"{var} is BAD", name, "bool"),
+                )),
             ]
             continue
         check = {
@@ -268,22 +270,19 @@ def _update_lines(spec: Specification, used: list[str], events: set[str]) -> lis
             "str": f"{tmp}.__class__ is not str",
             "any": f"{tmp}.__class__ not in SCALAR",
         }[kind]
-        coerce: list[Line] = [
-            Code(f"{tmp} = COERCE({tmp}, {kind!r})"),
-            Reject(f"{tmp} is BAD", name, kind),
-        ]
+        coerce = (Code(f"{tmp} = COERCE({tmp}, {kind!r})"), Reject(f"{tmp} is BAD", name, kind))
         checks.append(Code(f"{tmp} = rec.get({name!r}, UNSET)"))
         if name == used[-1]:  # the last check: nothing can refuse the record after it
-            checks += [Code(f"if {tmp} is not UNSET:"), Code(f"    if {check}:")]
-            checks += indent(coerce, "        ") + [Code(f"    {var} = {tmp}")]
+            checks.append(Block(f"if {tmp} is not UNSET:", (
+                Block(f"if {check}:", coerce),
+                Code(f"{var} = {tmp}"),
+            )))
         else:
-            checks += [Code(f"if {tmp} is not UNSET and {check}:"), *indent(coerce)]
+            checks.append(Block(f"if {tmp} is not UNSET and {check}:", coerce))
             assigns.append(Code(f"if {tmp} is not UNSET: {var} = {tmp}"))
     # a record that is not a mapping (no .get), or a time that cannot be compared
     guarded = [
-        Code("try:"),
-        *indent(checks),
-        Code("except (AttributeError, TypeError):"),
-        Reject(None, None, "record", "    "),
+        Block("try:", tuple(checks)),
+        Block("except (AttributeError, TypeError):", (Reject(None, None, "record"),)),
     ]
     return guarded + assigns + [Code("last_tn = tn")]

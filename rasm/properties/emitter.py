@@ -5,9 +5,9 @@ that gives each node a :data:`Value` and writes the lines computing it. The bool
 is :class:`rasm.properties.formula_code.FormulaGenerator`; another semantics (robustness: a
 number per node) is another generator on this same base, and the boolean one stays as it is.
 
-The state of a generator is its own: what the generated code reads (:attr:`Emitter.constants`,
-the closure variables' initial values :attr:`Emitter.state`, and which of them each property
-owns, :attr:`Emitter.owned`) is read from outside, never written.
+A generator's state is its own (the property being compiled, its lines, what its operators
+left for their parents); the names it gives constants and closure variables come from the
+program's :class:`Names`, which every generator writing into the program shares.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from rasm.properties.streams import Source, Stream
 from rasm.properties.units import HELPERS as TIME_HELPERS
 from rasm.properties.units import in_nanoseconds, in_seconds
 
-__all__ = ["Emitter", "Later", "Now", "PropertyCode", "Value", "signal_variable"]
+__all__ = ["Emitter", "Later", "Names", "Now", "PropertyCode", "Value", "signal_variable"]
 
 
 @dataclass(frozen=True)
@@ -74,19 +74,20 @@ def late_positions(parts: Sequence[Value]) -> list[int]:
     return [k for k, part in enumerate(parts) if isinstance(part, Later)]
 
 
-class Emitter:
-    """Fresh names, the constants and closure variables of the generated code (shared by
-    all properties of a specification), and the lines of the property being compiled."""
+class Names:
+    """The names one generated program defines: the constants it reads, its closure variables
+    with their initial values, and which of them each property owns (its reset renews them).
+
+    One per program, given to every generator that writes into it, so that two semantics'
+    generators compiling the same properties never pick the same name.
+    """
 
     def __init__(self) -> None:
         self._constants: dict[str, object] = {"deque": deque, "INF": INF, "NAN": math.nan}
         self._constants.update({**HELPERS, **TIME_HELPERS})
         self._state: dict[str, object] = {}
-        self._owned: list[list[str]] = []  # per property: its constants and closure variables
+        self._owned: list[list[str]] = []
         self._count = 0
-        self._number = -1  # the property being compiled
-        self._lines: list[Line] = []  # its lines at each record
-        self._finish: list[Line] = []  # and at the end of the trace
 
     @property
     def constants(self) -> dict[str, object]:
@@ -104,41 +105,72 @@ class Emitter:
         renews."""
         return self._owned
 
-    def _begin(self, number: int) -> None:
-        """Start compiling property ``number`` (properties are compiled in turn)."""
-        self._number = number
-        self._owned.append([])
-        self._lines, self._finish = [], []
-
     def fresh(self, prefix: str) -> str:
         """A name no other constant or variable has."""
         self._count += 1
         return f"{prefix}{self._count}"
 
-    def constant(self, prefix: str, value: object) -> str:
-        """A new constant of the property being compiled, holding ``value``: its name."""
+    def constant(self, owner: int, prefix: str, value: object) -> str:
+        """A new constant holding ``value``, of property ``owner``: its name."""
         name = self.fresh(prefix)
         self._constants[name] = value
-        self._owned[self._number].append(name)
+        self.owned_by(owner).append(name)
         return name
 
-    def variable(self, prefix: str, initial: object, *, owned: bool = True) -> str:
-        """A new closure variable starting at ``initial``: its name. ``owned``: the property
-        being compiled owns it (its reset puts it back to ``initial``)."""
+    def variable(self, owner: int | None, prefix: str, initial: object) -> str:
+        """A new closure variable starting at ``initial``: its name. Property ``owner``'s
+        reset puts it back to ``initial`` (None: no reset does)."""
         name = self.fresh(prefix)
         self._state[name] = initial
-        if owned:
-            self._owned[self._number].append(name)
+        if owner is not None:
+            self.owned_by(owner).append(name)
         return name
+
+    def owned_by(self, number: int) -> list[str]:
+        """The names property ``number`` owns so far."""
+        while len(self._owned) <= number:
+            self._owned.append([])
+        return self._owned[number]
+
+
+class Emitter:
+    """A code generator's base: the lines of the property being compiled, and its names
+    (from the program's :class:`Names`)."""
+
+    def __init__(self, names: Names) -> None:
+        self._names = names
+        self._number = -1  # the property being compiled
+        self._lines: list[Line] = []  # its lines at each record
+        self._finish: list[Line] = []  # and at the end of the trace
+
+    def _begin(self, number: int) -> None:
+        """Start compiling property ``number``."""
+        self._number = number
+        self._names.owned_by(number)  # (a property may own nothing: it has its list)
+        self._lines, self._finish = [], []
+
+    def fresh(self, prefix: str) -> str:
+        """A name no other constant or variable has."""
+        return self._names.fresh(prefix)
+
+    def constant(self, prefix: str, value: object) -> str:
+        """A new constant of the property being compiled, holding ``value``: its name."""
+        return self._names.constant(self._number, prefix, value)
+
+    def variable(self, prefix: str, initial: object) -> str:
+        """A new closure variable of the property being compiled: its name."""
+        return self._names.variable(self._number, prefix, initial)
 
     def _in_units(self, operands: Sequence[Expr], parts: list[Value], exact: bool) -> list[Value]:
         """The values ``parts`` of ``operands`` as their parent computes with them: in
         nanoseconds where it is ``exact`` (time arithmetic, a comparison with a time), in
         seconds elsewhere. Values that come late are in seconds already."""
+        convert = in_nanoseconds if exact else in_seconds
         out: list[Value] = []
         for child, part in zip(operands, parts, strict=True):
             if isinstance(part, Now):
-                convert = in_nanoseconds if exact else in_seconds
-                part = Now(convert(child, part.source))
+                source = convert(child, part.source)
+                if source is not part.source:
+                    part = Now(source)
             out.append(part)
         return out

@@ -43,6 +43,7 @@ from rasm.properties.ast import (
 from rasm.properties.emitter import (
     Emitter,
     Later,
+    Names,
     Now,
     PropertyCode,
     Value,
@@ -50,7 +51,7 @@ from rasm.properties.emitter import (
     signal_variable,
 )
 from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, _max2, _min2
-from rasm.properties.lines import Code, Emit, Online
+from rasm.properties.lines import Block, Code, Emit, Online
 from rasm.properties.operators import WindowCore
 from rasm.properties.streams import (
     AggregateStream,
@@ -66,7 +67,7 @@ from rasm.properties.types import TypeScope
 from rasm.properties.units import in_seconds, is_time, looks_ahead
 from rasm.properties.visitor import Transformer
 
-__all__ = ["FormulaGenerator", "normalise", "signal_variable"]
+__all__ = ["FormulaGenerator", "normalise"]
 
 
 class _Normalise(Transformer[Expr]):
@@ -122,11 +123,11 @@ Decider = tuple[str, str, str]
 
 
 class FormulaGenerator(Emitter, Transformer[Value]):
-    """The lines of each property in turn (:meth:`compile`), with the constants and closure
-    variables they read (shared by all properties of a specification)."""
+    """The lines of each property in turn (:meth:`compile`); the constants and closure
+    variables they read are named in the program's ``names``."""
 
-    def __init__(self, spec: Specification) -> None:
-        super().__init__()
+    def __init__(self, spec: Specification, names: Names) -> None:
+        super().__init__(names)
         self._types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
         self._root: Expr | None = None  # the property's formula being compiled
         # the root's dict of the records it owes a verdict (online), and its InOrder: made by
@@ -157,25 +158,24 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         # verdicts that may come out of record order go back in order offline
         order = None if stream.ordered else self._in_order()
         if self._owed is not None:  # the root gives early verdicts: it owes the others
-            forget = Online(f"    del {self._owed}[_j]")
+            forget = Online(f"del {self._owed}[_j]")
         elif stream.ordered:  # owed in record order: a queue
             self._owed = self.constant("owed", deque())
             body.insert(0, Online(f"{self._owed}.append((i, t))"))
-            forget = Online(f"    {self._owed}.popleft()")
+            forget = Online(f"{self._owed}.popleft()")
         else:
             self._owed = self.constant("owed", {})
             body.insert(0, Online(f"{self._owed}[i] = t"))
-            forget = Online(f"    del {self._owed}[_j]")
+            forget = Online(f"del {self._owed}[_j]")
         # a verdict given, the record is no longer owed (in this order: a verdict that
         # fails to be made leaves its record owed)
-        drain = [
-            Code(f"while {top}:"),
-            Code(f"    _j, _tj, _tn, _v = {top}.popleft()"),
-            Emit(number, "_j", "_tj", "_v", order, "    "),
+        drain = Block(f"while {top}:", (
+            Code(f"_j, _tj, _tn, _v = {top}.popleft()"),
+            Emit(number, "_j", "_tj", "_v", order),
             forget,
-        ]
-        body += drain
-        finish += drain
+        ))
+        body.append(drain)
+        finish.append(drain)
         return PropertyCode(tuple(body), tuple(finish), late=True, owed=self._owed, order=order)
 
     def _code(self, *texts: str) -> None:
@@ -461,9 +461,8 @@ class FormulaGenerator(Emitter, Transformer[Value]):
             if node is self._root:
                 # the verdict now; online, any other record is owed a verdict by the stream
                 self._owed = self.constant("owed", {})
-                self._code(f"if {early}:")
                 self._lines += [
-                    Emit(self._number, "i", "t", value, self._in_order(), "    "),
+                    Block(f"if {early}:", (Emit(self._number, "i", "t", value, self._in_order()),)),
                     Online("else:"),
                     Online(f"    {self._owed}[i] = t"),
                 ]

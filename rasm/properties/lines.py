@@ -3,25 +3,25 @@
 The same body is generated twice (:mod:`rasm.properties.codegen`): in ``step(t, record)``,
 online, verdicts are Verdict objects; in ``run(records)``, offline, they are plain values in
 record order. Most lines read the same in both (:class:`Code`); the others say what they do
-and each mode writes them its own way. Every line is indented with :meth:`Line.indented`
-and written with :meth:`Line.render` (None: the line has nothing to do in that mode).
+and each mode writes them its own way. A :class:`Block` holds the lines under a head (``try:``,
+``if …:``), one level further in. Lines are written with :func:`render`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Protocol
 
-__all__ = ["Code", "Emit", "Fault", "Line", "Online", "Reject", "indent", "render"]
+__all__ = ["Block", "Code", "Emit", "Fault", "Line", "Online", "Reject", "render"]
+
+INDENT = "    "
 
 
 class Line(Protocol):
-    def indented(self, pad: str) -> Line:
-        """The same line, ``pad`` further in."""
-        ...
-
-    def render(self, online: bool) -> str | None:
-        """Its source in ``step`` (``online``) or in ``run``; None where it has none."""
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        """Append its source in ``step`` (``online``) or in ``run`` to ``out``, each line
+        ``pad`` in (nothing where it has none in that mode)."""
         ...
 
 
@@ -31,11 +31,8 @@ class Code:
 
     text: str
 
-    def indented(self, pad: str) -> Code:
-        return Code(pad + self.text)
-
-    def render(self, online: bool) -> str:
-        return self.text
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        out.append(pad + self.text)
 
 
 @dataclass(frozen=True)
@@ -45,11 +42,23 @@ class Online:
 
     text: str
 
-    def indented(self, pad: str) -> Online:
-        return Online(pad + self.text)
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        if online:
+            out.append(pad + self.text)
 
-    def render(self, online: bool) -> str | None:
-        return self.text if online else None
+
+@dataclass(frozen=True)
+class Block:
+    """``head`` (``try:``, ``if …:``, ``while …:``) and the lines under it."""
+
+    head: str
+    body: tuple[Line, ...]
+
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        out.append(pad + self.head)
+        inner = pad + INDENT
+        for line in self.body:
+            line.write(out, online, inner)
 
 
 @dataclass(frozen=True)
@@ -63,25 +72,20 @@ class Emit:
     time: str
     value: str
     order: str | None = None
-    pad: str = ""
 
-    def indented(self, pad: str) -> Emit:
-        return replace(self, pad=pad + self.pad)
-
-    def render(self, online: bool) -> str:
-        pad, values = self.pad, f"values_{self.number}"
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        number, index, value, order = self.number, self.index, self.value, self.order
         if online:
-            verdict = f"Verdict(NAME_{self.number}, {self.index}, {self.time}, {self.value})"
-            return f"{pad}out.append({verdict})"
-        order = self.order
-        if order is None:
-            return f"{pad}{values}({self.value})"
-        if self.index == "i":
-            return f"{pad}{order}.put(i, {self.value}, {values})"
-        # values in record order go straight on (the common case: one call less)
-        return (f"{pad}if {self.index} == {order}.next and not {order}.waiting: "
-                f"{values}({self.value}); {order}.next += 1\n"
-                f"{pad}else: {order}.put({self.index}, {self.value}, {values})")
+            out.append(f"{pad}out.append(Verdict(NAME_{number}, {index}, {self.time}, {value}))")
+        elif order is None:
+            out.append(f"{pad}values_{number}({value})")
+        elif index == "i":
+            out.append(f"{pad}{order}.put(i, {value}, values_{number})")
+        else:
+            # values in record order go straight on (the common case: one call less)
+            out.append(f"{pad}if {index} == {order}.next and not {order}.waiting: "
+                       f"values_{number}({value}); {order}.next += 1")
+            out.append(f"{pad}else: {order}.put({index}, {value}, values_{number})")
 
 
 @dataclass(frozen=True)
@@ -91,18 +95,15 @@ class Fault:
 
     number: int
     finishing: bool
-    pad: str = ""
 
-    def indented(self, pad: str) -> Fault:
-        return replace(self, pad=pad + self.pad)
-
-    def render(self, online: bool) -> str:
-        pad, number = self.pad, self.number
-        if online:
-            if self.finishing:
-                return f"{pad}FAULT({number}, None, None, None, _exc, out)"
-            return f"{pad}FAULT({number}, i, t, tn, _exc, out)"
-        return f"{pad}FAULT_RUN({number}, i, {'None' if self.finishing else 'tn'}, _exc)"
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        number = self.number
+        if not online:
+            out.append(f"{pad}FAULT_RUN({number}, i, {'None' if self.finishing else 'tn'}, _exc)")
+        elif self.finishing:
+            out.append(f"{pad}FAULT({number}, None, None, None, _exc, out)")
+        else:
+            out.append(f"{pad}FAULT({number}, i, t, tn, _exc, out)")
 
 
 @dataclass(frozen=True)
@@ -114,27 +115,16 @@ class Reject:
     condition: str | None
     signal: str | None
     kind: str
-    pad: str = ""
 
-    def indented(self, pad: str) -> Reject:
-        return replace(self, pad=pad + self.pad)
-
-    def render(self, online: bool) -> str:
+    def write(self, out: list[str], online: bool, pad: str) -> None:
         test = "" if self.condition is None else f"if {self.condition}: "
         reject = "REJECT_STEP" if online else "REJECT_RUN"
-        return f"{self.pad}{test}return {reject}(i + 1, t, rec, {self.signal!r}, {self.kind!r})"
+        out.append(f"{pad}{test}return {reject}(i + 1, t, rec, {self.signal!r}, {self.kind!r})")
 
 
-def indent(lines: list[Line], pad: str = "    ") -> list[Line]:
-    """``lines``, ``pad`` further in."""
-    return [line.indented(pad) for line in lines]
-
-
-def render(lines: list[Line], online: bool) -> list[str]:
-    """The source lines of ``lines`` in ``step`` (``online``) or in ``run``."""
+def render(lines: Sequence[Line], online: bool, pad: str = "") -> list[str]:
+    """The source lines of ``lines`` in ``step`` (``online``) or in ``run``, ``pad`` in."""
     out: list[str] = []
     for line in lines:
-        text = line.render(online)
-        if text is not None:
-            out += text.split("\n")  # (a verdict given in record order is two lines)
+        line.write(out, online, pad)
     return out

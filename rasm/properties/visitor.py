@@ -55,15 +55,14 @@ class Visitor(Generic[R]):
 
     def visit(self, node: Expr, *args: Any) -> R:
         """The result of this pass for ``node``."""
-        return self._method(node)(self, node, *args)
-
-    def _method(self, node: Expr) -> Callable[..., R]:
         try:
-            return self._methods[node.__class__]
+            method = self._methods[node.__class__]
         except KeyError:
-            raise TypeError(
-                f"{type(self).__name__} has no method for {type(node).__name__} nodes"
-            ) from None
+            raise self._unhandled(node) from None
+        return method(self, node, *args)
+
+    def _unhandled(self, node: Expr) -> TypeError:
+        return TypeError(f"{type(self).__name__} has no method for {type(node).__name__} nodes")
 
 
 class Transformer(Visitor[R]):
@@ -72,4 +71,8 @@ class Transformer(Visitor[R]):
 
     def visit(self, node: Expr) -> R:  # type: ignore[override]
         """The result of this pass for ``node``, its sub-expressions' results first."""
-        return self._method(node)(self, node, *[self.visit(child) for child in children(node)])
+        try:
+            method = self._methods[node.__class__]
+        except KeyError:
+            raise self._unhandled(node) from None
+        return method(self, node, *map(self.visit, children(node)))
