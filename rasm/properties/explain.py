@@ -119,8 +119,8 @@ class _Rows:
     ns) and every probe's values, by record index, from ``first`` on. A probe's values arrive
     when it has decided them (a future window's later), so each probe has its own end."""
 
-    def __init__(self, probes: int) -> None:
-        self.first = 0  # the index of the oldest record kept
+    def __init__(self, probes: int, first: int = 0) -> None:
+        self.first = first  # the index of the oldest record kept
         self.times: list = []
         self.ns: list[int] = []
         self.values: list[list] = [[] for _ in range(probes)]
@@ -174,8 +174,10 @@ class _Part:
     """One violated property: its probes run over the records as they come, and its wanted
     violations explained as soon as every record their windows reach has its values."""
 
-    def __init__(self, spec: Specification, prop: Property, wanted: list[int], keep: int) -> None:
+    def __init__(self, spec: Specification, prop: Property, wanted: list[int], keep: int,
+                 first: int = 0) -> None:
         self.name = prop.name
+        self.offset = first  # the index of the first record fed (its monitor counts from 0)
         self.formula = prop.formula
         self.keep = keep
         self.reads = tuple(signals_of(prop.formula))
@@ -191,7 +193,7 @@ class _Part:
             signals=spec.signals,
         )
         self.monitor = Monitor(probe_spec, reads=[self.reads] * len(nodes))
-        self.rows = _Rows(len(nodes))
+        self.rows = _Rows(len(nodes), first)
         self.back, self.ahead = _reach(prop.formula)
         self.pending = sorted(set(wanted))
         self.explained: list[Explanation] = []
@@ -216,7 +218,7 @@ class _Part:
     def _take(self) -> None:
         for k in range(self.probes):
             first, values, _ = self.monitor.take(k)
-            self.rows.add_values(k, first, values)
+            self.rows.add_values(k, first + self.offset, values)
 
     def _explain_ready(self, snapshots: Mapping[int, dict], final: bool) -> None:
         rows = self.rows
@@ -233,7 +235,7 @@ class _Part:
             self.pending.pop(0)
 
     def _explain(self, i: int, snapshots: Mapping[int, dict], lines: tuple[str, ...] = ()) -> None:
-        start = self.monitor.starts[0] or 0
+        start = (self.monitor.starts[0] or 0) + self.offset
         if not lines:
             explainer = _Explainer(self.rows, self.number, start)
             explainer.explain(self.formula, i, True, 0)
@@ -272,16 +274,17 @@ class Explainer:
     """Explains the violations ``{property name: [record index, …]}`` of one trace, fed to it
     in order, part by part (:meth:`feed`), holding no more of it than the explanations still to
     give need (at most ``keep`` records per property); :meth:`finish` at the end of the trace.
-    Feeding can stop as soon as :attr:`done`."""
+    Feeding can stop as soon as :attr:`done`. ``first`` is the index of the first record fed
+    (a part of a trace checked in parts begins further on)."""
 
     def __init__(self, spec: Specification, violations: Mapping[str, Sequence[int]], *,
-                 keep: int = KEEP) -> None:
+                 keep: int = KEEP, first: int = 0) -> None:
         self._parts = [
-            _Part(spec, prop, list(violations[prop.name]), keep)
+            _Part(spec, prop, list(violations[prop.name]), keep, first)
             for prop in spec.properties if violations.get(prop.name)
         ]
         self._snapshots = _Snapshots(spec, [i for p in self._parts for i in p.pending])
-        self.records = 0
+        self.records = first
 
     @property
     def done(self) -> bool:
@@ -483,10 +486,11 @@ def explain(
     *,
     keep: int = KEEP,
     chunk: int = 16_384,
+    first: int = 0,
 ) -> dict[tuple[str, int], Explanation]:
     """Explain the given violations ``{property name: [record index, …]}`` of a trace (read
-    only as far as the explanations need)."""
-    explainer = Explainer(spec, violations, keep=keep)
+    only as far as the explanations need); ``first`` is the index of the first record given."""
+    explainer = Explainer(spec, violations, keep=keep, first=first)
     records = iter(records)
     while not explainer.done and (part := list(islice(records, chunk))):
         explainer.feed(part)

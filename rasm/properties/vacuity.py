@@ -61,6 +61,9 @@ class Vacuity:
                 self._owners.append((prop.name, Untested(label, event)))
                 self._by_property[prop.name].append(k)
         self.held = [False] * len(probes)
+        # the records whose values count, by index: [first, end) (end None: to the last one);
+        # a part of a trace checked in parts counts only the records it answers for
+        self.counted: tuple[int, int | None] = (0, None)
         self._left = len(probes)  # antecedents that have not held yet
         self._monitor: Monitor | None = None
         if probes:
@@ -123,7 +126,10 @@ class Vacuity:
 
     def _take(self) -> None:
         assert self._monitor is not None
+        low, high = self.counted
         for k in range(len(self.held)):
-            _, values, _ = self._monitor.take(k)
+            first, values, _ = self._monitor.take(k)
+            if low > first or high is not None:
+                values = values[max(low - first, 0):None if high is None else max(high - first, 0)]
             if not self.held[k] and True in values:  # (a value in error is False)
                 self._note(k)

@@ -1,0 +1,65 @@
+"""A trace checked in parts (:mod:`rasm.properties.shards`): for random properties, traces and
+cuts, the verdicts, counts, violations, vacuity and explanations of one pass."""
+
+from __future__ import annotations
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from rasm.properties.check import check_records, format_json, format_text
+from rasm.properties.loader import load_specification
+from rasm.properties.shards import (
+    ListPart,
+    check_part,
+    explain_part,
+    merge_parts,
+    splittable,
+    subspec,
+    wanted_explanations,
+)
+
+from .strategies import HEADER, formulas, traces
+
+SETTINGS = settings(max_examples=300, deadline=None,
+                    suppress_health_check=[HealthCheck.too_slow])
+
+
+def spec_of(texts: list[str]):
+    text = HEADER + "".join(f"property p{k}: {f}\n" for k, f in enumerate(texts))
+    return load_specification(text, source="props.rv")
+
+
+def in_parts(spec, records, cuts: list[int], *, named: bool = False):
+    """The report of ``records`` checked in the parts ``cuts`` make, explained as a text report
+    explains it."""
+    bounds = [0, *sorted(set(cuts)), len(records)]
+    parts = [ListPart(records, a, b) for a, b in zip(bounds, bounds[1:], strict=False) if a < b]
+    results = [check_part(spec, part, named=named) for part in parts]
+    report = merge_parts(spec, results, trace="<trace>", named=named)
+    wanted = wanted_explanations(report)
+    offset, found = 0, {}
+    for part, result in zip(parts, results, strict=True):
+        mine = {name: [i for i in indices if offset <= i < offset + result.records]
+                for name, indices in wanted.items()}
+        if any(mine.values()):
+            found.update(explain_part(spec, part, mine, offset))
+        offset += result.records
+    for prop in report.properties:
+        prop.explanations = [found[(prop.name, i)] for i in wanted.get(prop.name, [])]
+    return report
+
+
+def bounded(texts: list[str]) -> bool:
+    return all(splittable(p.formula) for p in spec_of(texts).properties)
+
+
+@SETTINGS
+@given(st.lists(formulas(), min_size=1, max_size=3), traces(40), st.data())
+def test_random_properties_traces_and_cuts_give_the_verdicts_of_one_pass(texts, records, data):
+    spec = spec_of(texts)
+    spec = subspec(spec, [p.name for p in spec.properties if splittable(p.formula)])
+    cuts = data.draw(st.lists(st.integers(0, len(records)), max_size=4))
+    one = check_records(spec, records)
+    parts = in_parts(spec, records, cuts)
+    assert format_json(parts) == format_json(one)
+    assert format_text(parts) == format_text(one)
