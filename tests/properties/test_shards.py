@@ -3,6 +3,11 @@ cuts, the verdicts, counts, violations, vacuity and explanations of one pass."""
 
 from __future__ import annotations
 
+import json
+import os
+import tempfile
+from unittest import mock
+
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -63,3 +68,76 @@ def test_random_properties_traces_and_cuts_give_the_verdicts_of_one_pass(texts, 
     parts = in_parts(spec, records, cuts)
     assert format_json(parts) == format_json(one)
     assert format_text(parts) == format_text(one)
+
+
+# --------------------------------------------------------------------------- JSONL by bytes
+
+
+def _line(t, record, escaped: bool) -> str:
+    line = json.dumps({"time": t, **record})
+    if escaped and '"x"' in line:  # the same key, written with an escape
+        line = line.replace('"x"', '"\\u0078"')
+    return line
+
+
+@st.composite
+def jsonl_texts(draw, records):
+    """The trace's lines, with blank lines, CRLF and lone CR line breaks, and escaped keys."""
+    out = []
+    for t, record in records:
+        if draw(st.integers(0, 9)) == 0:
+            out.append(draw(st.sampled_from(["\n", "  \n", "\r\n"])))
+        out.append(_line(t, record, draw(st.integers(0, 5)) == 0))
+        out.append(draw(st.sampled_from(["\n", "\n", "\n", "\r\n", "\r"])))
+    return "".join(out)
+
+
+def parts_of_file(spec, path: str, cuts: list[int]):
+    from rasm.properties.codegen import checked_signals
+    from rasm.trace_parts import JsonlPart
+
+    checked = set(checked_signals(spec))
+    unchecked = {n: k for n, k in spec.signals.items() if n not in checked}
+    bounds = sorted({0, *cuts, os.path.getsize(path)})
+    return [JsonlPart(path, a, b, unchecked=unchecked) for a, b in zip(bounds, bounds[1:],
+                                                                          strict=False)]
+
+
+@SETTINGS
+@given(st.lists(formulas(), min_size=1, max_size=3), traces(40), st.data())
+def test_a_jsonl_file_cut_anywhere_gives_the_verdicts_of_one_pass(texts, records, data):
+    import rasm.trace_parts
+    from rasm.properties.check import check_file
+    from rasm.trace_parts import cut_points
+
+    spec = spec_of(texts)
+    spec = subspec(spec, [p.name for p in spec.properties if splittable(p.formula)])
+    text = data.draw(jsonl_texts(records))
+    # small blocks: the search for held values reads the raw bytes, not the decoded lines
+    block = data.draw(st.sampled_from([4, 32, 1 << 16]))
+    with tempfile.TemporaryDirectory() as folder, \
+            mock.patch.object(rasm.trace_parts, "BLOCK", block):
+        path = os.path.join(folder, "t.jsonl")
+        with open(path, "w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+        size = os.path.getsize(path)
+        n = data.draw(st.integers(1, 6))
+        cuts = cut_points(path, n)
+        assert cuts[0] == 0 and cuts[-1] == size and cuts == sorted(set(cuts))
+        one = check_file(spec, path)
+        parts = parts_of_file(spec, path, cuts)
+        results = [check_part(spec, part) for part in parts]
+        merged = merge_parts(spec, results, trace=path)
+        wanted = wanted_explanations(merged)
+        offset, found = 0, {}
+        for part, result in zip(parts, results, strict=True):
+            mine = {name: [i for i in indices if offset <= i < offset + result.records]
+                    for name, indices in wanted.items()}
+            if any(mine.values()):
+                found.update(explain_part(spec, part, mine, offset))
+            offset += result.records
+            part.close()
+        for prop in merged.properties:
+            prop.explanations = [found[(prop.name, i)] for i in wanted.get(prop.name, [])]
+        assert format_json(merged) == format_json(one)
+        assert format_text(merged) == format_text(one)
