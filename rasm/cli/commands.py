@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable, Iterable
 
 from rasm.errors import RasmError, printable, read_utf8
 
@@ -72,105 +71,147 @@ def _cmd_graph(args: argparse.Namespace) -> int:
 def _cmd_check(args: argparse.Namespace) -> int:
     # exit 1 iff some property is violated, in error or not judged; inconclusive alone passes.
     # A trace or a recording is read record by record, never held whole (explaining the first
-    # violations reads it once more).
-    from rasm.properties.check import check_file, check_stream, format_json, format_text
+    # violations reads it once more). Several recordings, or a large trace cut into parts, are
+    # checked in --jobs processes or on a --cluster (rasm.scale); a recording that cannot be
+    # checked is reported by name while the others are (exit 2).
+    from rasm.properties.check import format_json, format_text
     from rasm.properties.loader import load_specification
+    from rasm.scale import Job, check_recording
 
     if args.app is not None and args.topics is not None:
         raise UsageError("give a recording's topics by --app APP or by --topics MAP.yaml, not both")
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs must be 1 or more, not {args.jobs}")
+    if args.cluster is not None and args.jobs is not None:
+        raise UsageError("--jobs sets the local processes; a --cluster has its own workers")
+    if args.verdicts and len(args.recordings) > 1:
+        raise UsageError("--verdicts prints every verdict of one recording: give one")
     text = read_utf8(args.props)
-    spec = load_specification(text, source=args.props)
+    load_specification(text, source=args.props)  # a bad property file is refused first
     explain = args.format == "text" and not args.verdicts
     named = args.format == "text" or args.verdicts
-    verdicts = sys.stdout if args.verdicts else None
-    if _is_recording(args.trace) or args.trace.endswith(".mcap"):
-        records, notes, damage = _recorded_or_mcap_records(args, spec.signals)
-        report = check_stream(spec, records(), trace=args.trace,
-                              again=records if explain else None,
-                              named=named, verdicts=verdicts)
-        for note in notes():
-            print(f"rasm: note: {args.trace}: {note}", file=sys.stderr)
-        report.note_damage(damage())
-        if not explain:  # the text report lists the damage itself
-            for lost in report.damage:
-                print(f"rasm: damaged: {printable(lost.describe())}", file=sys.stderr)
-        if report.damage and not args.allow_damaged:
-            print(f"rasm: {args.trace} is damaged: a verdict that depended on what was lost is "
-                  "not 'satisfied', and the check fails (--allow-damaged accepts verdicts on "
-                  "what could be read)", file=sys.stderr)
-    elif args.app is not None or args.topics is not None:
-        raise UsageError(
-            f"{args.trace}: --app and --topics map a rosbag2 recording's topics to signals; a "
-            "JSONL trace names its signals itself"
-        )
-    else:
-        report = check_file(spec, args.trace, explain_violations=explain, named=named,
-                            verdicts=verdicts)
-    if not args.verdicts:
+    job = Job(args.props, text, args.app, args.topics, explain, named)
+    if args.verdicts:
+        checked = check_recording(job, args.recordings[0], verdicts=sys.stdout)
+        _notes(checked, explain)
+        return _check_status(checked.report, args)
+    outcomes = _check_many(job, args)
+    if len(outcomes) == 1 and outcomes[0].failed:
+        for message in outcomes[0].failed:
+            print(f"rasm: {message}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if len(outcomes) == 1:
+        checked = outcomes[0].checked
+        _notes(checked, explain)
+        report = checked.report
         sys.stdout.write(format_json(report) if args.format == "json" else format_text(report))
+        return _check_status(report, args)
+    return _report_many(outcomes, args, explain)
+
+
+def _check_many(job, args: argparse.Namespace) -> list:
+    """Every recording checked: here, in local processes, or on the cluster."""
+    import os
+
+    from rasm.scale import DaskCluster, InProcess, Processes, check_many, is_trace, plan_parts
+
+    paths = args.recordings
+    if args.cluster is not None:
+        engine = DaskCluster(args.cluster)
+        jobs = sum(engine.client.nthreads().values()) or 1
+    else:
+        jobs = args.jobs or os.cpu_count() or 1
+        sizes = [os.path.getsize(p) if is_trace(p) and os.path.isfile(p) else 0 for p in paths]
+        alone = len(paths) == 1 and plan_parts(sizes, jobs, args.part_size) == [1]
+        engine = InProcess() if jobs == 1 or alone else Processes(jobs)
+    try:
+        with _progress(not isinstance(engine, InProcess)) as progress:
+            return check_many(job, paths, engine=engine, jobs=jobs, part_size=args.part_size,
+                              progress=progress)
+    finally:
+        engine.close()
+
+
+def _progress(shown: bool):
+    """A progress bar on standard error (a terminal), for checks that run in workers."""
+    import contextlib
+
+    if not (shown and sys.stderr.isatty()):
+        return contextlib.nullcontext(None)
+    from rich.console import Console
+    from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+
+    @contextlib.contextmanager
+    def bar():
+        with Progress("checking", BarColumn(), DownloadColumn(), TimeRemainingColumn(),
+                      console=Console(stderr=True), transient=True) as shown_bar:
+            task = shown_bar.add_task("check", total=None)
+
+            def update(done: int, total: int) -> None:
+                shown_bar.update(task, completed=done, total=total)
+
+            yield update
+
+    return bar()
+
+
+def _notes(checked, explain: bool) -> None:
+    """What reading a recording left out, and what it lost, on standard error."""
+    for note in checked.notes:
+        print(f"rasm: note: {note}", file=sys.stderr)
+    if not explain:  # the text report lists the damage itself
+        for lost in checked.report.damage:
+            print(f"rasm: damaged: {printable(lost.describe())}", file=sys.stderr)
+
+
+def _check_status(report, args: argparse.Namespace) -> int:
     refused = report.depends_on_damage and not args.allow_damaged
+    if refused:
+        print(f"rasm: {report.trace} is damaged: a verdict that depended on what was lost is "
+              "not 'satisfied', and the check fails (--allow-damaged accepts verdicts on "
+              "what could be read)", file=sys.stderr)
     return EXIT_FAILED if report.failed or refused else EXIT_OK
 
 
-def _is_recording(path: str) -> bool:
-    """A rosbag2 recording (a bag folder, a .db3 file, an MCAP file that is no rasm trace)."""
-    from pathlib import Path
+def _report_many(outcomes: list, args: argparse.Namespace, explain: bool) -> int:
+    """Each recording's report, in the order given, and the total; exit 2 when one could not
+    be checked, else 1 when one fails."""
+    import json
 
-    target = Path(path)
-    if target.is_dir() or target.suffix == ".db3":
-        return True
-    if target.suffix != ".mcap":
-        return False
-    from rasm.trace_mcap import is_mcap_trace
+    from rasm.properties.check import format_text, json_object
 
-    return not is_mcap_trace(target)
-
-
-def _recorded_or_mcap_records(
-    args: argparse.Namespace, signals: dict[str, str]
-) -> tuple[
-    Callable[[], Iterable[tuple[float, dict]]], Callable[[], list[str]], Callable[[], list]
-]:
-    """How to read the records of a rasm MCAP trace, or of a rosbag2 recording with the probes
-    of --app or --topics, each call reading them anew one by one; what the first whole
-    reading left out (notes for standard error); and what could not be read (damage)."""
-    if not _is_recording(args.trace):
-        if args.app is not None or args.topics is not None:
-            raise UsageError(
-                f"{args.trace}: --app and --topics map a rosbag2 recording's topics to "
-                "signals; a rasm trace names its signals itself"
-            )
-        from rasm.trace import parse_records
-        from rasm.trace_mcap import McapTrace
-
-        trace = McapTrace(args.trace)
-
-        def trace_records() -> Iterable[tuple[float, dict]]:
-            return parse_records(trace, signals, source=args.trace)
-
-        return trace_records, list, lambda: trace.damage
-    from rasm.platform.replay import recorded_trace
-
-    if args.app is not None:
-        from rasm.platform.manifest import load_manifest
-
-        manifest = load_manifest(args.app)
-        probes, store = manifest.probes, manifest.types
-    elif args.topics is not None:
-        from rasm.platform.manifest import load_topic_map
-        from rasm.ros2 import TypeStore, recorded_types
-
-        # a topic map may name the types the recording itself defines
-        known = TypeStore()
-        recorded_types(args.trace, known)
-        probes, store = load_topic_map(args.topics, known)
+    status = {}
+    entries = []
+    for outcome in outcomes:
+        if outcome.failed:
+            for message in outcome.failed:
+                print(f"rasm: {message}", file=sys.stderr)
+            status[outcome.recording] = "not checked"
+            entries.append({"recording": outcome.recording, "error": list(outcome.failed)})
+            continue
+        _notes(outcome.checked, explain)
+        report = outcome.report
+        failed = _check_status(report, args) != EXIT_OK
+        status[outcome.recording] = "fails" if failed else "passes"
+        if args.format == "json":
+            entries.append({"recording": outcome.recording, **json_object(report)})
+        else:
+            sys.stdout.write(format_text(report))
+    counts = {word: sum(1 for s in status.values() if s == word)
+              for word in ("passes", "fails", "not checked")}
+    records = sum(o.report.records for o in outcomes if o.report is not None)
+    if args.format == "json":
+        total = {"recordings": len(outcomes), "records": records, "passed": counts["passes"],
+                 "failed": counts["fails"], "not_checked": counts["not checked"]}
+        sys.stdout.write(json.dumps({"recordings": entries, "total": total}) + "\n")
     else:
-        raise UsageError(
-            f"{args.trace} is a rosbag2 recording: say which topics give which signals, with "
-            "--app APP (its probes) or --topics MAP.yaml (a 'probes:' list as in app.yaml)"
-        )
-    recorded = recorded_trace(args.trace, probes, store, signals)
-    return lambda: recorded, recorded.notes, lambda: recorded.damage
+        parts = [f"{counts['fails']} fail", f"{counts['passes']} pass"]
+        if counts["not checked"]:
+            parts.append(f"{counts['not checked']} not checked")
+        print(f"{len(outcomes)} recordings, {records} records: {', '.join(parts)}")
+    if counts["not checked"]:
+        return EXIT_BAD_INPUT
+    return EXIT_FAILED if counts["fails"] else EXIT_OK
 
 
 def _cmd_verify_rules(args: argparse.Namespace) -> int:

@@ -84,10 +84,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = command("check", _cmd_check, "check properties on a trace or a recording offline")
     p.add_argument("props", help="property file (.rv)")
     p.add_argument(
-        "trace",
+        "recordings",
+        nargs="+",
         metavar="RECORDING",
-        help="trace file (JSONL, or MCAP from rasm run), or a rosbag2 recording (.mcap, .db3, "
-        "a bag folder)",
+        help="trace files (JSONL, or MCAP from rasm run), or rosbag2 recordings (.mcap, .db3, "
+        "a bag folder): each reported, and a total",
     )
     p.add_argument("--app", default=None, help="read a recording with this app's probes")
     p.add_argument(
@@ -101,6 +102,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="accept verdicts on what a damaged recording still holds (the damage is reported, "
         "the verdicts that depended on it stay inconclusive, and they pass)",
     )
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="check in N local processes (default: the cores); a large JSONL trace "
+                   "is cut into parts checked side by side")
+    p.add_argument("--cluster", default=None, metavar="ADDRESS",
+                   help="check on an existing Dask distributed cluster, through its scheduler "
+                   "(tcp://host:8786); the workers read the recordings at the paths given")
+    p.add_argument("--part-size", type=_byte_size, default=None, metavar="SIZE",
+                   help="cut JSONL traces into parts of about this size (e.g. 64M; default: "
+                   "about two parts per job, none under 8M)")
 
     p = command("verify-rules", _cmd_verify_rules, "check legitimacy rules for consistency")
     p.add_argument("rules", help="rules file (YAML), or an app: its rules and fallback actions")

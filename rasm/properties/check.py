@@ -35,7 +35,7 @@ from rasm.properties.times import format_seconds, seconds_value
 from rasm.properties.vacuity import Vacuity
 
 __all__ = ["CheckReport", "PropertyReport", "check_file", "check_records", "check_stream",
-           "format_json", "format_text", "format_verdicts"]
+           "format_json", "format_text", "format_verdicts", "json_object"]
 
 # the order in which reports count the states: the failing ones first
 STATE_ORDER = (VIOLATED, ERROR, NOT_JUDGED, INCONCLUSIVE, SATISFIED)
@@ -381,31 +381,34 @@ def format_json(report: CheckReport) -> str:
     counts the records where the property could not be evaluated (``first_error`` says why),
     ``missing`` names the signals a property that was never judged waits for, ``vacuous`` the
     left sides of its ``->`` that never held on a judged record."""
+    return json.dumps(json_object(report)) + "\n"
+
+
+def json_object(report: CheckReport) -> dict:
+    """The object :func:`format_json` prints."""
     out: dict = {"records": report.records}
     if report.damage:
         out["damage"] = [_damage_json(d) for d in report.damage]
-    return json.dumps(
-        {
-            **out,
-            "properties": [
-                {
-                    "name": p.name,
-                    "verdict": p.verdict,
-                    "violations": [
-                        {"index": i, "time": seconds_value(t)} for i, t in p.violations
-                    ],
-                    "judged": p.judged,
-                    "inconclusive": p.inconclusive,
-                    "errors": p.outcome.errors,
-                    "first_error": p.outcome.first_error,
-                    "missing": list(p.missing),
-                    "vacuous": [u.text for u in p.outcome.vacuous],
-                    **({"lost_data": True} if p.lost_data else {}),
-                }
-                for p in report.properties
-            ],
-        }
-    ) + "\n"
+    return {
+        **out,
+        "properties": [
+            {
+                "name": p.name,
+                "verdict": p.verdict,
+                "violations": [
+                    {"index": i, "time": seconds_value(t)} for i, t in p.violations
+                ],
+                "judged": p.judged,
+                "inconclusive": p.inconclusive,
+                "errors": p.outcome.errors,
+                "first_error": p.outcome.first_error,
+                "missing": list(p.missing),
+                "vacuous": [u.text for u in p.outcome.vacuous],
+                **({"lost_data": True} if p.lost_data else {}),
+            }
+            for p in report.properties
+        ],
+    }
 
 
 def _damage_json(d: Damage) -> dict:
