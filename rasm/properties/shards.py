@@ -168,7 +168,7 @@ class _Behind:
             pass
         if len(self.negated) <= k:
             return FROM_START
-        limit = -self.negated[k] + span  # the negated time of the window's start
+        limit = self.negated[k] + span  # the negated time of the window's start
         while self.negated[-1] <= limit and self._more():
             pass
         if self.negated[-1] <= limit:

@@ -8,6 +8,7 @@ import os
 import tempfile
 from unittest import mock
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -141,3 +142,34 @@ def test_a_jsonl_file_cut_anywhere_gives_the_verdicts_of_one_pass(texts, records
             prop.explanations = [found[(prop.name, i)] for i in wanted.get(prop.name, [])]
         assert format_json(merged) == format_json(one)
         assert format_text(merged) == format_text(one)
+
+
+# --------------------------------------------------------------------------- how far back
+
+
+@pytest.mark.parametrize(("formula", "back"), [
+    ("p", 0),
+    ("prev(p)", 1),
+    ("prev(prev(p))", 2),
+    ("once[0, 1] p", 10),  # records every 0.1 s: ten before, at 0.1 … 1.0 s
+    ("once[0.5, 1] p", 10),
+    ("once[0, 1] prev(p)", 11),  # the oldest in the window, and the one before it
+    ("prev(once[0, 1] p)", 11),  # the window of the record before
+    ("once[0, 1] once[0, 0.5] p", 15),
+    ("p since[0, 0.3] q", 3),
+    ("count[0, 2](p) > 1", 20),
+    ("eventually[0, 5] once[0, 1] p", 10),  # a future window starts at its own record
+    ("(once[0, 1] p) and prev(q)", 10),
+])
+def test_a_part_reads_back_as_far_as_its_properties_reach(formula, back):
+    records = [(k / 10, {"p": k % 3 == 0, "q": True}) for k in range(100)]
+    result = check_part(spec_of([formula]), ListPart(records, 50, 60))
+    assert result.read_from == back
+
+
+def test_a_signal_set_once_at_the_start_is_carried_into_a_part_far_from_it():
+    records = [(0, {"x": 2.0})] + [(k, {"p": True}) for k in range(1, 1000)]
+    spec = spec_of(["x > 1"])
+    result = check_part(spec, ListPart(records, 900, 1000))
+    assert result.read_from == 0 and result.properties[0].outcome.judged == 100
+    assert result.properties[0].outcome.violations == 0
