@@ -90,7 +90,14 @@ def _cmd_check(args: argparse.Namespace) -> int:
     load_specification(text, source=args.props)  # a bad property file is refused first
     explain = args.format == "text" and not args.verdicts
     named = args.format == "text" or args.verdicts
-    job = Job(args.props, text, args.app, args.topics, explain, named)
+    app, topics = args.app, args.topics
+    if args.cluster is not None:  # the workers have working folders of their own
+        import os
+
+        args.recordings = [os.path.abspath(p) for p in args.recordings]
+        app = os.path.abspath(app) if app is not None else None
+        topics = os.path.abspath(topics) if topics is not None else None
+    job = Job(args.props, text, app, topics, explain, named)
     if args.verdicts:
         checked = check_recording(job, args.recordings[0], verdicts=sys.stdout)
         _notes(checked, explain)

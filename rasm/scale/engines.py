@@ -114,19 +114,23 @@ class DaskCluster:
                 "--cluster needs Dask distributed, which is not installed: "
                 "pip install 'rasm[cluster]'"
             ) from None
+        from distributed import as_completed
+
         try:
             self.client = Client(address, timeout=timeout, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
             raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+        self._finished = as_completed(loop=self.client.loop)  # every future sent, as done
 
     def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
         # pure=False: a task sent again is a new task, not the failed one looked up by its key
-        return self.client.submit(fn, *args, pure=False)
+        future = self.client.submit(fn, *args, pure=False)
+        self._finished.add(future)
+        return future
 
     def wait(self, futures: Collection[Any]) -> set[Any]:
-        from distributed import wait
-
-        return set(wait(list(futures), return_when="FIRST_COMPLETED").done)
+        # the next to finish of all those sent (one no longer waited for is passed over)
+        return {next(self._finished), *self._finished.next_batch(block=False)}
 
     def result(self, future: Any) -> Any:
         from distributed import KilledWorker

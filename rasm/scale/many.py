@@ -154,7 +154,9 @@ class _Run:
     def run(self) -> list[Outcome]:
         while self.out:
             for future in self.engine.wait(list(self.out)):
-                task = self.out.pop(future)
+                task = self.out.pop(future, None)
+                if task is None:  # given up (its recording is checked in one pass instead)
+                    continue
                 try:
                     result = self.engine.result(future)
                 except WorkerLost as lost:
