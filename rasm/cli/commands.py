@@ -190,6 +190,7 @@ def _report_many(outcomes: list, args: argparse.Namespace, explain: bool) -> int
     status = {}
     entries = []
     for outcome in outcomes:
+        sys.stdout.flush()  # each recording's lines where they belong, stdout and stderr alike
         if outcome.failed:
             for message in outcome.failed:
                 print(f"rasm: {message}", file=sys.stderr)
