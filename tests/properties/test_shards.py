@@ -24,7 +24,7 @@ from rasm.properties.shards import (
     wanted_explanations,
 )
 
-from .strategies import HEADER, formulas, traces
+from .strategies import HEADER, UNITS, decimal_traces, formulas, traces
 
 SETTINGS = settings(max_examples=300, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
@@ -173,3 +173,18 @@ def test_a_signal_set_once_at_the_start_is_carried_into_a_part_far_from_it():
     result = check_part(spec, ListPart(records, 900, 1000))
     assert result.read_from == 0 and result.properties[0].outcome.judged == 100
     assert result.properties[0].outcome.violations == 0
+
+
+@SETTINGS
+@given(st.sampled_from(UNITS), st.data())
+def test_decimal_times_and_bounds_on_their_grid_give_the_verdicts_of_one_pass(unit, data):
+    # records exactly on a window's bound (every 0.1 s trace has them), epoch-like times
+    texts = data.draw(st.lists(formulas(unit=unit), min_size=1, max_size=3))
+    records = data.draw(decimal_traces(unit, max_size=40))
+    spec = spec_of(texts)
+    spec = subspec(spec, [p.name for p in spec.properties if splittable(p.formula)])
+    cuts = data.draw(st.lists(st.integers(0, len(records)), max_size=4))
+    one = check_records(spec, records)
+    parts = in_parts(spec, records, cuts)
+    assert format_json(parts) == format_json(one)
+    assert format_text(parts) == format_text(one)
