@@ -11,6 +11,7 @@ __all__ = ["EXTRAS", "MissingExtra", "missing_extra"]
 #: (pyproject.toml)
 EXTRAS = {
     "ros2": ("ROS 2 support", ("zenoh", "cyclonedds", "rosbags", "mcap", "numpy", "xxhash")),
+    "cluster": ("Dask distributed", ("distributed", "dask")),
 }
 _EXTRA_OF = {module: extra for extra, (_, modules) in EXTRAS.items() for module in modules}
 

@@ -21,6 +21,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
 from rasm.errors import RasmError
+from rasm.extras import missing_extra
 
 __all__ = ["ClusterError", "DaskCluster", "Engine", "InProcess", "Processes", "WorkerLost"]
 
@@ -30,7 +31,7 @@ class WorkerLost(Exception):
 
 
 class ClusterError(RasmError):
-    """The cluster cannot be used: its engine is not installed, or it cannot be reached."""
+    """The cluster cannot be reached."""
 
 
 class Engine(Protocol):
@@ -106,14 +107,11 @@ class DaskCluster:
     """An existing Dask distributed cluster, through its scheduler at ``address``
     (``tcp://host:8786``)."""
 
-    def __init__(self, address: str, *, timeout: float = 30) -> None:
+    def __init__(self, address: str, *, timeout: float = 10) -> None:
         try:
             from distributed import Client
-        except ImportError:
-            raise ClusterError(
-                "--cluster needs Dask distributed, which is not installed: "
-                "pip install 'rasm[cluster]'"
-            ) from None
+        except ImportError as exc:
+            raise (missing_extra(exc, "--cluster") or exc) from None
         from distributed import as_completed
 
         try:

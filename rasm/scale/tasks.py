@@ -12,6 +12,7 @@ from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 from rasm.errors import RasmError, SourceErrors, printable
+from rasm.extras import missing_extra
 from rasm.properties.codegen import checked_signals
 from rasm.properties.explain import Explanation
 from rasm.properties.shards import PartResult, check_part, explain_part, subspec
@@ -28,6 +29,10 @@ class Failed:
 
 
 def failure(exc: BaseException) -> Failed:
+    if isinstance(exc, ModuleNotFoundError):  # a package of an extra (rasm[ros2]) not installed
+        missing = missing_extra(exc, "rasm check")
+        if missing is not None:
+            return Failed((printable(str(missing)),))
     if isinstance(exc, SourceErrors):
         return Failed(tuple(printable(str(error)) for error in exc.errors))
     return Failed((printable(str(exc)),))
@@ -37,7 +42,7 @@ def whole_task(job: Job, path: str, names: Collection[str] | None = None) -> Che
     """The recording checked in one pass (only the properties ``names``, if given)."""
     try:
         return check_recording(job, path, names=names)
-    except (SourceErrors, RasmError, OSError) as exc:
+    except (SourceErrors, RasmError, OSError, ModuleNotFoundError) as exc:
         return failure(exc)
 
 
@@ -59,7 +64,7 @@ def part_task(job: Job, path: str, start: int, end: int,
         spec, part = _part(job, path, start, end, names)
         with part:
             return check_part(spec, part, named=job.named)
-    except (SourceErrors, RasmError, OSError, ValueError) as exc:
+    except (SourceErrors, RasmError, OSError, ValueError, ModuleNotFoundError) as exc:
         return failure(exc)
 
 
