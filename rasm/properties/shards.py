@@ -148,7 +148,7 @@ class _Behind:
         self.negated = [-first_ns]  # non-decreasing, for bisect
         self.ended = False
 
-    def _more(self) -> bool:
+    def more(self) -> bool:
         if self.ended:
             return False
         item = next(self.earlier, None)
@@ -164,12 +164,12 @@ class _Behind:
         FROM_START when the window may reach the first record of the trace."""
         if k == FROM_START:
             return FROM_START
-        while len(self.negated) <= k and self._more():
+        while len(self.negated) <= k and self.more():
             pass
         if len(self.negated) <= k:
             return FROM_START
         limit = self.negated[k] + span  # the negated time of the window's start
-        while self.negated[-1] <= limit and self._more():
+        while self.negated[-1] <= limit and self.more():
             pass
         if self.negated[-1] <= limit:
             return FROM_START
@@ -238,11 +238,11 @@ def _prepare(spec: Specification, part: Part) -> tuple[list[Record], Iterator[Re
     behind = _Behind(nanoseconds(first[0]), part.earlier())
     depth = max((past_depth(p.formula, behind) for p in spec.properties), default=0)
     if depth == FROM_START:
-        while behind._more():
+        while behind.more():
             pass
         depth = len(behind.records)
     else:
-        while len(behind.records) < depth and behind._more():
+        while len(behind.records) < depth and behind.more():
             pass
     depth = min(int(depth), len(behind.records))
     fed = [*reversed(behind.records[:depth]), first]
@@ -295,13 +295,13 @@ def check_part(spec: Specification, part: Part, *, chunk: int = CHUNK,
     def take() -> None:
         end = None if inside is None else depth + inside
         for k, tally in enumerate(tallies):
-            first, values, errors = monitor.take(k)
-            low = max(depth - first, 0)
-            high = len(values) if end is None else max(min(len(values), end - first), 0)
+            at, values, errors = monitor.take(k)  # the verdicts of records at, at + 1, …
+            low = max(depth - at, 0)
+            high = len(values) if end is None else max(min(len(values), end - at), 0)
             if low >= high:
                 continue
-            kept = {j: why for j, why in errors.items() if first + low <= j < first + high}
-            tally.add(first + low, values[low:high], kept, times)
+            kept = {j: why for j, why in errors.items() if at + low <= j < at + high}
+            tally.add(at + low, values[low:high], kept, times)
         owed = [s + monitor.verdicts_taken(k) for k, s in enumerate(monitor.starts)
                 if s is not None]
         times.forget_before(min([*owed, count]))
@@ -319,7 +319,7 @@ def check_part(spec: Specification, part: Part, *, chunk: int = CHUNK,
     assert inside is not None
     results = []
     for k, (prop, tally) in enumerate(zip(spec.properties, tallies, strict=True)):
-        held = [vacuity.held[j] for j in vacuity._by_property[prop.name]]
+        held = [h for _, h in vacuity.antecedents(prop.name)]
         missing = monitor.missing(prop.name) if monitor.starts[k] is None else ()
         results.append(PropertyPart(
             tally.outcome,
@@ -350,13 +350,15 @@ def merge_parts(spec: Specification, results: Sequence[PartResult], *, trace: st
     offsets = [0]
     for result in results:
         offsets.append(offsets[-1] + result.records)
-    vacuity = Vacuity(spec)
+    vacuity = Vacuity(spec)  # (its antecedents, in order: the parts' flags are theirs)
     for k, prop in enumerate(spec.properties):
         outcome = PropertyOutcome(prop.name)
         violations: list[tuple[int, float]] = []
         first_errors: list[tuple[int, float, str]] = []
         held: list[bool] | None = None
         for result, offset in zip(results, offsets, strict=False):
+            if not result.records:  # a part of blank lines judged nothing
+                continue
             part = result.properties[k]
             o = part.outcome
             outcome.judged += o.judged
@@ -373,12 +375,11 @@ def merge_parts(spec: Specification, results: Sequence[PartResult], *, trace: st
             )
             held = part.held if held is None else [a or b for a, b in zip(
                 held, part.held, strict=True)]
-        if not outcome.judged and results:
-            outcome.missing = results[-1].properties[k].missing
-        untested = vacuity._owners
-        numbers = vacuity._by_property[prop.name]
-        outcome.vacuous = tuple(untested[j][1] for n, j in enumerate(numbers)
-                                if not (held and held[n]))
+        counted = [r for r in results if r.records]
+        if not outcome.judged and counted:
+            outcome.missing = counted[-1].properties[k].missing
+        outcome.vacuous = tuple(untested for n, (untested, _) in enumerate(
+            vacuity.antecedents(prop.name)) if not (held and held[n]))
         reports.append(PropertyReport(prop.name, str(prop.location), outcome, violations, None,
                                       first_errors))
     return CheckReport(spec.source, trace, offsets[-1], reports)

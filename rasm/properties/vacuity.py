@@ -82,6 +82,10 @@ class Vacuity:
         """Every antecedent has held: nothing is vacuous, whatever comes next."""
         return self._left == 0
 
+    def antecedents(self, name: str) -> list[tuple[Untested, bool]]:
+        """Every antecedent of property ``name``, and whether it has held (so far)."""
+        return [(self._owners[k][1], self.held[k]) for k in self._by_property.get(name, ())]
+
     def vacuous(self, name: str) -> tuple[Untested, ...]:
         """The antecedents of property ``name`` that have not held on a judged record."""
         return tuple(self._owners[k][1] for k in self._by_property.get(name, ()) if not

@@ -27,6 +27,7 @@ from rasm.properties.shards import (
     PartResult,
     merge_parts,
     splittable,
+    subspec,
     wanted_explanations,
 )
 from rasm.scale.engines import Engine, InProcess, WorkerLost
@@ -221,8 +222,6 @@ class _Run:
         spec = spec_of(self.job)
         if rec.merged is None:
             results = [rec.parts[n] for n in range(parts)]
-            from rasm.properties.shards import subspec
-
             rec.merged = merge_parts(subspec(spec, self.bounded), results, trace=rec.path,
                                      named=self.job.named)
             if self.job.explain:
