@@ -145,3 +145,31 @@ def test_a_worker_killed_mid_run_is_replaced_and_the_report_is_that_of_one_pass(
     assert killed is not None, "no worker was seen at work"
     assert check.returncode == whole.returncode == 1, err
     assert out == whole.stdout and err == ""
+
+
+def test_a_long_check_shows_a_progress_bar_on_a_terminal_and_the_same_report(props, large,
+                                                                             tmp_path):
+    import pty
+
+    whole = one_pass(props, large, "--format", "json")
+    terminal, stderr = pty.openpty()
+    report = tmp_path / "report.json"
+    with open(report, "wb") as stdout:  # (a pipe would fill while the terminal is read)
+        check = subprocess.Popen([*RASM, "check", str(props), str(large), "--jobs", "2",
+                                  "--part-size", "300k", "--format", "json"],
+                                 stdout=stdout, stderr=stderr)
+    os.close(stderr)
+    shown = b""
+    while True:
+        try:
+            data = os.read(terminal, 65536)
+        except OSError:  # the terminal closed with the process
+            break
+        if not data:
+            break
+        shown += data
+    check.wait(timeout=600)
+    os.close(terminal)
+    assert check.returncode == 1
+    assert report.read_text() == whole.stdout
+    assert b"checking" in shown and b"MB" in shown  # the bar, its bytes done and in all
