@@ -121,13 +121,14 @@ def _check_many(job, args: argparse.Namespace) -> list:
     import os
 
     from rasm.scale import DaskCluster, InProcess, Processes, check_many, is_trace, plan_parts
+    from rasm.scale.many import cores
 
     paths = args.recordings
     if args.cluster is not None:
         engine = DaskCluster(args.cluster)
         jobs = sum(engine.client.nthreads().values()) or 1
     else:
-        jobs = args.jobs or os.cpu_count() or 1
+        jobs = args.jobs or cores()
         sizes = [os.path.getsize(p) if is_trace(p) and os.path.isfile(p) else 0 for p in paths]
         alone = len(paths) == 1 and plan_parts(sizes, jobs, args.part_size) == [1]
         engine = InProcess() if jobs == 1 or alone else Processes(jobs)

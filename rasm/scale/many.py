@@ -34,7 +34,7 @@ from rasm.scale.engines import Engine, InProcess, WorkerLost
 from rasm.scale.recordings import Checked, Job, is_trace, spec_of
 from rasm.scale.tasks import Failed, explain_task, part_task, whole_task
 
-__all__ = ["ATTEMPTS", "MIN_PART", "Outcome", "check_many", "plan_parts"]
+__all__ = ["ATTEMPTS", "MIN_PART", "Outcome", "check_many", "cores", "plan_parts"]
 
 ATTEMPTS = 3  # tries of a task whose worker died
 MIN_PART = 8 << 20  # bytes: a smaller trace is checked in one pass
@@ -51,6 +51,14 @@ class Outcome:
     @property
     def report(self) -> CheckReport | None:
         return self.checked.report if self.checked is not None else None
+
+
+def cores() -> int:
+    """The cores this process may run on (``--jobs``' default)."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def _size(path: str) -> int:
@@ -276,7 +284,7 @@ def check_many(
     engine = engine if engine is not None else InProcess()
     if jobs is None:
         jobs = 1 if isinstance(engine, InProcess) else (
-            getattr(engine, "jobs", None) or os.cpu_count() or 1)
+            getattr(engine, "jobs", None) or cores())
     run = _Run(job, paths, engine, progress)
     run.start(jobs, part_size)
     return run.run()
