@@ -22,6 +22,7 @@ from decimal import Decimal
 from fractions import Fraction
 
 __all__ = [
+    "elapsed_seconds",
     "FAST", "NS_PER_SECOND", "Seconds", "bound_nanoseconds", "float_nanoseconds",
     "format_nanoseconds", "format_seconds", "from_nanoseconds", "nanoseconds", "seconds_value",
     "to_the_nanosecond",
@@ -118,6 +119,15 @@ def to_the_nanosecond(time: float) -> float:
         return round(time * 1e9) / 1e9  # both exact below FAST: one correct rounding
     ns = float_nanoseconds(time)
     return time if ns is None else from_nanoseconds(ns)
+
+
+def elapsed_seconds(start: object, end: object) -> float:
+    """``end - start`` in seconds, computed on their exact nanoseconds (epoch times differ by
+    ``5.100000143`` in binary floating point where their decimals differ by 5.1)."""
+    first, last = nanoseconds(start), nanoseconds(end)
+    if first is None or last is None:
+        return float(end) - float(start)  # type: ignore[arg-type]
+    return from_nanoseconds(last - first)
 
 
 def format_seconds(time: object) -> str:

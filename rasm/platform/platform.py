@@ -74,6 +74,7 @@ from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.properties.vacuity import Vacuity
 from rasm.statechart import MonotonicClock, SimulatedClock
+from rasm.times import elapsed_seconds
 from rasm.trace import TraceWriter, open_trace_writer
 from rasm.twin import DigitalTwin
 
@@ -687,7 +688,8 @@ class Platform:
             length = math.inf  # to the end of the recording (the replay stops the scheduler)
         try:
             self.scheduler.run_until(self._started_at + length if length < math.inf else None)
-            ran = min(length, self.clock.time - self._started_at)
+            # exactly: a replay's clock reads epoch seconds, where a float difference has noise
+            ran = min(length, elapsed_seconds(self._started_at, self.clock.time))
         finally:
             self.stop()
         if ran >= length:  # a stop asked for as the run ended anyway changed nothing
