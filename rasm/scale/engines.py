@@ -26,7 +26,7 @@ from rasm.extras import missing_extra
 __all__ = ["ClusterError", "DaskCluster", "Engine", "InProcess", "Processes", "WorkerLost"]
 
 
-class WorkerLost(Exception):
+class WorkerLost(RasmError):
     """The worker running a task died before it finished (killed, out of memory)."""
 
 
