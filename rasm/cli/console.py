@@ -149,6 +149,12 @@ def print_summary(summary: RunSummary, console: Console) -> None:
             f"fallback engaged {summary.fallback_engagements} "
             f"time{'' if summary.fallback_engagements == 1 else 's'}"
         )
+    for name, calls in summary.calls.items():
+        # a call's failure fails its action: counted here, each in the trace with its reason
+        line = f"effector {name} calls: {calls.describe()}"
+        if calls.last_failure:
+            line += f" (last failure: {calls.last_failure})"
+        console.print(Text(line), soft_wrap=True)
     if s.failed_stages or s.timeouts:
         console.print(f"failed stages: {dict(s.failed_stages)}  overruns: {dict(s.timeouts)}")
     verdicts = Table(title="properties", show_header=True, header_style="bold")

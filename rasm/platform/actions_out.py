@@ -1,16 +1,19 @@
-"""Actions out: each action the Trustworthiness Checker lets through, on its effector's topic.
+"""Actions out: each action the Trustworthiness Checker lets through, on its effector's topic,
+or as a call of its effector's service or action.
 
 An effector with a ROS 2 interface ``type`` gets the message its fields build from the action's
-payload; an untyped one gets the payload with the action's plan and kind, sealed by the
-distribution (signed, when actions are). A replay sends nothing: the action goes in the trace
-as it would have been sent.
+payload (a service's request, an action's goal); an untyped one gets the payload with the
+action's plan and kind, sealed by the distribution (signed, when actions are). A service or
+action effector's call runs off the loop (:mod:`rasm.platform.calls`). A replay sends nothing:
+the action goes in the trace as it would have been sent.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
+from rasm.errors import CommError
 from rasm.platform.components import Action
 from rasm.platform.manifest import AppManifest, Effector
 from rasm.statechart import Clock
@@ -30,12 +33,20 @@ def message_types(m: AppManifest) -> TypeStore:
     return default_store()
 
 
+class CallStarter(Protocol):
+    """What starts a service or action effector's call (:class:`rasm.platform.calls.
+    CallEffectors`): returns at once, saying what it started."""
+
+    def start(self, effector: Effector, action: Action, request: dict[str, Any]) -> str: ...
+
+
 class ActionSender:
     """Sends an action on its effector's topic (:meth:`send`, the checker's ``send``).
 
     ``publish(topic, payload)`` puts it on the transport; ``seal(topic, payload)`` signs an
     untyped payload (raising when it cannot be sent); ``emit(time, record)`` writes the trace
-    record of an action a replay does not send.
+    record of an action a replay does not send; ``calls`` starts a service or action
+    effector's call (None: the app has none).
     """
 
     def __init__(
@@ -47,6 +58,7 @@ class ActionSender:
         emit: Callable[[float, dict[str, Any]], object],
         clock: Clock,
         replaying: bool,
+        calls: CallStarter | None = None,
     ) -> None:
         self.manifest = manifest
         self.publish = publish
@@ -54,6 +66,7 @@ class ActionSender:
         self.emit = emit
         self.clock = clock
         self.replaying = replaying
+        self.calls = calls
 
     def send(self, effector: Effector, action: Action) -> str | None:
         """Send ``action`` on ``effector``'s topic; why it was not sent (a replay), or None."""
@@ -63,9 +76,14 @@ class ActionSender:
 
             payload = build_message(message_types(self.manifest), effector, action.payload)
         if self.replaying:
-            action_record = {"effector": effector.name, "topic": effector.topic, "payload": payload}
+            action_record = {"effector": effector.name, effector.kind: effector.topic,
+                             "payload": payload}
             self.emit(self.clock.time, {"recorded_action": action_record, "plan": action.plan})
             return f"recorded in the trace, not sent (replay): {effector.name} on {effector.topic}"
+        if effector.call is not None:
+            if self.calls is None:
+                raise CommError(f"{effector.call} {effector.topic} cannot be called here")
+            return self.calls.start(effector, action, payload)
         if not effector.type:
             payload = self.seal(effector.topic, payload)
         self.publish(effector.topic, payload)

@@ -86,6 +86,8 @@ class ManagedSystem:
         self._started_at = started_at
         self._gate = gate
         for name, effector in self.effectors.items():
+            if effector.call is not None:
+                continue  # a service or action is served by the robot, not by a simulator
             bus.subscribe(
                 effector.topic, lambda message, name=name: self._on_effector(name, message)
             )

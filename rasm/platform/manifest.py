@@ -103,6 +103,39 @@ class Effector:
     type: str | None = None
     qos: dict[str, Any] | None = None
     message_fields: dict[str, str] = field(default_factory=dict)
+    # "service" or "action": each action calls the ROS 2 service (or sends a goal to the
+    # action) named ``topic``; None: it is published on the topic
+    call: str | None = None
+    # the response's (an action's result's) and the feedback's fields into knowledge: knowledge
+    # key -> the signal, whose ``field`` is the path in the answer
+    response: dict[str, Signal] = field(default_factory=dict)
+    feedback: dict[str, Signal] = field(default_factory=dict)
+    timeout: float = 10.0  # seconds a call may take, or a goal until its result
+
+    @property
+    def kind(self) -> str:
+        """``topic``, ``service`` or ``action``: how its actions go out."""
+        return self.call or "topic"
+
+    @property
+    def message_type(self) -> str | None:
+        """The message its ``fields`` fill: the topic's type, a service's request, an
+        action's goal."""
+        if not self.type or self.call is None:
+            return self.type
+        return f"{self.type}_{'Request' if self.call == 'service' else 'Goal'}"
+
+    @property
+    def answer_type(self) -> str | None:
+        """The message ``response`` reads: a service's response, an action's result."""
+        if not self.type or self.call is None:
+            return None
+        return f"{self.type}_{'Response' if self.call == 'service' else 'Result'}"
+
+    @property
+    def signals(self) -> dict[str, Signal]:
+        """What its answers put in knowledge (a topic effector's: nothing)."""
+        return {**self.response, **self.feedback}
 
 
 @dataclass(frozen=True)
@@ -205,7 +238,7 @@ class AppManifest:
             if probe.type:
                 found[probe.topic] = (probe.type, probe.qos)
         for effector in self.effectors.values():
-            if effector.type:
+            if effector.type and effector.call is None:
                 found[effector.topic] = (effector.type, effector.qos)
         for verdict in self.external_verdicts.values():
             if verdict.type:
@@ -221,9 +254,13 @@ class AppManifest:
 
     @property
     def signals(self) -> dict[str, Signal]:
+        """What goes in knowledge from outside: the probes' signals, and what the service
+        and action effectors' answers carry."""
         out: dict[str, Signal] = {}
         for probe in self.probes:
             out.update(probe.signals)
+        for effector in self.effectors.values():
+            out.update(effector.signals)
         return out
 
 
@@ -329,6 +366,71 @@ def _probes(src: YamlSource, problems: list[SourceError]) -> list[Probe]:
             )
         )
     return probes
+
+
+_CALL_DEFAULT_TIMEOUT = {"service": 10.0, "action": 60.0}
+
+
+def _effector(
+    src: YamlSource, name: str, spec: dict[str, Any], problems: list[SourceError]
+) -> Effector:
+    """One effector as the schema let it through: exactly one of topic, service and action;
+    a service or action needs its type, and only they have answers and a timeout."""
+    where = src.key(src.data["effectors"], name)
+    given = [key for key in ("topic", "service", "action") if key in spec]
+    if len(given) != 1:
+        problems.append(src.error(
+            f"effector {name}: give it one topic, service or action (where its actions go)"
+            + (f", not {' and '.join(given)}" if given else ""),
+            where,
+        ))
+    kind = next((key for key in ("service", "action") if key in spec), "topic")
+    call = None if kind == "topic" else kind
+    if call is not None and not spec.get("type"):
+        problems.append(src.error(
+            f"effector {name}: a {call} needs its type (type: pkg/"
+            f"{'srv' if call == 'service' else 'action'}/Name)",
+            src.key(spec, call),
+        ))
+    for key in ("response", "feedback", "timeout"):
+        if key in spec and (call is None or (key == "feedback" and call == "service")):
+            what = "an action" if key == "feedback" else "a service or an action"
+            problems.append(src.error(
+                f"effector {name}: {key} belongs to {what}"
+                + (" (a service answers once: use response)" if call == "service" else ""),
+                src.key(spec, key),
+            ))
+    answers: dict[str, dict[str, Signal]] = {"response": {}, "feedback": {}}
+    for part, found in answers.items():
+        for path, key in (spec.get(part) or {}).items():
+            if str(key) in found or str(key) in answers["response"]:
+                problems.append(src.error(
+                    f"effector {name}: knowledge key '{key}' is filled twice",
+                    src.at(["effectors", name, part, path]),
+                ))
+            elif str(key) in LOOP_KEYS:
+                problems.append(src.error(
+                    f"effector {name}: '{key}' is a key the loop writes itself in the trace; "
+                    "give it another name",
+                    src.at(["effectors", name, part, path]),
+                ))
+            # the value type comes from the field's, once the type store is read
+            found[str(key)] = Signal(str(key), "json", field=str(path))
+    fields = {str(k): str(v) for k, v in (spec.get("fields") or {}).items()}
+    typed = bool(spec.get("type"))
+    return Effector(
+        name,
+        str(spec.get(kind, "")),
+        tuple(spec["modes"]) if "modes" in spec else None,
+        {} if typed else fields,
+        spec.get("type"),
+        plain(spec["qos"]) if "qos" in spec else None,
+        fields if typed else {},
+        call,
+        answers["response"],
+        answers["feedback"],
+        float(spec.get("timeout", _CALL_DEFAULT_TIMEOUT.get(kind, 10.0))),
+    )
 
 
 def _derived_signal_problems(
@@ -525,18 +627,10 @@ def load_manifest(app: str | Path) -> AppManifest:
     modes = existing(["managed_system", "modes"], managed["modes"]) if "modes" in managed else None
     probes = _probes(src, problems)
     problems.extend(_derived_signal_problems(src, produces.get("monitor", {}), probes))
-    effectors = {}
-    for name, spec in (data.get("effectors") or {}).items():
-        fields = {str(k): str(v) for k, v in (spec.get("fields") or {}).items()}
-        effectors[str(name)] = Effector(
-            str(name),
-            str(spec["topic"]),
-            tuple(spec["modes"]) if "modes" in spec else None,
-            {} if spec.get("type") else fields,
-            spec.get("type"),
-            plain(spec["qos"]) if "qos" in spec else None,
-            fields if spec.get("type") else {},
-        )
+    effectors = {
+        str(name): _effector(src, str(name), spec, problems)
+        for name, spec in (data.get("effectors") or {}).items()
+    }
     trust = data.get("trustworthiness", {}) or {}
     external = {
         str(name): ExternalVerdict(

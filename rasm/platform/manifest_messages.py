@@ -15,7 +15,7 @@ from rasm.values import TYPES
 from rasm.yamltext import YamlSource
 
 if TYPE_CHECKING:
-    from rasm.platform.manifest import Effector, ExternalVerdict, Probe
+    from rasm.platform.manifest import Effector, ExternalVerdict, Probe, Signal
 
 __all__ = ["check_messages"]
 
@@ -100,9 +100,19 @@ def check_messages(
         if probe.type:
             _check_probe(src, store, i, probe, problems)
     checked = dict(effectors)
+    by_probe = {key: (p, signal) for p in probes for key, signal in p.signals.items()}
     for name, effector in effectors.items():
         if effector.type:
             checked[name] = _check_effector(src, store, effector, problems)
+        for part in ("response", "feedback"):
+            for key, signal in getattr(checked[name], part).items():
+                probe, known = by_probe.get(key, (None, None))
+                if known is not None and known.type != signal.type:
+                    problems.append(src.error(
+                        f"effector {name}: '{key}' is {signal.type} here but probe "
+                        f"{probe.topic} gives it as {known.type}: one knowledge key has one type",
+                        src.at(["effectors", name, part, signal.field]),
+                    ))
     for name, verdict in external.items():
         if verdict.type:
             path = ["trustworthiness", "external_verdicts", name, "topic"]
@@ -208,17 +218,31 @@ def _check_effector(
 ) -> Effector:
     from rasm.platform.messages import value_type
     from rasm.ros2 import RosError, field_type
+    from rasm.ros2.types import interface_kind
 
     where = ["effectors", effector.name]
-    _check_topic(src, effector.topic, where + ["topic"], problems)
+    _check_topic(src, effector.topic, where + [effector.kind], problems)
     typename = _resolve(src, store, effector.type, where + ["type"], problems)
     if typename is None:
         return effector
+    kind = interface_kind(typename)
+    wanted = {"topic": "msg", "service": "srv", "action": "action"}[effector.kind]
+    if kind != wanted:
+        what = {"msg": "a message", "srv": "a service", "action": "an action"}[kind]
+        use = {"msg": "topic", "srv": "service", "action": "action"}[kind]
+        problems.append(src.error(
+            f"effector {effector.name}: {typename} is {what} type, so the effector needs a "
+            f"{use}: (it has a {effector.kind}:), or a pkg/{wanted}/Name type",
+            src.at(where + ["type"]), len(effector.type or ""),
+        ))
+        return effector
+    effector = replace(effector, type=typename)
+    message = effector.message_type or typename
     kinds: dict[str, str] = {}
     written = src.data["effectors"][effector.name].get("fields") or {}
     for path, key in effector.message_fields.items():
         try:
-            found = field_type(store, typename, path)
+            found = field_type(store, message, path)
         except RosError as exc:
             problems.append(src.error(
                 f"effector {effector.name}: {exc}", src.key(written, path), len(path)
@@ -238,10 +262,42 @@ def _check_effector(
                 f"({kinds[key]} and {kind})",
                 src.at(where + ["fields", path]),
             ))
-    if not effector.message_fields:
+    if not effector.message_fields and effector.call is None:
         problems.append(src.error(
             f"effector {effector.name}: list the message fields its actions fill, as "
             "fields: {message.field: payload_key}",
             src.key(src.data["effectors"], effector.name),
         ))
-    return replace(effector, fields=kinds, type=typename)
+    response = _answer_signals(src, store, effector, "response", effector.answer_type, problems)
+    feedback = _answer_signals(
+        src, store, effector, "feedback",
+        f"{typename}_Feedback" if effector.call == "action" else None, problems,
+    )
+    return replace(effector, fields=kinds, response=response, feedback=feedback)
+
+
+def _answer_signals(
+    src: YamlSource, store: Any, effector: Effector, part: str, typename: str | None,
+    problems: list[SourceError],
+) -> dict[str, Signal]:
+    """A service or action effector's ``response`` or ``feedback`` signals, each with the
+    value type of the answer's field it reads."""
+    from rasm.platform.messages import value_type
+    from rasm.ros2 import RosError, field_type
+
+    signals: dict[str, Signal] = getattr(effector, part)
+    if typename is None or not signals:
+        return signals
+    written = src.data["effectors"][effector.name].get(part) or {}
+    typed = {}
+    for key, signal in signals.items():
+        path = signal.field or key
+        try:
+            found = field_type(store, typename, path)
+        except RosError as exc:
+            problems.append(src.error(
+                f"effector {effector.name}: {part}: {exc}", src.key(written, path), len(path)
+            ))
+            continue
+        typed[key] = replace(signal, type=value_type(found))
+    return typed

@@ -131,8 +131,9 @@ class MessageReader:
 
 
 def build_message(store: TypeStore, effector: Effector, payload: Mapping[str, Any]) -> dict:
-    """The message an action's ``payload`` makes on ``effector``'s topic: each field of
-    ``effector.message_fields`` set from its payload key, the rest zero.
+    """The message an action's ``payload`` makes on ``effector``'s topic (a service's request,
+    an action's goal): each field of ``effector.message_fields`` set from its payload key,
+    the rest their ``.msg`` default, else zero.
 
     Fails closed: a payload key the effector maps that the payload lacks, a payload key it
     does not map, or a value that does not fit its field raises :class:`ActionMismatch`
@@ -146,7 +147,7 @@ def build_message(store: TypeStore, effector: Effector, payload: Mapping[str, An
     if absent:
         raise ActionMismatch(
             f"the action has no {absent[0]!r}, which effector {effector.name} sends as "
-            f"{_field_of(mapped, absent[0])} of {effector.type}"
+            f"{_field_of(mapped, absent[0])} of {effector.message_type}"
         )
     extra = sorted(set(payload) - wanted - {"plan", "kind"})
     if extra:
@@ -159,7 +160,7 @@ def build_message(store: TypeStore, effector: Effector, payload: Mapping[str, An
         raise ActionMismatch(f"the action's {empty[0]!r} is null, not a value to send")
     values = {path: payload[key] for path, key in mapped.items()}
     try:
-        return set_fields(store, effector.type or "", values)
+        return set_fields(store, effector.message_type or "", values)
     except RosError as exc:
         raise ActionMismatch(f"effector {effector.name}: {exc}") from None
 

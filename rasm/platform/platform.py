@@ -34,6 +34,7 @@ from rasm.platform.adaptation_manager import AdaptationManager
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
 from rasm.platform.app_properties import compile_app_properties
 from rasm.platform.block import Block, shared_chart
+from rasm.platform.calls import CallEffectors, effector_calls
 from rasm.platform.communication_manager import CommunicationManager
 from rasm.platform.core import Core
 from rasm.platform.corrective import corrective_check
@@ -174,6 +175,7 @@ class Platform:
         self.twin: DigitalTwin | None = None
         self.modes: ModesRunner | None = None  # the app's modes chart, if it has one
         self.fb: FallbackSwitch | None = None  # the fallback switch, when the app declares one
+        self.calls: CallEffectors | None = None  # the service and action effectors' calls
         self.learning: TwinLearning | None = None  # the twin's online learning, with a twin
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
@@ -348,6 +350,13 @@ class Platform:
                 at=self.scheduler.at,
                 clock=clock,
             )
+        # service and action effectors: calls off the loop, their outcomes back as jobs
+        self.calls = None if self.replay_path is not None else effector_calls(
+            m.effectors, self.transport, submit=self.scheduler.submit, register=self._register,
+            emit=self._emit, now=self.scheduler.now,
+            veto_reason=lambda name, verdict: self.tm.veto_reason(name, verdict),
+            logs=self.logs,
+        )
         self.tc = TrustworthinessChecker(
             chart=self._chart("trustworthiness_checker"),
             monitors=monitors,
@@ -359,6 +368,7 @@ class Platform:
                 emit=self._emit,
                 clock=clock,
                 replaying=self.replay_path is not None,
+                calls=self.calls,
             ).send,
             mode_of=self._managed_system_mode,
             online=self.watch.online,
@@ -378,6 +388,10 @@ class Platform:
             clock=clock,
             depends_on=("sm", "km", "tc"),
         )
+        if self.calls is not None:  # a goal is cancelled when a veto closes, or on fallback
+            self.calls.veto_properties = self.tm.veto_properties
+            self.on_verdict.append(self.calls.observe_verdict)
+            self.on_record.append(self.calls.observe_record)
         self.am = AdaptationManager(
             self.tm,
             self.tc,
@@ -707,6 +721,8 @@ class Platform:
         self.scheduler.stop()
 
     def stop(self) -> None:
+        if self.calls is not None:  # goals cancelled while the transport is still there
+            self.calls.close()
         self.logs.flush()  # the counts still unreported, while the log sinks are attached
         if self._built:
             self.dist.stop()
@@ -737,6 +753,7 @@ class Platform:
             fallback=self.fb,
             write_failures=self.write_failures(),
             damage=self.replay.damage if self.replay is not None else [],
+            calls=self.calls.counts if self.calls is not None else {},
             off=tuple(name for name, limits in self.manifest.platform_properties.items()
                       if limits is None) if self.managing else (),
         )

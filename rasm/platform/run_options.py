@@ -70,4 +70,28 @@ def check_run(
     transport = transport or manifest.transport
     if clock == "simulated":
         check_simulated_run(transport, role, bool(manifest.simulator))
+    if replay is None and role != "managed":
+        _check_calls(manifest, transport, clock)
     return manifest, clock, transport
+
+
+def _check_calls(manifest: AppManifest, transport: str, clock: str) -> None:
+    """A service or action effector calls over ROS 2, on the wall clock: a call's answer
+    comes in its own time, which a simulated clock would run past."""
+    calls = [e for e in manifest.effectors.values() if e.call]
+    if not calls:
+        return
+    first = calls[0]
+    what = f"effector {first.name} calls {first.call} {first.topic}"
+    if not transport.strip().startswith(("zenoh://", "dds://")):
+        raise PlatformError(
+            f"{what}: services and actions are ROS 2's; run the app over zenoh:// or dds:// "
+            f"(transport: in app.yaml, or --transport), not {transport}"
+        )
+    if transport.strip().startswith("dds://"):
+        raise PlatformError(f"{what}: calls over dds:// are not there yet; run it over zenoh://")
+    if clock == "simulated":
+        raise PlatformError(
+            f"{what}: a call is answered in the robot's own time, which the simulated clock "
+            "would run past; run it on the wall clock (--clock wall), or --replay a recording"
+        )

@@ -7,7 +7,8 @@ run`` refuse such an app, at the place of the read, suggesting the closest provi
 
 What an app provides (:func:`provided`):
 
-* to properties (the trace): its probes' signals, the loop's own keys, the Monitor's derived
+* to properties (the trace): its probes' signals, what its service and action effectors'
+  answers put in knowledge (``response``, ``feedback``), the loop's own keys, the Monitor's derived
   signals (``components.monitor.produces``), the Plan's fields (``components.plan.produces``:
   the ``planned`` record carries them) and, with a twin, ``twin_residual``; inside a property
   file, ``let`` names and inputs declared with a default need no provider;
@@ -97,6 +98,12 @@ def provided(manifest: AppManifest) -> Provided:
     for probe in manifest.probes:
         for key, signal in probe.signals.items():
             knowledge[key] = Provider(signal.type, f"probe {probe.topic}")
+    for effector in manifest.effectors.values():
+        for part in ("response", "feedback"):
+            for key, signal in getattr(effector, part).items():
+                what = "result" if part == "response" and effector.call == "action" else part
+                origin = f"effector {effector.name}'s {what}"
+                knowledge.setdefault(key, Provider(signal.type, origin))
     for key, kind in manifest.produces.get("monitor", {}).items():
         knowledge.setdefault(key, Provider(kind, "components.monitor.produces"))
     if manifest.modes is not None:

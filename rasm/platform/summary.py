@@ -9,6 +9,7 @@ from rasm.comm import Transport
 from rasm.loop import STAGES
 from rasm.losses import Damage, WriteFailure
 from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.calls import CallCounts
 from rasm.platform.distribution import Distribution
 from rasm.platform.fallback import FallbackSwitch
 from rasm.platform.state_manager import StateManager
@@ -54,6 +55,8 @@ class RunSummary:
     damage: list[Damage] = field(default_factory=list)
     # the platform properties the app turned off (platform_properties: in app.yaml): not checked
     off: tuple[str, ...] = ()
+    # per service or action effector, how its calls ended
+    calls: dict[str, CallCounts] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -99,6 +102,7 @@ def summarise(
     write_failures: list[WriteFailure] | None = None,
     damage: list[Damage] | None = None,
     off: tuple[str, ...] = (),
+    calls: dict[str, CallCounts] | None = None,
 ) -> RunSummary:
     """The run so far, read from its blocks (nothing is changed). ``checker``,
     ``orchestrator`` and ``telegraf`` are the managing side's (None in a managed-only process:
@@ -129,6 +133,7 @@ def summarise(
         write_failures=list(write_failures or ()),
         damage=list(damage or ()),
         off=off,
+        calls=dict(calls or {}),
     )
 
 

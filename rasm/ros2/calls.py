@@ -30,7 +30,7 @@ from rasm.errors import CommError
 from rasm.ros2.types import dds_type_name
 from rasm.times import format_seconds
 
-__all__ = ["ActionGoal", "CallFailed", "GOAL_STATUS", "ZenohCalls"]
+__all__ = ["ActionGoal", "CallFailed", "GOAL_STATUS", "ZenohCalls", "calls_for"]
 
 #: action_msgs/msg/GoalStatus's status values
 GOAL_STATUS = {0: "unknown", 1: "accepted", 2: "executing", 3: "canceling", 4: "succeeded",
@@ -91,7 +91,11 @@ class ZenohCalls:
                            attachment=attachment(sequence, time.time_ns(), self._gid))
 
     def _response(self, service: str, typename: str, replies: Any, timeout: float,
-                  goal: ActionGoal | None = None) -> dict[str, Any]:
+                  goal: ActionGoal | None = None,
+                  idle: Callable[[], object] | None = None) -> dict[str, Any]:
+        """The decoded response among ``replies``. With a ``goal``, the replies are polled:
+        ``idle`` runs between looks (the goal's feedback), and a cancel requested ends the
+        wait (:class:`_Cancelled`)."""
         started = time.monotonic()
         while True:
             try:
@@ -105,10 +109,13 @@ class ZenohCalls:
                 raise CallFailed(
                     f"service {service}: no server answers ({typename} on this network)"
                 ) from None
-            if reply is None:  # nothing yet (polling for a goal's cancel)
+            if reply is None:  # nothing yet (polling for a goal's feedback and cancel)
                 if goal is not None and goal.cancel_requested.is_set():
                     raise _Cancelled()
-                goal.cancel_requested.wait(_POLL) if goal is not None else None
+                if idle is not None:
+                    idle()
+                if goal is not None:
+                    goal.cancel_requested.wait(_POLL)
                 continue
             if reply.ok is None:
                 error = reply.err.payload.to_string()[:200]
@@ -157,11 +164,15 @@ class ZenohCalls:
             remaining = max(deadline - time.monotonic(), 0.001)
             replies = self._query(f"{base}/get_result", f"{typename}_GetResult",
                                   {"goal_id": goal_id}, remaining)
-            while True:
+
+            def drain() -> None:  # each feedback as it comes, while the result is awaited
                 self._drain_feedback(subscriber, fb_codec, goal.goal_id, feedback)
+
+            while True:
+                drain()
                 try:
                     result = self._response(f"{base}/get_result", f"{typename}_GetResult",
-                                            replies, remaining, goal)
+                                            replies, remaining, goal, drain)
                     break
                 except _Cancelled:
                     self._cancel(base, goal_id, deadline)
@@ -204,6 +215,18 @@ class ZenohCalls:
                       max(deadline - time.monotonic(), 1.0))
         except CallFailed:
             pass
+
+
+def calls_for(transport: Any) -> Any:
+    """The service and action client of a ROS 2 transport (Zenoh or DDS)."""
+    from rasm.ros2.zenoh import ZenohTransport
+
+    if isinstance(transport, ZenohTransport):
+        return ZenohCalls(transport)
+    raise CommError(
+        f"services and actions are called over ROS 2 (zenoh:// or dds://), not over "
+        f"{type(transport).__name__}"
+    )
 
 
 class _Cancelled(Exception):

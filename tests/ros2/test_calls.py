@@ -80,17 +80,21 @@ def test_a_cancelled_goal_is_seen_cancelled_by_the_server(peers, transports, zen
     calls = _calls(transports, zenoh_router)
     goal = ActionGoal(os.urandom(16))
     failure = []
+    feedback = []
 
     def pursue():
         try:
             calls.pursue("/fibonacci", "test_msgs/action/Fibonacci", {"order": 3}, 30.0,
-                         lambda _: None, goal)
+                         feedback.append, goal)
         except CallFailed as exc:
             failure.append(str(exc))
 
     worker = threading.Thread(target=pursue)
     worker.start()
     server.wait_for(lambda p: any(e["event"] == "goal" for e in p.events), what="the goal")
+    # feedback comes while the goal runs, not only with its result
+    wait_until(lambda: feedback, what="feedback of the running goal")
+    assert feedback[0] == {"sequence": [0, 1]}
     goal.cancel("fallback engaged")
     worker.join(10)
     assert failure and "goal cancelled (fallback engaged)" in failure[0]

@@ -174,3 +174,88 @@ def test_a_topic_map_is_a_probes_list(tmp_path):
     with pytest.raises(SourceErrors) as info:
         load_topic_map(other)
     assert "'probes' is a required property" in info.value.errors[0].message
+
+
+CALLS = GOOD + """\
+  lamp:
+    service: /lamp
+    type: std_srvs/srv/SetBool
+    fields: {data: lamp_on}
+    response: {success: lamp_ok}
+    timeout: 2.5
+  go:
+    action: /go
+    type: rover/action/Go
+    fields: {x: goal_x}
+    response: {reached: arrived}
+    feedback: {left: distance_left}
+"""
+GO = "float64 x\n---\nbool reached\n---\nfloat32 left\n"
+
+
+def write_calls(tmp_path, text=CALLS):
+    app = write_app(tmp_path / "rover", text)
+    (app / "action").mkdir(exist_ok=True)
+    (app / "action" / "Go.action").write_text(GO)
+    return app
+
+
+def test_service_and_action_effectors_load_with_their_answers_typed(tmp_path):
+    manifest = load_manifest(write_calls(tmp_path))
+    lamp, go = manifest.effectors["lamp"], manifest.effectors["go"]
+    assert (lamp.call, lamp.topic, lamp.timeout) == ("service", "/lamp", 2.5)
+    assert lamp.message_type == "std_srvs/srv/SetBool_Request"
+    assert lamp.fields == {"lamp_on": "bool"}
+    assert {k: (s.field, s.type) for k, s in lamp.response.items()} == {
+        "lamp_ok": ("success", "bool")}
+    assert (go.call, go.message_type, go.answer_type, go.timeout) == (
+        "action", "rover/action/Go_Goal", "rover/action/Go_Result", 60.0)
+    assert go.fields == {"goal_x": "float"}
+    assert go.feedback["distance_left"].type == "float"
+    # the answers' values are knowledge, declared as the probes' are; no topic for a call
+    assert {"lamp_ok", "arrived", "distance_left"} <= set(manifest.signals)
+    assert "/lamp" not in manifest.ros_topics and "/go" not in manifest.ros_topics
+
+
+@pytest.mark.parametrize(
+    "old, new, line, col, message",
+    [
+        ("type: std_srvs/srv/SetBool", "type: std_msgs/msg/Bool", 31, 11,
+         "effector lamp: std_msgs/msg/Bool is a message type, so the effector needs a topic:"),
+        ("type: rover/action/Go", "type: std_srvs/srv/SetBool", 37, 11,
+         "effector go: std_srvs/srv/SetBool is a service type, so the effector needs a "
+         "service:"),
+        ("{data: lamp_on}", "{date: lamp_on}", 32, 14,
+         "effector lamp: field path 'date' of std_srvs/srv/SetBool_Request"),
+        ("{success: lamp_ok}", "{succes: lamp_ok}", 33, 16,
+         "effector lamp: response: field path 'succes' of std_srvs/srv/SetBool_Response"),
+        ("{left: distance_left}", "{right: distance_left}", 40, 16,
+         "effector go: feedback: field path 'right' of rover/action/Go_Feedback"),
+        ("    timeout: 2.5\n", "    feedback: {message: m}\n", 34, 5,
+         "effector lamp: feedback belongs to an action (a service answers once: use response)"),
+        ("    service: /lamp\n", "    service: /lamp\n    topic: /lamp\n", 29, 3,
+         "effector lamp: give it one topic, service or action (where its actions go), not "
+         "topic and service"),
+        ("    type: std_srvs/srv/SetBool\n", "", 30, 5,
+         "effector lamp: a service needs its type (type: pkg/srv/Name)"),
+        ("{reached: arrived}", "{reached: speed}", 39, 25,
+         "effector go: 'speed' is bool here but probe /odom gives it as float"),
+        ("timeout: 2.5", "timeout: 0", 34, 14, "effectors.lamp.timeout: 0 is less than or equal"),
+    ],
+)
+def test_each_call_effector_mistake_is_reported_at_its_place(
+    tmp_path, old, new, line, col, message
+):
+    assert old in CALLS
+    with pytest.raises(SourceErrors) as info:
+        load_manifest(write_calls(tmp_path, CALLS.replace(old, new, 1)))
+    found = [(e.location.line, e.location.col, e.message) for e in info.value.errors]
+    assert len(found) == 1, found
+    assert found[0][:2] == (line, col), found
+    assert message in found[0][2]
+
+
+def test_a_topic_effector_keeps_a_topic_only_setting(tmp_path):
+    text = GOOD.replace("fields: {tone: pitch}", "fields: {tone: pitch}\n    timeout: 3")
+    found = errors(tmp_path, text)
+    assert found == [(29, 5, "effector beep: timeout belongs to a service or an action")]
