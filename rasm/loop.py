@@ -26,11 +26,14 @@ LOOP_SIGNAL_TYPES: dict[str, str] = {
     "broken_rules": "json",
     "explanation": "str",
     "drift": "bool",
-    "recorded_action": "json",  # a replay's action, not sent: effector, topic, payload
+    "recorded_action": "json",  # a replay's action, not sent: effector, topic (or service,
+    # action), payload
     "twin_model_version": "int",
     "fallback": "str",  # "engaged" | "released", on the record where the fallback switches
     "repaired_from": "str",  # on a repaired plan's planned record: the rejected plan's id
     "corrective": "bool",  # an action let through a veto as corrective (the twin's prediction)
+    "effector_done": "str",  # a service or action effector's call answered: the effector
+    "effector_failed": "str",  # ... failed (explanation: why): the effector
 }
 """Every key the loop itself writes in trace records, with the type a property reads it as."""
 
