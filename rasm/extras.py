@@ -10,7 +10,7 @@ __all__ = ["EXTRAS", "MissingExtra", "missing_extra"]
 #: extra -> what it adds, and the top-level modules of the packages only it installs
 #: (pyproject.toml)
 EXTRAS = {
-    "ros2": ("ROS 2 support", ("zenoh", "cyclonedds", "rosbags", "mcap", "numpy", "xxhash")),
+    "ros2": ("ROS 2 support", ("zenoh", "cyclonedds", "rosbags", "numpy", "xxhash")),
     "cluster": ("Dask distributed", ("distributed", "dask")),
 }
 _EXTRA_OF = {module: extra for extra, (_, modules) in EXTRAS.items() for module in modules}

@@ -261,7 +261,9 @@ def test_an_mcap_trace_reads_back_in_the_mcap_library_and_in_rasm(tmp_path):
         summary = reader.get_summary()
         assert summary.statistics.message_count == 500
         assert [c.topic for c in summary.channels.values()] == ["/rasm/trace"]
-        read = [(m.log_time, m.data.decode()) for _, _, m in reader.iter_messages()]
+        # each record is a std_msgs/msg/String: the CDR header, the length, the JSON, a NUL
+        read = [(m.log_time, m.data[8:-1].decode()) for _, _, m in reader.iter_messages()]
+        assert all(m.data[:4] == b"\x00\x01\x00\x00" for _, _, m in reader.iter_messages())
     assert read == [(round(time * 1e9), line) for (time, _), line in zip(records, lines,
                                                                           strict=True)]
     # the summary's CRC covers the summary, its offsets and the footer up to the CRC itself

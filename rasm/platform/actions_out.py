@@ -46,7 +46,8 @@ class ActionSender:
     ``publish(topic, payload)`` puts it on the transport; ``seal(topic, payload)`` signs an
     untyped payload (raising when it cannot be sent); ``emit(time, record)`` writes the trace
     record of an action a replay does not send; ``calls`` starts a service or action
-    effector's call (None: the app has none).
+    effector's call (None: the app has none); ``sent(effector, message)`` sees each ROS 2
+    message built (sent, or recorded in a replay), as the MCAP trace records it.
     """
 
     def __init__(
@@ -59,6 +60,7 @@ class ActionSender:
         clock: Clock,
         replaying: bool,
         calls: CallStarter | None = None,
+        sent: Callable[[Effector, dict[str, Any]], object] | None = None,
     ) -> None:
         self.manifest = manifest
         self.publish = publish
@@ -67,6 +69,7 @@ class ActionSender:
         self.clock = clock
         self.replaying = replaying
         self.calls = calls
+        self.sent = sent
 
     def send(self, effector: Effector, action: Action) -> str | None:
         """Send ``action`` on ``effector``'s topic; why it was not sent (a replay), or None."""
@@ -75,6 +78,8 @@ class ActionSender:
             from rasm.platform.messages import build_message
 
             payload = build_message(message_types(self.manifest), effector, action.payload)
+            if self.sent is not None:
+                self.sent(effector, payload)
         if self.replaying:
             action_record = {"effector": effector.name, effector.kind: effector.topic,
                              "payload": payload}

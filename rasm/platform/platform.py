@@ -68,6 +68,7 @@ from rasm.platform.storage_manager import (
 )
 from rasm.platform.summary import RunSummary, bus_refusals, summarise
 from rasm.platform.telegraf import Telegraf
+from rasm.platform.trace_channels import trace_channels
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
 from rasm.platform.trustworthiness_manager import TrustworthinessManager
 from rasm.platform.twin_learning import TwinLearning
@@ -350,6 +351,8 @@ class Platform:
                 at=self.scheduler.at,
                 clock=clock,
             )
+        # an MCAP trace's typed channels: effector messages and verdicts as ROS 2 messages
+        channels = trace_channels(self.trace, m, self.scheduler.now)
         # service and action effectors: calls off the loop, their outcomes back as jobs
         self.calls = None if self.replay_path is not None else effector_calls(
             m.effectors, self.transport, submit=self.scheduler.submit, register=self._register,
@@ -369,6 +372,7 @@ class Platform:
                 clock=clock,
                 replaying=self.replay_path is not None,
                 calls=self.calls,
+                sent=channels.effector_message if channels is not None else None,
             ).send,
             mode_of=self._managed_system_mode,
             online=self.watch.online,
@@ -439,6 +443,8 @@ class Platform:
             depends_on=("km", "am", "tm", "tc", "sm", "tg"),
         )
         self.trace.observers.append(self.tc.observe)
+        if channels is not None:
+            self.tc.batch_observers.append(channels.verdicts)
         blocks: list[Block] = [self.km, self.stom, self.tg, self.tc, self.tm, self.am, self.ao]
         if m.fallback is not None:
             blocks.append(self._fallback_switch())

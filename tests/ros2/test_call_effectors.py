@@ -15,6 +15,7 @@ from ruamel.yaml import YAML
 
 from tests.ros2.conftest import DATA
 from tests.ros2.test_interfaces import TEST_INTERFACES
+from tests.ros2.test_replay import read_mcap
 from tests.ros2.test_run import finish, rasm_run
 
 pytestmark = pytest.mark.skipif(not TEST_INTERFACES.is_dir(),
@@ -61,11 +62,14 @@ def records(trace: Path) -> list[dict]:
 def test_a_service_and_an_action_answer_into_knowledge(peers, tmp_path, zenoh_router):
     app = calls_app(tmp_path)
     _, server = robot(peers, zenoh_router, service="/double", action="/fibonacci")
-    trace = tmp_path / "trace.jsonl"
+    trace = tmp_path / "trace.mcap"
     run = rasm_run(app, f"zenoh://127.0.0.1:{zenoh_router}", tmp_path, "--duration", "6",
                    "--trace", str(trace))
     code, output = finish(run)
-    found = records(trace)
+    found, channels = read_mcap(trace)
+    # the MCAP trace has the request and the goal in their ROS 2 types, on their names
+    assert channels["/double"][0][1].int32_value == 21
+    assert channels["/fibonacci"][0][1].order == 6
     done = {r["effector_done"]: r for r in found if "effector_done" in r}
     assert set(done) == {"double", "fibonacci"}, output
     # the response and the result went into knowledge (and so the trace), feedback before it

@@ -158,12 +158,18 @@ def test_a_topic_map_may_name_a_type_only_the_recording_defines(tmp_path, capsys
     assert report["properties"][0]["violations"][0]["time"] == pytest.approx((T0 + 2) / 1e9)
 
 
-def read_mcap(path: Path) -> list[dict]:
+def read_mcap(path: Path) -> tuple[list[dict], dict[str, list]]:
+    """The trace records of an MCAP trace and every channel's messages, each decoded by
+    mcap-ros2-support (ROS 2's own decoder for MCAP: it decodes every channel or raises)."""
+    from mcap_ros2.decoder import DecoderFactory
+
+    channels: dict[str, list] = {}
     with path.open("rb") as stream:
-        reader = make_reader(stream)
-        channels = {c.topic: c.message_encoding for c in reader.get_summary().channels.values()}
-        assert channels == {"/rasm/trace": "json"}
-        return [json.loads(m.data) for _, _, m in reader.iter_messages()]
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            assert (schema.encoding, channel.message_encoding) == ("ros2msg", "cdr")
+            channels.setdefault(channel.topic, []).append((message.log_time, decoded))
+    return [json.loads(m.data) for _, m in channels["/rasm/trace"]], channels
 
 
 def test_a_replay_drives_the_loop_and_records_the_actions_instead_of_sending(tmp_path, capsys,
@@ -172,7 +178,7 @@ def test_a_replay_drives_the_loop_and_records_the_actions_instead_of_sending(tmp
     bag = record(tmp_path / "bag")
     trace = tmp_path / "replay.mcap"
     assert main(["run", str(GUARD), "--replay", str(bag), "--trace", str(trace)]) == 1
-    records = read_mcap(trace)
+    records, channels = read_mcap(trace)
     # the loop ran on the recording's own time, from its first message to its last
     assert records[0]["time"] == pytest.approx(T0 / 1e9)
     assert records[-1]["time"] <= (T0 + 39 * 100_000_000 + 2_000) / 1e9 + 0.1 + 1e-6
@@ -185,6 +191,22 @@ def test_a_replay_drives_the_loop_and_records_the_actions_instead_of_sending(tmp
     assert actions[1]["recorded_action"]["payload"] == {"level": 2, "reason": "obstacle ahead"}
     executed = [r for r in records if r.get("executed")]
     assert executed and all("not sent (replay)" in r["explanation"] for r in executed)
+    # each effector's messages in their own types on their own topics, at the actions' times
+    apps = {"/rasm/trace", "/cmd_vel", "/guard_state", "/rasm/verdict/speed_limit",
+            "/rasm/verdict/slow_near_obstacles", "/rasm/verdict/no_bump"}
+    assert apps <= set(channels)
+    # the rest: the verdicts of the platform's own properties (timeliness, ...)
+    assert all(topic.startswith("/rasm/verdict/") for topic in set(channels) - apps)
+    assert "/rasm/verdict/stage_order" in channels
+    (when, twist), *_ = channels["/cmd_vel"]
+    assert (twist.linear.x, twist.angular.z) == (0.1, 0.5)
+    assert when == round(actions[0]["time"] * 1e9)
+    state = channels["/guard_state"][0][1]
+    assert (state.level, state.reason) == (2, "obstacle ahead")
+    # verdicts as std_msgs/msg/Bool when they change: the violation, at its time
+    slow = [(t, m.data) for t, m in channels["/rasm/verdict/slow_near_obstacles"]]
+    assert slow[0][1] is True and False in [value for _, value in slow]
+    assert [m.data for _, m in channels["/rasm/verdict/speed_limit"]] == [True]
     # the first anomaly comes with the first fast odometry after the obstacle shows up
     anomaly = next(r for r in records if r.get("anomaly"))
     assert anomaly["time"] >= (T0 + 20 * 100_000_000) / 1e9

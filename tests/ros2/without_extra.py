@@ -9,7 +9,7 @@ import importlib.abc
 import sys
 
 # what `pip install 'rasm[ros2]'` adds to a default install (pyproject.toml)
-EXTRA = {"zenoh", "cyclonedds", "rosbags", "mcap", "numpy", "xxhash"}
+EXTRA = {"zenoh", "cyclonedds", "rosbags", "numpy", "xxhash"}
 
 
 class NotInstalled(importlib.abc.MetaPathFinder):
