@@ -88,8 +88,6 @@ def _check_calls(manifest: AppManifest, transport: str, clock: str) -> None:
             f"{what}: services and actions are ROS 2's; run the app over zenoh:// or dds:// "
             f"(transport: in app.yaml, or --transport), not {transport}"
         )
-    if transport.strip().startswith("dds://"):
-        raise PlatformError(f"{what}: calls over dds:// are not there yet; run it over zenoh://")
     if clock == "simulated":
         raise PlatformError(
             f"{what}: a call is answered in the robot's own time, which the simulated clock "

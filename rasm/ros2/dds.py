@@ -350,6 +350,12 @@ class DdsTransport(RosTransport):
         self._graph: DataWriter | None = None
         self._graph_view: _DdsGraph | None = None
 
+    @property
+    def participant(self) -> DomainParticipant | None:
+        """The transport's DDS participant (None until connected): service and action
+        clients (:mod:`rasm.ros2.calls`) make their readers and writers in it."""
+        return self._participant
+
     # -- the wire -------------------------------------------------------------------------------
     def _open_wire(self) -> None:
         try:

@@ -336,6 +336,9 @@ def dds_main(config):
     if config["role"] == "graph":
         dds_graph(participant, struct_of, done)
         return
+    if config["role"] == "server":
+        dds_server(config, participant, idl, done)
+        return
     endpoints = []
     for entry in config["topics"]:
         qos = qos_of(entry)
@@ -635,6 +638,194 @@ def server_main(config, session, done):
     say(event="ready")
     done.wait()
     return entities
+
+
+
+# -- the same server over DDS (role "server", middleware "dds") ----------------------------------
+# Written with cyclonedds and rosbags alone, as rmw_cyclonedds makes a service: requests on
+# rq/<service>Request, replies on rr/<service>Reply, each sample starting (after its CDR header)
+# with the request id rmw_cyclonedds puts there (cdds_request_header_t: the client's 64-bit
+# guid, the request's int64 sequence number), which the reply repeats. The types come from
+# test_msgs' own .srv and .action files (config "interfaces": their folder).
+def _dds_server_types(folder):
+    name = lambda target: (Nodetype.NAME, target)  # noqa: E731
+    uuid = ("goal_id", name("unique_identifier_msgs/msg/UUID"))
+    srv = (Path(folder) / "srv" / "BasicTypes.srv").read_text().split("---")
+    goal, result, feedback = (Path(folder) / "action" / "Fibonacci.action").read_text().split(
+        "---")
+    defs = {}
+    for text, typename in ((srv[0], "test_msgs/srv/BasicTypes_Request"),
+                           (srv[1], "test_msgs/srv/BasicTypes_Response"),
+                           (goal, "test_msgs/action/Fibonacci_Goal"),
+                           (result, "test_msgs/action/Fibonacci_Result"),
+                           (feedback, "test_msgs/action/Fibonacci_Feedback")):
+        # (rosbags would name a pkg/srv/Name_Request pkg/srv/msg/Name_Request: keep the name)
+        defs[typename] = next(iter(get_types_from_msg(text, typename).values()))
+    fib = "test_msgs/action/Fibonacci"
+    defs.update({
+        f"{fib}_SendGoal_Request": ([], [uuid, ("goal", name(f"{fib}_Goal"))]),
+        f"{fib}_SendGoal_Response": ([], [("accepted", (Nodetype.BASE, ("bool", 0))),
+                                          ("stamp", name("builtin_interfaces/msg/Time"))]),
+        f"{fib}_GetResult_Request": ([], [uuid]),
+        f"{fib}_GetResult_Response": ([], [("status", (Nodetype.BASE, ("int8", 0))),
+                                           ("result", name(f"{fib}_Result"))]),
+        f"{fib}_FeedbackMessage": ([], [uuid, ("feedback", name(f"{fib}_Feedback"))]),
+        "action_msgs/srv/CancelGoal_Request": ([], [("goal_info",
+                                                     name("action_msgs/msg/GoalInfo"))]),
+        "action_msgs/srv/CancelGoal_Response": ([], [
+            ("return_code", (Nodetype.BASE, ("int8", 0))),
+            ("goals_canceling", (Nodetype.SEQUENCE, (name("action_msgs/msg/GoalInfo"), 0)))]),
+    })
+    STORE.register(defs)
+
+
+def dds_server(config, participant, idl, done):
+    from cyclonedds._clayer import ddspy_take, ddspy_write
+    from cyclonedds.core import InstanceState, SampleState, ViewState
+    from cyclonedds.idl import make_idl_struct
+    from cyclonedds.idl import types as t
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.qos import Policy, Qos
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    _dds_server_types(config["interfaces"])
+    types = STORE.types
+    mask = SampleState.Any | ViewState.Any | InstanceState.Any
+    qos = Qos(Policy.Reliability.Reliable(10**8), Policy.History.KeepLast(100),
+              Policy.Durability.Volatile,
+              Policy.DataRepresentation(use_cdrv0_representation=True))
+
+    def wrapped(typename):
+        """The DDS struct of a request or reply: the request id, then the message's fields."""
+        fields = {"request_guid": t.uint64, "request_seq": t.int64}
+        fields.update({f: idl(d) for f, d in STORE.fielddefs[typename][1]})
+        return make_idl_struct(typename.replace("/", "_") + "_wire", dds_name(typename), fields)
+
+    def encode(typename, message):
+        return bytes(STORE.serialize_cdr(message, typename))
+
+    services = []  # (reader, writer, request type, response type, handler)
+
+    def serve(service, typename, handler):
+        reader = DataReader(participant, Topic(participant, f"rq{service}Request",
+                                               wrapped(f"{typename}_Request")), qos=qos)
+        writer = DataWriter(participant, Topic(participant, f"rr{service}Reply",
+                                               wrapped(f"{typename}_Response")), qos=qos)
+        services.append((reader, writer, typename, handler))
+
+    def reply(writer, typename, request_id, message):
+        data = encode(f"{typename}_Response", message)
+        wire = data[:4] + request_id + data[4:]
+        for _ in range(100):  # the client's reply reader is matched before it is answered
+            if writer.get_matched_subscriptions():
+                break
+            done.wait(0.01)
+        ddspy_write(writer._ref, wire + b"\0" * (-len(wire) % 4))
+
+    lock = threading.Lock()
+    goals = {}  # goal id (hex) -> {"cancelled": Event, "results": [...], "outcome": ...}
+    if config.get("service"):
+        def on_basic(request, respond):
+            say(event="request", topic=config["service"], int32_value=int(request.int32_value))
+            request.int32_value *= 2
+            respond(types["test_msgs/srv/BasicTypes_Response"](**{
+                f: getattr(request, f) for f, _ in
+                STORE.fielddefs["test_msgs/srv/BasicTypes_Response"][1]}))
+
+        serve(config["service"], "test_msgs/srv/BasicTypes", on_basic)
+    action = config.get("action")
+    if action:
+        fib = "test_msgs/action/Fibonacci"
+        fb_type = f"{fib}_FeedbackMessage"
+        feedback_writer = DataWriter(participant, Topic(
+            participant, f"rt{action}/_action/feedback",
+            make_idl_struct("peer_feedback_wire", dds_name(fb_type),
+                            {f: idl(d) for f, d in STORE.fielddefs[fb_type][1]})), qos=qos)
+
+        def result_message(status, sequence):
+            return types[f"{fib}_GetResult_Response"](status=status, result=types[
+                f"{fib}_Result"](sequence=np.array(sequence, dtype=np.int32)))
+
+        def finish(goal, status, sequence):
+            with lock:
+                goal["outcome"] = (status, sequence)
+                waiting, goal["results"] = goal["results"], []
+            for respond in waiting:
+                respond(result_message(status, sequence))
+
+        def pursue(goal_id, order, goal):
+            sequence = [0, 1][:max(order, 0)]
+            while goal["hang"] or len(sequence) < order:
+                if goal["cancelled"].wait(config.get("period", 0.05)):
+                    finish(goal, 5, sequence)
+                    return
+                if not goal["hang"]:
+                    sequence.append(sequence[-1] + sequence[-2] if len(sequence) > 1 else 1)
+                data = encode(fb_type, types[fb_type](
+                    goal_id=types["unique_identifier_msgs/msg/UUID"](
+                        uuid=np.frombuffer(bytes.fromhex(goal_id), dtype=np.uint8)),
+                    feedback=types[f"{fib}_Feedback"](sequence=np.array(sequence,
+                                                                         dtype=np.int32))))
+                ddspy_write(feedback_writer._ref, data + b"\0" * (-len(data) % 4))
+            finish(goal, 4, sequence)
+
+        def on_send_goal(request, respond):
+            goal_id = bytes(request.goal_id.uuid).hex()
+            say(event="goal", topic=action, goal=goal_id, order=int(request.goal.order))
+            accepted = request.goal.order >= 0
+            goal = {"cancelled": threading.Event(), "results": [], "outcome": None,
+                    "hang": bool(config.get("hang"))}
+            if accepted:
+                with lock:
+                    goals[goal_id] = goal
+            respond(types[f"{fib}_SendGoal_Response"](
+                accepted=accepted, stamp=types["builtin_interfaces/msg/Time"](sec=0, nanosec=0)))
+            if accepted:
+                threading.Thread(target=pursue, args=(goal_id, int(request.goal.order), goal),
+                                 daemon=True).start()
+
+        def on_get_result(request, respond):
+            with lock:
+                goal = goals.get(bytes(request.goal_id.uuid).hex())
+                outcome = goal and goal["outcome"]
+                if goal is not None and outcome is None:
+                    goal["results"].append(respond)
+            if goal is None:
+                respond(result_message(0, []))
+            elif outcome is not None:
+                respond(result_message(*outcome))
+
+        def on_cancel(request, respond):
+            goal_id = bytes(request.goal_info.goal_id.uuid).hex()
+            say(event="cancelled", topic=action, goal=goal_id)
+            with lock:
+                goal = goals.get(goal_id)
+            if goal is not None:
+                goal["cancelled"].set()
+            respond(types["action_msgs/srv/CancelGoal_Response"](
+                return_code=0 if goal else 2,
+                goals_canceling=[request.goal_info] if goal else []))
+
+        base = f"{action}/_action"
+        serve(f"{base}/send_goal", f"{fib}_SendGoal", on_send_goal)
+        serve(f"{base}/get_result", f"{fib}_GetResult", on_get_result)
+        serve(f"{base}/cancel_goal", "action_msgs/srv/CancelGoal", on_cancel)
+    say(event="ready")
+    while not done.is_set():
+        idle = True
+        for reader, writer, typename, handler in services:
+            samples = ddspy_take(reader._ref, mask, 64)
+            for data, info in samples if not isinstance(samples, int) else []:
+                if not info.valid_data:
+                    continue
+                idle = False
+                request_id = data[4:20]
+                request = STORE.deserialize_cdr(data[:4] + data[20:], f"{typename}_Request")
+                handler(request, lambda message, writer=writer, typename=typename,
+                        request_id=request_id: reply(writer, typename, request_id, message))
+        if idle:
+            done.wait(0.005)  # poll: this peer has no listener thread of its own
 
 
 if __name__ == "__main__":

@@ -189,3 +189,24 @@ def test_services_and_actions_need_a_ros_transport(tmp_path, capsys):
     assert ("effector double calls service /double: services and actions are ROS 2's; run "
             "the app over zenoh:// or dds://") in err
     assert "Traceback" not in err
+
+
+def test_over_dds_a_service_and_an_action_answer_into_knowledge(peers, tmp_path, dds_domain):
+    app = calls_app(tmp_path)
+    server = peers({"middleware": "dds", "role": "server", "domain": dds_domain,
+                    "interfaces": str(TEST_INTERFACES), "service": "/double",
+                    "action": "/fibonacci"})
+    server.wait_ready()
+    peers({"middleware": "dds", "role": "pub", "domain": dds_domain, "repeat": True,
+           "topics": BEAT})
+    trace = tmp_path / "trace.jsonl"
+    run = rasm_run(app, f"dds://?domain={dds_domain}", tmp_path, "--duration", "6",
+                   "--trace", str(trace))
+    code, output = finish(run)
+    found = records(trace)
+    assert {r["effector_done"] for r in found if "effector_done" in r} == {
+        "double", "fibonacci"}, output
+    assert any(r.get("doubled") == 42 for r in found)
+    assert any(r.get("sixth") == 5 for r in found) and any(r.get("third") == 1 for r in found)
+    assert any(e["event"] == "goal" and e["order"] == 6 for e in server.events)
+    assert code == 0, output

@@ -136,3 +136,77 @@ def _try(call):
         if "no server answers" in str(exc):
             return None
         raise
+
+
+# -- over DDS: the same calls against the server written with cyclonedds and rosbags ----------
+def _dds_server(peers, domain, **config):
+    server = peers({"middleware": "dds", "role": "server", "domain": domain,
+                    "interfaces": str(TEST_INTERFACES), **config})
+    server.wait_ready()
+    return server
+
+
+def _dds_calls(transports, domain):
+    from rasm.ros2.calls import DdsCalls
+    from rasm.ros2.dds import DdsTransport
+
+    transport = transports(DdsTransport(f"dds://?domain={domain}", store=_store()))
+    transport.connect()
+    return DdsCalls(transport)
+
+
+def test_a_dds_service_call_gets_the_servers_response(peers, transports, dds_domain):
+    server = _dds_server(peers, dds_domain, service="/basic")
+    calls = _dds_calls(transports, dds_domain)
+    response = calls.call("/basic", "test_msgs/srv/BasicTypes",
+                          {"int32_value": 21, "string_value": "hi"}, timeout=10.0)
+    assert response["int32_value"] == 42 and response["string_value"] == "hi"
+    assert [e["int32_value"] for e in server.events if e["event"] == "request"] == [21]
+    # two more, one after the other: each answer is its own request's
+    assert calls.call("/basic", "test_msgs/srv/BasicTypes", {"int32_value": 1},
+                      timeout=5.0)["int32_value"] == 2
+    assert calls.call("/basic", "test_msgs/srv/BasicTypes", {"int32_value": 5},
+                      timeout=5.0)["int32_value"] == 10
+
+
+def test_a_dds_service_nobody_serves_fails_loudly(transports, dds_domain):
+    calls = _dds_calls(transports, dds_domain)
+    with pytest.raises(CallFailed, match="no server answers"):
+        calls.call("/nobody", "test_msgs/srv/BasicTypes", {}, timeout=1.0)
+
+
+def test_a_dds_action_goal_reports_feedback_and_its_result(peers, transports, dds_domain):
+    server = _dds_server(peers, dds_domain, action="/fibonacci")
+    calls = _dds_calls(transports, dds_domain)
+    feedback = []
+    result = calls.pursue("/fibonacci", "test_msgs/action/Fibonacci", {"order": 6}, 10.0,
+                          feedback.append, ActionGoal(os.urandom(16)))
+    assert result == {"sequence": [0, 1, 1, 2, 3, 5]}
+    assert feedback and feedback[-1] == {"sequence": [0, 1, 1, 2, 3, 5]}
+    assert any(e["event"] == "goal" and e["order"] == 6 for e in server.events)
+
+
+def test_a_cancelled_dds_goal_is_seen_cancelled_by_the_server(peers, transports, dds_domain):
+    server = _dds_server(peers, dds_domain, action="/fibonacci", hang=True)
+    calls = _dds_calls(transports, dds_domain)
+    goal = ActionGoal(os.urandom(16))
+    failure = []
+    feedback = []
+
+    def pursue():
+        try:
+            calls.pursue("/fibonacci", "test_msgs/action/Fibonacci", {"order": 3}, 30.0,
+                         feedback.append, goal)
+        except CallFailed as exc:
+            failure.append(str(exc))
+
+    worker = threading.Thread(target=pursue)
+    worker.start()
+    server.wait_for(lambda p: any(e["event"] == "goal" for e in p.events), what="the goal")
+    wait_until(lambda: feedback, what="feedback of the running goal")
+    goal.cancel("fallback engaged")
+    worker.join(10)
+    assert failure == ["action /fibonacci: goal cancelled (fallback engaged)"]
+    cancelled = server.wait_for(
+        lambda p: [e for e in p.events if e["event"] == "cancelled"], what="the cancel")
+    assert cancelled[0]["goal"] == goal.goal_id.hex()
