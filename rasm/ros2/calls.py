@@ -174,7 +174,8 @@ class _Calls:
                 if "no response within" in str(exc):
                     self._cancel(base, goal_id, deadline + 1.0)
                     raise CallFailed(
-                        f"action {action}: no result within {format_seconds(timeout)} s (goal cancelled)"
+                        f"action {action}: no result within {format_seconds(timeout)} s "
+                        "(goal cancelled)"
                     ) from None
                 raise
             drain()
@@ -218,8 +219,8 @@ class _ZenohPending(_Pending):
             reply = self.replies.try_recv()
         except zenoh.ZError:  # the channel ended: every reply is in, or the query timed out
             if time.monotonic() - self.started >= self.timeout * 0.9:
-                raise CallFailed(
-                    f"service {self.service}: no response within {format_seconds(self.timeout)} s") from None
+                raise CallFailed(f"service {self.service}: no response within "
+                                 f"{format_seconds(self.timeout)} s") from None
             raise CallFailed(f"service {self.service}: no server answers ({self.typename} on "
                              "this network)") from None
         if reply is None:
@@ -227,7 +228,8 @@ class _ZenohPending(_Pending):
         if reply.ok is None:
             error = reply.err.payload.to_string()[:200]
             if error == "Timeout":  # what Zenoh itself replies when the query times out
-                raise CallFailed(f"service {self.service}: no response within {format_seconds(self.timeout)} s")
+                raise CallFailed(f"service {self.service}: no response within "
+                                 f"{format_seconds(self.timeout)} s")
             raise CallFailed(f"service {self.service} answered an error: {error}")
         return _decode_response(self.store, self.service, self.typename,
                                 reply.ok.payload.to_bytes())
