@@ -29,6 +29,7 @@ from tb4.simulator import TurtleBotSimulator  # noqa: E402
 from tb4.spin import mask_of, required_rotation, spin_plan  # noqa: E402
 
 __all__ = [
+    "RosSpinExecute",
     "RosSpinLegitimate",
     "ScanMonitor",
     "SpinExecute",
@@ -178,7 +179,14 @@ def _pose_at(poses, time):
 class SpinExecute:
     """One ``/spin_config`` message for the robot's controller plugin."""
 
+    EFFECTOR = "spin_config"
     FIELDS = ("rotation", "angular_velocity", "stop_every", "spin_duration")
 
     def execute(self, ctx):
-        return Action("spin_config", {f: ctx.plan[f] for f in self.FIELDS})
+        return Action(self.EFFECTOR, {f: ctx.plan[f] for f in self.FIELDS})
+
+
+class RosSpinExecute(SpinExecute):
+    """The spin plan as a goal of the controller's ``/spin`` action (``ros2.yaml``)."""
+
+    EFFECTOR = "spin"

@@ -12,7 +12,9 @@ scenario) and speaks ROS 2 as a robot does:
   all stamped with its clock;
 - takes spin plans (``turtlebot/msg/SpinConfig``, from ``msg/``) on ``/spin_config`` and
   velocity commands (``geometry_msgs/msg/Twist``) on ``/cmd_vel``, which override its local
-  planner for half a second.
+  planner for half a second; ``std_msgs/msg/Bool`` true on ``/dock_command`` docks it: it
+  leaves its route and stays parked. (``controller.py`` serves the ``/spin`` action and the
+  ``/dock`` service on top of these, as a Nav2 controller does.)
 
 Over Zenoh it listens on ``HOST:PORT``: the managing side (``rasm run examples/turtlebot/
 ros2.yaml``) and ROS 2 tools connect to it there. It prints ``ready`` once its topics exist and
@@ -50,7 +52,9 @@ TOPICS = {
     "/collision": "std_msgs/msg/Bool",
     "/spin_config": "turtlebot/msg/SpinConfig",
     "/cmd_vel": "geometry_msgs/msg/Twist",
+    "/dock_command": "std_msgs/msg/Bool",
 }
+PARKED = {"velocity": 0.0, "yaw_rate": 0.0}  # a docked robot's command, every step
 
 
 def header(stamp: float, frame: str) -> dict[str, Any]:
@@ -116,6 +120,8 @@ def run(url: str, *, seed: int, duration: float | None, stop: threading.Event) -
     # commands arrive on the transport's thread; the simulator takes them between its steps
     transport.subscribe("/spin_config", lambda m: commands.put(("spin_config", m.payload)))
     transport.subscribe("/cmd_vel", lambda m: commands.put(("cmd_vel", twist(m))))
+    docked = threading.Event()
+    transport.subscribe("/dock_command", lambda m: docked.set() if m.payload["data"] else None)
     transport.connect()
     try:
         for topic in ("/scan", "/odom", "/robot_state", "/collision"):
@@ -131,6 +137,8 @@ def run(url: str, *, seed: int, duration: float | None, stop: threading.Event) -
             while not commands.empty():
                 effector, payload = commands.get()
                 robot.apply(effector, payload, now)
+            if docked.is_set():
+                robot.apply("cmd_vel", PARKED, now)
             readings = robot.step(now, PERIOD)
             for topic, message in ros_messages(readings, start + wall + now, robot).items():
                 transport.publish(topic, message)
@@ -138,7 +146,8 @@ def run(url: str, *, seed: int, duration: float | None, stop: threading.Event) -
             stop.wait(max(0.0, start + step * PERIOD - time.monotonic()))
     finally:
         transport.close()
-    print(json.dumps({"collisions": robot.collisions, "spins": robot.spin.spins}), flush=True)
+    print(json.dumps({"collisions": robot.collisions, "spins": robot.spin.spins,
+                      "docked": docked.is_set()}), flush=True)
     return 0
 
 

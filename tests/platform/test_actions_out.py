@@ -13,7 +13,7 @@ from rasm.statechart import SimulatedClock
 
 from .conftest import HOTBOX, ROOT
 
-TURTLEBOT_ROS2 = ROOT / "examples" / "turtlebot" / "ros2.yaml"
+GUARD = ROOT / "tests" / "ros2" / "data" / "guard"
 
 
 def sender(manifest, *, replaying=False, seal=lambda topic, payload: payload):
@@ -65,11 +65,11 @@ def test_a_replay_sends_nothing_and_traces_the_action_as_it_would_have_gone_out(
 
 
 def test_a_typed_action_is_its_effectors_message_and_is_not_sealed():
-    manifest = load_manifest(TURTLEBOT_ROS2)
+    manifest = load_manifest(GUARD)
     out, delivered, records = sender(manifest, seal=None)  # sealing it would fail the test
-    spin = manifest.effectors["spin_config"]
-    fields = {"rotation": 90.0, "angular_velocity": 30.0, "stop_every": 10.0, "spin_duration": 6.0}
-    assert out.send(spin, Action("spin_config", fields, "p2")) is None
-    assert [(m.topic, m.payload) for m in delivered] == [("/spin_config", fields)]
+    state = manifest.effectors["state"]
+    fields = {"level": 2, "reason": "obstacle ahead"}
+    assert out.send(state, Action("state", fields, "p2")) is None
+    assert [(m.topic, m.payload) for m in delivered] == [("/guard_state", fields)]
     with pytest.raises(ActionMismatch):  # a payload the message has no field for fails closed
-        out.send(spin, Action("spin_config", {**fields, "speed": 1.0}, "p4"))
+        out.send(state, Action("state", {**fields, "speed": 1.0}, "p4"))

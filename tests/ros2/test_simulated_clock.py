@@ -9,6 +9,8 @@ import json
 import shutil
 from pathlib import Path
 
+from ruamel.yaml import YAML
+
 from rasm import Platform
 from rasm.platform.manifest import load_manifest
 from rasm.ros2.zenoh import ZenohTransport
@@ -41,7 +43,14 @@ def ros_app_with_simulator(tmp_path: Path) -> Path:
     assert modes in text
     text = text.replace(modes, f"{modes}\n  simulator: rossim:RosRobot\n  period: 0.1\n"
                                f"  scenario: {json.dumps(scenario)}\n  #", 1)
-    (app / "sim.yaml").write_text(text)
+    # the simulator takes the spin plan on its topic (a simulator serves no action): the spin
+    # effector publishes it, and the fallback (docking through a service) is left out
+    manifest = YAML(typ="safe").load(text)
+    spin = manifest["effectors"]["spin"]
+    manifest["effectors"] = {"spin": {"topic": "/spin_config", "type": "turtlebot/msg/SpinConfig",
+                                      "modes": spin["modes"], "fields": spin["fields"]}}
+    del manifest["fallback"], manifest["trustworthiness"]
+    (app / "sim.yaml").write_text(json.dumps(manifest))  # JSON is YAML
     return app / "sim.yaml"
 
 

@@ -1,7 +1,8 @@
 """The demonstrator over ROS 2: its robot (examples/turtlebot/robot.py) as a process of its own
-speaking Zenoh or Cyclone DDS, managed by a plain `rasm run ros2.yaml --transport …`; foreign
-peers (tests/ros2/peer.py: eclipse-zenoh, cyclonedds and rosbags only) watch the topics and
-drive the robot."""
+speaking Zenoh or Cyclone DDS and its Nav2-style controller (examples/turtlebot/controller.py:
+eclipse-zenoh and rosbags only) serving the /spin action and the /dock service, managed by a
+plain `rasm run ros2.yaml --transport …`; foreign peers (tests/ros2/peer.py: eclipse-zenoh,
+cyclonedds and rosbags only) watch the topics and drive the robot."""
 
 from __future__ import annotations
 
@@ -20,16 +21,17 @@ from tests.ros2.test_run import finish, rasm_run
 from .conftest import APP
 
 ROBOT = APP / "robot.py"
+CONTROLLER = APP / "controller.py"
 MSG = [[str(path), "turtlebot"] for path in sorted((APP / "msg").glob("*.msg"))]
 
 
 class Robot:
-    """A running robot.py; ``ready`` once its topics exist."""
+    """A running robot.py (or ``script``, the controller); ``ready`` once its topics exist."""
 
-    def __init__(self, url: str, duration: float) -> None:
+    def __init__(self, url: str, duration: float, script=ROBOT) -> None:
         env = dict(os.environ, CYCLONEDDS_URI=CYCLONE_LOOPBACK, PYTHONUNBUFFERED="1")
         self.process = subprocess.Popen(
-            [sys.executable, str(ROBOT), url, "--duration", str(duration)],
+            [sys.executable, str(script), url, "--duration", str(duration)],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
         )
         self.lines: list[str] = []
@@ -67,12 +69,14 @@ def ros_network(peers, middleware: str, watch: list[dict], duration: float = 30)
     return robot, watcher, url
 
 
-@pytest.mark.parametrize("middleware", ["zenoh", "dds"])
-def test_rasm_run_manages_the_ros2_robot_and_it_takes_the_spin_plan(peers, tmp_path, middleware):
+def test_rasm_run_sends_the_spin_plan_as_a_goal_the_controller_has_the_robot_take(
+    peers, tmp_path
+):
     watch = [{"topic": "/spin_config", "type": "turtlebot/msg/SpinConfig"},
              {"topic": "/robot_state", "type": "turtlebot/msg/RobotState"},
              {"topic": "/rasm/verdict/velocity_limit", "type": "std_msgs/msg/Bool"}]
-    robot, watcher, url = ros_network(peers, middleware, watch)
+    robot, watcher, url = ros_network(peers, "zenoh", watch)
+    controller = Robot(url, 30, CONTROLLER)
     try:
         watcher.wait_ready()
         trace = tmp_path / "trace.jsonl"
@@ -80,20 +84,59 @@ def test_rasm_run_manages_the_ros2_robot_and_it_takes_the_spin_plan(peers, tmp_p
         code, output = finish(run)
     finally:
         summary = robot.stop()
+        controller.process.terminate()
+        controller.process.wait(timeout=20)
     assert code == 0, output  # every property of the demonstrator holds
-    # the front debris (from the robot's first second) is answered by a spin plan
+    # the front debris (from the robot's first second) is answered by a spin plan: a goal of
+    # the controller's /spin action, which hands it to the robot on /spin_config
+    assert any(line.startswith("goal ") for line in controller.lines), controller.lines
     plan = watcher.wait_for(lambda p: p.messages("/spin_config"), what="a spin plan")[0]["data"]
     assert plan["rotation"] > 0 and 20 <= plan["angular_velocity"] <= 90
     # ... which the robot takes up: its state says so, and it sweeps
     wait_until(lambda: any(m["data"]["spin_rotation"] == plan["rotation"]
                            for m in watcher.messages("/robot_state")), what="the plan in force")
-    assert summary["spins"] >= 1 and summary["collisions"] == 0
+    assert summary["spins"] >= 1 and summary["collisions"] == 0 and not summary["docked"]
     assert {m["data"]["data"] for m in watcher.messages("/rasm/verdict/velocity_limit")} == {True}
     records = [json.loads(line) for line in trace.read_text().splitlines()]
-    assert any(r.get("executed") for r in records)
+    # the goal succeeded once the plan was in force: its result and feedback are knowledge
+    assert any(r.get("effector_done") == "spin" for r in records), output
+    assert any(r.get("spin_in_force") == plan["rotation"] for r in records)
+    assert any("controller_nav_mode" in r for r in records)
+    assert "effector spin calls: 1 succeeded" in output
     scans = [r for r in records if r.get("invalid_rays")]
     assert scans and all(60 <= r["invalid_rays"] <= 200 for r in scans[-5:])  # inf: no echo
     assert any(r.get("nav_mode") == "spin" for r in records)
+
+
+def test_a_bump_engages_the_fallback_and_the_robot_docks_through_the_service(peers, tmp_path):
+    watch = [{"topic": "/spin_config", "type": "turtlebot/msg/SpinConfig"}]
+    robot, watcher, url = ros_network(peers, "zenoh", watch)
+    controller = Robot(url, 30, CONTROLLER)
+    try:
+        watcher.wait_ready()
+        trace = tmp_path / "trace.jsonl"
+        run = rasm_run(APP / "ros2.yaml", url, tmp_path, "--duration", "7", "--trace", str(trace))
+        watcher.wait_for(lambda p: p.messages("/spin_config"), timeout=30, what="a spin plan")
+        # the bumper fires (a foreign node reports it): the loop failed to keep the robot clear
+        peers({"middleware": "zenoh", "role": "pub", "listen": f"tcp/127.0.0.1:{free_port()}",
+               "connect": [url.replace("zenoh://", "tcp/")],
+               "topics": [{"topic": "/collision", "type": "std_msgs/msg/Bool",
+                           "messages": [{"data": True}]}]})
+        code, output = finish(run)
+    finally:
+        summary = robot.stop()
+        controller.process.terminate()
+        controller.process.wait(timeout=20)
+    records = [json.loads(line) for line in trace.read_text().splitlines()]
+    engaged = next(i for i, r in enumerate(records) if r.get("fallback") == "engaged")
+    assert "no_collision" in records[engaged]["explanation"]
+    # the fallback's plan: spinning ends (a rotation-0 goal) and the robot docks
+    assert any(r.get("effector_done") == "dock" for r in records[engaged:]), output
+    assert any(r.get("docked") is True for r in records[engaged:])
+    assert any(line.startswith("dock home at 0.2 m/s") for line in controller.lines)
+    assert summary["docked"]
+    assert watcher.messages("/spin_config")[-1]["data"]["rotation"] == 0
+    assert code == 1, output  # no_collision was violated
 
 
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
