@@ -92,8 +92,9 @@ def _package(folder: Path) -> str:
     return name if name[:1].isalpha() else f"app_{name}"
 
 
-def header_stamp(message: Mapping[str, Any]) -> float | None:
-    """``header.stamp`` of a decoded message in seconds, or None without one."""
+def header_stamp(message: Mapping[str, Any]) -> int | None:
+    """``header.stamp`` of a decoded message in integer nanoseconds (exact), or None without
+    one."""
     header = message.get("header")
     stamp = header.get("stamp") if isinstance(header, Mapping) else None
     if not isinstance(stamp, Mapping):
@@ -101,7 +102,7 @@ def header_stamp(message: Mapping[str, Any]) -> float | None:
     sec, nanosec = stamp.get("sec"), stamp.get("nanosec")
     if not isinstance(sec, int) or not isinstance(nanosec, int):
         return None
-    return sec + nanosec * 1e-9
+    return sec * 10**9 + nanosec
 
 
 class MessageReader:

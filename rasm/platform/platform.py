@@ -76,7 +76,7 @@ from rasm.platform.verdicts_out import VerdictPublisher, publishes_verdicts
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.properties.vacuity import Vacuity
 from rasm.statechart import MonotonicClock, SimulatedClock
-from rasm.times import elapsed_seconds
+from rasm.times import elapsed_seconds, from_nanoseconds
 from rasm.trace import TraceWriter, open_trace_writer
 from rasm.twin import DigitalTwin
 
@@ -549,13 +549,15 @@ class Platform:
         """The app's ROS 2 types (the standard interfaces when it has none of its own)."""
         return message_types(self.manifest)
 
-    def _timeline(self, stamp: float) -> float:
-        """A message's ``header.stamp`` (wall-clock seconds) on the platform's timeline: on
-        the wall clock, where that wall time falls; a simulated run (a replay) takes stamps
-        as they are."""
+    def _timeline(self, stamp_ns: int) -> float:
+        """A message's ``header.stamp`` (wall-clock nanoseconds) on the platform's timeline:
+        on the wall clock, where that wall time falls; a replay's timeline starts at the
+        recording's first log time (exact to the nanosecond); a simulated run takes stamps as
+        they are."""
         if self.clock_kind == "wall":
-            return self.dist.platform_time(stamp)
-        return stamp
+            return self.dist.platform_time(stamp_ns / 10**9)
+        origin = self.replay.origin_ns if self.replay is not None else 0
+        return from_nanoseconds(stamp_ns - origin)
 
     def _on_external_verdict(self, name: str, message: Message) -> None:
         # on the transport's thread: the verdict is taken on the loop's, at the loop's time

@@ -226,9 +226,12 @@ class Replay:
     """A recording driving a platform in place of its managed system.
 
     :meth:`start` puts the recording's messages on the scheduler, one job per message at its
-    log time (seconds), each handing it to ``digest(topic, message, time)`` (Telegraf); after
-    the last one and ``tail`` more seconds the scheduler is stopped. Only the next message is
-    read ahead.
+    log time, each handing it to ``digest(topic, message, time)`` (Telegraf); after the last
+    one and ``tail`` more seconds the scheduler is stopped. Only the next message is read ahead.
+
+    The replay's timeline starts at the recording's first log time (:attr:`origin_ns`): a
+    message is played at its log time less that, in seconds exact to the nanosecond (a log
+    time of 2026 in epoch seconds, as a float, would carry float noise into every time).
     """
 
     def __init__(self, recording: Recording) -> None:
@@ -236,10 +239,12 @@ class Replay:
         self.messages = 0
         self.first_time: float | None = None
         self.last_time: float | None = None
+        self.origin_ns = 0  # the first log time: 0 s on the replay's timeline
         self._items: Iterator[tuple[int, str, dict[str, Any]]] = iter(recording)
         self._next = next(self._items, None)
         if self._next is not None:
-            self.first_time = self._next[0] / NS_PER_SECOND
+            self.origin_ns = self._next[0]
+            self.first_time = 0.0
 
     @property
     def damage(self) -> list[Damage]:
@@ -264,7 +269,7 @@ class Replay:
             end = (self.last_time if self.last_time is not None else self._scheduler.now())
             self._scheduler.at(end + self._tail, self._scheduler.stop)
             return
-        time = item[0] / NS_PER_SECOND
+        time = (item[0] - self.origin_ns) / NS_PER_SECOND  # int / int: correctly rounded
         self._scheduler.at(time, lambda: self._play(item, time))
 
     def _play(self, item: tuple[int, str, dict[str, Any]], time: float) -> None:

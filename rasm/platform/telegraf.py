@@ -45,7 +45,8 @@ class Telegraf(Block):
     Each value is checked against its signal's declared type and range; bad data is logged and
     counted, never stored. A probe with a ROS 2 type has its signals read by field path; one
     with ``stamp: header`` is timed by its messages' ``header.stamp``, put on the platform's
-    timeline by ``timeline`` (never later than the message arrived). Like knowledge
+    timeline by ``timeline`` (the stamp in integer nanoseconds to seconds on the timeline;
+    never later than the message arrived). Like knowledge
     registration, digesting a message does not step the block's chart: only the block's mode
     decides whether it is digested.
     """
@@ -58,7 +59,7 @@ class Telegraf(Block):
         probes: list[Probe],
         register: Register,
         *,
-        timeline: Callable[[float], float] = lambda stamp: stamp,
+        timeline: Callable[[int], float] = lambda stamp: stamp / 10**9,
         **kw: Any,
     ) -> None:
         self.routes: dict[str, _Route] = {p.topic: _Route(p) for p in probes}
