@@ -116,6 +116,30 @@ def _now(verdict: Verdict | None) -> tuple[str, str]:
 
 
 def print_summary(summary: RunSummary, console: Console) -> None:
+    if summary.role == "managed":
+        _managed_summary(summary, console)
+    else:
+        _loop_summary(summary, console)
+    _refusals_and_failures(summary, console)
+
+
+def _managed_summary(summary: RunSummary, console: Console) -> None:
+    """A managed-only process (``--role managed``): what the managed side did; the loop, its
+    properties and its timing are the managing process's to report."""
+    stopped = f" (stopped by {summary.stopped_by})" if summary.stopped_by else ""
+    console.print(
+        f"[bold]{summary.app}[/bold]: {format_seconds(summary.duration)} s on the "
+        f"{summary.clock} clock{stopped}, the managed side only (--role managed: the loop, "
+        "its properties and its verdicts are the managing process's)",
+        soft_wrap=True,
+    )
+    lines = summary.managed or ["no simulator ran here (managed_system.simulator)"]
+    console.print("managed system:")
+    for line in lines:
+        console.print(Text(f"  {line}"), soft_wrap=True)
+
+
+def _loop_summary(summary: RunSummary, console: Console) -> None:
     s = summary.stats
     stopped = f" (stopped by {summary.stopped_by})" if summary.stopped_by else ""
     console.print(
@@ -203,6 +227,9 @@ def print_summary(summary: RunSummary, console: Console) -> None:
             t = summary.timing[stage]
             timing.add_row(stage, *(f"{t[q] * 1000:.3f}" for q in ("p50", "p90", "p99")))
     console.print(timing)
+
+
+def _refusals_and_failures(summary: RunSummary, console: Console) -> None:
     if summary.rejected_data:
         console.print(f"rejected managed-system data: {summary.rejected_data}")
     if summary.bus:

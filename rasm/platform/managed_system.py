@@ -8,6 +8,7 @@ on the transport, exactly as a real robot would.
 from __future__ import annotations
 
 import logging
+from collections import Counter
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
@@ -45,6 +46,27 @@ class Bus(Protocol):
     def subscribe(self, pattern: str, callback: Callback) -> Subscription: ...
 
 
+def describe_activity(managed: ManagedSystem) -> list[str]:
+    """What the managed side did, one line each, for the run's summary."""
+    def counts(counter: Counter[str]) -> str:
+        return ", ".join(f"{name} {n}" for name, n in sorted(counter.items()))
+
+    def many(n: int, what: str) -> str:
+        return f"{n} {what}" if n == 1 else f"{n} {what}s"
+
+    published, applied = sum(managed.published.values()), sum(managed.applied.values())
+    lines = [f"{many(managed.steps, 'simulator step')}, {many(published, 'reading')} published"
+             + (f" ({counts(managed.published)})" if published else "")]
+    lines.append(f"{many(applied, 'action')} applied"
+                 + (f" ({counts(managed.applied)})" if applied
+                    else ": none reached the simulator"))
+    if managed.failures:
+        lines.append(f"{many(managed.failures, 'simulator step or apply')} failed (logged)")
+    if managed.unsent:
+        lines.append(f"{many(managed.unsent, 'reading')} the transport refused (logged)")
+    return lines
+
+
 class ManagedSystem:
     """Steps ``simulator`` every ``period`` seconds and applies the actions its effectors get.
 
@@ -66,6 +88,12 @@ class ManagedSystem:
         self.logs = logs
         self._gates: dict[str, Apply] = {}
         self._started_at = 0.0
+        # what the managed side did, for the run's summary
+        self.steps = 0  # simulator steps taken (whether or not they raised)
+        self.published: Counter[str] = Counter()  # readings put on the bus, by topic
+        self.applied: Counter[str] = Counter()  # actions the simulator took, by effector
+        self.failures = 0  # simulator steps and applies that raised
+        self.unsent = 0  # readings the transport refused
 
     def start(
         self,
@@ -109,17 +137,22 @@ class ManagedSystem:
         except BaseException as exc:  # the simulator is user code: never fatal
             if is_interrupt(exc):
                 raise
+            self.failures += 1
             what = f"the simulator's apply({effector!r}) failed: {describe_failure(exc)}"
             self.logs.log(_log, logging.ERROR, what, exc_info=exc)
+        else:
+            self.applied[effector] += 1
 
     def step(self) -> None:
         """Step the simulator once and publish its readings."""
         # the simulated world starts at 0 whatever the managing system's restored timeline
+        self.steps += 1
         try:
             readings = self.simulator.step(self._scheduler.now() - self._started_at, self.period)
         except BaseException as exc:  # the simulator is user code: never fatal
             if is_interrupt(exc):
                 raise
+            self.failures += 1
             what = f"the simulator's step failed: {describe_failure(exc)}"
             self.logs.log(_log, logging.ERROR, what, exc_info=exc)
             return
@@ -128,11 +161,15 @@ class ManagedSystem:
                 "the simulator's step must return {topic: payload} or None, "
                 f"not {type(readings).__name__}"
             )
+            self.failures += 1
             self.logs.log(_log, logging.ERROR, what)
             return
         for topic, payload in (readings or {}).items():
             try:
                 self._bus.publish_message(topic, payload)
             except RasmError as exc:  # a topic or payload the transport refuses
+                self.unsent += 1
                 what = f"the simulator's reading on {topic!r} was not published: {exc}"
                 self.logs.log(_log, logging.ERROR, what)
+            else:
+                self.published[topic] += 1

@@ -762,6 +762,8 @@ class Platform:
             write_failures=self.write_failures(),
             damage=self.replay.damage if self.replay is not None else [],
             calls=self.calls.counts if self.calls is not None else {},
+            role=self.role,
+            managed=self.managed,
             off=tuple(name for name, limits in self.manifest.platform_properties.items()
                       if limits is None) if self.managing else (),
         )

@@ -12,6 +12,7 @@ from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopSt
 from rasm.platform.calls import CallCounts
 from rasm.platform.distribution import Distribution
 from rasm.platform.fallback import FallbackSwitch
+from rasm.platform.managed_system import ManagedSystem, describe_activity
 from rasm.platform.state_manager import StateManager
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
@@ -57,6 +58,10 @@ class RunSummary:
     off: tuple[str, ...] = ()
     # per service or action effector, how its calls ended
     calls: dict[str, CallCounts] = field(default_factory=dict)
+    # all, managing or managed: which side of the system this process ran
+    role: str = "all"
+    # what the managed side (the app's simulator) did, one line each (empty: none ran here)
+    managed: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -103,6 +108,8 @@ def summarise(
     damage: list[Damage] | None = None,
     off: tuple[str, ...] = (),
     calls: dict[str, CallCounts] | None = None,
+    role: str = "all",
+    managed: ManagedSystem | None = None,
 ) -> RunSummary:
     """The run so far, read from its blocks (nothing is changed). ``checker``,
     ``orchestrator`` and ``telegraf`` are the managing side's (None in a managed-only process:
@@ -134,6 +141,8 @@ def summarise(
         damage=list(damage or ()),
         off=off,
         calls=dict(calls or {}),
+        role=role,
+        managed=describe_activity(managed) if managed is not None else [],
     )
 
 
