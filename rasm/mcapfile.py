@@ -1,20 +1,19 @@
-"""MCAP files, written record by record and read back whatever happened to them.
-
-:class:`McapEncoder` gives the bytes of an MCAP file without chunks: the header, schemas and
-channels, then one Message record per message, and at the end the summary (schemas, channels,
-statistics) and the footer. Its writer hands each record to the operating system as it is made
-(:class:`rasm.trace_mcap.McapTraceWriter`), so a process killed at any moment leaves every
-message it wrote readable, as the JSONL trace does.
+"""MCAP files read back whatever happened to them, on the ``mcap`` library's records.
 
 :class:`McapReader` reads any MCAP file, chunked or not, compressed (lz4, zstd) or not, and
-checks what it reads instead of trusting it:
+checks what it reads instead of trusting it. The ``mcap`` library parses every record
+(:mod:`mcap.records`), decompresses chunks and checks their CRCs
+(:func:`mcap.stream_reader.get_chunk_data_stream`, what its ``breakup_chunk`` uses); what this
+module adds is the walk from record to record, which reports instead of raising or skipping:
 
 - with a summary (its chunk indexes), chunks are read by the index and merged in log-time order;
   without one (a file cut short: its writer was killed, or a write failed), the file is read
   record by record from the start;
 - a chunk must decompress to its stated size, match its CRC (where the writer stored one), hold
   records that fit inside it, messages on known channels within its time range, and as many
-  messages per channel as its message index lists;
+  messages per channel as its message index lists (the library's own ``breakup_chunk`` skips
+  records it does not know and takes a record cut by the chunk's end as it is, so a chunk
+  without a CRC is walked here, record by record);
 - a chunk that fails any of these is left out whole and reported as a :class:`~rasm.losses.Damage`
   (where, why, its bytes, the messages its index lists and their topics, its time range); so is a
   record cut by the end of the file, bytes past which the records no longer make sense, and a
@@ -22,6 +21,8 @@ checks what it reads instead of trusting it:
 
 Damage is found as the messages are read: :attr:`McapReader.damage` is complete once
 :meth:`McapReader.messages` has run to its end (damage found while opening is there at once).
+The files rasm writes (``rasm run --trace OUT.mcap``) are written by the library's writer
+(:mod:`rasm.trace_mcap`).
 """
 
 from __future__ import annotations
@@ -29,27 +30,31 @@ from __future__ import annotations
 import heapq
 import struct
 import zlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from io import BytesIO
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
+
+from mcap import records as mcap_records
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError as LibraryError
+from mcap.opcode import Opcode
+from mcap.stream_reader import get_chunk_data_stream
 
 from rasm.errors import RasmError
 from rasm.losses import Damage
 
-__all__ = ["MAGIC", "Channel", "McapEncoder", "McapError", "McapReader", "Schema", "read_header"]
+__all__ = ["MAGIC", "Channel", "McapError", "McapReader", "Schema", "read_header"]
 
 MAGIC = b"\x89MCAP0\r\n"
 
-_HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-_MESSAGE_INDEX, _CHUNK_INDEX, _STATISTICS, _SUMMARY_OFFSET, _DATA_END = 0x07, 0x08, 0x0B, 0x0E, 0x0F
-_KNOWN = frozenset(range(0x01, 0x10))
-_NAMES = {_CHUNK: "chunk", _MESSAGE: "message", _SCHEMA: "schema", _CHANNEL: "channel"}
-
+_KNOWN = frozenset(int(op) for op in Opcode)
+_NAMES = {Opcode.CHUNK: "chunk", Opcode.MESSAGE: "message", Opcode.SCHEMA: "schema",
+          Opcode.CHANNEL: "channel"}
 _OP_LEN = struct.Struct("<BQ")
-_MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel, sequence, log time, publish time
-_CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed CRC
-_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_FOOTER_LENGTH = 9 + 20 + 8  # the footer record and the closing magic
+_MESSAGE_MIN = 22  # channel (2), sequence (4), log time (8), publish time (8)
 
 
 class McapError(RasmError):
@@ -73,100 +78,106 @@ class Channel:
     metadata: dict[str, str]
 
 
-# ----------------------------------------------------------------------------- writing
+class _Exact(ReadDataStream):
+    """The library's record stream over one record's bytes, refusing a field that runs past
+    them (the library's own stream takes what is left and goes on)."""
+
+    def read(self, length: int) -> bytes:
+        data = super().read(length)
+        if len(data) != length:
+            raise _Bad("a field runs past its record")
+        return data
 
 
-def _string(text: str) -> bytes:
-    data = text.encode("utf-8")
-    return _U32.pack(len(data)) + data
+def _parse(read: Callable[..., Any], content: bytes, *args: Any) -> Any:
+    """One record's content parsed by the library (``read`` is its record class's ``read``);
+    :class:`_Bad` when it does not parse."""
+    try:
+        return read(_Exact(BytesIO(content)), *args)
+    except (LibraryError, struct.error, UnicodeDecodeError) as exc:
+        raise _Bad(f"a {read.__qualname__.split('.')[0].lower()} record does not parse "
+                   f"({exc or type(exc).__name__})") from None
 
 
-def _record(op: int, content: bytes) -> bytes:
-    return _OP_LEN.pack(op, len(content)) + content
+def _walk(data: bytes, end: int) -> Iterator[tuple[int, bytes]]:
+    """The ``(opcode, content)`` of the records in ``data[:end]``, one after the other;
+    :class:`_Bad` when one does not fit."""
+    at = 0
+    while at < end:
+        if end - at < 9:
+            raise _Bad("a record is cut")
+        op, length = _OP_LEN.unpack_from(data, at)
+        if at + 9 + length > end:
+            raise _Bad("a record runs past its section")
+        yield op, data[at + 9:at + 9 + length]
+        at += 9 + length
 
 
-def _string_map(entries: Mapping[str, str]) -> bytes:
-    body = b"".join(_string(k) + _string(v) for k, v in entries.items())
-    return _U32.pack(len(body)) + body
+def _message(content: bytes) -> Any:
+    """A Message record's content, parsed by the library (channel_id, log_time, data)."""
+    if len(content) < _MESSAGE_MIN:
+        raise _Bad("a message record is too short")
+    return _parse(mcap_records.Message.read, content, len(content))
 
 
-class McapEncoder:
-    """The bytes of an unchunked MCAP file, record by record (no I/O: the caller writes them).
+def _decompressed(chunk: Any) -> bytes:
+    """A chunk's records, decompressed and checked against its CRC (where its writer stored
+    one) by the library; :class:`_Bad` when they cannot be."""
+    from mcap.stream_reader import CRCValidationError
 
-    :meth:`start` gives the magic and the header; :meth:`schema` and :meth:`channel` their
-    records; :meth:`message` one Message record (counted for the statistics); :meth:`finish`
-    the data end, the summary and the footer, given the number of bytes written before it.
-    """
-
-    def __init__(self, *, profile: str = "", library: str = "rasm") -> None:
-        self.profile = profile
-        self.library = library
-        self._schemas: list[bytes] = []
-        self._channels: list[bytes] = []
-        self._counts: dict[int, int] = {}
-        self._start: int | None = None
-        self._end = 0
-
-    def start(self) -> bytes:
-        return MAGIC + _record(_HEADER, _string(self.profile) + _string(self.library))
-
-    def schema(self, id: int, name: str, encoding: str, data: bytes) -> bytes:
-        record = _record(_SCHEMA, _U16.pack(id) + _string(name) + _string(encoding)
-                         + _U32.pack(len(data)) + data)
-        self._schemas.append(record)
-        return record
-
-    def channel(self, id: int, schema_id: int, topic: str, encoding: str,
-                metadata: Mapping[str, str] | None = None) -> bytes:
-        record = _record(_CHANNEL, _U16.pack(id) + _U16.pack(schema_id) + _string(topic)
-                         + _string(encoding) + _string_map(metadata or {}))
-        self._channels.append(record)
-        self._counts[id] = 0
-        return record
-
-    def message(self, channel: int, log_time: int, data: bytes, *, sequence: int = 0,
-                publish_time: int | None = None) -> bytes:
-        publish = log_time if publish_time is None else publish_time
-        head = _MESSAGE_HEAD.pack(channel, sequence & 0xFFFFFFFF, log_time, publish)
-        self._counts[channel] = self._counts.get(channel, 0) + 1
-        self._start = log_time if self._start is None else min(self._start, log_time)
-        self._end = max(self._end, log_time)
-        return _OP_LEN.pack(_MESSAGE, len(head) + len(data)) + head + data
-
-    def finish(self, written: int) -> bytes:
-        """The end of the file, once ``written`` bytes of it are written."""
-        data_end = _record(_DATA_END, _U32.pack(0))
-        summary_start = written + len(data_end)
-        parts: list[bytes] = []
-        offsets: list[bytes] = []
-        position = summary_start
-
-        def group(op: int, records: list[bytes]) -> None:
-            nonlocal position
-            if not records:
-                return
-            length = sum(len(r) for r in records)
-            offsets.append(_record(_SUMMARY_OFFSET, bytes([op]) + _U64.pack(position)
-                                   + _U64.pack(length)))
-            parts.extend(records)
-            position += length
-
-        counts = b"".join(_U16.pack(c) + _U64.pack(n) for c, n in sorted(self._counts.items()))
-        statistics = _record(_STATISTICS, struct.pack(
-            "<QHIIIIQQ", sum(self._counts.values()), len(self._schemas), len(self._channels),
-            0, 0, 0, self._start or 0, self._end) + _U32.pack(len(counts)) + counts)
-        group(_SCHEMA, self._schemas)
-        group(_CHANNEL, self._channels)
-        group(_STATISTICS, [statistics])
-        summary = b"".join(parts)
-        offset_start = summary_start + len(summary)
-        offset_section = b"".join(offsets)
-        footer_head = _OP_LEN.pack(_FOOTER, 20) + _U64.pack(summary_start) + _U64.pack(offset_start)
-        crc = zlib.crc32(summary + offset_section + footer_head)
-        return data_end + summary + offset_section + footer_head + _U32.pack(crc) + MAGIC
+    if chunk.compression not in ("", "lz4", "zstd"):
+        raise _Bad(f"its compression {chunk.compression!r} is not one MCAP defines")
+    try:
+        stream, length = get_chunk_data_stream(chunk, validate_crc=True)
+    except CRCValidationError:
+        raise _Bad("its CRC does not match its bytes") from None
+    except LibraryError as exc:  # a compression whose library is not installed
+        raise _Bad(f"its compression {chunk.compression} needs a library that is not installed "
+                   f"({exc})") from None
+    except Exception as exc:  # each compression library raises its own error for bad input
+        raise _Bad(f"it does not decompress ({chunk.compression}: {exc})") from None
+    return stream.read(length) if length else b""
 
 
-# ----------------------------------------------------------------------------- reading
+def _schema(content: bytes) -> Schema:
+    record = _parse(mcap_records.Schema.read, content)
+    return Schema(record.id, record.name, record.encoding, record.data)
+
+
+def _channel(content: bytes) -> Channel:
+    record = _parse(mcap_records.Channel.read, content)
+    return Channel(record.id, record.schema_id, record.topic, record.message_encoding,
+                   dict(record.metadata))
+
+
+def _header(stream: IO[bytes], name: str) -> tuple[str, str, int]:
+    """The profile and library an MCAP file's header names, and where its data starts."""
+    stream.seek(0)
+    head = stream.read(8 + 9)
+    if len(head) == 0:
+        raise McapError(f"{name}: the file is empty")
+    if head[:8] != MAGIC:
+        raise McapError(f"{name}: not an MCAP file (it does not start with MCAP's magic bytes)")
+    if len(head) < 17:
+        raise McapError(f"{name}: the file ends inside its MCAP header")
+    op, length = _OP_LEN.unpack_from(head, 8)
+    content = stream.read(length) if op == Opcode.HEADER and length < 1 << 20 else b""
+    if op != Opcode.HEADER or len(content) != length:
+        raise McapError(f"{name}: its MCAP header is damaged or cut")
+    try:
+        header = _parse(mcap_records.Header.read, content)
+    except _Bad:
+        raise McapError(f"{name}: its MCAP header is damaged") from None
+    return header.profile, header.library, 17 + length
+
+
+def read_header(path: str | Path) -> tuple[str, str]:
+    """The profile (``ros2`` for a rosbag2 recording) and the library an MCAP file's header
+    names, read without looking further; raises :class:`McapError` for a file that is not
+    MCAP."""
+    with open(path, "rb") as stream:
+        profile, library, _ = _header(stream, str(path))
+    return profile, library
 
 
 class _Bad(Exception):
@@ -193,108 +204,6 @@ class _Run:
     offset: int
     end: int
     start: int  # the first one's log time
-
-
-def _text(data: bytes, at: int) -> tuple[str, int]:
-    (size,) = _U32.unpack_from(data, at)
-    at += 4
-    if at + size > len(data):
-        raise _Bad("a string runs past its record")
-    return data[at:at + size].decode("utf-8"), at + size
-
-
-def _blob(data: bytes, at: int) -> tuple[bytes, int]:
-    (size,) = _U32.unpack_from(data, at)
-    at += 4
-    if at + size > len(data):
-        raise _Bad("a byte array runs past its record")
-    return data[at:at + size], at + size
-
-
-def _parse_schema(content: bytes) -> Schema:
-    try:
-        (id,) = _U16.unpack_from(content, 0)
-        name, at = _text(content, 2)
-        encoding, at = _text(content, at)
-        data, _ = _blob(content, at)
-    except (struct.error, UnicodeDecodeError) as exc:
-        raise _Bad(f"a schema record does not parse ({exc})") from None
-    return Schema(id, name, encoding, data)
-
-
-def _parse_channel(content: bytes) -> Channel:
-    try:
-        id, schema_id = struct.unpack_from("<HH", content, 0)
-        topic, at = _text(content, 4)
-        encoding, at = _text(content, at)
-        raw, _ = _blob(content, at)
-        metadata: dict[str, str] = {}
-        k = 0
-        while k < len(raw):
-            key, k = _text(raw, k)
-            value, k = _text(raw, k)
-            metadata[key] = value
-    except (struct.error, UnicodeDecodeError) as exc:
-        raise _Bad(f"a channel record does not parse ({exc})") from None
-    return Channel(id, schema_id, topic, encoding, metadata)
-
-
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
-    if compression == "":
-        return data
-    try:
-        if compression == "lz4":
-            import lz4.frame
-
-            return lz4.frame.decompress(data)
-        if compression == "zstd":
-            try:
-                from compression import zstd  # Python 3.14
-            except ImportError:
-                try:
-                    from backports import zstd
-                except ImportError:
-                    import zstandard
-
-                    return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-            return zstd.decompress(data)
-    except ImportError:
-        raise _Bad(f"its compression {compression} needs a library that is not installed "
-                   f"(pip install {'lz4' if compression == 'lz4' else 'zstandard'})") from None
-    except Exception as exc:  # each library raises its own error class for bad input
-        raise _Bad(f"it does not decompress ({compression}: {exc})") from None
-    raise _Bad(f"its compression {compression!r} is not one MCAP defines")
-
-
-def _header(stream: IO[bytes], name: str) -> tuple[str, str, int]:
-    """The profile and library an MCAP file's header names, and where its data starts."""
-    stream.seek(0)
-    head = stream.read(8 + 9)
-    if len(head) == 0:
-        raise McapError(f"{name}: the file is empty")
-    if head[:8] != MAGIC:
-        raise McapError(f"{name}: not an MCAP file (it does not start with MCAP's magic bytes)")
-    if len(head) < 17:
-        raise McapError(f"{name}: the file ends inside its MCAP header")
-    op, length = _OP_LEN.unpack_from(head, 8)
-    content = stream.read(length) if op == _HEADER and length < 1 << 20 else b""
-    if op != _HEADER or len(content) != length:
-        raise McapError(f"{name}: its MCAP header is damaged or cut")
-    try:
-        profile, at = _text(content, 0)
-        library, _ = _text(content, at)
-    except (_Bad, struct.error, UnicodeDecodeError):
-        raise McapError(f"{name}: its MCAP header is damaged") from None
-    return profile, library, 17 + length
-
-
-def read_header(path: str | Path) -> tuple[str, str]:
-    """The profile (``ros2`` for a rosbag2 recording) and the library an MCAP file's header
-    names, read without looking further; raises :class:`McapError` for a file that is not
-    MCAP."""
-    with open(path, "rb") as stream:
-        profile, library, _ = _header(stream, str(path))
-    return profile, library
 
 
 class McapReader:
@@ -357,46 +266,39 @@ class McapReader:
     def _read_summary(self) -> bool:
         """Read the summary (schemas, channels, chunk indexes, statistics); False when the file
         has none that can be trusted, or no chunk index to read the messages by."""
-        if self.size < self._data_start + 37:
+        if self.size < self._data_start + _FOOTER_LENGTH:
             return False
-        tail = self._read_at(self.size - 37, 37)
-        if tail[-8:] != MAGIC or tail[:9] != _OP_LEN.pack(_FOOTER, 20):
+        tail = self._read_at(self.size - _FOOTER_LENGTH, _FOOTER_LENGTH)
+        if tail[-8:] != MAGIC or tail[:9] != _OP_LEN.pack(Opcode.FOOTER, 20):
             return False
-        summary_start, offset_start, crc = struct.unpack_from("<QQI", tail, 9)
-        footer = self.size - 37
-        if not summary_start or not self._data_start <= summary_start <= footer:
+        footer = _parse(mcap_records.Footer.read, tail[9:29])
+        summary_start, offset_start = footer.summary_start, footer.summary_offset_start
+        end = self.size - _FOOTER_LENGTH
+        if not summary_start or not self._data_start <= summary_start <= end:
             return False
-        section = self._read_at(summary_start, footer - summary_start)
-        if crc and zlib.crc32(section + tail[:25]) != crc:
+        section = self._read_at(summary_start, end - summary_start)
+        if footer.summary_crc and zlib.crc32(section + tail[:25]) != footer.summary_crc:
             return False  # a damaged summary is read around: the records are read one by one
         schemas: dict[int, Schema] = {}
         channels: dict[int, Channel] = {}
         chunks: list[_Chunk] = []
-        counts: dict[int, int] | None = None
-        first = 0
-        at = 0
+        statistics = None
         limit = (offset_start - summary_start) if offset_start else len(section)
         try:
-            while at < limit:
-                op, length = _OP_LEN.unpack_from(section, at)
-                content = section[at + 9:at + 9 + length]
-                if len(content) != length:
-                    return False
-                if op == _SCHEMA:
-                    schema = _parse_schema(content)
+            for op, content in _walk(section, limit):
+                if op == Opcode.SCHEMA:
+                    schema = _schema(content)
                     schemas[schema.id] = schema
-                elif op == _CHANNEL:
-                    channel = _parse_channel(content)
+                elif op == Opcode.CHANNEL:
+                    channel = _channel(content)
                     channels[channel.id] = channel
-                elif op == _CHUNK_INDEX:
+                elif op == Opcode.CHUNK_INDEX:
                     chunks.append(self._chunk_index(content, summary_start))
-                elif op == _STATISTICS:
-                    (first,) = _U64.unpack_from(content, 26)  # the first message's log time
-                    (size,) = _U32.unpack_from(content, 42)
-                    counts = {c: n for c, n in struct.iter_unpack("<HQ", content[46:46 + size])}
-                at += 9 + length
-        except (_Bad, struct.error):
+                elif op == Opcode.STATISTICS:
+                    statistics = _parse(mcap_records.Statistics.read, content)
+        except _Bad:
             return False
+        counts = dict(statistics.channel_message_counts) if statistics is not None else None
         if not chunks:
             # no chunk index (an unchunked file): its records are read one by one up to the
             # summary, and its channels are known from it (or from the records themselves)
@@ -406,7 +308,8 @@ class McapReader:
                 return False
             # closed in order (a rasm trace): read in one pass, each record checked as it comes
             self.counts = counts
-            self._runs = [_Run(self._data_start, summary_start, first)]
+            assert statistics is not None
+            self._runs = [_Run(self._data_start, summary_start, statistics.message_start_time)]
             return True
         self.schemas, self.channels = schemas, channels
         self._chunks = sorted(chunks, key=lambda c: c.offset)
@@ -421,18 +324,18 @@ class McapReader:
         return True
 
     def _chunk_index(self, content: bytes, summary_start: int) -> _Chunk:
-        start, end, offset, length = struct.unpack_from("<QQQQ", content, 0)
-        (size,) = _U32.unpack_from(content, 32)
-        pairs = sorted((o, c) for c, o in struct.iter_unpack("<HQ", content[36:36 + size]))
-        (index_length,) = _U64.unpack_from(content, 36 + size)
+        index = _parse(mcap_records.ChunkIndex.read, content)
+        offset, length = index.chunk_start_offset, index.chunk_length
         if not self._data_start <= offset < summary_start or offset + length > summary_start:
             raise _Bad("a chunk index points outside the data")
         # each message index record: opcode, length, channel (2), array length (4), 16 a message
+        pairs = sorted((o, c) for c, o in index.message_index_offsets.items())
         counts: dict[int, int] = {}
-        bounds = [o for o, _ in pairs] + [offset + length + index_length]
+        bounds = [o for o, _ in pairs] + [offset + length + index.message_index_length]
         for (position, channel), following in zip(pairs, bounds[1:], strict=False):
             counts[channel] = max(0, (following - position - 15) // 16)
-        return _Chunk(offset, length, start, end, counts if pairs else None)
+        return _Chunk(offset, length, index.message_start_time, index.message_end_time,
+                      counts if pairs else None)
 
     def _scan(self) -> None:
         """Walk the records from the start (a file without a usable summary): note the chunks
@@ -460,14 +363,15 @@ class McapReader:
                 break
             if at + 9 + length > end:
                 self._cut(at, f"a {_NAMES.get(op, 'record')}", end - at, last_time,
-                          head=stream.read(min(length, 64)) if op == _CHUNK else b"")
+                          head=stream.read(min(length, 64)) if op == Opcode.CHUNK else b"")
                 break
-            if op == _MESSAGE:
-                content = stream.read(length)
-                if length < 22:
-                    self._lost_sync(at, end, last_time, f"the message at byte {at} is too short")
+            if op == Opcode.MESSAGE:
+                try:
+                    message = _message(stream.read(length))
+                except _Bad as bad:
+                    self._lost_sync(at, end, last_time, f"the message at byte {at}: {bad}")
                     break
-                channel, _, log_time, _ = _MESSAGE_HEAD.unpack_from(content, 0)
+                channel, log_time = message.channel_id, message.log_time
                 if channel not in self.channels:
                     self._lost_sync(at, end, last_time,
                                     f"the message at byte {at} is on channel {channel}, which "
@@ -481,7 +385,7 @@ class McapReader:
                 last_time = log_time if last_time is None else max(last_time, log_time)
             else:
                 run = None
-                if op == _CHUNK:
+                if op == Opcode.CHUNK:
                     chunk = _Chunk(at, 9 + length)
                     self._chunks.append(chunk)
                     try:
@@ -494,21 +398,24 @@ class McapReader:
                         if chunk.end is not None:
                             last_time = chunk.end if last_time is None else max(last_time,
                                                                                 chunk.end)
-                elif op == _MESSAGE_INDEX:
+                elif op == Opcode.MESSAGE_INDEX:
                     content = stream.read(length)
-                    if chunk is not None and len(content) >= 6:
-                        (channel,) = _U16.unpack_from(content, 0)
-                        (size,) = _U32.unpack_from(content, 2)
-                        if chunk.counts is None:
-                            chunk.counts = {}
-                        chunk.counts[channel] = size // 16
-                elif op in (_SCHEMA, _CHANNEL):
+                    if chunk is not None:
+                        try:
+                            index = _parse(mcap_records.MessageIndex.read, content)
+                        except _Bad:
+                            pass  # cut off by the end of the file: the chunk's count unknown
+                        else:
+                            if chunk.counts is None:
+                                chunk.counts = {}
+                            chunk.counts[index.channel_id] = len(index.records)
+                elif op in (Opcode.SCHEMA, Opcode.CHANNEL):
                     try:
                         self._define(op, stream.read(length))
                     except _Bad as bad:
                         self._lost_sync(at, end, last_time, str(bad))
                         break
-                elif op in (_DATA_END, _FOOTER):
+                elif op in (Opcode.DATA_END, Opcode.FOOTER):
                     ended = True
                     break
                 else:
@@ -528,11 +435,11 @@ class McapReader:
             )
 
     def _define(self, op: int, content: bytes) -> None:
-        if op == _SCHEMA:
-            schema = _parse_schema(content)
+        if op == Opcode.SCHEMA:
+            schema = _schema(content)
             self.schemas.setdefault(schema.id, schema)
         else:
-            channel = _parse_channel(content)
+            channel = _channel(content)
             self.channels.setdefault(channel.id, channel)
 
     def _cut(self, at: int, what: str, present: int, after: int | None, head: bytes = b"") -> None:
@@ -566,31 +473,29 @@ class McapReader:
             if len(raw) < 9:
                 raise _Bad("the file ends inside it")
             op, length = _OP_LEN.unpack_from(raw, 0)
-            if op != _CHUNK or 9 + length != chunk.length:
+            if op != Opcode.CHUNK or 9 + length != chunk.length:
                 raise _Bad("the chunk index does not point at a chunk of its length")
             content = raw[9:]
             if len(content) != length:
                 raise _Bad("the file ends inside it")
         try:
-            start, end, size, crc = _CHUNK_HEAD.unpack_from(content, 0)
-            compression, at = _text(content, 28)
-            (stored,) = _U64.unpack_from(content, at)
-        except (struct.error, UnicodeDecodeError, _Bad):
-            raise _Bad("its header does not parse") from None
+            record = _parse(mcap_records.Chunk.read, content)
+        except _Bad:
+            raise _Bad("its header does not parse, or its records run past its end") from None
+        start, end, size = record.message_start_time, record.message_end_time, \
+            record.uncompressed_size
         if chunk.start is None:
             chunk.start, chunk.end = start, end
-        at += 8
-        if at + stored > len(content):
-            raise _Bad("its records run past its end")
         if size > 1 << 32:
             raise _Bad(f"it claims {size:,} bytes uncompressed")
-        data = _decompress(compression, content[at:at + stored], size)
+        data = _decompressed(record)
         if len(data) != size:
             raise _Bad(f"it holds {len(data):,} bytes, its header says {size:,}")
-        if crc and zlib.crc32(data) != crc:
-            raise _Bad("its CRC does not match its bytes")
         messages: list[tuple[int, int, bytes]] = []
         counts: dict[int, int] = {}
+        # the records one after the other, each parsed by the library from one stream
+        stream = _Exact(BytesIO(data))
+        read_message = mcap_records.Message.read
         k = 0
         while k < size:
             if size - k < 9:
@@ -598,19 +503,23 @@ class McapReader:
             op, length = _OP_LEN.unpack_from(data, k)
             if op not in _KNOWN or k + 9 + length > size:
                 raise _Bad(f"the bytes at {k:,} inside it are no record that fits")
-            if op == _MESSAGE:
-                if length < 22:
+            stream.read(9)
+            if op == Opcode.MESSAGE:
+                if length < _MESSAGE_MIN:
                     raise _Bad("a message inside it is too short")
-                channel, _, log_time, _ = _MESSAGE_HEAD.unpack_from(data, k + 9)
+                message = read_message(stream, length)
+                channel, log_time = message.channel_id, message.log_time
                 if channel not in self.channels:
                     raise _Bad(f"a message inside it is on channel {channel}, which no channel "
                                "record defines")
                 if not start <= log_time <= end:
                     raise _Bad("a message inside it is logged outside the chunk's time range")
-                messages.append((log_time, channel, data[k + 31:k + 9 + length]))
+                messages.append((log_time, channel, message.data))
                 counts[channel] = counts.get(channel, 0) + 1
-            elif op in (_SCHEMA, _CHANNEL):
-                self._define(op, data[k + 9:k + 9 + length])
+            else:
+                content = stream.read(length)
+                if op in (Opcode.SCHEMA, Opcode.CHANNEL):
+                    self._define(op, content)
             k += 9 + length
         listed = chunk.counts
         if listed is not None and (
@@ -691,21 +600,25 @@ class McapReader:
             if at + 9 + length > end:
                 self._cut(at, f"a {_NAMES.get(op, 'record')}", end - at, last)
                 return
-            if op in (_DATA_END, _FOOTER):
+            if op in (Opcode.DATA_END, Opcode.FOOTER):
                 return
-            content = stream.read(length) if op in (_MESSAGE, _SCHEMA, _CHANNEL, _CHUNK) else b""
-            if op == _MESSAGE:
-                channel = _U16.unpack_from(content, 0)[0] if length >= 22 else None
-                if channel is None or channel not in self.channels:
+            content = stream.read(length) if op in (
+                Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK) else b""
+            if op == Opcode.MESSAGE:
+                try:
+                    message = _message(content)
+                except _Bad:
+                    message = None
+                if message is None or message.channel_id not in self.channels:
                     self._lost_sync(at, end, last, f"the message at byte {at:,} is not one of "
                                     "a channel the file defines")
                     return
-                time = _MESSAGE_HEAD.unpack_from(content, 0)[2]
+                channel, time = message.channel_id, message.log_time
                 if channels is None or channel in channels:
-                    yield (time, position, channel, content[22:])
+                    yield (time, position, channel, message.data)
                 position += 1
                 last = time
-            elif op == _CHUNK:
+            elif op == Opcode.CHUNK:
                 chunk = _Chunk(at, 9 + length)
                 try:
                     messages = self._chunk_messages(chunk, content)
@@ -716,7 +629,7 @@ class McapReader:
                         if channels is None or channel in channels:
                             yield (time, position, channel, data)
                         position += 1
-            elif op in (_SCHEMA, _CHANNEL):
+            elif op in (Opcode.SCHEMA, Opcode.CHANNEL):
                 try:
                     self._define(op, content)
                 except _Bad as bad:

@@ -14,10 +14,11 @@ has none), else from the definition recorded in the bag. A message that does not
 skipped, counted in :attr:`BagReader.rejected` and logged once per topic.
 
 What cannot be read is never skipped in silence: an MCAP file is read by
-:class:`rasm.mcapfile.McapReader`, which checks each chunk (CRC, sizes, records, message
-index) and reports the chunks it leaves out, a cut end and a missing summary; a SQLite3 file
-SQLite finds damaged is read row by row around the damage. :attr:`BagReader.damage` lists it
-all, with the messages that did not decode, as :class:`rasm.losses.Damage`.
+:class:`rasm.mcapfile.McapReader` (on the ``mcap`` library's records), which checks each
+chunk (CRC, sizes, records, message index) and reports the chunks it leaves out, a cut end
+and a missing summary; a SQLite3 file SQLite finds damaged is read row by row around the
+damage. :attr:`BagReader.damage` lists it all, with the messages that did not decode, as
+:class:`rasm.losses.Damage`.
 """
 
 from __future__ import annotations
