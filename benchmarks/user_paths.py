@@ -43,11 +43,21 @@ RASM = [sys.executable, "-m", "rasm.cli"]
 PROPERTY = "input a: bool\ninput b: bool\nproperty p: always (b -> once[0, 1s] a)\n"
 
 
+def run(command: list[str], **options) -> str:
+    """The output of ``command``; a command that fails stops the benchmark with its output, so
+    that no figure comes from a run that did not do its work."""
+    done = subprocess.run(command, capture_output=True, text=True, **options)
+    if done.returncode != 0:
+        output = done.stdout + done.stderr
+        sys.exit(f"{' '.join(command)} failed (exit {done.returncode}):\n{output}")
+    return done.stdout
+
+
 def timed(command: list[str], cwd: Path, env: dict[str, str] | None = None) -> tuple[float, float]:
     """(wall seconds, CPU seconds of the child) of one run of ``command``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run(command, cwd=cwd, check=False, capture_output=True, env=env)
+    run(command, cwd=cwd, env=env)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -61,9 +71,7 @@ def peak(code: str, *args: str) -> tuple[float, float]:
         "u = resource.getrusage(resource.RUSAGE_SELF)\n"
         "print(u.ru_utime + u.ru_stime, u.ru_maxrss / 1024)\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", script, *args], capture_output=True, text=True, check=True
-    ).stdout.split()
+    out = run([sys.executable, "-c", script, *args]).split()
     return float(out[-2]), float(out[-1])
 
 
@@ -101,7 +109,8 @@ def large_check(repeats: int, records: int) -> tuple[float, float]:
         size = trace.stat().st_size / 1e6
         rasm_code = (
             "import sys\nfrom rasm.cli import main\n"
-            "main(['check', sys.argv[1], sys.argv[2], '--format', 'json'])"
+            "if main(['check', sys.argv[1], sys.argv[2], '--format', 'json']) != 0:\n"
+            "    sys.exit('rasm check did not find the property satisfied')"
         )
         # reelay's discrete-time monitor counts records: at 100 Hz, 1 s is 100 records
         reelay_code = (
@@ -139,10 +148,15 @@ def late_violation(repeats: int, records: int) -> tuple[float, float]:
                     record = {"time": round(k * 0.01, 2), "a": not late and k % 7 == 0,
                               "b": k % 11 == 0}
                     out.write(json.dumps(record) + "\n")
-        code = "import sys\nfrom rasm.cli import main\nmain(['check', sys.argv[1], sys.argv[2]])"
+        code = (
+            "import sys\nfrom rasm.cli import main\n"
+            "if main(['check', sys.argv[1], sys.argv[2]]) != int(sys.argv[3]):\n"
+            "    sys.exit('rasm check did not give the verdict the trace was made for')"
+        )
         found = {}
         for name, trace in traces.items():
-            runs = [peak(code, str(props), str(trace)) for _ in range(repeats)]
+            exit_code = "0" if name == "holds" else "1"
+            runs = [peak(code, str(props), str(trace), exit_code) for _ in range(repeats)]
             found[name] = (statistics.median(r[0] for r in runs), max(r[1] for r in runs))
             print(f"rasm check (text), {records:,} records, {name}: {found[name][0]:.2f} s CPU, "
                   f"{found[name][1]:.0f} MB peak")

@@ -99,6 +99,28 @@ def _count(text: str) -> int:
     return count
 
 
+MAX_WALL_SECONDS = "RASM_MAX_WALL_SECONDS"
+
+
+def _capped(duration: float) -> float:
+    """``duration`` cut to ``RASM_MAX_WALL_SECONDS`` when that is set: the guides' tests run the
+    wall-clock demos through it instead of waiting a minute for paths other tests cover."""
+    import math
+    import os
+
+    text = os.environ.get(MAX_WALL_SECONDS, "")
+    if not text:
+        return duration
+    try:
+        cap = float(text)
+    except ValueError:
+        cap = math.nan
+    if not 0 < cap < math.inf:
+        raise UsageError(f"{MAX_WALL_SECONDS} must be a positive, finite number of seconds, "
+                         f"not {text!r}")
+    return min(duration, cap)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     import math
 
@@ -113,6 +135,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--duration must be a positive, finite number of seconds")
     if args.trace_rotate is not None and args.trace in (None, "-"):
         raise UsageError("--trace-rotate needs --trace FILE (a file to rotate)")
+    wall = (args.clock or manifest.clock or "wall") == "wall" and not args.replay
+    asked = args.duration if args.duration is not None else manifest.duration
+    if args.replay is not None and args.duration is None:
+        asked = None  # to the recording's end
+    duration = _capped(asked) if wall else asked
     scenario = None
     if args.scenario is not None:
         scenario = {**manifest.scenario, **_read_scenario(args.scenario)}
@@ -126,12 +153,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         trace_max_bytes=args.trace_rotate,
         trace_keep=args.trace_keep,
         role=args.role,
-        low_latency=(args.clock or manifest.clock or "wall") == "wall" and not args.replay,
+        low_latency=wall,
         replay=args.replay,
     )
-    duration = args.duration if args.duration is not None else manifest.duration
-    if args.replay is not None and args.duration is None:
-        duration = None  # to the recording's end
     console = Console(stderr=args.trace == "-")  # keep stdout for the trace
     dashboard = None
     try:
@@ -154,6 +178,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             dashboard.close()
         raise
     print_summary(summary, console)
+    if duration != asked:
+        console.print(f"{MAX_WALL_SECONDS} cut this run to {duration:g} s of the {asked:g} s "
+                      "asked for", highlight=False)
     if dashboard is not None:
         if sys.stdin.isatty():
             console.print(f"dashboard: {dashboard.url} shows the finished run; Ctrl-C stops it")

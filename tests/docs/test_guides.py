@@ -6,6 +6,7 @@ as they would for a reader going down the page. A block that cannot be run says 
 guide (``<!-- not run: … -->``); :mod:`tests.docs.guides` has the conventions. The well-known
 ports the guides use (1883, 6379, 8086) are those of real servers started on free loopback ports
 for the guides that use them; 7448, where a guide's Zenoh session listens, becomes a free port.
+A ``rasm run`` on the wall clock lasts at most ``WALL_SECONDS`` (``RASM_MAX_WALL_SECONDS``).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ PENDING: dict[str, str] = {}
 COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
 COMMAND_TIMEOUT = 300  # seconds: the slowest guide command (a packaging) takes about a minute
 SEPARATOR = "\x1e"  # between the outputs of a console block's commands
+WALL_SECONDS = "15"  # RASM_MAX_WALL_SECONDS: what a guide's wall-clock `rasm run` lasts here
 
 
 def workdir(tmp: Path) -> Path:
@@ -86,6 +88,10 @@ def environment(home: Path) -> dict[str, str]:
         COLUMNS="80",
         NO_COLOR="1",
         PYTHONDONTWRITEBYTECODE="1",
+        # the wall-clock demos (a 40 s Hotbox, a 60 s TurtleBot) run 15 s: the Hotbox's lid opens at
+        # 8 s and stays open past 13 s (boost_while_open is put to the test, as in the README);
+        # tests/platform and tests/turtlebot test the whole loops on both clocks
+        RASM_MAX_WALL_SECONDS=WALL_SECONDS,
         RASM_WHEELHOUSE=os.environ.get(
             "RASM_WHEELHOUSE", str(Path.home() / ".cache" / "rasm" / "wheelhouse")
         ),
