@@ -1,9 +1,12 @@
 """Fixtures every test folder may use: real mosquitto, redis-server and influxd on free loopback
-ports, started here and stopped at teardown, and MQTT transports closed at teardown."""
+ports, started here and stopped at teardown, MQTT transports closed at teardown, and the
+session's wheelhouse for packagings."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
@@ -46,6 +49,23 @@ def influx(tmp_path_factory) -> Iterator[InfluxServer]:
     server = start_influxdb(tmp_path_factory.mktemp("influxdb"))
     yield server
     server.stop()
+
+
+@pytest.fixture(scope="session")
+def wheelhouse(request: pytest.FixtureRequest, tmp_path_factory) -> Iterator[Path]:
+    """The wheelhouse (``RASM_WHEELHOUSE``) every packaging of the session uses, in this process
+    and in the commands the guides run: rasm's wheel is built once per state of its source and
+    the dependencies are downloaded once. It is kept in pytest's cache (``.pytest_cache``), so a
+    later session finds both; a ``RASM_WHEELHOUSE`` already set is used as it is."""
+    configured = os.environ.get("RASM_WHEELHOUSE")
+    if configured:
+        yield Path(configured)
+        return
+    cache = getattr(request.config, "cache", None)  # absent under -p no:cacheprovider
+    house = cache.mkdir("rasm-wheelhouse") if cache else tmp_path_factory.mktemp("wheelhouse")
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv("RASM_WHEELHOUSE", str(house))
+        yield house
 
 
 @pytest.fixture

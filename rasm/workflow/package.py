@@ -18,6 +18,7 @@ architecture the model's units use, so a unit installs with no network.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import os
@@ -125,17 +126,36 @@ def _rasm_source() -> Path:
     return root
 
 
-# rasm's wheel, built once per process and source state (packaging several apps in one go)
-_RASM_WHEELS: dict[tuple[Path, int], tuple[str, bytes]] = {}
-
-
-def _fingerprint(root: Path) -> int:
-    newest = (root / "pyproject.toml").stat().st_mtime_ns
+def _source_key(root: Path) -> str:
+    """A digest of every file rasm's wheel is built from (path, size, modification time): the
+    name of that wheel's folder in the wheelhouse, so an edited, added or removed file makes a
+    new one."""
+    files = [root / "pyproject.toml", root / "README.md"]
     for folder in ("rasm", "statecharts", "monitors", "properties"):
-        for path in (root / folder).rglob("*"):
-            if "__pycache__" not in path.parts and path.is_file():
-                newest = max(newest, path.stat().st_mtime_ns)
-    return newest
+        files += (p for p in (root / folder).rglob("*") if "__pycache__" not in p.parts)
+    seen = hashlib.sha256()
+    for path in sorted(p for p in files if p.is_file()):
+        stat = path.stat()
+        seen.update(f"{path.relative_to(root)}\0{stat.st_size}\0{stat.st_mtime_ns}\n".encode())
+    return seen.hexdigest()[:16]
+
+
+def _keep(fresh: Path, kept: Path) -> Path:
+    """The folder of rasm's fresh wheel once it is kept in the wheelhouse as ``kept`` (whole or
+    not at all), or ``fresh`` itself where the wheelhouse cannot take it."""
+    try:
+        kept.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(dir=kept.parent))
+        for wheel in fresh.glob("*.whl"):
+            shutil.copy(wheel, staging / wheel.name)
+    except OSError:
+        return fresh
+    try:
+        staging.rename(kept)
+    except OSError:  # another packaging kept the same wheel first
+        shutil.rmtree(staging, ignore_errors=True)
+        return kept if kept.is_dir() else fresh
+    return kept
 
 
 def _stage_app(app: Path, name: str, stage: Path) -> None:
@@ -171,11 +191,13 @@ def _stage_app(app: Path, name: str, stage: Path) -> None:
 def _build_wheels(app: Path, name: str, binaries: Path, work: Path) -> list[Path]:
     """``pip wheel --no-deps`` of rasm and of the app, side by side; returns the wheels."""
     root = _rasm_source()
-    key = (root, _fingerprint(root))
+    # rasm's wheel is kept in the wheelhouse by the state of its source: one build serves every
+    # packaging (and every process) until a source file changes
+    built = wheelhouse() / "rasm" / _source_key(root)
     stage = work / "app-project"
     _stage_app(app, name, stage)
     builds = {f"building the wheel of {name}": (work / "app-wheel", str(stage))}
-    if key not in _RASM_WHEELS:
+    if not built.is_dir():
         builds["building rasm's wheel"] = (work / "rasm-wheel", str(root))
     running = []
     for what, (out, source) in builds.items():
@@ -188,14 +210,13 @@ def _build_wheels(app: Path, name: str, binaries: Path, work: Path) -> list[Path
         output, _ = process.communicate()
         if process.returncode != 0:
             raise _pip_failed(args, what, output)
-    if key not in _RASM_WHEELS:
-        [wheel] = sorted((work / "rasm-wheel").glob("rasm-*.whl"))
-        _RASM_WHEELS[key] = (wheel.name, wheel.read_bytes())
-    rasm_name, rasm_bytes = _RASM_WHEELS[key]
-    (binaries / rasm_name).write_bytes(rasm_bytes)
+    if not built.is_dir():
+        built = _keep(work / "rasm-wheel", built)
+    [rasm_wheel] = sorted(built.glob("rasm-*.whl"))
+    shutil.copy(rasm_wheel, binaries / rasm_wheel.name)
     [app_wheel] = sorted((work / "app-wheel").glob("*.whl"))
     shutil.copy(app_wheel, binaries / app_wheel.name)
-    return [binaries / rasm_name, binaries / app_wheel.name]
+    return [binaries / rasm_wheel.name, binaries / app_wheel.name]
 
 
 def wheelhouse() -> Path:

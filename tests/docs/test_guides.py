@@ -80,7 +80,7 @@ class Servers:
         return text
 
 
-def environment(home: Path) -> dict[str, str]:
+def environment(home: Path, wheelhouse: Path) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_", "RASM_"))}
     env.update(
         PATH=f"{Path(sys.prefix) / 'bin'}{os.pathsep}{env.get('PATH', '')}",
@@ -92,9 +92,7 @@ def environment(home: Path) -> dict[str, str]:
         # 8 s and stays open past 13 s (boost_while_open is put to the test, as in the README);
         # tests/platform and tests/turtlebot test the whole loops on both clocks
         RASM_MAX_WALL_SECONDS=WALL_SECONDS,
-        RASM_WHEELHOUSE=os.environ.get(
-            "RASM_WHEELHOUSE", str(Path.home() / ".cache" / "rasm" / "wheelhouse")
-        ),
+        RASM_WHEELHOUSE=str(wheelhouse),  # the session's, shared with tests/workflow
     )
     env.pop("PYTHONPATH", None)
     # pytest prints whole failure messages in its summary when CI or BUILD_NUMBER is set; the
@@ -192,13 +190,13 @@ def write_file(block: Block, folder: Path) -> None:
 
 
 @pytest.mark.parametrize("guide", GUIDES)
-def test_the_guide_runs_as_written(guide, tmp_path, request):
+def test_the_guide_runs_as_written(guide, tmp_path, request, wheelhouse):
     if guide in PENDING and not os.environ.get("RASM_DOCS_PENDING"):
         pytest.skip(f"{guide}: {PENDING[guide]}")
     folder = workdir(tmp_path)
     home = tmp_path / "tmp"
     home.mkdir()
-    env = environment(home)
+    env = environment(home, wheelhouse)
     servers = Servers(request)
     problems: list[str] = []
     for block in read_blocks(ROOT, guide):
