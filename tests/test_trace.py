@@ -50,6 +50,7 @@ def expected_line(time, record) -> str:
     return json.dumps(line, separators=(", ", ": ")) + "\n"
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(
     st.lists(st.tuples(st.floats(0, 1e6), st.dictionaries(KEYS, VALUES, max_size=5)), max_size=5)
@@ -155,6 +156,7 @@ def same(a, b) -> bool:
 RECORD_KEYS = KEYS.filter(lambda key: key != "time")  # the loop's own key: no record sets it
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(
     st.lists(

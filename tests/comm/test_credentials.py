@@ -69,6 +69,7 @@ def test_credentials_come_from_the_environment_for_mqtt_only():
         credentials_from_env("mqtt://h:1", {"RASM_MQTT_PASSWORD": "x"})
 
 
+@pytest.mark.slow
 def test_rasm_run_uses_the_environment_credentials(locked_broker, tmp_path):
     command = [
         sys.executable, "-m", "rasm.cli", "run", str(ROOT / "examples" / "hotbox"),

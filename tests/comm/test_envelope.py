@@ -15,6 +15,7 @@ from rasm.comm.envelope import check_payload, decode, encode
 from .strategies import PAYLOADS
 
 
+@pytest.mark.slow
 @settings(max_examples=300)
 @given(PAYLOADS)
 def test_any_json_payload_round_trips_exactly(payload):

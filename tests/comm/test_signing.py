@@ -35,6 +35,7 @@ def _shuffled(value, rng: random.Random):
     return value
 
 
+@pytest.mark.slow
 @given(payloads, keys, st.randoms(use_true_random=False))
 def test_a_signed_payload_verifies_whatever_its_key_order(payload, key, rng):
     signed = sign(payload, key)
@@ -44,6 +45,7 @@ def test_a_signed_payload_verifies_whatever_its_key_order(payload, key, rng):
     assert verify(json.loads(json.dumps(signed)), key)
 
 
+@pytest.mark.slow
 @given(payloads, keys, keys)
 def test_a_wrong_key_fails(payload, key, other):
     assume(key != other)

@@ -29,6 +29,11 @@ from .guides import Block, console_commands, output_matches, read_blocks
 ROOT = Path(__file__).resolve().parents[2]
 HARNESS = Path(__file__).with_name("harness.py")
 GUIDES = ["README.md", *sorted(f"docs/{p.name}" for p in (ROOT / "docs").glob("*.md"))]
+# guides that take more than a second or two to run as written (`pytest -m "not slow"` skips them)
+SLOW = {"README.md", "docs/distribution.md", "docs/performance-user-paths.md",
+        "docs/properties.md", "docs/report.md", "docs/ros2.md", "docs/rules.md",
+        "docs/runtime.md", "docs/statecharts.md", "docs/testing.md", "docs/turtlebot.md",
+        "docs/workflow.md"}
 # guides whose blocks are not yet made runnable, with why (RASM_DOCS_PENDING=1 runs them anyway)
 PENDING: dict[str, str] = {}
 COPIED = ("examples", "properties", "statecharts", "monitors", "benchmarks", "scripts", "docs")
@@ -189,7 +194,9 @@ def write_file(block: Block, folder: Path) -> None:
         out.write(block.text)
 
 
-@pytest.mark.parametrize("guide", GUIDES)
+@pytest.mark.parametrize(
+    "guide", [pytest.param(g, marks=pytest.mark.slow) if g in SLOW else g for g in GUIDES]
+)
 def test_the_guide_runs_as_written(guide, tmp_path, request, wheelhouse):
     if guide in PENDING and not os.environ.get("RASM_DOCS_PENDING"):
         pytest.skip(f"{guide}: {PENDING[guide]}")
@@ -208,6 +215,10 @@ def test_the_guide_runs_as_written(guide, tmp_path, request, wheelhouse):
         elif kind == "python":
             problems += run_python(block, folder, env, servers)
     assert not problems, "\n\n".join(problems)
+
+
+def test_the_slow_guides_are_guides():
+    assert SLOW <= set(GUIDES), SLOW - set(GUIDES)
 
 
 def test_every_runnable_block_is_run_or_says_why_not():

@@ -8,9 +8,12 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_setup_leaves_a_venv_with_rasm_and_pytest(tmp_path):
     copy = tmp_path / "rasm"
     ignore = shutil.ignore_patterns(".venv", ".rasm", ".git", "__pycache__", ".hypothesis",

@@ -95,6 +95,7 @@ def env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if not k.startswith("RASM_PACKAGE_KEY")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["unlisted", "listed"])
 def test_a_zip_bomb_is_refused_from_its_declared_sizes_with_bounded_memory(
     bombs: dict[str, Path], tmp_path: Path, env: dict[str, str], kind: str
@@ -120,6 +121,7 @@ def test_with_a_key_an_unsigned_bomb_is_refused_at_its_signature(
     assert written(tmp_path / "t") == []
 
 
+@pytest.mark.slow
 def test_a_manifest_that_is_itself_a_bomb_is_not_read(tmp_path: Path, env: dict[str, str]):
     package = tmp_path / "p.zip"
     with zipfile.ZipFile(package, "w", compression=zipfile.ZIP_DEFLATED) as archive:

@@ -43,6 +43,7 @@ def restored(path: Path, **kwargs) -> KnowledgeBase:
 # -- round trips ----------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.sampled_from(sorted(VALUES)), st.data())
 def test_persistence_round_trips_every_value_of_every_declared_type(kind, data):
@@ -79,6 +80,7 @@ def test_bounds_and_declarations_without_samples_are_persisted():
 # -- retention ------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(
     st.integers(1, 40),
@@ -448,6 +450,7 @@ def test_writers_and_a_flusher_in_parallel_persist_every_sample_once(tmp_path):
         assert [s.value for s in back.history(f"k{t}")] == list(range(per_thread))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=1, max_size=20))
 def test_persisted_times_come_back_exactly(times):

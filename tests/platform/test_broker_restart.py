@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import threading
 
+import pytest
+
 from rasm import Platform
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import read_trace, start_managed
 
 
+@pytest.mark.slow
 def test_the_loop_continues_across_a_broker_restart(hotbox, tmp_path):
     broker = start_mosquitto(tmp_path)
     managed = start_managed(broker, tmp_path, duration=40)

@@ -7,6 +7,8 @@ import json
 import signal
 import threading
 
+import pytest
+
 from rasm import Platform
 from rasm.comm import BoundSigner, PresenceTracker, open_transport
 from rasm.testing.servers import start_mosquitto
@@ -17,6 +19,7 @@ ACTION_KEY = "a1" * 16
 UPDATE_KEY = "b2" * 16
 
 
+@pytest.mark.slow
 def test_killed_managed_process_suspends_the_loop_and_signed_actions_flow(
     hotbox, tmp_path, monkeypatch
 ):
@@ -169,6 +172,7 @@ def test_the_summary_counts_what_was_refused_from_the_bus(hotbox, tmp_path, monk
     assert managing.bus == {"malformed messages": 4, "updates refused": 2}
 
 
+@pytest.mark.slow
 def test_an_unreachable_broker_is_one_clear_message_without_traceback(
     tmp_path, monkeypatch, capsys
 ):

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import threading
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -117,6 +118,7 @@ def _run_platform(app, url, tmp_path, seconds):
     return platform, summary, records
 
 
+@pytest.mark.slow
 def test_an_outsiders_true_clears_no_veto_over_mqtt(tmp_path, monkeypatch):
     broker = start_mosquitto(tmp_path)
     outsider = open_transport(f"mqtt://127.0.0.1:{broker.port}")
@@ -157,6 +159,7 @@ def test_an_outsiders_true_clears_no_veto_over_mqtt(tmp_path, monkeypatch):
         broker.stop()
 
 
+@pytest.mark.slow
 def test_a_signed_monitor_bound_to_the_loop_speaks_and_a_dead_one_goes_stale(tmp_path, monkeypatch):
     key = "22" * 32
     monkeypatch.setenv("RASM_ACTION_KEY", key)

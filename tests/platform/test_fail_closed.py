@@ -233,6 +233,7 @@ def test_the_overflow_attack_on_the_simulated_clock_never_lets_an_unvouched_acti
     assert any(time >= 15.0 for time in executed)
 
 
+@pytest.mark.slow
 def test_the_overflow_attack_over_mqtt_never_lets_an_unvouched_action_through(tmp_path):
     """Two unauthenticated probe messages from a foreign publisher, on the wall clock, just
     before the robot gets fast."""

@@ -259,6 +259,7 @@ def test_a_fallback_the_rules_do_not_admit_in_every_context_is_refused_at_start(
     assert "calm_when_fast" in message and "speed ==" in message
 
 
+@pytest.mark.slow
 def test_rasm_run_and_verify_rules_refuse_such_a_fallback_with_the_place(tmp_path):
     app = write_app(tmp_path / "app", level=2)
     run = subprocess.run(
@@ -303,6 +304,7 @@ def test_a_fallback_for_an_unknown_effector_is_refused_at_its_line(tmp_path):
     assert "fallback action for unknown effector 'wheel' (effectors: motor)" in str(caught.value)
 
 
+@pytest.mark.slow
 @settings(max_examples=15, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(windows=st.lists(

@@ -74,6 +74,7 @@ class Scripted:
         return Action("heater", dict(ctx.plan.values))
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     plan=st.lists(BEHAVIOURS, max_size=12),

@@ -99,6 +99,7 @@ def read_lines(path: Path) -> list[dict]:
     return [json.loads(line) for line in text.splitlines()]
 
 
+@pytest.mark.slow
 def test_sigkill_loses_no_record_the_loop_had_written(tmp_path):
     app = make_app(tmp_path)
     child = start_run(tmp_path, app, "--duration", "120", "--trace", "out.jsonl")
@@ -115,6 +116,7 @@ def test_sigkill_loses_no_record_the_loop_had_written(tmp_path):
     assert readings[-1]["time"] >= steps[-2] - 1e-6
 
 
+@pytest.mark.slow
 def test_sigkill_leaves_an_mcap_trace_that_rasm_reads_and_checks(tmp_path, capsys):
     from rasm.cli import main
     from rasm.trace_mcap import McapTrace
@@ -163,6 +165,7 @@ def summary_records(out: str) -> int:
     return int(found.group(1))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("sig", "broken", "code"),
     [(signal.SIGTERM, False, 0), (signal.SIGINT, True, 1)],
@@ -216,6 +219,7 @@ def test_sigterm_stops_a_simulated_run_in_order(tmp_path):
     assert records[-1]["time"] - 1.0 <= ran < 1e9
 
 
+@pytest.mark.slow
 def test_sigterm_stops_both_roles_over_a_broker_in_order(tmp_path):
     broker = start_mosquitto(tmp_path)
     managed_dir, managing_dir = tmp_path / "managed", tmp_path / "managing"

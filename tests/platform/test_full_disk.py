@@ -89,6 +89,7 @@ def fell_back_at(stderr: str) -> list[float]:
 # ----------------------------------------------------------------------------- the trace
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix", [".jsonl", ".mcap"])
 def test_a_full_disk_under_the_trace_stops_neither_the_loop_nor_the_fallback(
         tmp_path, small_disk, suffix):
@@ -261,6 +262,7 @@ def test_a_full_disk_under_a_log_file_counts_its_lines(tmp_path, small_disk, cap
 # ----------------------------------------------------------------------------- read-only
 
 
+@pytest.mark.slow
 def test_a_read_only_folder_is_refused_at_the_start_naming_the_file_and_the_operation(
         tmp_path, small_disk):
     disk = small_disk(64, read_only=True)

@@ -99,6 +99,7 @@ def test_without_the_loop_the_band_is_violated(hotbox, tmp_path):
     assert summary.verdicts["timely_adaptation"] == "violated"
 
 
+@pytest.mark.slow
 @settings(max_examples=8, deadline=None)
 @given(seed=st.integers(0, 2**16))
 def test_two_runs_with_a_seed_give_identical_traces(seed, tmp_path_factory):
@@ -142,6 +143,7 @@ def test_rasm_run_and_rasm_check_agree(tmp_path, capsys, monkeypatch):
     }
 
 
+@pytest.mark.slow
 def test_wall_clock_run_adapts(hotbox, tmp_path):
     trace_file = tmp_path / "trace.jsonl"
     hotbox.period = 0.25
@@ -172,6 +174,7 @@ def test_roles_build_only_their_side(hotbox, role):
     assert (platform.simulator is not None) == (role == "managed")
 
 
+@pytest.mark.slow
 def test_low_latency_keeps_the_objects_built_before_the_run_out_of_the_collector(tmp_path):
     import gc
 

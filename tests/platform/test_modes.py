@@ -3,6 +3,7 @@ mode vouched for, and that in the loop its timers fire on the loop's clock."""
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -49,6 +50,7 @@ def modes() -> ManagedSystemModes:
     return ManagedSystemModes(load_statechart(text=DOCK), KnowledgeBase())
 
 
+@pytest.mark.slow
 @given(RECORDS)
 def test_the_trace_records_follow_the_active_states(records):
     """For any records, replaying the mode_<state> keys of the change records gives the

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import pytest
+
 from rasm import Platform
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import read_trace, start_managed
 
 
+@pytest.mark.slow
 def test_managed_and_managing_processes_adapt_over_mqtt(hotbox, tmp_path):
     broker = start_mosquitto(tmp_path)
     managed = start_managed(broker, tmp_path, duration=14)

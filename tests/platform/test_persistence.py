@@ -8,11 +8,14 @@ import signal
 import subprocess
 import sys
 
+import pytest
+
 from rasm.knowledge import open_knowledge
 
 from .conftest import HOTBOX
 
 
+@pytest.mark.slow
 def test_knowledge_survives_sigkill_and_comes_back_on_restart(tmp_path):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     child = subprocess.Popen(

@@ -12,6 +12,8 @@ import subprocess
 import sys
 import threading
 
+import pytest
+
 from rasm import Platform
 from rasm.comm import open_transport
 from rasm.testing.servers import start_mosquitto
@@ -78,6 +80,7 @@ def _online(node, epoch="f" * 32):
             "epoch": epoch}
 
 
+@pytest.mark.slow
 def test_forged_heartbeats_neither_hide_a_dead_managed_process_nor_release_the_fallback(
     tmp_path, monkeypatch
 ):
@@ -138,6 +141,7 @@ def test_forged_heartbeats_neither_hide_a_dead_managed_process_nor_release_the_f
     assert not [r for r in sent if r["time"] >= killed]
 
 
+@pytest.mark.slow
 def test_a_fake_managed_node_is_no_managed_system(tmp_path, monkeypatch):
     monkeypatch.setenv("RASM_ACTION_KEY", KEY)
     app = _app(tmp_path)

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import paho.mqtt.client as paho
+import pytest
 
 from rasm import Platform
 from rasm.comm import BoundSigner, MqttTransport, Presence, verify
@@ -115,6 +116,7 @@ def _finish(process: subprocess.Popen, timeout: float = 60.0) -> str:
     return out
 
 
+@pytest.mark.slow
 def test_an_action_replayed_into_a_restarted_managed_process_is_refused(tmp_path):
     broker = start_mosquitto(tmp_path)
     bus, capture = Bus(broker), Capture(broker, "hotbox/heater")
@@ -153,6 +155,7 @@ def test_an_action_replayed_into_a_restarted_managed_process_is_refused(tmp_path
     assert ("mode", "boost") not in after  # the heater never left normal mode
 
 
+@pytest.mark.slow
 def test_a_restarted_managing_process_is_obeyed(tmp_path):
     broker = start_mosquitto(tmp_path)
     bus = Bus(broker)

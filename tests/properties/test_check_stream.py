@@ -94,6 +94,7 @@ def test_a_monitor_fed_part_by_part_gives_what_a_whole_run_gives(formulas_, reco
         assert (monitor.starts[k], values, errors) == (run.start, run.values, run.errors)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.lists(formulas(), min_size=1, max_size=3), traces(), st.integers(1, 6))
 def test_the_streamed_check_of_a_file_reports_what_the_check_in_memory_reports(
@@ -178,6 +179,7 @@ def peak_megabytes(props: Path, trace: Path) -> int:
     return int(out[-1])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("where", "formula"),
     [

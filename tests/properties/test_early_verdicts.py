@@ -75,12 +75,14 @@ def assert_verdicts_come_when_decided(text: str, records) -> None:
                 assert at == len(records) and value is None, (text, i)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(formulas(3), traces(max_size=14))
 def test_every_verdict_comes_in_the_step_of_the_record_that_decides_it(formula, records):
     assert_verdicts_come_when_decided(HEADER + f"property p0: {formula}\n", records)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(st.data())
 def test_on_decimal_times_too(data):
@@ -90,6 +92,7 @@ def test_on_decimal_times_too(data):
     assert_verdicts_come_when_decided(HEADER + f"property p0: {formula}\n", records)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(st.lists(formulas(2), min_size=2, max_size=3), traces(max_size=12))
 def test_several_properties_each_as_soon_as_decided(formulas_, records):
@@ -130,6 +133,7 @@ def late_operands(draw, depth: int) -> str:
     return f"prev({draw(sub)})"
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(late_operands(3), traces(max_size=14))
 def test_operators_over_late_values_decide_as_soon_as_they_can(formula, records):
@@ -176,6 +180,7 @@ def continuations(spec, records, k: int) -> list[list]:
     return out
 
 
+@pytest.mark.slow
 @settings(max_examples=120, deadline=None)
 @given(formulas(2), traces(max_size=8))
 def test_a_decided_verdict_is_the_same_for_every_continuation(formula, records):
@@ -228,6 +233,7 @@ LOOKING_AHEAD = (
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(LOOKING_AHEAD, traces(max_size=10))
 def test_a_verdict_not_decided_yet_still_depends_on_the_continuation(formula, records):
@@ -260,6 +266,7 @@ def test_a_verdict_not_decided_yet_still_depends_on_the_continuation(formula, re
 # ---------------------------------------------------------------- offline
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(formulas(3), traces(max_size=14))
 def test_offline_each_verdict_is_handed_out_once_it_and_those_before_are_decided(
@@ -305,6 +312,7 @@ def forgetting_at_once():
         WindowOr.TIDY, operators.BATCH = saved
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.one_of(formulas(3), late_operands(3)), traces(max_size=30))
 def test_forgetting_what_no_window_needs_changes_no_verdict(formula, records):
@@ -335,6 +343,7 @@ def aggregates_of_late_values(draw) -> str:
     return f"(once{bound} ({late})) and (count{bound}({late}) <= 2)"
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(aggregates_of_late_values(), traces(max_size=30))
 def test_aggregates_over_late_values_agree_with_the_reference_forgetting_at_once(
@@ -352,6 +361,7 @@ def test_aggregates_over_late_values_agree_with_the_reference_forgetting_at_once
     assert {run.start + k: v for k, v in enumerate(run.values)} == expected
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("formula", [
     "(always[0, 3] q) and (eventually[0, 5] p)",
     "eventually[0, 5] (p and always[0, 2] q)",

@@ -30,6 +30,7 @@ from .strategies import HEADER, UNITS, decimal_traces, formulas, time_comparison
 from .test_semantics import assert_agrees_with_reference, online
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.data())
 def test_decimal_times_agree_with_the_exact_semantics(data):
@@ -39,6 +40,7 @@ def test_decimal_times_agree_with_the_exact_semantics(data):
     assert_agrees_with_reference(formula, records)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.data())
 def test_past_windows_on_decimal_times_agree_with_the_exact_semantics(data):
@@ -156,6 +158,7 @@ def test_time_minus_prev_time_is_exact_as_window_bounds_are():
     assert [v.value for t in (first, second) for v in equal.step(t, {})] == [False, True]
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.data())
 def test_time_arithmetic_agrees_with_an_exact_oracle(data):
@@ -224,6 +227,7 @@ def test_a_float_time_stands_for_its_shortest_decimal(ns, digits):
     )
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(st.data())
 def test_online_verdicts_on_decimal_times_come_no_later_than_the_horizon(data):

@@ -36,6 +36,7 @@ def whole(spec, records, wanted):
         explain_module._reach = reach
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(st.lists(formulas(3), min_size=1, max_size=2), traces(), st.integers(1, 7))
 def test_explanations_from_the_records_kept_are_those_of_the_whole_trace(bodies, records,

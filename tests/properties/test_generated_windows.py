@@ -28,6 +28,7 @@ OPERANDS = st.sampled_from(["p", "q", "r", "p or q", "prev(p)", "once[0, 1] q", 
 TESTS = st.sampled_from([">= 1", ">= 2", "== 0", "== 1", "== 2", "<= 3", "> 3"])
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(BOUNDS, OPERANDS, TESTS, traces(max_size=30))
 def test_count_from_now_agrees_with_the_reference(bound, operand, test, records):
@@ -61,6 +62,7 @@ def decided_by_trigger(draw) -> str:
     return f"({trigger}) {op} ({window})"
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None)
 @given(decided_by_trigger(), traces(max_size=30))
 def test_records_the_trigger_decides_open_no_window_and_verdicts_stay_the_same(formula, records):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -210,6 +211,7 @@ def test_a_missing_signal_still_leaves_the_property_not_started():
 # --------------------------------------------------------------------------- for all formulas
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(
     st.lists(formulas(3), min_size=2, max_size=3),

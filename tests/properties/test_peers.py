@@ -117,6 +117,7 @@ def rasm_values(formula: str, rows) -> list:
     return run.values
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)  # building a reelay monitor takes ~50 ms
 @given(tree(3, future=False), bits)
 def test_past_formulas_agree_with_reelay(node, rows):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -96,6 +97,7 @@ def with_refusals(draw):
     return trace
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.lists(formulas(3), min_size=1, max_size=3), with_refusals())
 def test_a_refused_record_changes_nothing(formulas_, trace):
@@ -113,6 +115,7 @@ def test_a_refused_record_changes_nothing(formulas_, trace):
     assert full.finish() == without.finish()
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.lists(formulas(3), min_size=1, max_size=3), records(wrong={}))
 def test_huge_and_infinite_values_are_judged_never_in_error(formulas_, trace):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -51,6 +52,7 @@ def assert_agrees_with_reference(formula: str, records):
     return spec, emitted_at
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(formulas(3), traces())
 def test_monitor_agrees_with_reference(formula, records):
@@ -67,6 +69,7 @@ def test_past_only_verdicts_come_at_once(formula, records):
     assert len(emitted_at) == len(got["p0"])
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(st.lists(formulas(2), min_size=2, max_size=4), traces())
 def test_several_properties_in_one_file(formulas_, records):

@@ -44,6 +44,7 @@ def names(vacuous) -> set[str]:
     return {u.text for u in vacuous}
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(
     st.lists(formulas(3), min_size=1, max_size=3),

@@ -30,6 +30,7 @@ def _hotbox(clock: str = "wall") -> Platform:
     return platform
 
 
+@pytest.mark.slow
 def test_the_dashboard_follows_a_running_loop(page, tmp_path: Path) -> None:
     platform = _hotbox()
     dashboard = serve(platform, 0)

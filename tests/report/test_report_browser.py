@@ -36,6 +36,7 @@ def test_report_is_self_contained(hotbox_report: Path) -> None:
     assert 'id="rasm-data"' in html
 
 
+@pytest.mark.slow
 def test_every_view_renders_with_data(page, hotbox_report: Path, tmp_path: Path) -> None:
     p = page.page
     fetched: list[str] = []  # the page must need no network: any request is refused and noted
@@ -62,6 +63,7 @@ def test_every_view_renders_with_data(page, hotbox_report: Path, tmp_path: Path)
     assert fetched == []
 
 
+@pytest.mark.slow
 def test_app_properties_are_drawn_with_props(page, hotbox_trace: Path, tmp_path: Path) -> None:
     # the parser may not offer --props yet: the API is what it calls
     from rasm.report import write_report
@@ -78,6 +80,7 @@ def test_app_properties_are_drawn_with_props(page, hotbox_trace: Path, tmp_path:
     assert page.errors == []
 
 
+@pytest.mark.slow
 def test_adaptation_links_move_the_timelines(page, hotbox_report: Path) -> None:
     _open(page, hotbox_report)
     p = page.page
@@ -102,6 +105,7 @@ def test_adaptation_links_move_the_timelines(page, hotbox_report: Path) -> None:
     assert page.errors == []
 
 
+@pytest.mark.slow
 def test_a_link_to_a_moment_opens_there(page, hotbox_report: Path) -> None:
     page.page.goto(hotbox_report.as_uri() + "#t=39")  # the boost at the second lid opening
     page.page.wait_for_selector("body[data-focus='39']")
@@ -109,6 +113,7 @@ def test_a_link_to_a_moment_opens_there(page, hotbox_report: Path) -> None:
     assert page.errors == []
 
 
+@pytest.mark.slow
 def test_a_trace_without_loop_records_says_what_is_missing(page, tmp_path: Path) -> None:
     trace = tmp_path / "plain.jsonl"
     trace.write_text(
@@ -127,6 +132,7 @@ def test_a_trace_without_loop_records_says_what_is_missing(page, tmp_path: Path)
     assert page.errors == []
 
 
+@pytest.mark.slow
 def test_a_report_without_properties_says_so(page, hotbox_trace: Path, tmp_path: Path) -> None:
     from rasm.report import write_report
 
@@ -138,6 +144,7 @@ def test_a_report_without_properties_says_so(page, hotbox_trace: Path, tmp_path:
     assert page.errors == []
 
 
+@pytest.mark.slow
 def test_one_slow_iteration_does_not_flatten_the_gantt(page, tmp_path: Path) -> None:
     lines = []
     for i in range(40):
@@ -167,6 +174,7 @@ property typo:
 """
 
 
+@pytest.mark.slow
 def test_every_state_is_shown_in_words_and_only_satisfied_is_green(page, tmp_path: Path) -> None:
     """A property that never saw its signal, one in error and one violated: none looks like
     one that holds."""
@@ -207,6 +215,7 @@ def test_every_state_is_shown_in_words_and_only_satisfied_is_green(page, tmp_pat
     assert not page.errors
 
 
+@pytest.mark.slow
 def test_fallback_episodes_violation_episodes_and_where_properties_are_defined(
     page, tmp_path: Path
 ) -> None:

@@ -7,6 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 from rasm.ros2 import TypeStore
@@ -45,6 +46,7 @@ def peak_megabytes(*args: Path | str) -> int:
     return int(out[-1])
 
 
+@pytest.mark.slow
 def test_peak_memory_does_not_grow_with_the_recording(tmp_path):
     props = tmp_path / "speed.rv"
     props.write_text("input speed: float\nproperty limit: always (speed <= 1.0)\n")
@@ -62,6 +64,7 @@ def test_peak_memory_does_not_grow_with_the_recording(tmp_path):
     assert peaks[1] - peaks[0] < 12, peaks
 
 
+@pytest.mark.slow
 def test_peak_memory_does_not_grow_with_an_mcap_trace(tmp_path):
     from rasm.trace_mcap import McapTraceWriter
 

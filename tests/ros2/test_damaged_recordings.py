@@ -159,6 +159,7 @@ def test_damage_on_a_topic_the_properties_do_not_read_changes_nothing(tmp_path, 
     assert "damage" not in report and "damaged" not in err
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
@@ -257,6 +258,7 @@ def page_holding(db3: Path, content: bytes) -> int:
     return at - at % size
 
 
+@pytest.mark.slow
 def test_damaged_sqlite_pages_lose_their_rows_counted_with_their_times(tmp_path, capsys):
     db3 = rosbags_bag(tmp_path / "bag", "sqlite3")
     at = page_holding(db3, FLOAT.encode({"data": 1.0}))  # the violation's page
@@ -275,6 +277,7 @@ def test_damaged_sqlite_pages_lose_their_rows_counted_with_their_times(tmp_path,
     assert code == 0
 
 
+@pytest.mark.slow
 def test_a_cut_sqlite_file_reads_up_to_the_cut_and_says_the_rest_is_lost(tmp_path, capsys):
     db3 = rosbags_bag(tmp_path / "bag", "sqlite3")
     data = db3.read_bytes()

@@ -127,6 +127,7 @@ def test_a_latched_message_reaches_a_late_subscriber(transports, dds_domain):
     assert got == [{"data": "the map"}]
 
 
+@pytest.mark.slow
 def test_a_wrong_type_hash_and_another_type_are_counted_not_delivered(
     peers, transports, dds_domain, caplog
 ):
@@ -157,6 +158,7 @@ def test_a_wrong_type_hash_and_another_type_are_counted_not_delivered(
     other_type.stop()
 
 
+@pytest.mark.slow
 @settings(max_examples=3, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(payloads=st.lists(st.binary(max_size=200), min_size=5, max_size=30, unique=True))

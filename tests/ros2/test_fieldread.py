@@ -116,6 +116,7 @@ def message_and_paths(draw):
     return typename, message, paths
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None)
 @given(message_and_paths())
 def test_the_fields_read_are_the_decoded_messages(case):
@@ -129,6 +130,7 @@ def test_the_fields_read_are_the_decoded_messages(case):
     assert all(same(g, wanted(decoded, p)) for g, p in zip(got, paths, strict=True)), (got, paths)
 
 
+@pytest.mark.slow
 @settings(max_examples=600, deadline=None)
 @given(message_and_paths(), st.data())
 def test_bytes_are_refused_exactly_when_decoding_refuses_them(case, data):
@@ -184,6 +186,7 @@ def all_paths(store: TypeStore, typename: str, prefix: str = "") -> list[str]:
     return out
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.data())
 def test_a_projection_holds_what_its_paths_read(data):

@@ -75,6 +75,7 @@ def network(peers, middleware: str):
     return robot, watcher, f"dds://?domain={domain}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_rasm_run_reads_the_robots_topics_and_sends_actions_and_verdicts(
     peers, tmp_path, middleware
@@ -147,6 +148,7 @@ def hostile(middleware: str) -> tuple[list[dict], list[dict]]:
     return first, second
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_bad_input_on_the_wire_is_counted_logged_once_and_never_stored(
     peers, tmp_path, middleware
@@ -186,6 +188,7 @@ def test_bad_input_on_the_wire_is_counted_logged_once_and_never_stored(
         [r for r in records if "ahead" in r]))
 
 
+@pytest.mark.slow
 def test_verdicts_go_out_when_they_change_and_a_late_subscriber_gets_the_current_one(
     peers, tmp_path
 ):
@@ -242,6 +245,7 @@ def rounds_done(peer, n: int) -> bool:
     return any(e["event"] == "round" and e["n"] >= n for e in list(peer.events))
 
 
+@pytest.mark.slow
 def test_foreign_participants_coming_publishing_and_leaving_never_stop_a_dds_run(
     peers, runs, tmp_path, dds_domain
 ):
@@ -264,6 +268,7 @@ def test_foreign_participants_coming_publishing_and_leaving_never_stop_a_dds_run
     assert any(r.get("executed") for r in records[after:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_ends_a_dds_run_while_foreign_participants_come_and_go(
     peers, runs, tmp_path, dds_domain, signum
@@ -283,6 +288,7 @@ def test_a_signal_ends_a_dds_run_while_foreign_participants_come_and_go(
     assert "trace records" in output, output
 
 
+@pytest.mark.slow
 def test_messages_over_max_payload_never_reach_knowledge_or_the_trace(
     peers, runs, tmp_path, dds_domain
 ):
@@ -305,6 +311,7 @@ def test_messages_over_max_payload_never_reach_knowledge_or_the_trace(
     assert [r["note"] for r in records if "note" in r] == ["small"]
 
 
+@pytest.mark.slow
 def test_an_action_beyond_its_field_s_range_fails_naming_why_and_the_loop_goes_on(tmp_path):
     trace = tmp_path / "trace.jsonl"
     run = subprocess.run(

@@ -9,6 +9,7 @@ import json
 import shutil
 from pathlib import Path
 
+import pytest
 from ruamel.yaml import YAML
 
 from rasm import Platform
@@ -66,6 +67,7 @@ def seeded_traces(app: Path, url: str, tmp_path: Path) -> list[list[dict]]:
     return traces
 
 
+@pytest.mark.slow
 def test_a_seeded_simulated_run_over_zenoh_gives_the_same_trace_every_time(
     tmp_path, zenoh_port, transports
 ):
@@ -79,6 +81,7 @@ def test_a_seeded_simulated_run_over_zenoh_gives_the_same_trace_every_time(
     assert all(trace == traces[0] for trace in traces[1:])
 
 
+@pytest.mark.slow
 def test_a_seeded_simulated_run_over_dds_gives_the_same_trace_every_time(tmp_path, dds_domain):
     app = ros_app_with_simulator(tmp_path)
     traces = seeded_traces(app, f"dds://?domain={dds_domain}", tmp_path)

@@ -57,6 +57,7 @@ def _run(url, peers_started, tmp_path):
     return code, output, records
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_an_outsiders_true_with_no_monitor_running_clears_no_veto(peers, tmp_path, middleware):
     url, started = _start(peers, middleware, [("/outsider", True)])
@@ -68,6 +69,7 @@ def test_an_outsiders_true_with_no_monitor_running_clears_no_veto(peers, tmp_pat
     assert "foreign publisher" in output and "/outsider" in output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_an_outsiders_true_beside_the_monitors_false_clears_no_veto(peers, tmp_path, middleware):
     url, started = _start(peers, middleware, [("/monitor", False), ("/outsider", True)])
@@ -79,6 +81,7 @@ def test_an_outsiders_true_beside_the_monitors_false_clears_no_veto(peers, tmp_p
                            for r in dropped), output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_the_declared_monitors_true_lets_actions_through_whatever_an_outsider_says(
     peers, tmp_path, middleware
@@ -92,6 +95,7 @@ def test_the_declared_monitors_true_lets_actions_through_whatever_an_outsider_sa
 WATCHED = DATA / "guard" / "watched.yaml"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_a_dead_robot_is_lost_and_nothing_is_judged_on_its_last_reading(
     peers, tmp_path, middleware

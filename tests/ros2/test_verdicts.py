@@ -79,6 +79,7 @@ def test_a_replay_with_a_silent_verdict_source_sends_nothing(tmp_path, monkeypat
                in r["explanation"] for r in dropped)
 
 
+@pytest.mark.slow
 def test_a_false_verdict_from_a_foreign_monitor_vetoes_over_zenoh(peers, tmp_path):
     from rasm.testing.servers import free_port
 

@@ -122,6 +122,7 @@ def test_engine_breaks_exactly_the_rules_whose_when_holds_and_require_fails(text
         assert engine.evaluate(point).broken == expected
 
 
+@pytest.mark.slow
 @settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rules_files(max_rules=3))
 def test_z3_translation_agrees_with_evaluation_at_every_point(text):

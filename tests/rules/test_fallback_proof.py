@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -32,6 +33,7 @@ def contexts(fixed):
         yield dict(zip(free, values, strict=True))
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(rules_files(), fixed_plans)
 def test_the_proof_agrees_with_every_context_of_the_domains(text, plan):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -34,6 +35,7 @@ def situations(draw):
     return plan, context, weights
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(rules_files(), situations())
 def test_a_repair_is_legitimate_and_no_legitimate_plan_is_nearer(text, situation):

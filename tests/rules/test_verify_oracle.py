@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 
 from rasm.properties import evaluate
@@ -62,6 +63,7 @@ def test_conflict_witnesses_show_the_clash(text):
         assert not truth(rules.rule(name).require, point)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(rules_files())
 def test_redundant_rules_match_enumeration(text):
@@ -73,6 +75,7 @@ def test_redundant_rules_match_enumeration(text):
         assert oracle.consistent_with_when(support, name)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(rules_files())
 def test_redundancy_equals_plain_implication_without_conflicts(text):
@@ -95,6 +98,7 @@ def test_evaluate_is_the_oracles_semantics():
     assert verify(rules).unsatisfiable == ["r"]
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(guarded_rules_files())
 def test_mode_guarded_rule_sets_are_split_by_context_without_losing_a_finding(text):
@@ -114,6 +118,7 @@ def _matching(oracle, context):
     return [i for i, p in enumerate(points) if all(p[k] == v for k, v in context.items())]
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(planned_rules_files())
 def test_with_plan_fields_consistent_means_every_context_admits_a_plan(text):
@@ -126,6 +131,7 @@ def test_with_plan_fields_consistent_means_every_context_admits_a_plan(text):
     assert report.consistent == (not oracle.no_plan_somewhere(everything))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(planned_rules_files())
 def test_with_plan_fields_each_witness_is_a_context_admitting_no_plan(text):
@@ -139,6 +145,7 @@ def test_with_plan_fields_each_witness_is_a_context_admitting_no_plan(text):
         assert set(conflict.broken) == set(conflict.rules)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(planned_rules_files())
 def test_with_plan_fields_redundant_rules_match_enumeration(text):
@@ -149,6 +156,7 @@ def test_with_plan_fields_redundant_rules_match_enumeration(text):
         assert oracle.consistent_with_when(support, name)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(planned_guarded_rules_files())
 def test_with_plan_fields_the_split_by_context_guards_loses_no_conflict(text):
@@ -175,6 +183,7 @@ def test_with_plan_fields_quantified_plans_give_the_same_findings(text):
     assert {frozenset(c.rules) for c in report.conflicts} == oracle.conflicts
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(rules_files(), plan_field_sets)
 def test_an_apps_plan_fields_count_as_plan_true_in_the_file(text, plan):

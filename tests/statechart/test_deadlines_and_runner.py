@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 
+import pytest
 from sismic.clock import SimulatedClock
 
 from rasm.statechart import ChartRunner, Interpreter, MonotonicClock, load_statechart
@@ -69,6 +70,7 @@ def test_next_deadline_includes_delayed_internal_events():
     assert interp.next_deadline() == 1.75
 
 
+@pytest.mark.slow
 def test_runner_fires_timers_and_events_without_polling():
     interp = Interpreter(
         load_statechart(text=TIMERS),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sismic.clock import SimulatedClock
@@ -89,6 +90,7 @@ def test_every_chart_is_covered():
     assert {"adaptation_orchestrator", "core", "features", "delayed"} <= names
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 def test_platform_and_feature_charts_match_stock_sismic(data):

@@ -96,6 +96,7 @@ BUDGETS = st.sampled_from([1.0, 2.0, 0.5, 0.0])
 MAX_REPLANS = st.integers(min_value=0, max_value=3)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(data=st.data(), budget=BUDGETS, max_replans=MAX_REPLANS)
 def test_no_event_sequence_makes_a_monitor_fail_on_the_shipped_orchestrator(
@@ -116,6 +117,7 @@ def test_no_event_sequence_makes_a_monitor_fail_on_the_shipped_orchestrator(
     assert not any(p.final for p in bound)
 
 
+@pytest.mark.slow
 def test_the_generated_sequences_reach_every_stage_and_outcome():
     """The property above means something only if its runs get deep: check that they do."""
     seen_states: set[str] = set()
@@ -338,6 +340,7 @@ def _play(run, script) -> list[bool]:
     return out
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(
     data=st.data(),

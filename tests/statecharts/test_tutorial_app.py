@@ -73,6 +73,7 @@ def test_the_guide_app_restarts_the_jammed_driver_on_the_simulated_clock(app, tm
             assert mode == "stale"
 
 
+@pytest.mark.slow
 def test_the_guide_app_runs_on_the_wall_clock(app, tmp_path):
     edit(app / "app.yaml", "scenario: {jams: [2.0, 6.0]}", "scenario: {jams: [1.0]}")
     summary, trace = run(app, tmp_path, "wall", 2.5)
@@ -149,6 +150,7 @@ def test_a_stage_chart_keeps_its_state_between_iterations_and_reads_the_context(
     assert set(analyse.interpreter.configuration) == {"analysing", "watching"}
 
 
+@pytest.mark.slow
 def test_a_stage_chart_over_its_budget_on_the_wall_clock_fails_its_stage(app, tmp_path):
     edit(app / "app.yaml", "  period: 0.2\n", "  period: 0.2\n  stage_budget: 0.1\n")
     edit(app / "app.yaml", "scenario: {jams: [2.0, 6.0]}", "scenario: {jams: [0.5]}")

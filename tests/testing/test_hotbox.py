@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from hypothesis import Phase, find, given, settings
 
 from rasm.testing import assert_properties, check_trace, run_app, scenarios
@@ -43,6 +44,7 @@ class SlowPlanner:
 BUDGET = 2**-6  # 15.6 ms: a short budget keeps each overrun cheap in wall-clock time
 
 
+@pytest.mark.slow
 def test_a_slow_planner_is_caught_and_shrunk_to_one_short_opening():
     runs = []
 

@@ -110,6 +110,7 @@ def test_door_fixed_gives_no_false_alarm(tmp_path):
     assert run(statechart_machine(chart, invariant=never_open_and_bolted)) is None
 
 
+@pytest.mark.slow
 def test_safe_back_door_needs_four_events_and_reads_the_context(tmp_path, capsys):
     chart = write(tmp_path, "safe", charts.SAFE_BUGGY)
     failure = run(statechart_machine(chart, invariant=charts.safe_invariant))
@@ -149,6 +150,7 @@ def test_contract_violation_is_a_failure(tmp_path):
     assert failure.configuration == {"counter", "counting"}  # rolled back: last good one
 
 
+@pytest.mark.slow
 def test_contract_holds_on_the_fixed_counter():
     assert run(statechart_machine(charts.COUNTER_FIXED)) is None
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from .conftest import HOTBOX, HOTBOX_PROPS
 
 USER_TESTS = f"""
@@ -34,6 +36,7 @@ def test_too_cold():
 """
 
 
+@pytest.mark.slow
 def test_fixture_assertion_and_saved_failures_through_pytest(tmp_path):
     (tmp_path / "test_user.py").write_text(USER_TESTS)
     failures = tmp_path / "failures"

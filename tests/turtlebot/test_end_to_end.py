@@ -72,6 +72,7 @@ def test_the_rules_are_consistent(capsys):
     assert report["consistent"] and not report["redundant"] and not report["dead"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 2, 5])
 def test_the_loop_prevents_the_collisions_that_happen_without_it(seed):
     without = run(seed, loop=False)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rasm.testing import run_app
 
 APP = Path(__file__).resolve().parents[2] / "examples" / "turtlebot" / "app.fallback.yaml"
@@ -33,6 +35,7 @@ def test_the_crashing_planner_ends_in_the_fallback_which_hands_back():
 REPAIR = APP.with_name("app.repair.yaml")
 
 
+@pytest.mark.slow
 def test_repaired_spin_plans_are_executed_where_cancelled_ones_end_in_a_collision():
     trace = run_app(REPAIR, seed=1, duration=60)
     repaired = [r for r in trace if "repaired_from" in r]

@@ -69,6 +69,7 @@ def ros_network(peers, middleware: str, watch: list[dict], duration: float = 30)
     return robot, watcher, url
 
 
+@pytest.mark.slow
 def test_rasm_run_sends_the_spin_plan_as_a_goal_the_controller_has_the_robot_take(
     peers, tmp_path
 ):
@@ -108,6 +109,7 @@ def test_rasm_run_sends_the_spin_plan_as_a_goal_the_controller_has_the_robot_tak
     assert any(r.get("nav_mode") == "spin" for r in records)
 
 
+@pytest.mark.slow
 def test_a_bump_engages_the_fallback_and_the_robot_docks_through_the_service(peers, tmp_path):
     watch = [{"topic": "/spin_config", "type": "turtlebot/msg/SpinConfig"}]
     robot, watcher, url = ros_network(peers, "zenoh", watch)
@@ -139,6 +141,7 @@ def test_a_bump_engages_the_fallback_and_the_robot_docks_through_the_service(pee
     assert code == 1, output  # no_collision was violated
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("middleware", ["zenoh", "dds"])
 def test_the_robot_obeys_a_foreign_twist_on_cmd_vel(peers, middleware):
     watch = [{"topic": "/odom", "type": "nav_msgs/msg/Odometry"}]

@@ -43,6 +43,7 @@ def records(trace: Path) -> list[dict]:
     return [json.loads(line) for line in trace.read_text().splitlines()]
 
 
+@pytest.mark.slow
 def test_every_stage_a_chart_and_a_modes_chart_lint_run_and_pass_the_generated_tests(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -370,6 +371,7 @@ SILENT_ANALYSE = """\
 FRAGILE_MODES = 'guard: 1 / event.data.get("motor_rpm", 1) < 0  # never holds, fails at 0 rpm'
 
 
+@pytest.mark.slow
 def test_the_generated_chart_tests_find_the_readings_a_chart_fails_on(tmp_path: Path) -> None:
     app = tmp_path / "lw"
     new_app(app, LIDAR_MODEL)
@@ -415,6 +417,7 @@ def test_a_stage_turned_into_a_chart_keeps_its_python_code_among_the_orphans(
     assert main(["lint", str(app)]) == 0
 
 
+@pytest.mark.slow
 def test_the_package_of_a_statechart_app_carries_its_charts(tmp_path: Path) -> None:
     app = tmp_path / "lw"
     new_app(app, LIDAR_MODEL)

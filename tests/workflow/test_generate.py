@@ -34,6 +34,7 @@ def app_lint(app: Path) -> list[str]:
     return lint_paths(paths) + [str(e) for e in lint_model(app / "model.yaml")]
 
 
+@pytest.mark.slow
 def test_new_without_a_model_writes_a_starter_that_lints_runs_and_passes_its_tests(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -66,6 +67,7 @@ def test_new_without_a_model_writes_a_starter_that_lints_runs_and_passes_its_tes
     assert "2 passed" in done.stdout
 
 
+@pytest.mark.slow
 def test_the_generated_tests_fail_on_a_property_that_is_never_judged(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

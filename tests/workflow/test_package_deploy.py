@@ -76,6 +76,7 @@ def rewrite(package: Path, out: Path, change) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_the_package_has_the_seed_layout_and_a_checksum_of_every_file(hotbox_zip: Path) -> None:
     listed = names(hotbox_zip)
     for folder in LAYOUT:
@@ -104,6 +105,7 @@ def test_the_package_has_the_seed_layout_and_a_checksum_of_every_file(hotbox_zip
     assert {"05_Actions/validate.sh", "05_Actions/run.sh", "05_Actions/stop.sh"} <= set(listed)
 
 
+@pytest.mark.slow
 def test_deploy_installs_without_network_validates_and_the_folder_runs_the_hotbox(
     deployed: Path, tmp_path: Path
 ) -> None:
@@ -133,6 +135,7 @@ def test_deploy_installs_without_network_validates_and_the_folder_runs_the_hotbo
     assert "temperature_band" in done.stdout and "violated" not in done.stdout
 
 
+@pytest.mark.slow
 def test_start_and_stop_the_units_nodes(deployed: Path, hotbox_zip: Path) -> None:
     env = {"RASM_RUN_DURATION": "120"}
     [started] = run_workflow(deployed, "start", env)
@@ -148,6 +151,7 @@ def test_start_and_stop_the_units_nodes(deployed: Path, hotbox_zip: Path) -> Non
     assert not (deployed / "run" / "local.pid").exists()
 
 
+@pytest.mark.slow
 def test_a_started_unit_keeps_a_trace_rotated_by_size_and_stops_in_order(deployed: Path) -> None:
     env = {"RASM_RUN_DURATION": "600", "RASM_TRACE_ROTATE": "3k", "RASM_TRACE_KEEP": "2"}
     run = deployed / "run"
@@ -273,6 +277,7 @@ def test_an_unknown_unit_is_refused(
     assert "no compute unit 'robot' (units: local)" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_modelled_app_is_packaged_per_unit(tmp_path: Path) -> None:
     app = tmp_path / "hb"
     new_app(app, HOTBOX_MODEL)
@@ -323,6 +328,7 @@ def test_package_into_a_folder_is_bad_input_and_leaves_nothing_behind(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
+@pytest.mark.slow
 def test_a_no_deps_package_deploys_with_the_wheels_the_guide_says_to_provide(
     hotbox_zip: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

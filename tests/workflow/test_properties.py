@@ -7,6 +7,7 @@ import itertools
 import os
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -21,6 +22,7 @@ from .strategies import dump, models
 _count = itertools.count()
 
 
+@pytest.mark.slow
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(model=models())
 def test_valid_models_lint_clean_and_generate_apps_that_lint_clean_and_run(

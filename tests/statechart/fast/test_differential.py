@@ -11,6 +11,7 @@ stock's can miss it (``tests/statechart/test_exact_timers.py``).
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sismic.interpreter import Interpreter
@@ -44,30 +45,35 @@ def assert_same(chart, script, klass=FastInterpreter, **options) -> list:
     return expected
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(contracts=False), script=scripts)
 def test_same_runs_without_contracts(chart, script):
     assert_same(chart, script)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), script=scripts)
 def test_same_runs_with_contracts(chart, script):
     assert_same(chart, script)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), script=scripts)
 def test_same_runs_when_contracts_are_ignored(chart, script):
     assert_same(chart, script, ignore_contract=True)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), prop=property_charts(), script=scripts)
 def test_same_runs_with_a_property_statechart(chart, prop, script):
     assert_same(chart, script, prop=prop)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), props=st.lists(property_charts(), min_size=2, max_size=3), script=scripts)
 def test_same_runs_with_several_property_statecharts(chart, props, script):
@@ -76,12 +82,14 @@ def test_same_runs_with_several_property_statecharts(chart, props, script):
     assert_same(chart, script, prop=props)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
 def test_same_runs_with_the_platform_guard_evaluator(chart, prop, script):
     assert_same(chart, script, OneFrameGuards, prop=prop)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chart=charts(), prop=property_charts(), script=scripts, every=st.integers(1, 3))
 def test_same_runs_when_state_is_restored_by_reassignment(chart, prop, script, every):
@@ -90,6 +98,7 @@ def test_same_runs_when_state_is_restored_by_reassignment(chart, prop, script, e
     assert_same(chart, script, prop=prop, restore_every=every)
 
 
+@pytest.mark.slow
 @settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
 def test_same_meta_events_for_attached_listeners(chart, prop, script):
@@ -111,6 +120,7 @@ class Platform(PlatformInterpreter):
         return f"Interpreter({self._statechart!r})"
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), props=st.lists(property_charts(), max_size=3), script=scripts)
 def test_the_platform_interpreter_runs_as_stock_while_no_step_fails(chart, props, script):
@@ -123,6 +133,7 @@ def test_the_platform_interpreter_runs_as_stock_while_no_step_fails(chart, props
     assert harness.run(Platform, chart, script, prop=props) == expected
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(chart=charts(), prop=st.none() | property_charts(), script=scripts)
 def test_a_failed_platform_step_leaves_everything_as_before_but_its_event(chart, prop, script):
@@ -175,6 +186,7 @@ ORCHESTRATOR_EVENTS = [
 ]
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     script=st.lists(
