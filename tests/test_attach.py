@@ -505,6 +505,7 @@ def test_two_readings_of_1e308_never_give_a_satisfied_budget_and_the_monitor_rec
     assert "budget" in summary.failed
 
 
+@pytest.mark.slow
 def test_with_no_topic_map_a_rasm_loop_is_monitored_from_its_trace_topic(broker, mqtt, tmp_path):
     """A rasm loop on a broker publishes its trace on rasm/trace: an attachment with no topic
     map (what `rasm monitor` builds without --topics) reads it, every record counts (stage

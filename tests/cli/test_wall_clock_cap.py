@@ -47,6 +47,7 @@ def test_anything_but_positive_finite_seconds_is_refused_naming_the_variable(tex
             _capped(40.0)
 
 
+@pytest.mark.slow
 def test_a_wall_clock_run_is_cut_to_the_cap_and_says_so(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv(MAX_WALL_SECONDS, "2")

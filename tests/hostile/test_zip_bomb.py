@@ -111,6 +111,7 @@ def test_a_zip_bomb_is_refused_from_its_declared_sizes_with_bounded_memory(
     assert written(tmp_path / "t") == []
 
 
+@pytest.mark.slow
 def test_with_a_key_an_unsigned_bomb_is_refused_at_its_signature(
     bombs: dict[str, Path], tmp_path: Path, env: dict[str, str]
 ) -> None:

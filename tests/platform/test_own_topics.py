@@ -19,6 +19,7 @@ from rasm.testing.servers import start_mosquitto
 from .guarded import write_guarded_app
 
 
+@pytest.mark.slow
 def test_an_effector_named_after_a_property_receives_no_verdict_as_an_action(tmp_path):
     # the effector's topic is "slow", the veto property's name: the old verdict topic
     app = write_guarded_app(tmp_path / "app", period=0.1)

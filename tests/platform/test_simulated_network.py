@@ -27,6 +27,7 @@ def seeded_trace(app, tmp_path: Path, name: str, **options) -> list[dict]:
     return [{k: v for k, v in r.items() if k != "duration"} for r in read_trace(trace_file)]
 
 
+@pytest.mark.slow
 def test_a_seeded_simulated_run_over_mosquitto_gives_the_in_process_trace(
     hotbox, broker, tmp_path
 ):
@@ -36,6 +37,7 @@ def test_a_seeded_simulated_run_over_mosquitto_gives_the_in_process_trace(
         assert seeded_trace(hotbox, tmp_path, f"mqtt-{run}", transport=broker.url) == expected
 
 
+@pytest.mark.slow
 def test_a_simulated_run_whose_reading_never_comes_back_fails_naming_it(
     hotbox, broker, tmp_path, monkeypatch
 ):

@@ -60,6 +60,7 @@ def test_a_window_edge_on_a_decimal_gap_is_inside_the_window():
     assert run.values == [False, True]
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(st.data())
 def test_decimal_and_fraction_times_are_exact(data):

@@ -59,6 +59,7 @@ def test_monitor_agrees_with_reference(formula, records):
     assert_agrees_with_reference(formula, records)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(formulas(3, future=False), traces())
 def test_past_only_verdicts_come_at_once(formula, records):
@@ -89,6 +90,7 @@ def horizon(node) -> float:
     return below
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(formulas(3), traces())
 def test_online_verdicts_come_no_later_than_the_horizon(formula, records):

@@ -106,6 +106,7 @@ def test_a_false_verdict_from_a_foreign_monitor_vetoes_over_zenoh(peers, tmp_pat
     assert any("veto property monitor_ok violated" in r["explanation"] for r in dropped)
 
 
+@pytest.mark.slow
 def test_verdicts_go_out_on_mqtt_under_rasm_verdict_as_the_public_checker_words_them(tmp_path):
     broker = start_mosquitto(tmp_path)
     try:

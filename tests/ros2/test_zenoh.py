@@ -213,6 +213,7 @@ def test_wrong_hash_unknown_type_and_other_type_are_counted_not_delivered(
     assert any("std_msgs/msg/String" in w for w in warnings)
 
 
+@pytest.mark.slow
 @settings(max_examples=4, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(payloads=st.lists(st.binary(max_size=200), min_size=10, max_size=40))
@@ -255,6 +256,7 @@ def test_connect_fails_loudly_when_nothing_answers(zenoh_port):
         transport.publish("/x", {})
 
 
+@pytest.mark.slow
 def test_a_process_that_never_closes_its_transport_still_exits_cleanly(zenoh_port):
     # its receiving thread waits in Zenoh all along: left there, the interpreter's end would
     # abort the process

@@ -88,6 +88,7 @@ WRONG = st.one_of(
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.fixed_dictionaries({}, optional={k: WRONG for k in GOOD}))
 def test_any_plan_gets_a_decision_never_an_exception(plan):

@@ -102,6 +102,7 @@ def entered_modes(macro) -> list[str]:
     return [s for m in macro.steps for s in m.entered_states if s in MODES]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", BLOCKS)
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())

@@ -297,6 +297,7 @@ def test_a_broken_orchestrator_is_caught_by_exactly_the_monitors_it_breaks(name,
         feed(run, script)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(data=st.data())
 def test_the_monitor_catches_every_rejected_plan_that_is_executed(data):

@@ -16,6 +16,7 @@ DURATION = 30  # simulated seconds; a run costs about 0.2 s here
 PHASES = [Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink]
 
 
+@pytest.mark.slow
 @settings(max_examples=10, deadline=None, phases=PHASES, database=None)
 @given(scenario=scenarios(HOTBOX, duration=DURATION))
 def test_timely_adaptation_holds_for_any_lid_schedule(scenario):

@@ -121,6 +121,7 @@ def test_safe_back_door_needs_four_events_and_reads_the_context(tmp_path, capsys
     assert steps[-1]["configuration"] == ["open", "safe"]
 
 
+@pytest.mark.slow
 def test_safe_fixed_gives_no_false_alarm(tmp_path):
     chart = write(tmp_path, "safe", charts.SAFE_FIXED)
     assert run(statechart_machine(chart, invariant=charts.safe_invariant)) is None
@@ -173,6 +174,7 @@ def test_the_fixed_loop_satisfies_the_platform_monitors(tmp_path):
     assert run(statechart_machine(chart), MONITORED) is None
 
 
+@pytest.mark.slow
 def test_no_monitors_when_asked_for_none(tmp_path):
     chart = write(tmp_path, "mini_loop", charts.MINI_LOOP_BUGGY)
     assert run(statechart_machine(chart, monitors=[])) is None

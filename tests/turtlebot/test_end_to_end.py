@@ -59,6 +59,7 @@ def test_rasm_run_adapts_and_rasm_check_agrees_on_its_trace(tmp_path, capsys, mo
     assert verdicts["no_collision"] == verdicts["maple_stage_order"] == "satisfied"
 
 
+@pytest.mark.slow
 def test_the_default_run_reaches_the_goal_without_collision_and_every_property_holds():
     summary = Platform(load_manifest(APP), clock="simulated", seed=1, knowledge="memory").run()
     assert summary.ok, summary.verdicts

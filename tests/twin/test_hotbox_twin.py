@@ -134,6 +134,7 @@ def test_a_lighter_content_is_detected_within_fifteen_seconds(capacity, ratio, n
     assert twin.model()["drifts"] >= 1
 
 
+@pytest.mark.slow
 @settings(max_examples=10, deadline=None)
 @given(
     capacity=capacities,

@@ -59,6 +59,7 @@ class Recomputed:
         return power, loss, lid, size
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(
     records=records,

@@ -181,6 +181,7 @@ def test_a_started_unit_keeps_a_trace_rotated_by_size_and_stops_in_order(deploye
     assert times == sorted(times)  # oldest file first, each record whole, none reordered
 
 
+@pytest.mark.slow
 def test_a_tampered_file_is_refused_naming_it(
     hotbox_zip: Path,
     tmp_path: Path,
@@ -211,6 +212,7 @@ def test_a_tampered_file_is_refused_naming_it(
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.slow
 def test_an_added_or_missing_file_is_refused(hotbox_zip: Path, tmp_path: Path) -> None:
     def add(files):
         return {**files, "02_Nodes/extra.py": b"print('hi')"}
@@ -228,6 +230,7 @@ def test_an_added_or_missing_file_is_refused(hotbox_zip: Path, tmp_path: Path) -
         )
 
 
+@pytest.mark.slow
 def test_a_wrong_signature_is_refused(
     hotbox_zip: Path,
     tmp_path: Path,
@@ -252,6 +255,7 @@ def test_a_wrong_signature_is_refused(
     assert "signature does not match" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_an_unsigned_package_is_refused_when_a_key_is_configured(
     hotbox_zip: Path,
     tmp_path: Path,
@@ -270,6 +274,7 @@ def test_an_unsigned_package_is_refused_when_a_key_is_configured(
     assert "the package is not signed" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_an_unknown_unit_is_refused(
     hotbox_zip: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

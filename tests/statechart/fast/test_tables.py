@@ -35,6 +35,7 @@ statechart:
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("klass", [Interpreter, FastInterpreter, PlatformInterpreter])
 def test_a_chart_is_freed_with_its_last_interpreter(klass):
     charts_run = []
@@ -102,6 +103,7 @@ statechart:
         interp.execute_once()
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chart=charts(contracts=False), script=scripts, which=st.integers(0, 1000))
 def test_removing_any_transition_is_caught_and_the_edited_chart_runs_as_stock(
