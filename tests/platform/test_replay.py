@@ -161,8 +161,8 @@ def test_a_restarted_managing_process_is_obeyed(tmp_path):
     bus = Bus(broker)
     processes: list[subprocess.Popen] = []
     try:
-        # long enough for both managing runs (about 15 s here), not more: its summary is read
-        managed = rasm_run(broker, tmp_path / "managed", "managed", 30, "--scenario", SCENARIO)
+        # until the test stops it (SIGTERM, once the second managing run's action is applied)
+        managed = rasm_run(broker, tmp_path / "managed", "managed", 120, "--scenario", SCENARIO)
         first = rasm_run(broker, tmp_path / "managing", "managing", 60)
         processes += [managed, first]
         before = bus.wait_for("mode", "boost")  # the first managing run's action was applied
@@ -175,6 +175,7 @@ def test_a_restarted_managing_process_is_obeyed(tmp_path):
         after = bus.wait_for("mode", "normal")  # the restarted process's action was applied
         second.terminate()
         second.wait(10)
+        managed.terminate()  # stops in order: summary printed, exit code by the verdicts
         out = _finish(managed)
     finally:
         for process in processes:
