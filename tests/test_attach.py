@@ -612,6 +612,7 @@ def _monitored_run(broker, mqtt, tmp_path, key, *, fast):
     return platform, summary, records, liar.sent, monitor.returncode, out + err
 
 
+@pytest.mark.slow
 def test_a_loop_with_the_action_key_takes_rasm_monitor_as_its_external_verdict_source(
     broker, mqtt, tmp_path, monkeypatch
 ):

@@ -179,8 +179,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise
     print_summary(summary, console)
     if duration != asked:
-        console.print(f"{MAX_WALL_SECONDS} cut this run to {duration:g} s of the {asked:g} s "
-                      "asked for", highlight=False)
+        from rasm.times import format_seconds
+
+        console.print(f"{MAX_WALL_SECONDS} cut this run to {format_seconds(duration)} s of the "
+                      f"{format_seconds(asked)} s asked for", highlight=False)
     if dashboard is not None:
         if sys.stdin.isatty():
             console.print(f"dashboard: {dashboard.url} shows the finished run; Ctrl-C stops it")

@@ -107,6 +107,7 @@ def test_a_cancelled_goal_is_seen_cancelled_by_the_server(peers, transports, zen
     )
 
 
+@pytest.mark.slow
 def test_a_goal_past_its_timeout_fails_and_is_cancelled(peers, transports, zenoh_router):
     server = _server(peers, zenoh_router, action="/fibonacci", hang=True)
     calls = _calls(transports, zenoh_router)
