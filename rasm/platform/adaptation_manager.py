@@ -3,8 +3,10 @@ the Trustworthiness Checker."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Protocol
 
+from rasm.platform.action_outcome import ActionOutcome
 from rasm.platform.block import Block
 from rasm.platform.components import Action
 
@@ -14,15 +16,15 @@ __all__ = ["ActionGate", "AdaptationManager", "Hold", "TrustJudge"]
 class TrustJudge(Protocol):
     """What decides whether an action is trustworthy: the Trustworthiness Manager."""
 
-    def check_trustworthiness(self, action: Action) -> tuple[bool, str]:
-        """(trustworthy, why)."""
+    def check_trustworthiness(self, action: Action) -> ActionOutcome:
+        """Whether ``action`` is trusted (and as corrective), and why; not sent yet."""
 
 
 class ActionGate(Protocol):
     """The only path to the effectors: the Trustworthiness Checker."""
 
-    def register_action(self, action: Action) -> tuple[bool, str]:
-        """(sent to its effector, why)."""
+    def register_action(self, action: Action) -> ActionOutcome:
+        """Whether ``action`` was sent to its effector, and why."""
 
 
 class Hold(Protocol):
@@ -50,43 +52,38 @@ class AdaptationManager(Block):
         self.tm = tm
         self.tc = tc
         self.hold: Hold | None = None
-        self._action: Action | None = None
-        self._outcome: tuple[bool, str] = (False, "")
-        self.last_trusted = False
         super().__init__(**kw)
 
-    def perform_adaptation(self, action: Action) -> tuple[bool, str]:
-        """Check and register ``action``; (True, why) when it reached the effector."""
-        self.last_trusted = False
-        if self.mode != "initialized":
-            return False, f"adaptation manager is {self.mode}"
-        self._action = action
-        self._outcome = (False, "the adaptation did not complete in time")
-        self.send("action_requested")
-        return self._outcome
+    def perform_adaptation(self, action: Action) -> ActionOutcome:
+        """Check and register ``action``: what became of it."""
+        return self.request(
+            "action_requested", action, "the adaptation did not complete in time"
+        )
 
-    def perform_diagnosis(self, action: Action) -> tuple[bool, str]:
+    def perform_diagnosis(self, action: Action) -> ActionOutcome:
         return self.perform_adaptation(
             Action(action.effector, action.payload, action.plan, "diagnosis")
         )
 
     def on_enter_checking_trustworthiness(self) -> None:
-        held = self.hold.holds(self._action) if self.hold is not None else None
+        action = self.action
+        assert action is not None
+        held = self.hold.holds(action) if self.hold is not None else None
         if held is not None and not self.hold.correctable():
-            self._outcome = (False, held)
-            self.post("untrustworthy")
+            self.answer(ActionOutcome(False, held), "untrustworthy")
             return
-        ok, why = self.tm.check_trustworthiness(self._action)
-        if held is not None and not (ok and getattr(self.tm, "last_corrective", False)):
-            ok, why = False, held  # only a corrective action passes a hold of vetoes
-        self.last_trusted = ok
-        self._outcome = (False, why)
-        self.post("trustworthy" if ok else "untrustworthy")
+        judged = self.tm.check_trustworthiness(action)
+        if held is not None and not (judged.trusted and judged.corrective):
+            judged = ActionOutcome(False, held)  # only a corrective action passes a hold of vetoes
+        self.answer(judged, "trustworthy" if judged.trusted else "untrustworthy")
 
     def on_enter_registering(self) -> None:
-        ok, why = self.tc.register_action(self._action)
-        self._outcome = (ok, why)
-        self.post("registered" if ok else "registration_refused")
+        assert self.action is not None
+        registered = self.tc.register_action(self.action)
+        # the checker's word on sending, with what the judge found
+        outcome = replace(registered, trusted=self._answer.trusted,
+                          corrective=self._answer.corrective)
+        self.answer(outcome, "registered" if outcome.sent else "registration_refused")
 
     def on_enter_dropping(self) -> None:
         self.post("dropped")

@@ -21,6 +21,7 @@ from sismic.clock import SimulatedClock
 
 from rasm.errors import is_interrupt
 from rasm.knowledge.base import KnowledgeBase
+from rasm.platform.action_outcome import ActionOutcome, perform_and_trace
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.chart_stages import NoAnswer
 from rasm.platform.components import (
@@ -67,10 +68,8 @@ class LoopStats:
 class Adapter(Protocol):
     """What performs an action: the Adaptation Manager."""
 
-    last_trusted: bool  # whether the latest action was found trustworthy
-
-    def perform_adaptation(self, action: Action) -> tuple[bool, str]:
-        """(the action reached its effector, why)."""
+    def perform_adaptation(self, action: Action) -> ActionOutcome:
+        """What became of the action."""
 
 
 class PlanRegistry(Protocol):
@@ -378,14 +377,8 @@ class AdaptationOrchestrator(Block):
             )
         executed = 0
         for action in actions:
-            ok, why = self.am.perform_adaptation(action)
-            if self.am.last_trusted:
-                self.emit(self.clock.time, {"trusted": True, "plan": plan.id})
-            if ok:
+            if perform_and_trace(self.am.perform_adaptation, action, self.emit, self._now).sent:
                 executed += 1
-                self.emit(self.clock.time, {"executed": True, "plan": plan.id, "explanation": why})
-            else:
-                self.emit(self.clock.time, {"dropped": True, "plan": plan.id, "explanation": why})
         self.tm.forget_plan(plan.id)
         if executed:
             self.stats.executed += 1
@@ -397,6 +390,9 @@ class AdaptationOrchestrator(Block):
                 {"dropped": True, "plan": plan.id, "explanation": "execute produced no action"},
             )
         return "dropped"
+
+    def _now(self) -> float:
+        return self.clock.time
 
     def on_event_sent(self, name: str, data: dict[str, Any]) -> None:
         if name == "adaptation_cancelled":

@@ -30,6 +30,8 @@ from sismic.model import MacroStep, Statechart
 
 from rasm.errors import ExecutionError, PlatformError, RasmError
 from rasm.logs import RepeatedLogs
+from rasm.platform.action_outcome import ActionOutcome
+from rasm.platform.components import Action
 from rasm.resources import platform_chart
 from rasm.statechart import Interpreter, SimulatedClock, load_statechart
 
@@ -99,6 +101,9 @@ class Block:
         # failures that recur at every step are logged once, then counted (the platform
         # gives all its blocks one RepeatedLogs)
         self.logs = RepeatedLogs()
+        # the action a request (:meth:`request`) asks the chart about, and the answer so far
+        self.action: Action | None = None
+        self._answer = ActionOutcome(False, "")
         self.send(None)  # the initial step: enter `instantiated`
 
     # ------------------------------------------------------------------ hooks
@@ -165,6 +170,22 @@ class Block:
             return
         self._armed = due
         self.on_deadline(self, due)
+
+    def request(self, event: str, action: Action, unanswered: str) -> ActionOutcome:
+        """Ask the chart, with ``event``, about ``action`` (its hooks read it as :attr:`action`
+        and reply with :meth:`answer`); the reply, or a refusal saying ``unanswered`` when no
+        hook replied. A block that is not running refuses without asking: fail closed."""
+        if self._mode != "initialized":
+            return ActionOutcome(False, f"{self.chart_name.replace('_', ' ')} is {self._mode}")
+        self.action = action
+        self._answer = ActionOutcome(False, unanswered)
+        self.send(event)
+        return self._answer
+
+    def answer(self, outcome: ActionOutcome, event: str) -> None:
+        """A hook's reply to the request in hand, and the event that tells the chart."""
+        self._answer = outcome
+        self.post(event)
 
     def wake(self) -> None:
         """Step the chart now (its timer is due)."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from rasm.errors import SourceError, SourceErrors
+from rasm.platform.action_outcome import ActionOutcome, perform_and_trace
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import AppManifest, Fallback, manifest_location
@@ -40,9 +41,7 @@ PROVED = "the fallback actions, proved legitimate in every context before the ru
 class Sender(Protocol):
     """What sends an action down the one path to the effectors: the Adaptation Manager."""
 
-    last_trusted: bool
-
-    def perform_adaptation(self, action: Action) -> tuple[bool, str]: ...
+    def perform_adaptation(self, action: Action) -> ActionOutcome: ...
 
 
 class LoopStats(Protocol):
@@ -322,11 +321,8 @@ class FallbackSwitch(Block):
         self.emit(self.clock.time, {"legitimate": True, "plan": plan.id, "explanation": PROVED})
         for effector, payload in list(self.pending.items()):
             action = Action(effector, dict(payload), plan.id, "fallback")
-            ok, why = self.am.perform_adaptation(action)
-            if self.am.last_trusted:
-                self.emit(self.clock.time, {"trusted": True, "plan": plan.id})
-            if ok:
+            if perform_and_trace(self.am.perform_adaptation, action, self.emit, self._now).sent:
                 del self.pending[effector]
-                self.emit(self.clock.time, {"executed": True, "plan": plan.id, "explanation": why})
-            else:
-                self.emit(self.clock.time, {"dropped": True, "plan": plan.id, "explanation": why})
+
+    def _now(self) -> float:
+        return self.clock.time

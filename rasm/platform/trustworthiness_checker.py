@@ -6,6 +6,7 @@ import logging
 from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import Any, Protocol
 
+from rasm.platform.action_outcome import ActionOutcome
 from rasm.platform.block import Block
 from rasm.platform.components import Action
 from rasm.platform.manifest import Effector
@@ -103,8 +104,6 @@ class TrustworthinessChecker(Block):
         # monitor -> records it failed on since it last worked
         self._failing: dict[PropertyMonitor, int] = {}
         self._dropped_watches: list[AntecedentWatch] = []  # watches that raised
-        self._action: Action | None = None
-        self._outcome: tuple[bool, str] = (False, "")
         self._stale: dict[str, str] = {}  # property -> why it cannot be judged now
         super().__init__(**kw)
 
@@ -253,24 +252,19 @@ class TrustworthinessChecker(Block):
             _origin(monitor), format_seconds(time), failed,
         )
 
-    def register_action(self, action: Action | None) -> tuple[bool, str]:
-        if self.mode != "initialized" or action is None:
-            return False, f"trustworthiness checker is {self.mode}"
-        self._action = action
-        self._outcome = (False, "registration did not complete")
-        self.send("register_requested")
-        return self._outcome
+    def register_action(self, action: Action) -> ActionOutcome:
+        """Send ``action`` to its effector if it may go: whether it was sent, and why."""
+        return self.request("register_requested", action, "registration did not complete")
 
     def on_enter_checking_action(self) -> None:
-        action = self._action
-        effector = self.effectors.get(action.effector) if action else None
-        if action is None or effector is None:
-            self._outcome = (False, f"unknown effector {action.effector if action else None!r}")
-            self.post("action_refused")
+        action = self.action
+        assert action is not None
+        effector = self.effectors.get(action.effector)
+        if effector is None:
+            self._refuse(f"unknown effector {action.effector!r}")
             return
         if not self.online():
-            self._outcome = (False, "the managed system is offline")
-            self.post("action_refused")
+            self._refuse("the managed system is offline")
             return
         if effector.modes is not None:
             mode = self.mode_of()
@@ -280,23 +274,23 @@ class TrustworthinessChecker(Block):
             if not active.intersection(effector.modes):
                 now = ", ".join(sorted(repr(m) for m in active if m is not None))
                 where = f"mode {now}" if now else "an unknown mode (nothing vouches for it)"
-                self._outcome = (
-                    False,
+                self._refuse(
                     f"not applicable in managed-system {where} ({effector.name} applies "
-                    f"in {', '.join(effector.modes)})",
+                    f"in {', '.join(effector.modes)})"
                 )
-                self.post("action_refused")
                 return
         try:
             note = self.send_to_effector(effector, action)
         except Exception as exc:
-            self._outcome = (False, f"effector unreachable: {exc}")
-            self.post("action_refused")
+            self._refuse(f"effector unreachable: {exc}")
             return
         # what the sender says happened (a replay records the action instead of sending it)
         sent = f"sent to {effector.name} on {effector.topic}"
-        self._outcome = (True, note if isinstance(note, str) else sent)
-        self.post("action_registered")
+        self.answer(ActionOutcome(True, note if isinstance(note, str) else sent),
+                    "action_registered")
+
+    def _refuse(self, why: str) -> None:
+        self.answer(ActionOutcome(False, why), "action_refused")
 
 
 def _rank(verdict: Verdict) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
+from rasm.platform.action_outcome import ActionOutcome
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.properties.monitor import Verdict
@@ -58,14 +59,11 @@ class TrustworthinessManager(Block):
         # predicts brings them back sooner than doing nothing may still act
         self.corrective = corrective
         self.emit = emit
-        self.last_corrective = False
         self.rules = rules
         self.veto_properties = veto_properties
         self.checker = checker
         self.context_of = context
         self._accepted_plans: dict[str, Plan] = {}
-        self._evidence: tuple[Action, Plan | None] | None = None
-        self._verdict: tuple[bool, str] = (False, "not checked")
         super().__init__(**kw)
 
     def accept_plan(self, plan: Plan) -> None:
@@ -76,53 +74,48 @@ class TrustworthinessManager(Block):
         """The iteration of plan ``plan_id`` is over: no later action may use it."""
         self._accepted_plans.pop(plan_id, None)
 
-    def check_trustworthiness(self, action: Action) -> tuple[bool, str]:
-        """Return (trustworthy, explanation); fail closed when the block is not running."""
-        if self.mode != "initialized":
-            return False, f"trustworthiness manager is {self.mode}"
-        self.last_corrective = False
-        self._evidence = (action, self._accepted_plans.get(action.plan))
-        self._verdict = (False, "check did not complete in time")
-        self.send("check_requested")
-        return self._verdict
+    def check_trustworthiness(self, action: Action) -> ActionOutcome:
+        """Whether ``action`` is trusted, and why; fail closed when the block is not running."""
+        return self.request("check_requested", action, "check did not complete in time")
 
     def on_enter_gathering_evidence(self) -> None:
         self.post("evidence_gathered")
 
     def on_enter_evaluating(self) -> None:
-        action, plan = self._evidence or (None, None)
-        ok, why = self._evaluate(action, plan)
-        self._verdict = (ok, why)
-        self.post("trustworthy" if ok else "untrustworthy")
+        action = self.action
+        plan = self._accepted_plans.get(action.plan) if action is not None else None
+        judged = self._evaluate(action, plan)
+        self.answer(judged, "trustworthy" if judged.trusted else "untrustworthy")
 
-    def _evaluate(self, action: Action | None, plan: Plan | None) -> tuple[bool, str]:
+    def _evaluate(self, action: Action | None, plan: Plan | None) -> ActionOutcome:
         if action is None or plan is None:
-            return False, "the action's plan was never accepted by the Legitimate stage"
+            return _refused("the action's plan was never accepted by the Legitimate stage")
         context = self.context_of()
         for rules in self.rules:
             decision = rules.evaluate(plan.values, context)
             if not decision.accepted:
-                return False, f"rules no longer accept the plan: {decision.explanation()}"
+                return _refused(f"rules no longer accept the plan: {decision.explanation()}")
             # Execute may put other values in the action than the plan had: the rules judge
             # what is actually sent (payload values win over the plan's of the same name)
             sent = {**plan.values, **action.payload}
             if sent != plan.values:
                 decision = rules.evaluate(sent, context)
                 if not decision.accepted:
-                    return False, f"rules do not accept the action: {decision.explanation()}"
+                    return _refused(f"rules do not accept the action: {decision.explanation()}")
         if action.kind == "fallback":
             # the fallback is what runs while a veto holds: its actions were proved legitimate
             # in every context before the run, and the rules have just accepted them again
-            return True, "fallback action: rules hold (vetoes do not stop the fallback)"
+            return _trusted("fallback action: rules hold (vetoes do not stop the fallback)")
         vetoes = self.vetoes()
         if vetoes:
             why = self._corrective(plan, context)
             if why is not None:
-                return True, f"corrective under a veto: {why}"
-            return False, "; ".join(vetoes)
+                return ActionOutcome(False, f"corrective under a veto: {why}", trusted=True,
+                                     corrective=True)
+            return _refused("; ".join(vetoes))
         if self.veto_properties:
-            return True, "plan accepted by Legitimate, rules hold, every veto property holds"
-        return True, "plan accepted by Legitimate, rules hold"
+            return _trusted("plan accepted by Legitimate, rules hold, every veto property holds")
+        return _trusted("plan accepted by Legitimate, rules hold")
 
     def _corrective(self, plan: Plan, context: dict[str, Any]) -> str | None:
         """Why ``plan`` may act although veto properties stop actions, or None: every vetoing
@@ -139,7 +132,6 @@ class TrustworthinessManager(Block):
                 violated.append(name)
         why = self.corrective(dict(plan.values), context, violated)
         if why is not None:
-            self.last_corrective = True
             if self.emit is not None:
                 self.emit(
                     self.clock.time, {"corrective": True, "plan": plan.id, "explanation": why}
@@ -176,3 +168,11 @@ class TrustworthinessManager(Block):
         if verdict.value is False:
             return f"veto property {name} violated at t={at}"
         return f"veto property {name} inconclusive at t={at}"
+
+
+def _trusted(why: str) -> ActionOutcome:
+    return ActionOutcome(False, why, trusted=True)
+
+
+def _refused(why: str) -> ActionOutcome:
+    return ActionOutcome(False, why)

@@ -32,14 +32,14 @@ def test_checker_sends_only_applicable_actions_to_known_effectors():
         send=lambda effector, action: sent.append((effector.name, action.payload)),
         mode_of=lambda: mode["now"],
     )
-    assert tc.register_action(Action("wheels", {"v": 1}))[0] is False  # not started yet
+    assert not tc.register_action(Action("wheels", {"v": 1})).sent  # not started yet
     tc.send("configure")
-    ok, why = tc.register_action(Action("wheels", {"v": 1}))
-    assert not ok and "mode 'docked'" in why
-    ok, why = tc.register_action(Action("laser", {"on": True}))
-    assert not ok and "unknown effector" in why
+    outcome = tc.register_action(Action("wheels", {"v": 1}))
+    assert not outcome.sent and "mode 'docked'" in outcome.why
+    outcome = tc.register_action(Action("laser", {"on": True}))
+    assert not outcome.sent and "unknown effector" in outcome.why
     mode["now"] = "navigate"
-    assert tc.register_action(Action("wheels", {"v": 2}))[0] is True
+    assert tc.register_action(Action("wheels", {"v": 2})).sent
     assert sent == [("wheels", {"v": 2})]
     assert "monitoring" in tc.configuration  # the chart went checking_action -> monitoring
 

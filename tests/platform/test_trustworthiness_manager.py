@@ -39,36 +39,43 @@ def checker_and_manager(monitors, veto):
 ACTION = Action("wheels", {"v": 1}, plan="p1")
 
 
+def trusted(tm: TrustworthinessManager) -> tuple[bool, str]:
+    """Whether the manager trusts ACTION, and why."""
+    judged = tm.check_trustworthiness(ACTION)
+    assert not judged.sent  # the manager judges; only the checker sends
+    return judged.trusted, judged.why
+
+
 def test_a_veto_property_not_judged_yet_vetoes_naming_the_signals_it_waits_for():
     tc, tm = checker_and_manager([compile_properties(PROPS)], ["slow", "charged"])
-    ok, why = tm.check_trustworthiness(ACTION)
+    ok, why = trusted(tm)
     assert not ok
     assert "veto property slow not judged yet: no value for speed" in why
     assert "veto property charged not judged yet: no value for battery" in why
     tc.observe(0.0, {"speed": 0.5})  # slow starts; charged still waits for its signal
-    ok, why = tm.check_trustworthiness(ACTION)
+    ok, why = trusted(tm)
     assert not ok and why == "veto property charged not judged yet: no value for battery"
     tc.observe(0.5, {"battery": 0.9})
-    assert tm.check_trustworthiness(ACTION) == (
+    assert trusted(tm) == (
         True, "plan accepted by Legitimate, rules hold, every veto property holds"
     )
     tc.observe(1.0, {"speed": 1.5})
-    assert tm.check_trustworthiness(ACTION) == (False, "veto property slow violated at t=1")
+    assert trusted(tm) == (False, "veto property slow violated at t=1")
 
 
 def test_a_veto_property_in_error_vetoes_and_says_why():
     tc, tm = checker_and_manager([Scripted([True, "raise", True])], ["guard"])
     tc.observe(0.0, {})
-    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert trusted(tm)[0] is True
     tc.observe(1.0, {})
-    ok, why = tm.check_trustworthiness(ACTION)
+    ok, why = trusted(tm)
     assert not ok
     assert why == (
         "veto property guard in error at t=1: the monitor raised OverflowError: integer "
         "division result too large for a float"
     )
     tc.observe(2.0, {})  # the monitor works again: so does the action
-    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert trusted(tm)[0] is True
     assert tc.outcomes["guard"].state == "error"  # the run's verdict remembers
 
 
@@ -81,10 +88,10 @@ def test_a_veto_property_whose_first_verdict_is_not_decided_yet_vetoes():
         ["timely"],
     )
     tc.observe(0.0, {"anomaly": True})
-    ok, why = tm.check_trustworthiness(ACTION)
+    ok, why = trusted(tm)
     assert (ok, why) == (False, "veto property timely not judged yet: no verdict decided so far")
     tc.observe(1.0, {"executed": True})  # answers the anomaly of record 0: decided true
-    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert trusted(tm)[0] is True
 
 
 def test_a_bounded_future_veto_property_vetoes_from_the_decision_of_a_failure_to_its_next_verdict():
@@ -98,12 +105,12 @@ def test_a_bounded_future_veto_property_vetoes_from_the_decision_of_a_failure_to
     )
     tc.observe(0.0, {"anomaly": True})  # pending: its window closes at t=2
     tc.observe(1.0, {})  # no anomaly: true, decided at once
-    assert tm.check_trustworthiness(ACTION)[0] is True  # a pending anomaly does not veto
+    assert trusted(tm)[0] is True  # a pending anomaly does not veto
     decided = tc.observe(2.5, {})  # record 0's window is over: decided false, with record 2's
     assert sorted((v.index, v.value) for v in decided) == [(0, False), (2, True)]
-    assert tm.check_trustworthiness(ACTION) == (False, "veto property timely violated at t=0")
+    assert trusted(tm) == (False, "veto property timely violated at t=0")
     tc.observe(3.0, {})  # the next verdict decided lifts the veto
-    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert trusted(tm)[0] is True
     assert tc.outcomes["timely"].state == "violated"  # the run's verdict keeps the failure
 
 
@@ -119,10 +126,10 @@ def test_a_veto_property_vetoes_as_soon_as_its_verdict_is_decided():
     tc.observe(0.0, {"q": True, "p": True})
     tc.observe(0.4, {"q": True, "p": True})  # record 0's always is over: true
     tc.observe(0.8, {"q": True})  # record 1's: true; record 2 waits for p (until 5.8 s)
-    assert tm.check_trustworthiness(ACTION)[0] is True
+    assert trusted(tm)[0] is True
     decided = tc.observe(0.9, {})  # q fails within 0.3 s of record 2 (and at 3 itself)
     assert sorted((v.index, v.value) for v in decided) == [(2, False), (3, False)]
-    assert tm.check_trustworthiness(ACTION) == (False, "veto property guard violated at t=0.8")
+    assert trusted(tm) == (False, "veto property guard violated at t=0.8")
 
 
 VALUE = st.sampled_from([True, False, None])
@@ -147,7 +154,7 @@ def test_an_action_passes_only_while_the_veto_propertys_latest_verdicts_hold(ste
         tc.observe(float(time), {})
         if what != "nothing":
             latest = what if isinstance(what, list) else [what]
-        ok, why = tm.check_trustworthiness(ACTION)
+        ok, why = trusted(tm)
         assert ok == (bool(latest) and all(v is True for v in latest)), (steps[: time + 1], why)
         if not ok:
             if not latest:
@@ -171,6 +178,6 @@ def test_a_veto_names_the_time_of_its_verdict_exactly(time, kind):
     1.7e+09; 0.3, not 0.30000000000000004), whatever the verdict that vetoes."""
     tc, tm = checker_and_manager([Scripted([kind])], ["guard"])
     tc.observe(float(time), {})
-    ok, why = tm.check_trustworthiness(ACTION)
+    ok, why = trusted(tm)
     written = why.split(" at t=")[1].split(":")[0]
     assert not ok and Decimal(written) == time, why
