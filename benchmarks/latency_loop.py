@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rasm import Platform  # noqa: E402
+from rasm import Platform, RunOptions  # noqa: E402
 from rasm.platform.manifest import load_manifest  # noqa: E402
 from rasm.testing.servers import start_mosquitto  # noqa: E402
 
@@ -43,22 +43,32 @@ def measure(rate: float, seconds: float, broker_url: str) -> list[float]:
     managing_manifest.period = 0.1
     managing_manifest.twin = None  # measure the loop, not the twin's learning
     # low_latency as `rasm run` sets it for a live run
-    managed = Platform(managed_manifest, role="managed", transport=broker_url, clock="wall",
-                       scenario=scenario, low_latency=True)
-    managing = Platform(managing_manifest, role="managing", transport=broker_url, clock="wall",
-                        knowledge="memory", low_latency=True)
+    managed = Platform(managed_manifest, RunOptions(
+        role="managed",
+        transport=broker_url,
+        clock="wall",
+        scenario=scenario,
+        low_latency=True,
+    ))
+    managing = Platform(managing_manifest, RunOptions(
+        role="managing",
+        transport=broker_url,
+        clock="wall",
+        knowledge="memory",
+        low_latency=True,
+    ))
     managed.build()
     managing.build()
     anomalies: list[float] = []
     latencies: list[float] = []
-    apply = managed.simulator.apply
+    apply = managed.assembly.managed_system.simulator.apply
 
     def applied(effector, payload, t):
         if anomalies:
             latencies.append(time.perf_counter() - anomalies.pop(0))
         return apply(effector, payload, t)
 
-    managed.simulator.apply = applied
+    managed.assembly.managed_system.simulator.apply = applied
     managing.on_record.append(
         lambda t, record: anomalies.append(time.perf_counter()) if record.get("anomaly") else None)
     side = threading.Thread(target=managed.run, args=(seconds + 2,))

@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rasm import Platform  # noqa: E402
+from rasm import Platform, RunOptions  # noqa: E402
 from rasm.platform.manifest import load_manifest  # noqa: E402
 
 HOTBOX = ROOT / "examples" / "hotbox"
@@ -36,7 +36,8 @@ def percentile(values: list[float], q: float) -> float:
 
 
 def simulated_speed(seconds: float) -> tuple[int, float]:
-    platform = Platform(load_manifest(HOTBOX), clock="simulated", seed=1, knowledge="memory")
+    platform = Platform(load_manifest(HOTBOX), RunOptions(clock="simulated", seed=1,
+                                                          knowledge="memory"))
     platform.build()
     start = time.process_time()
     summary = platform.run(seconds)
@@ -50,8 +51,13 @@ def live_latency(seconds: float) -> list[float]:
     openings = [[t, 1.5] for t in range(1, int(seconds), 3)]
     with tempfile.TemporaryDirectory() as tmp:
         trace = Path(tmp) / "trace.jsonl"
-        Platform(manifest, clock="wall", seed=1, knowledge="memory", trace=trace,
-                 scenario={"openings": openings}).run(seconds)
+        Platform(manifest, RunOptions(
+            clock="wall",
+            seed=1,
+            knowledge="memory",
+            trace=trace,
+            scenario={"openings": openings},
+        )).run(seconds)
         records = [json.loads(line) for line in trace.read_text().splitlines()]
     latencies, anomaly_at = [], None
     for record in records:
@@ -64,8 +70,12 @@ def live_latency(seconds: float) -> list[float]:
 
 
 def idle_cpu(seconds: float) -> float:
-    platform = Platform(load_manifest(HOTBOX), clock="wall", seed=1, knowledge="memory",
-                        scenario={"first_lid_opening": 1e9})
+    platform = Platform(load_manifest(HOTBOX), RunOptions(
+        clock="wall",
+        seed=1,
+        knowledge="memory",
+        scenario={"first_lid_opening": 1e9},
+    ))
     platform.build()
     wall, cpu = time.monotonic(), time.process_time()
     platform.run(seconds)

@@ -194,13 +194,17 @@ def start_platform(middleware: str, where: str, receiver: Receiver):
     knowledge, traced and checked by the app's monitor; a record with its speed is a hit.
     Built as `rasm run` builds it on the wall clock (``low_latency``: what was built before
     the run is out of the garbage collector's reach)."""
-    from rasm import Platform
+    from rasm import Platform, RunOptions
 
     tmp = tempfile.TemporaryDirectory()
     app = write_latency_app(Path(tmp.name) / "ingest", qos="{history: keep_all}")
     url = f"zenoh://127.0.0.1:{where}" if middleware == "zenoh" else f"dds://?domain={where}"
-    platform = Platform(app, transport=url, clock="wall", state_dir=Path(tmp.name) / "state",
-                        low_latency=True)
+    platform = Platform(app, RunOptions(
+        transport=url,
+        clock="wall",
+        state_dir=Path(tmp.name) / "state",
+        low_latency=True,
+    ))
     platform.on_record.append(lambda _t, record: "speed" in record and receiver.hit())
     runner = threading.Thread(target=platform.run, args=(WAIT + 10,), daemon=True)
     runner.start()
@@ -414,7 +418,7 @@ def latency(seconds: float) -> list[float]:
     """Detect-to-act latencies (ms) of a loop managing the robot process over Zenoh."""
     import re
 
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from rasm.testing.servers import free_port
 
     port = str(free_port())
@@ -432,8 +436,12 @@ def latency(seconds: float) -> list[float]:
 
     with tempfile.TemporaryDirectory() as tmp:
         app = write_latency_app(Path(tmp) / "latency")
-        platform = Platform(app, transport=f"zenoh://127.0.0.1:{port}", clock="wall",
-                            state_dir=Path(tmp) / "state", low_latency=True)
+        platform = Platform(app, RunOptions(
+            transport=f"zenoh://127.0.0.1:{port}",
+            clock="wall",
+            state_dir=Path(tmp) / "state",
+            low_latency=True,
+        ))
         platform.on_record.append(on_record)
         platform.run(seconds + 1.0)
     out, _ = process.communicate(timeout=30)

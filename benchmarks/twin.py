@@ -152,7 +152,7 @@ class _CarelessAnalyse:
 
 def run(seed: int, condition: str) -> dict[str, Any]:
     """One scenario under one condition; the measures."""
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from rasm.testing.apps import app_manifest
 
     twin_class = _module("twin").HotboxTwin
@@ -169,11 +169,13 @@ def run(seed: int, condition: str) -> dict[str, Any]:
         components["legitimate"] = _VersusDoingNothing(twin, 20.0, 0.5)
     platform = Platform(
         manifest,
-        clock="simulated",
-        seed=seed,
-        knowledge="memory",
-        scenario=scene,
-        components=components or None,
+        RunOptions(
+            clock="simulated",
+            seed=seed,
+            knowledge="memory",
+            scenario=scene,
+            components=components or None,
+        ),
     )
     records: list[tuple[float, dict[str, Any]]] = []
     drifts: list[float] = []
@@ -192,9 +194,9 @@ def run(seed: int, condition: str) -> dict[str, Any]:
 
     platform.on_record.append(observe)
     platform.build()
-    platform.simulator = _simulator_class()(scene, seed)
+    platform.assembly.managed_system.simulator = _simulator_class()(scene, seed)
     platform.run(DURATION)
-    if condition == "twin (absolute)" and getattr(platform, "twin", None) is not twin:
+    if condition == "twin (absolute)" and platform.managing.twin is not twin:
         raise SystemExit("this runtime does not take a twin (components={'twin': ...})")
     outside, last = 0.0, None
     for time, record in records:

@@ -12,7 +12,8 @@ property language checked online, and z3-checked legitimacy rules.
         def analyse(self, ctx: rasm.StageContext) -> rasm.Anomaly | None:
             ...
 
-    summary = rasm.Platform("examples/hotbox", clock="simulated", seed=1).run(duration=60)
+    options = rasm.RunOptions(clock=rasm.Clock.SIMULATED, seed=1)
+    summary = rasm.Platform("examples/hotbox", options).run(duration=60)
 
 The names are loaded on first use, so ``import rasm`` (and every ``rasm`` command) stays cheap.
 """
@@ -28,6 +29,9 @@ __version__ = "0.1.0"
 # public name -> the module that defines it
 _PUBLIC = {
     "Platform": "rasm.platform.platform",
+    "RunOptions": "rasm.platform.run_options",
+    "Clock": "rasm.platform.run_options",
+    "Role": "rasm.platform.run_options",
     "RunSummary": "rasm.platform.summary",
     "Anomaly": "rasm.platform.components",
     "Plan": "rasm.platform.components",
@@ -41,9 +45,12 @@ _PUBLIC = {
 
 __all__ = [
     "Action",
+    "Clock",
     "Anomaly",
     "Plan",
     "Platform",
+    "Role",
+    "RunOptions",
     "RasmError",
     "RunSummary",
     "SourceError",
@@ -58,6 +65,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from rasm.platform.components import Action, Anomaly, Plan, StageContext
     from rasm.platform.manifest import load_manifest
     from rasm.platform.platform import Platform
+    from rasm.platform.run_options import Clock, Role, RunOptions
     from rasm.platform.summary import RunSummary
     from rasm.properties import compile_properties
 

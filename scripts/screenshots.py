@@ -19,7 +19,7 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.platform.manifest import load_manifest
 from rasm.report import write_report
 from rasm.report.dashboard import serve
@@ -43,7 +43,8 @@ VIEWPORT = {"width": 1280, "height": 900}
 def report(browser, out: Path, work: Path) -> None:
     trace = work / "hotbox.jsonl"
     Platform(
-        load_manifest(HOTBOX), clock="simulated", seed=1, trace=trace, knowledge="memory"
+        load_manifest(HOTBOX), RunOptions(clock="simulated", seed=1, trace=trace,
+                                          knowledge="memory")
     ).run(40)
     page_file = work / "report.html"
     write_report(trace, page_file, [HOTBOX / "properties" / "hotbox.rv"], title="rasm report: "
@@ -63,10 +64,7 @@ def report(browser, out: Path, work: Path) -> None:
 def dashboard(browser, out: Path) -> None:
     platform = Platform(
         load_manifest(HOTBOX),
-        clock="wall",
-        seed=1,
-        knowledge="memory",
-        scenario={"openings": [[0.3, 3.0]]},
+        RunOptions(clock="wall", seed=1, knowledge="memory", scenario={"openings": [[0.3, 3.0]]}),
     )
     platform.build()
     server = serve(platform, 0)

@@ -579,7 +579,7 @@ def _monitored_run(broker, mqtt, tmp_path, key, *, fast):
     """`rasm monitor` (with ``key``) started, then a loop with the key run for 3 s beside an
     outsider's unsigned trues; returns the loop's platform, summary and records, and the
     monitor's exit code and output."""
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from tests.platform.guarded import write_guarded_app
 
     folder = tmp_path / ("fast" if fast else "slow")
@@ -596,9 +596,14 @@ def _monitored_run(broker, mqtt, tmp_path, key, *, fast):
     try:
         ready = monitor.stderr.readline()
         assert "verdicts on rasm/verdict/<property>, signed for the loops" in ready, ready
-        platform = Platform(app, transport=broker.url, clock="wall", knowledge="memory",
-                            state_dir=folder / "state", role="all",
-                            scenario={"fast": [[0, 100]]} if fast else {})
+        platform = Platform(app, RunOptions(
+            transport=broker.url,
+            clock="wall",
+            knowledge="memory",
+            state_dir=folder / "state",
+            role="all",
+            scenario={"fast": [[0, 100]]} if fast else {},
+        ))
         records: list[dict] = []
         platform.on_record.append(lambda t, r: records.append({"time": t, **r}))
         summary = platform.run(3.0)
@@ -627,18 +632,19 @@ def test_a_loop_with_the_action_key_takes_rasm_monitor_as_its_external_verdict_s
     )
     assert summary.verdicts["calm"] == "satisfied"  # the monitor's signed trues were taken
     assert [r for r in records if r.get("executed")], "the monitor's trues let the loop act"
-    refused = platform.external.refused["calm"]
+    refused = platform.managing.external_verdicts.refused["calm"]
     assert 0 < refused <= lies  # the outsider's, none of the monitor's
     assert code == 0 and "calm  satisfied" in output and "not sent" not in output
 
     platform, summary, records, lies, code, output = _monitored_run(
         broker, mqtt, tmp_path, key, fast=True
     )
-    assert summary.verdicts["calm"] == "violated", (output[-3000:], platform.external.refused, lies)
+    refused = platform.managing.external_verdicts.refused
+    assert summary.verdicts["calm"] == "violated", (output[-3000:], refused, lies)
     assert not [r for r in records if r.get("executed")]  # whatever the outsider said
     dropped = [r for r in records if r.get("dropped")]
     assert dropped and all("calm" in r["explanation"] for r in dropped)
-    assert 0 < platform.external.refused["calm"] <= lies
+    assert 0 < refused["calm"] <= lies
     assert code == 1 and "calm  violated" in output
 
 

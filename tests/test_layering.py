@@ -127,9 +127,9 @@ def test_a_building_block_imports_no_other_block_and_only_the_assembly_imports_t
         assert imports(block, module_level_only=False) & BLOCKS == set(), block
     importers = {m for block in BLOCKS for m in _importers(block)} - BLOCKS
     # the assembly, the package face (names loaded on first use), rasm's own face, and the
-    # screen of ``rasm run`` (which shows the loop's counts)
+    # summary of a run (which reads the loop's counts)
     assert importers <= {
-        "rasm.platform.platform",
+        "rasm.platform.assembly",
         "rasm.platform.summary",
         "rasm.platform",
         "rasm",

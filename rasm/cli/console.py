@@ -12,6 +12,7 @@ from rich.text import Text
 
 from rasm.loop import STAGES
 from rasm.platform.platform import Platform
+from rasm.platform.run_options import Role
 from rasm.platform.summary import RunSummary
 from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PASSING
@@ -64,7 +65,7 @@ class LiveView:
 
     def render(self, time: float) -> Group:
         p = self.platform
-        stats = p.ao.stats
+        stats = p.managing.adaptation_orchestrator.stats
         start = p.timeline_start
         head = Text.assemble(
             (f"{p.manifest.name}", "bold"),
@@ -79,13 +80,13 @@ class LiveView:
         modes = Table(show_header=True, header_style="bold", box=None)
         modes.add_column("block")
         modes.add_column("mode")
-        for name, mode in p.sm.get_status().items():
+        for name, mode in p.assembly.state_manager.get_status().items():
             modes.add_row(name, Text(mode, style=_STYLE.get(mode, "")))
         verdicts = Table(show_header=True, header_style="bold", box=None)
         verdicts.add_column("property")
         verdicts.add_column("now")
-        for name in sorted(p.tc.outcomes):
-            word, style = _now(p.tc.latest_verdict(name))
+        for name in sorted(p.managing.trustworthiness_checker.outcomes):
+            word, style = _now(p.managing.trustworthiness_checker.latest_verdict(name))
             verdicts.add_row(name, Text(word, style=style))
         grid = Table.grid(padding=(0, 4))
         grid.add_row(modes, verdicts)
@@ -116,7 +117,7 @@ def _now(verdict: Verdict | None) -> tuple[str, str]:
 
 
 def print_summary(summary: RunSummary, console: Console) -> None:
-    if summary.role == "managed":
+    if summary.role is Role.MANAGED:
         _managed_summary(summary, console)
     else:
         _loop_summary(summary, console)

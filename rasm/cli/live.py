@@ -129,13 +129,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from rasm.cli.console import LiveView, print_summary, timeline_note
     from rasm.platform.manifest import load_manifest
     from rasm.platform.platform import Platform
+    from rasm.platform.run_options import Clock, RunOptions
 
     manifest = load_manifest(args.app)
     if args.duration is not None and not 0 < args.duration < math.inf:  # nan, inf: never ends
         raise UsageError("--duration must be a positive, finite number of seconds")
     if args.trace_rotate is not None and args.trace in (None, "-"):
         raise UsageError("--trace-rotate needs --trace FILE (a file to rotate)")
-    wall = (args.clock or manifest.clock or "wall") == "wall" and not args.replay
+    wall = (args.clock or manifest.clock or Clock.WALL) == Clock.WALL and not args.replay
     asked = args.duration if args.duration is not None else manifest.duration
     if args.replay is not None and args.duration is None:
         asked = None  # to the recording's end
@@ -145,16 +146,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
         scenario = {**manifest.scenario, **_read_scenario(args.scenario)}
     platform = Platform(
         manifest,
-        scenario=scenario,
-        clock=args.clock,
-        seed=args.seed,
-        transport=args.transport,
-        trace=args.trace,
-        trace_max_bytes=args.trace_rotate,
-        trace_keep=args.trace_keep,
-        role=args.role,
-        low_latency=wall,
-        replay=args.replay,
+        RunOptions(
+            scenario=scenario,
+            clock=args.clock,
+            seed=args.seed,
+            transport=args.transport,
+            trace=args.trace,
+            trace_max_bytes=args.trace_rotate,
+            trace_keep=args.trace_keep,
+            role=args.role,
+            low_latency=wall,
+            replay=args.replay,
+        ),
     )
     console = Console(stderr=args.trace == "-")  # keep stdout for the trace
     dashboard = None
@@ -168,7 +171,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
                 dashboard = serve(platform, args.dashboard)  # attaches before the run starts
                 console.print(f"dashboard: {dashboard.url}")
-            if console.is_terminal and args.role != "managed" and duration is not None:
+            if console.is_terminal and platform.options.role.manages and duration is not None:
                 with LiveView(platform, console, duration=duration):
                     summary = platform.run(duration)
             else:

@@ -20,6 +20,9 @@ _PUBLIC = {
     "LoopStats": "rasm.platform.adaptation_orchestrator",
     "Plan": "rasm.platform.components",
     "Platform": "rasm.platform.platform",
+    "RunOptions": "rasm.platform.run_options",
+    "Clock": "rasm.platform.run_options",
+    "Role": "rasm.platform.run_options",
     "RunSummary": "rasm.platform.summary",
     "StageContext": "rasm.platform.components",
     "load_manifest": "rasm.platform.manifest",
@@ -27,12 +30,15 @@ _PUBLIC = {
 
 __all__ = [
     "Action",
+    "Clock",
     "Anomaly",
     "AppManifest",
     "ChartStage",
     "LoopStats",
     "Plan",
     "Platform",
+    "Role",
+    "RunOptions",
     "RunSummary",
     "StageContext",
     "load_manifest",
@@ -44,6 +50,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from rasm.platform.components import Action, Anomaly, Plan, StageContext
     from rasm.platform.manifest import AppManifest, load_manifest
     from rasm.platform.platform import Platform
+    from rasm.platform.run_options import Clock, Role, RunOptions
     from rasm.platform.summary import RunSummary
 
 

@@ -40,18 +40,21 @@ class Hold(Protocol):
 class AdaptationManager(Block):
     """Adaptation Manager (am): ``perform_adaptation`` / ``perform_diagnosis``.
 
-    Has the Trustworthiness Manager check the action; when trustworthy, registers it with the
-    Trustworthiness Checker, which alone hands it to the effector. Otherwise the action is dropped.
-    While the fallback switch (``hold``) holds the effectors, only fallback actions go on.
+    Has the ``judge`` (the Trustworthiness Manager) check the action; when trustworthy,
+    registers it with the ``gate`` (the Trustworthiness Checker), which alone hands it to the
+    effector. Otherwise the action is dropped. While the ``hold`` (the fallback switch's) holds
+    the effectors, only fallback actions and corrective ones go on.
     """
 
     chart_name = "adaptation_manager"
     short_name = "am"
 
-    def __init__(self, tm: TrustJudge, tc: ActionGate, **kw: Any) -> None:
-        self.tm = tm
-        self.tc = tc
-        self.hold: Hold | None = None
+    def __init__(
+        self, judge: TrustJudge, gate: ActionGate, *, hold: Hold | None = None, **kw: Any
+    ) -> None:
+        self.judge = judge
+        self.gate = gate
+        self.hold = hold
         super().__init__(**kw)
 
     def perform_adaptation(self, action: Action) -> ActionOutcome:
@@ -72,14 +75,14 @@ class AdaptationManager(Block):
         if held is not None and not self.hold.correctable():
             self.answer(ActionOutcome(False, held), "untrustworthy")
             return
-        judged = self.tm.check_trustworthiness(action)
+        judged = self.judge.check_trustworthiness(action)
         if held is not None and not (judged.trusted and judged.corrective):
             judged = ActionOutcome(False, held)  # only a corrective action passes a hold of vetoes
         self.answer(judged, "trustworthy" if judged.trusted else "untrustworthy")
 
     def on_enter_registering(self) -> None:
         assert self.action is not None
-        registered = self.tc.register_action(self.action)
+        registered = self.gate.register_action(self.action)
         # the checker's word on sending, with what the judge found
         outcome = replace(registered, trusted=self._answer.trusted,
                           corrective=self._answer.corrective)

@@ -106,9 +106,9 @@ class AdaptationOrchestrator(Block):
         rules: list[RuleSet],
         register: Register,
         emit: Emit,
-        am: Adapter,
-        tm: PlanRegistry,
-        sm: StageTimer,
+        adapter: Adapter,
+        plans: PlanRegistry,
+        timer: StageTimer,
         stage_budget: float = 1.0,
         max_replans: int = 2,
         max_actions: int = 16,
@@ -138,9 +138,9 @@ class AdaptationOrchestrator(Block):
         self.rules = rules
         self.register = register
         self.emit = emit
-        self.am = am
-        self.tm = tm
-        self.sm = sm
+        self.adapter = adapter
+        self.plans = plans
+        self.timer = timer
         self.stage_budget = stage_budget
         self.max_actions = max_actions
         self.runner = StageRunner(isolate=isolate_stages)
@@ -183,7 +183,7 @@ class AdaptationOrchestrator(Block):
             outcome = StageOutcome(True, None)
         else:
             outcome = self.runner.call(func, self.stage_budget, ctx)
-        self.sm.record_stage(stage, start, outcome.duration)
+        self.timer.record_stage(stage, start, outcome.duration)
         self.emit(start, {"stage": stage, "duration": round(outcome.duration, 9)})
         # a stage chart that sends no outcome has not answered: it fails as an overrun does
         no_answer = isinstance(outcome.error, NoAnswer)
@@ -341,7 +341,7 @@ class AdaptationOrchestrator(Block):
             )
             return "rejected"
         self.stats.accepted += 1
-        self.tm.accept_plan(plan)
+        self.plans.accept_plan(plan)
         self.emit(self.clock.time, {"legitimate": True, "plan": plan.id})
         return "accepted"
 
@@ -377,9 +377,11 @@ class AdaptationOrchestrator(Block):
             )
         executed = 0
         for action in actions:
-            if perform_and_trace(self.am.perform_adaptation, action, self.emit, self._now).sent:
+            outcome = perform_and_trace(self.adapter.perform_adaptation, action, self.emit,
+                                        self._now)
+            if outcome.sent:
                 executed += 1
-        self.tm.forget_plan(plan.id)
+        self.plans.forget_plan(plan.id)
         if executed:
             self.stats.executed += 1
             return "executed"

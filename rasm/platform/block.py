@@ -76,12 +76,15 @@ class Block:
         self,
         name: str | None = None,
         *,
-        depends_on: tuple[str, ...] = (),
+        depends_on: tuple[Block, ...] = (),
         clock: Clock | None = None,
         chart: str | Path | Statechart | None = None,
         context: dict[str, Any] | None = None,
+        logs: RepeatedLogs | None = None,
+        on_deadline: Callable[[Block, float], object] | None = None,
     ) -> None:
         self.name = name or self.short_name or type(self).__name__
+        # the blocks Core starts before this one (and stops after it)
         self.depends_on = tuple(depends_on)
         statechart = (
             chart if isinstance(chart, Statechart) else shared_chart(chart or self.chart_name)
@@ -96,11 +99,11 @@ class Block:
         self._mode = "instantiated"
         # Called with (block, time) when the chart has a timer due at `time` (after(), idle(),
         # delayed events): the platform's scheduler then steps the chart at that time.
-        self.on_deadline: Callable[[Block, float], object] | None = None
+        self.on_deadline = on_deadline
         self._armed: float | None = None
         # failures that recur at every step are logged once, then counted (the platform
         # gives all its blocks one RepeatedLogs)
-        self.logs = RepeatedLogs()
+        self.logs = RepeatedLogs() if logs is None else logs
         # the action a request (:meth:`request`) asks the chart about, and the answer so far
         self.action: Action | None = None
         self._answer = ActionOutcome(False, "")

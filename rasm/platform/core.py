@@ -38,29 +38,32 @@ class PlatformAborted(PlatformError):
 def start_order(blocks: Iterable[Block]) -> list[Block]:
     """Blocks sorted so that each comes after the blocks it depends on (stable otherwise)."""
     blocks = list(blocks)
-    by_name: dict[str, Block] = {}
+    names: set[str] = set()
     for block in blocks:
-        if block.name in by_name:
+        if block.name in names:
             raise PlatformError(f"two building blocks are named {block.name!r}")
-        by_name[block.name] = block
+        names.add(block.name)
+    known = {id(block) for block in blocks}
     for block in blocks:
         for dep in block.depends_on:
-            if dep not in by_name:
-                raise PlatformError(f"{block.name!r} depends on unknown block {dep!r}")
+            if id(dep) not in known:
+                raise PlatformError(
+                    f"{block.name!r} depends on block {dep.name!r}, which is not started here"
+                )
     order: list[Block] = []
-    state: dict[str, str] = {}
+    state: dict[int, str] = {}
 
     def visit(block: Block, path: list[str]) -> None:
-        mark = state.get(block.name)
+        mark = state.get(id(block))
         if mark == "done":
             return
         if mark == "visiting":
             cycle = " -> ".join([*path[path.index(block.name) :], block.name])
             raise PlatformError(f"building blocks depend on each other in a cycle: {cycle}")
-        state[block.name] = "visiting"
+        state[id(block)] = "visiting"
         for dep in block.depends_on:
-            visit(by_name[dep], [*path, block.name])
-        state[block.name] = "done"
+            visit(dep, [*path, block.name])
+        state[id(block)] = "done"
         order.append(block)
 
     for block in blocks:

@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 from rasm.comm import Transport
 from rasm.comm.signing import BoundSigner, SignedEffector, SignedGate, new_epoch
 from rasm.errors import CommError, PlatformError
+from rasm.platform.run_options import Role
 
 if TYPE_CHECKING:
     from rasm.comm import InfluxWriter, Presence, PresenceTracker, UpdateReceiver
@@ -94,7 +95,7 @@ class Distribution:
         self,
         *,
         app: str,
-        role: str,
+        role: Role,
         transport_url: str,
         period: float,
         timing: str | None,
@@ -140,7 +141,7 @@ class Distribution:
 
     @property
     def managing(self) -> bool:
-        return self.role in ("all", "managing")
+        return self.role.manages
 
     def transport_options(self) -> dict[str, Any]:
         """Options for ``open_transport``: the last will that marks this node offline, and the
@@ -275,7 +276,7 @@ class Distribution:
     def _presence_changed(self, node: str, state: str) -> None:
         tracker = self.tracker
         info = tracker.nodes().get(node) if tracker is not None else None
-        if info is None or info.role != "managed":
+        if info is None or info.role != Role.MANAGED:
             return
         if node not in self.managed_nodes and info.payload.get("app") != self.app:
             return  # another application's managed system on the same broker
@@ -302,7 +303,7 @@ class Distribution:
             return True
         if self.managed_nodes:
             return False  # every one seen is offline or silent
-        return self.role == "all" or _time.monotonic() < self._started + self.tracker.timeout
+        return self.role is Role.ALL or _time.monotonic() < self._started + self.tracker.timeout
 
     def _apply_rules(self, text: str) -> tuple[bool, str]:
         if not self._hooks.rules:
@@ -325,9 +326,9 @@ class Distribution:
     def _managed_epochs(self) -> list[str]:
         """The epochs of the managed processes an action is for: this process's own in role
         ``all``, and those of the online managed processes of this app announced so far."""
-        epochs = [self.epoch] if self.role == "all" else []
+        epochs = [self.epoch] if self.role is Role.ALL else []
         if self.tracker is not None:
-            found = self.tracker.epochs(role="managed", app=self.app)
+            found = self.tracker.epochs(role=Role.MANAGED, app=self.app)
             epochs += sorted(found.values())
         return epochs
 

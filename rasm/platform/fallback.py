@@ -7,7 +7,7 @@ iterations with no adaptation reaching Execute (:class:`FailedIterations`) — a
 chart: ``trigger`` engages the fallback (its actions go out through the Adaptation Manager like
 any other, signed, traced and checked), ``clear`` starts the dwell after which control is handed
 back. While the chart is not ``nominal``, the Adaptation Manager holds back every other action
-(:meth:`FallbackSwitch.holds`) but corrective ones.
+(:meth:`FallbackHold.holds`) but corrective ones.
 """
 
 from __future__ import annotations
@@ -27,11 +27,19 @@ from rasm.times import format_seconds
 if TYPE_CHECKING:
     from collections import Counter
 
+    from sismic.model import MacroStep
+
     from rasm.properties.monitor import Verdict
     from rasm.rules import Rules, RuleSet
     from rasm.rules.fallback import FixedPlanProof
 
-__all__ = ["FallbackSwitch", "FailedIterations", "check_fallback_legitimate", "prove_fallback"]
+__all__ = [
+    "FailedIterations",
+    "FallbackHold",
+    "FallbackSwitch",
+    "check_fallback_legitimate",
+    "prove_fallback",
+]
 
 _log = logging.getLogger("rasm.fallback")
 
@@ -140,8 +148,51 @@ class FailedIterations:
             self.consecutive = 0
 
 
+class FallbackHold:
+    """What the fallback switch tells the Adaptation Manager: whether an action is held back.
+
+    Made before both: the switch writes it (its chart's state after each step, the kinds of
+    trigger that held, the veto verdicts it has not read yet), the Adaptation Manager reads it.
+    ``vetoes`` says why a veto verdict stops actions (the Trustworthiness Manager).
+    """
+
+    def __init__(self, vetoes: Vetoes) -> None:
+        self.vetoes = vetoes
+        # the switch's chart: nominal, fallback or recovering, else the switch's mode
+        self.state = "instantiated"
+        self.reason = "no trigger"  # why the fallback was engaged last
+        self.kinds: set[str] = set()  # the kinds of trigger that held at the last evaluation
+        # the first verdict of each veto property that did not vouch since the triggers were
+        # last read: a later verdict of the same batch that vouches again must not hide it
+        self.unread: dict[str, Verdict] = {}
+
+    def holds(self, action: Action) -> str | None:
+        """Why ``action`` is held back (the fallback holds the effectors), or None."""
+        if action.kind == "fallback":
+            return None
+        state = self.state
+        if state == "nominal":
+            if self.unread:  # the evaluation that engages the fallback has not run yet
+                return f"the fallback is engaging: {'; '.join(self.unread_reasons())}"
+            return None
+        if state in ("fallback", "recovering"):
+            return f"the fallback holds the effectors ({state}): {self.reason}"
+        return f"the fallback switch is {state}"  # fail closed: no switch, no action
+
+    def correctable(self) -> bool:
+        """Whether a corrective action may pass: the fallback holds for vetoes alone."""
+        return self.state == "fallback" and self.kinds == {"veto"}
+
+    def unread_reasons(self, skip: Collection[str] = ()) -> list[str]:
+        """Why each veto verdict not read yet stops actions (but those of ``skip``)."""
+        reasons = (self.vetoes.veto_reason(name, verdict)
+                   for name, verdict in self.unread.items() if name not in skip)
+        return [why for why in reasons if why is not None]
+
+
 class FallbackSwitch(Block):
-    """Fallback switch (fb): :meth:`evaluate` the triggers, tell the chart, send the fallback."""
+    """Fallback switch (fb): :meth:`evaluate` the triggers, tell the chart, send the fallback
+    through ``adapter`` (the Adaptation Manager); what it holds back is said in ``hold``."""
 
     chart_name = "fallback"
     short_name = "fb"
@@ -150,10 +201,11 @@ class FallbackSwitch(Block):
         self,
         *,
         spec: Fallback,
-        am: Sender,
-        tm: Vetoes,
+        hold: FallbackHold,
+        adapter: Sender,
+        plans: Vetoes,
         online: Callable[[], bool],
-        stats: Callable[[], LoopStats],
+        stats: LoopStats,
         emit: Callable[[float, dict[str, Any]], Any],
         veto_properties: Collection[str],
         submit: Callable[[Callable[[], object]], object],
@@ -161,25 +213,28 @@ class FallbackSwitch(Block):
         **kw: Any,
     ) -> None:
         self.spec = spec
-        self.am = am
-        self.tm = tm
+        self.hold = hold
+        self.adapter = adapter
+        self.plans = plans
         self.veto_properties = veto_properties
         self.submit = submit  # hands a job to the loop, to run after the job in hand
         self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
-        # the first verdict of each veto property that did not vouch since the triggers were
-        # last read: a later verdict of the same batch that vouches again must not hide it
-        self._unread: dict[str, Verdict] = {}
         self._evaluation_due = False  # an evaluation is submitted and has not run yet
         self.online = online
         self.stats = stats
         self.emit = emit
         self.plan_prefix = plan_prefix
         self.failures = FailedIterations(spec.after_failures)
-        self.kinds: set[str] = set()  # the kinds of trigger that held at the last evaluation
         self.engagements = 0
         self.pending: dict[str, dict[str, Any]] = {}  # fallback actions not delivered yet
         self._plan: Plan | None = None
         super().__init__(context={"dwell": spec.dwell}, **kw)
+
+    def send(self, event: str | None, **data: Any) -> list[MacroStep]:
+        steps = super().send(event, **data)
+        # what the Adaptation Manager reads: the chart as this step left it
+        self.hold.state, self.hold.reason = self.state, self.trigger_reason()
+        return steps
 
     @property
     def state(self) -> str:
@@ -188,23 +243,6 @@ class FallbackSwitch(Block):
             if state in self.configuration:
                 return state
         return self.mode
-
-    def holds(self, action: Action) -> str | None:
-        """Why ``action`` is held back (the fallback holds the effectors), or None."""
-        if action.kind == "fallback":
-            return None
-        state = self.state
-        if state == "nominal":
-            if self._unread:  # the evaluation that engages the fallback has not run yet
-                return f"the fallback is engaging: {'; '.join(self._unread_reasons())}"
-            return None
-        if state in ("fallback", "recovering"):
-            return f"the fallback holds the effectors ({state}): {self.trigger_reason()}"
-        return f"the fallback switch is {state}"  # fail closed: no switch, no action
-
-    def correctable(self) -> bool:
-        """Whether a corrective action may pass: the fallback holds for vetoes alone."""
-        return self.state == "fallback" and self.kinds == {"veto"}
 
     def trigger_reason(self) -> str:
         return str(self.interpreter.context.get("trigger_reason") or "no trigger")
@@ -218,27 +256,22 @@ class FallbackSwitch(Block):
             held.append("managed system lost")
             kinds.add("managed_system_lost")
         if "stage_failures" in when:
-            self.failures.update(self.stats())
+            self.failures.update(self.stats)
             if self.failures.holds:
                 held.append(
                     f"{self.failures.consecutive} failed iterations since the last adaptation"
                 )
                 kinds.add("stage_failures")
         if "veto" in when:
-            vetoing = self.tm.vetoing()
+            vetoing = self.plans.vetoing()
             # a veto that held only between two readings of the triggers counts too
-            vetoes = [*vetoing.values(), *self._unread_reasons(skip=vetoing)]
-            self._unread.clear()
+            vetoes = [*vetoing.values(), *self.hold.unread_reasons(skip=vetoing)]
+            self.hold.unread.clear()
             held.extend(vetoes)
             if vetoes:
                 kinds.add("veto")
-        self.kinds = kinds
+        self.hold.kinds = kinds
         return held
-
-    def _unread_reasons(self, skip: Collection[str] = ()) -> list[str]:
-        reasons = (self.tm.veto_reason(name, verdict) for name, verdict in self._unread.items()
-                   if name not in skip)
-        return [why for why in reasons if why is not None]
 
     def evaluate(self) -> None:
         """Read the triggers and tell the chart; retry fallback actions not delivered yet."""
@@ -269,8 +302,8 @@ class FallbackSwitch(Block):
         self._veto_good[name] = good
         # (engaged already, the switch need not remember one: the fallback holds anyway)
         if not good and "veto" in self.spec.when and self.state != "fallback":
-            self._unread.setdefault(name, verdict)
-        if (changed or self._unread) and not self._evaluation_due:
+            self.hold.unread.setdefault(name, verdict)
+        if (changed or self.hold.unread) and not self._evaluation_due:
             self._evaluation_due = True
             self.submit(self.evaluate)
 
@@ -291,12 +324,12 @@ class FallbackSwitch(Block):
                 explanation="the fallback actions",
             )
             self.pending = dict(self.spec.actions)
-            self.tm.accept_plan(self._plan)
+            self.plans.accept_plan(self._plan)
             self._deliver()
 
     def on_enter_nominal(self) -> None:
         if self._plan is not None:
-            self.tm.forget_plan(self._plan.id)
+            self.plans.forget_plan(self._plan.id)
         self._plan = None
         self.pending = {}
 
@@ -321,7 +354,8 @@ class FallbackSwitch(Block):
         self.emit(self.clock.time, {"legitimate": True, "plan": plan.id, "explanation": PROVED})
         for effector, payload in list(self.pending.items()):
             action = Action(effector, dict(payload), plan.id, "fallback")
-            if perform_and_trace(self.am.perform_adaptation, action, self.emit, self._now).sent:
+            if perform_and_trace(self.adapter.perform_adaptation, action, self.emit,
+                                 self._now).sent:
                 del self.pending[effector]
 
     def _now(self) -> float:

@@ -38,7 +38,9 @@ Job = Callable[[], Any]
 class Scheduler:
     """Runs jobs at their times. ``clock`` is a ``SimulatedClock`` (jumps) or a real clock."""
 
-    def __init__(self, clock: Clock) -> None:
+    def __init__(
+        self, clock: Clock, *, on_error: Callable[[BaseException], Any] | None = None
+    ) -> None:
         self.clock = clock
         self.simulated = isinstance(clock, SimulatedClock)
         self._heap: list[tuple[float, int, Job]] = []
@@ -47,7 +49,7 @@ class Scheduler:
         # taken from the inbox by the loop, not yet run (the job that woke a loop asked to stop)
         self._taken: deque[Job] = deque()
         self._stopping = False
-        self.on_error: Callable[[BaseException], Any] | None = None
+        self.on_error = on_error
         self.missed = 0  # turns of periodic jobs skipped because they were already past
         # on the simulated clock: returns once every message on its way to this process's
         # subscriptions has been delivered (their jobs submitted); raises if one never comes

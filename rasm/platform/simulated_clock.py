@@ -5,7 +5,8 @@ seed gives the same trace every time. Over a broker or a ROS 2 middleware the re
 trip through the network: the run's scheduler waits for every message this process published to
 come back before it runs the next job (:meth:`Transport.wait_own_deliveries`), so the trip
 changes nothing. A process can only wait for its own messages: a simulated run over a network
-has its managed system (the app's simulator) in the same process.
+has its managed system (the app's simulator) in the same process
+(:func:`rasm.platform.run_options.check_simulated_run`).
 """
 
 from __future__ import annotations
@@ -13,36 +14,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 from rasm.comm import LocalTransport, Transport
-from rasm.errors import PlatformError
 
-__all__ = ["DELIVERY_TIMEOUT", "check_simulated_run", "wait_for_own_messages"]
+__all__ = ["DELIVERY_TIMEOUT", "wait_for_own_messages"]
 
 DELIVERY_TIMEOUT = 10.0
 """Seconds (wall clock) a simulated run waits for one of its messages to come back before it
 fails: on loopback a message takes well under a millisecond, so one this late is lost."""
-
-
-def check_simulated_run(transport_url: str, role: str, has_simulator: bool) -> None:
-    """Refuse a simulated run whose managed system is in another process on the network:
-    nothing could tell when its readings are all in, and the clock would run ahead of them."""
-    if transport_url.strip() == "local":
-        return
-    if role != "all":
-        where = f"the managed system (--role {role})" if role == "managing" else (
-            "the managing system (--role managed)"
-        )
-        raise PlatformError(
-            f"--clock simulated over {transport_url} needs the managing and the managed system "
-            f"in one process, but {where} runs elsewhere: the simulated clock cannot wait for "
-            "another process's messages; run a split system on the wall clock (--clock wall)"
-        )
-    if not has_simulator:
-        raise PlatformError(
-            f"--clock simulated over {transport_url} needs the app's own simulator "
-            "(managed_system.simulator in app.yaml): this app's managed system is another "
-            "process, and the simulated clock cannot wait for its messages; run it on the wall "
-            "clock (--clock wall)"
-        )
 
 
 def wait_for_own_messages(

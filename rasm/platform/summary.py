@@ -13,6 +13,7 @@ from rasm.platform.calls import CallCounts
 from rasm.platform.distribution import Distribution
 from rasm.platform.fallback import FallbackSwitch
 from rasm.platform.managed_system import ManagedSystem, describe_activity
+from rasm.platform.run_options import Role
 from rasm.platform.state_manager import StateManager
 from rasm.platform.telegraf import Telegraf
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
@@ -59,7 +60,7 @@ class RunSummary:
     # per service or action effector, how its calls ended
     calls: dict[str, CallCounts] = field(default_factory=dict)
     # all, managing or managed: which side of the system this process ran
-    role: str = "all"
+    role: Role = Role.ALL
     # what the managed side (the app's simulator) did, one line each (empty: none ran here)
     managed: list[str] = field(default_factory=list)
 
@@ -108,7 +109,7 @@ def summarise(
     damage: list[Damage] | None = None,
     off: tuple[str, ...] = (),
     calls: dict[str, CallCounts] | None = None,
-    role: str = "all",
+    role: Role = Role.ALL,
     managed: ManagedSystem | None = None,
 ) -> RunSummary:
     """The run so far, read from its blocks (nothing is changed). ``checker``,

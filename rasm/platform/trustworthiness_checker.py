@@ -78,6 +78,7 @@ class TrustworthinessChecker(Block):
         send: Callable[[Effector, Action], Any],
         mode_of: Callable[[], str | Collection[str] | None],
         observers: list[Callable[[Verdict], Any]] | None = None,
+        batch_observers: Sequence[Callable[[list[Verdict]], Any]] = (),
         online: Callable[[], bool] = lambda: True,
         vacuity: Sequence[AntecedentWatch] = (),
         **kw: Any,
@@ -93,7 +94,7 @@ class TrustworthinessChecker(Block):
         self.observers: list[Callable[[Verdict], Any]] = [] if observers is None else observers
         # called once per step (a record, the end, an external verdict) with the verdicts it
         # decided, in order: one call for a record's verdicts, not one per verdict
-        self.batch_observers: list[Callable[[list[Verdict]], Any]] = []
+        self.batch_observers = list(batch_observers)
         # the latest verdict of each property
         self.latest: dict[str, Verdict] = {}
         self.outcomes: dict[str, PropertyOutcome] = {

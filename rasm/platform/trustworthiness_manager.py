@@ -14,7 +14,7 @@ from rasm.times import format_seconds
 if TYPE_CHECKING:
     from rasm.rules import RuleSet
 
-__all__ = ["Corrective", "TrustworthinessManager", "VerdictSource"]
+__all__ = ["Corrective", "TrustworthinessManager", "VerdictSource", "verdict_veto_reason"]
 
 # (plan values, context, violated veto properties) -> why the plan is corrective, or None
 Corrective = Callable[[dict[str, Any], dict[str, Any], list[str]], "str | None"]
@@ -160,14 +160,21 @@ class TrustworthinessManager(Block):
             if waits:
                 return f"veto property {name} not judged yet: no value for {', '.join(waits)}"
             return f"veto property {name} not judged yet: no verdict decided so far"
-        if verdict.value is True and verdict.error is None:
-            return None
-        at = format_seconds(verdict.time)
-        if verdict.error is not None:
-            return f"veto property {name} in error at t={at}: {verdict.error}"
-        if verdict.value is False:
-            return f"veto property {name} violated at t={at}"
-        return f"veto property {name} inconclusive at t={at}"
+        return verdict_veto_reason(name, verdict)
+
+
+def verdict_veto_reason(name: str, verdict: Verdict) -> str | None:
+    """Why veto property ``name`` stops actions when ``verdict`` is its latest, or None when
+    the verdict vouches for it (a verdict alone says so: the calls of service and action
+    effectors read it before the Trustworthiness Manager is made)."""
+    if verdict.value is True and verdict.error is None:
+        return None
+    at = format_seconds(verdict.time)
+    if verdict.error is not None:
+        return f"veto property {name} in error at t={at}: {verdict.error}"
+    if verdict.value is False:
+        return f"veto property {name} violated at t={at}"
+    return f"veto property {name} inconclusive at t={at}"
 
 
 def _trusted(why: str) -> ActionOutcome:

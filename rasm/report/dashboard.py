@@ -25,7 +25,7 @@ import math
 import threading
 import time as _time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
 from rasm.errors import PlatformError
@@ -33,6 +33,10 @@ from rasm.properties.loader import signals_of
 from rasm.report.model import TraceModel
 from rasm.report.page import plotly_js, render_page
 from rasm.report.verdicts import VerdictTimeline
+
+if TYPE_CHECKING:
+    from rasm.platform.assembly import ManagingSide
+    from rasm.platform.platform import Platform
 
 __all__ = ["Dashboard", "HOST", "serve"]
 
@@ -45,7 +49,7 @@ class Dashboard:
 
     def __init__(
         self,
-        platform: Any,
+        platform: Platform,
         port: int = 8050,
         *,
         refresh: float = 0.5,
@@ -82,16 +86,18 @@ class Dashboard:
         )
         self._thread.start()
         platform.on_record.append(self.on_record)
-        verdict_observers = getattr(platform, "on_verdict", None)
-        if verdict_observers is not None:
-            verdict_observers.append(self.on_verdict)
+        platform.on_verdict.append(self.on_verdict)
+
+    def _managing(self) -> ManagingSide | None:
+        """The run's managing side, with its Trustworthiness Checker (None: managed only)."""
+        return self.platform.assembly.managing
 
     # ------------------------------------------------------------------ the loop's side
 
     def _properties(self) -> None:
         # verdicts carry the property's name only: two files' properties of one name share a row
-        tc = getattr(self.platform, "tc", None)
-        for monitor in getattr(tc, "monitors", ()):
+        side = self._managing()
+        for monitor in side.trustworthiness_checker.monitors if side is not None else ():
             for prop in monitor.spec.properties:
                 timeline = self.timelines.get(prop.name)
                 if timeline is None:
@@ -107,9 +113,7 @@ class Dashboard:
                     timeline.reads = sorted({*timeline.reads, *signals_of(prop.formula)})
 
     def _read_modes(self) -> None:
-        sm = getattr(self.platform, "sm", None)
-        if sm is not None:
-            self.modes = dict(sm.get_status())
+        self.modes = dict(self.platform.assembly.state_manager.get_status())
         self._modes_read = _time.monotonic()
 
     def on_verdict(self, verdict: Any) -> None:
@@ -126,9 +130,10 @@ class Dashboard:
     def _name_missing(self) -> None:
         """The signals each property never judged waits for, and the antecedents that never
         held, as the checker says at the end."""
-        tc = getattr(self.platform, "tc", None)
-        if tc is None:
+        side = self._managing()
+        if side is None:
             return
+        tc = side.trustworthiness_checker
         for name, timeline in self.timelines.items():
             if not timeline.judged:
                 timeline.outcome.missing = tc.missing(name)
@@ -166,29 +171,28 @@ class Dashboard:
 
     def _model(self) -> dict[str, Any]:
         p = self.platform
-        manifest = getattr(p, "manifest", None)
-        name = getattr(manifest, "name", "platform")
+        name = p.manifest.name
         data = self.model.to_dict()
         data["properties"] = {
             "files": [],
             "timelines": [t.to_dict() for t in self.timelines.values()],
             "note": "No properties: the Trustworthiness Checker of this run checks none.",
         }
-        data["source"] = f"{name} on the {getattr(p, 'clock_kind', '?')} clock"
+        data["source"] = f"{name} on the {p.clock_kind} clock"
         data["live"] = True
         data["status"] = self.status
         data["modes"] = self.modes
-        transport = getattr(p, "transport_url", "local")
+        transport = p.transport_url or "local"
         data["nodes"] = {
             "remote": [],
             "note": f"single process: no remote nodes (transport {transport}, "
-            f"role {getattr(p, 'role', 'all')})",
+            f"role {p.options.role})",
         }
         data["missing"] = []
         return data
 
     def page(self) -> str:
-        name = getattr(getattr(self.platform, "manifest", None), "name", "platform")
+        name = self.platform.manifest.name
         return render_page(
             None, title=f"rasm dashboard: {name}", events_url="/events", plotly_url="/plotly.js"
         )
@@ -254,7 +258,7 @@ class Dashboard:
             self._cond.notify_all()
         if self.on_record in self.platform.on_record:
             self.platform.on_record.remove(self.on_record)
-        if self.on_verdict in getattr(self.platform, "on_verdict", ()):
+        if self.on_verdict in self.platform.on_verdict:
             self.platform.on_verdict.remove(self.on_verdict)
         self.server.shutdown()
         self.server.server_close()
@@ -328,12 +332,12 @@ class _Handler(BaseHTTPRequestHandler):
         _log.debug("%s " + format, self.address_string(), *args)
 
 
-def serve(platform: Any, port: int = 8050, **options: Any) -> Dashboard:
+def serve(platform: Platform, port: int = 8050, **options: Any) -> Dashboard:
     """Serve ``platform``'s dashboard on 127.0.0.1:``port`` (0: any free port).
 
     Call it after ``platform.build()`` and before ``platform.run(...)``; call ``close()`` on the
     result when the run is over. Raises :class:`~rasm.errors.PlatformError` if the port is taken.
     """
-    if getattr(platform, "core", None) is None and hasattr(platform, "build"):
+    if not platform.built:
         platform.build()
     return Dashboard(platform, port, **options)

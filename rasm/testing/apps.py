@@ -16,6 +16,7 @@ from typing import Any
 
 from rasm.platform.manifest import AppManifest, load_manifest
 from rasm.platform.platform import Platform
+from rasm.platform.run_options import Clock, RunOptions
 from rasm.trace import Trace, trace_line
 
 __all__ = ["run_app", "app_manifest"]
@@ -102,13 +103,15 @@ def run_app(
         raise ValueError(f"duration must be a positive number of seconds, not {duration!r}")
     platform = Platform(
         manifest,
-        clock="simulated",
-        seed=seed,
-        knowledge="memory",
-        trace=trace,
-        scenario=dict(scenario) if scenario is not None else None,
-        components=dict(components) if components else None,
-        check_signals=check_signals,
+        RunOptions(
+            clock=Clock.SIMULATED,
+            seed=seed,
+            knowledge="memory",
+            trace=trace,
+            scenario=dict(scenario) if scenario is not None else None,
+            components=dict(components) if components else None,
+            check_signals=check_signals,
+        ),
     )
     records: list[dict[str, Any]] = []
     last = -math.inf

@@ -6,7 +6,7 @@ import io
 
 from rich.console import Console
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.cli.console import LiveView
 from tests.platform.guarded import write_guarded_app
 
@@ -29,7 +29,7 @@ def test_the_live_view_says_which_properties_are_not_judged_yet(tmp_path):
         tmp_path / "app", signals={"heading": "float"}, inputs="input heading: float\n",
         extra="\nproperty steady:\n    always (heading <= 90)\n", every=8,
     )
-    platform = Platform(app, clock="simulated", seed=1)
+    platform = Platform(app, RunOptions(clock="simulated", seed=1))
     platform.start()
     try:
         platform.scheduler.run_until(platform.clock.time + 2.0)

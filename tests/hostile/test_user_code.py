@@ -189,17 +189,19 @@ class ExitingTwin:
 
 
 def test_a_twin_that_exits_fails_closed_and_the_loop_goes_on(tmp_path: Path) -> None:
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from rasm.platform.manifest import load_manifest
 
     trace = tmp_path / "trace.jsonl"
     summary = Platform(
         load_manifest(ROOT / "examples" / "hotbox"),
-        clock="simulated",
-        seed=1,
-        knowledge="memory",
-        trace=trace,
-        components={"twin": ExitingTwin()},
+        RunOptions(
+            clock="simulated",
+            seed=1,
+            knowledge="memory",
+            trace=trace,
+            components={"twin": ExitingTwin()},
+        ),
     ).run(30)
     assert summary.stats.iterations == int(30 / 0.5)
     text = trace.read_text()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import shutil
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.platform.manifest import load_manifest
 from rasm.resources import platform_chart
 
@@ -39,26 +39,29 @@ def test_the_platform_monitors_refuse_a_broken_orchestrator_step(tmp_path):
     trace_file = tmp_path / "trace.jsonl"
     platform = Platform(
         broken_app(tmp_path),
-        clock="simulated",
-        seed=1,
-        knowledge="memory",
-        trace=trace_file,
-        components={"plan": RuleBreaker()},
+        RunOptions(
+            clock="simulated",
+            seed=1,
+            knowledge="memory",
+            trace=trace_file,
+            components={"plan": RuleBreaker()},
+        ),
     )
     summary = platform.run(20)
     trace = read_trace(trace_file)
     assert summary.stats.rejected >= 1
     # the broken transition was refused by the monitor every time: nothing was executed
     assert not any(r.get("executed") for r in trace)
-    assert platform.ao.step_failures >= summary.stats.rejected
+    assert platform.managing.adaptation_orchestrator.step_failures >= summary.stats.rejected
     # and the loop went on: every tick still started an iteration
     assert summary.stats.iterations == 40
 
 
 def test_the_shipped_orchestrator_passes_the_monitors(hotbox):
     platform = Platform(
-        hotbox, clock="simulated", seed=1, knowledge="memory", components={"plan": RuleBreaker()}
+        hotbox, RunOptions(clock="simulated", seed=1, knowledge="memory",
+                           components={"plan": RuleBreaker()})
     )
     summary = platform.run(20)
     assert summary.stats.rejected >= 1 and summary.stats.cancelled >= 1
-    assert platform.ao.step_failures == 0
+    assert platform.managing.adaptation_orchestrator.step_failures == 0

@@ -7,7 +7,7 @@ import shutil
 
 import pytest
 
-from rasm import Anomaly, Plan, Platform
+from rasm import Anomaly, Plan, Platform, RunOptions
 from rasm.cli import main
 from rasm.errors import PlatformError
 from rasm.platform.app_properties import LIMITS, compile_app_properties, platform_specifications
@@ -93,8 +93,12 @@ class SlowDown:
 
 
 def busy_run(folder):
-    return Platform(load_manifest(folder), clock="simulated", seed=1, knowledge="memory",
-                    components={"analyse": PickerEveryIteration(), "plan": SlowDown()}).run(3.2)
+    return Platform(load_manifest(folder), RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        components={"analyse": PickerEveryIteration(), "plan": SlowDown()},
+    )).run(3.2)
 
 
 def test_a_busy_aisle_oscillates_by_default_and_passes_with_the_apps_own_limit(tmp_path):

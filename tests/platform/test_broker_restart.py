@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import read_trace, start_managed
@@ -18,7 +18,8 @@ def test_the_loop_continues_across_a_broker_restart(hotbox, tmp_path):
     managed = start_managed(broker, tmp_path, duration=40)
     trace_file = tmp_path / "managing.jsonl"
     platform = Platform(
-        hotbox, role="managing", transport=broker.url, trace=trace_file, knowledge="memory"
+        hotbox, RunOptions(role="managing", transport=broker.url, trace=trace_file,
+                           knowledge="memory")
     )
     platform.build()
     restarted_at: list[float] = []
@@ -55,4 +56,4 @@ def test_the_loop_continues_across_a_broker_restart(hotbox, tmp_path):
     # the loop kept its rhythm through the outage and after it
     assert sum(r.get("stage") == "monitor" for r in after) >= 5
     assert sum("temperature" in r for r in after) >= 10
-    assert platform.transport.stats.as_dict()["reconnects"] >= 1
+    assert platform.assembly.transport.stats.as_dict()["reconnects"] >= 1

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.errors import SourceErrors
 from rasm.platform.corrective import recovery_times
 from rasm.properties import load_specification
@@ -69,7 +69,8 @@ def test_corrective_actions_need_a_twin(tmp_path):
     without_twin = text[: text.index("twin:\n")] + text[text.index("properties:\n") :]
     (app / "app.fallback.yaml").write_text(without_twin)
     with pytest.raises(SourceErrors) as caught:
-        Platform(app / "app.fallback.yaml", clock="simulated", knowledge="memory").build()
+        Platform(app / "app.fallback.yaml", RunOptions(clock="simulated",
+                                                       knowledge="memory")).build()
     assert "app.fallback.yaml:" in str(caught.value)
     assert "corrective actions need a digital twin" in str(caught.value)
 

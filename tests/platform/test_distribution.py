@@ -9,7 +9,7 @@ import threading
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.comm import BoundSigner, PresenceTracker, open_transport
 from rasm.testing.servers import start_mosquitto
 
@@ -28,7 +28,8 @@ def test_killed_managed_process_suspends_the_loop_and_signed_actions_flow(
     managed = start_managed(broker, tmp_path, duration=60, env={"RASM_ACTION_KEY": ACTION_KEY})
     trace_file = tmp_path / "managing.jsonl"
     platform = Platform(
-        hotbox, role="managing", transport=broker.url, trace=trace_file, knowledge="memory"
+        hotbox, RunOptions(role="managing", transport=broker.url, trace=trace_file,
+                           knowledge="memory")
     )
     platform.build()
     boosted, suspended = threading.Event(), threading.Event()
@@ -46,7 +47,7 @@ def test_killed_managed_process_suspends_the_loop_and_signed_actions_flow(
             platform.scheduler.stop()
 
     platform.on_record.append(watch)
-    platform.ao.on_enter_suspended = on_enter_suspended
+    platform.managing.adaptation_orchestrator.on_enter_suspended = on_enter_suspended
     runner = threading.Thread(target=platform.run, args=(40.0,))
     try:
         runner.start()
@@ -58,7 +59,7 @@ def test_killed_managed_process_suspends_the_loop_and_signed_actions_flow(
         broker.stop()
     assert boosted.is_set(), "no signed action was applied by the managed process"
     assert suspended.is_set(), "the loop did not notice the managed process died"
-    assert list(platform.sm.nodes.values()) == ["offline"]
+    assert list(platform.assembly.state_manager.nodes.values()) == ["offline"]
     trace = read_trace(trace_file)
     assert any(r.get("executed") for r in trace)
 
@@ -67,7 +68,8 @@ def test_signed_rule_updates_and_timing(hotbox, tmp_path, monkeypatch):
     monkeypatch.setenv("RASM_UPDATE_KEY", UPDATE_KEY)
     broker = start_mosquitto(tmp_path)
     platform = Platform(
-        hotbox, transport=broker.url, knowledge="memory", clock="wall", state_dir=tmp_path / "state"
+        hotbox, RunOptions(transport=broker.url, knowledge="memory", clock="wall",
+                           state_dir=tmp_path / "state")
     )
     platform.build()
     results = []
@@ -90,7 +92,7 @@ def test_signed_rule_updates_and_timing(hotbox, tmp_path, monkeypatch):
 
     def push():
         epochs = list(tracker.epochs(app="hotbox").values())
-        assert epochs == [platform.dist.epoch]
+        assert epochs == [platform.assembly.distribution.epoch]
         admin.publish("rasm/update/rules", {"rules": tighter})  # unsigned
         for text in (inconsistent, tighter):
             bound = signer.sign({"rules": text}, topic="rasm/update/rules", epochs=epochs)
@@ -107,8 +109,9 @@ def test_signed_rule_updates_and_timing(hotbox, tmp_path, monkeypatch):
     admin.close()
     broker.stop()
     assert [r["accepted"] for r in results] == [False, False, True], results
-    assert "heater_rating" in [r.name for r in platform.rules[0].rules.rules]
-    assert any(r.require_text == "power_limit <= 90" for r in platform.rules[0].rules.rules)
+    rules = platform.managing.rules[0].rules.rules
+    assert "heater_rating" in [r.name for r in rules]
+    assert any(r.require_text == "power_limit <= 90" for r in rules)
     lines = (tmp_path / "state" / "timing.lp").read_text().splitlines()
     assert any(line.startswith("maple_stage,stage=monitor") for line in lines)
     json.dumps(results)
@@ -141,11 +144,12 @@ def test_the_summary_counts_what_was_refused_from_the_bus(hotbox, tmp_path, monk
 
     def run(role: str, topic: str):
         platform = Platform(
-            hotbox, role=role, transport=broker.url, knowledge="memory", state_dir=tmp_path / role
+            hotbox, RunOptions(role=role, transport=broker.url, knowledge="memory",
+                               state_dir=tmp_path / role)
         )
         platform.build()
         # after the garbage, a last valid (and refused) message on the same topic ends the run
-        platform.transport.subscribe(
+        platform.assembly.transport.subscribe(
             topic,
             lambda m: m.payload.get("last") and platform.scheduler.submit(platform.scheduler.stop),
         )

@@ -108,10 +108,15 @@ class _Publisher:
 
 
 def _run_platform(app, url, tmp_path, seconds):
-    from rasm import Platform
+    from rasm import Platform, RunOptions
 
-    platform = Platform(app, transport=url, clock="wall", knowledge="memory",
-                        state_dir=tmp_path / "state", role="all")
+    platform = Platform(app, RunOptions(
+        transport=url,
+        clock="wall",
+        knowledge="memory",
+        state_dir=tmp_path / "state",
+        role="all",
+    ))
     records: list[dict] = []
     platform.on_record.append(lambda t, r: records.append({"time": t, **r}))
     summary = platform.run(seconds)
@@ -136,7 +141,7 @@ def test_an_outsiders_true_clears_no_veto_over_mqtt(tmp_path, monkeypatch):
         finally:
             liar.close()
         assert liar.sent > 20
-        assert platform.external.refused["checker_ok"] > 20
+        assert platform.managing.external_verdicts.refused["checker_ok"] > 20
         assert summary.verdicts["checker_ok"] == "not judged"
         assert not [r for r in records if r.get("executed")]
 

@@ -17,7 +17,7 @@ import threading
 import paho.mqtt.publish as paho_publish
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.errors import SourceErrors
 from rasm.testing import PropertyViolation, assert_properties, run_app
 from rasm.testing.servers import start_mosquitto
@@ -91,7 +91,7 @@ def test_a_veto_property_that_is_never_judged_lets_no_action_through(tmp_path):
 def test_a_veto_property_that_names_no_property_is_refused_at_start_up(tmp_path):
     app = write_guarded_app(tmp_path / "app", veto=("slow", "slwo"))
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated").build()
+        Platform(app, RunOptions(clock="simulated")).build()
     message = str(caught.value)
     assert "veto property 'slwo' is not a property of this app" in message
     assert f"{app / 'app.yaml'}:" in message  # placed in the manifest
@@ -176,7 +176,7 @@ def _check_no_action_passed_unvouched(watcher: Watcher) -> None:
 
 def _simulated_run(tmp_path, scenario):
     app = write_guarded_app(tmp_path / "app")
-    platform = Platform(app, clock="simulated", seed=1, scenario=scenario)
+    platform = Platform(app, RunOptions(clock="simulated", seed=1, scenario=scenario))
     watcher = Watcher(platform)
     summary = platform.run(25.0)
     return summary, watcher
@@ -241,7 +241,7 @@ def test_the_overflow_attack_over_mqtt_never_lets_an_unvouched_action_through(tm
     try:
         app = write_guarded_app(tmp_path / "app", period=0.1, window="1s")
         platform = Platform(
-            app, transport=broker.url, scenario={"fast": [[1.5, 2.5]]}, seed=1
+            app, RunOptions(transport=broker.url, scenario={"fast": [[1.5, 2.5]]}, seed=1)
         )
         watcher = Watcher(platform)
         result: dict = {}

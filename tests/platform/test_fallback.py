@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.errors import SourceErrors
 from rasm.platform.components import Plan
 from rasm.testing import run_app
@@ -239,7 +239,7 @@ def test_a_lost_managed_system_engages_the_fallback_and_its_return_hands_back(tm
 def test_managed_system_lost_that_nothing_could_report_is_refused_with_its_place(tmp_path):
     app = write_app(tmp_path / "app", when="managed_system_lost")  # local bus, no staleness
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated", seed=1, knowledge="memory")
+        Platform(app, RunOptions(clock="simulated", seed=1, knowledge="memory"))
     message = str(caught.value)
     assert "app.yaml:" in message and "managed_system_lost can never fire over local" in message
     run = subprocess.run([sys.executable, "-m", "rasm.cli", "lint", str(app)],
@@ -253,7 +253,7 @@ def test_managed_system_lost_that_nothing_could_report_is_refused_with_its_place
 def test_a_fallback_the_rules_do_not_admit_in_every_context_is_refused_at_start(tmp_path):
     app = write_app(tmp_path / "app", level=2)  # calm_when_fast breaks it when speed > 1
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated", seed=1, knowledge="memory").build()
+        Platform(app, RunOptions(clock="simulated", seed=1, knowledge="memory")).build()
     message = str(caught.value)
     assert "app.yaml:" in message and "fallback actions are not legitimate" in message
     assert "calm_when_fast" in message and "speed ==" in message
@@ -300,7 +300,7 @@ def test_a_fallback_for_an_unknown_effector_is_refused_at_its_line(tmp_path):
     text = (app / "app.yaml").read_text().replace("{motor: {level: 0}}", "{wheel: {level: 0}}")
     (app / "app.yaml").write_text(text)
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated")
+        Platform(app, RunOptions(clock="simulated"))
     assert "fallback action for unknown effector 'wheel' (effectors: motor)" in str(caught.value)
 
 
@@ -341,7 +341,7 @@ def test_a_fallback_value_that_does_not_fit_its_effector_field_is_refused(tmp_pa
                         "  motor:\n    topic: robot/motor\n    fields: {level: int}\n")
     (app / "app.yaml").write_text(text.replace("{motor: {level: 0}}", '{motor: {level: "low"}}'))
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated")
+        Platform(app, RunOptions(clock="simulated"))
     message = str(caught.value)
     assert "app.yaml:" in message and "the fallback action for motor: level:" in message
     assert "expected int, got str" in message
@@ -446,18 +446,20 @@ def test_between_a_violation_and_the_engagement_the_loop_s_actions_are_held(tmp_
     from rasm.properties import Verdict
 
     app = write_app(tmp_path / "app", when="veto")
-    platform = Platform(app, clock="simulated", seed=1, knowledge="memory")
+    platform = Platform(app, RunOptions(clock="simulated", seed=1, knowledge="memory"))
     platform.start()
     try:
-        switch, loop_action = platform.fb, Action("motor", {"level": 1}, "p1")
-        assert switch.state == "nominal" and switch.holds(loop_action) is None
+        side = platform.managing
+        switch, hold = side.fallback_switch, side.fallback_hold
+        loop_action = Action("motor", {"level": 1}, "p1")
+        assert switch.state == "nominal" and hold.holds(loop_action) is None
         # a violation and, in the same batch, the verdict that clears it: the switch has not
         # read its triggers yet (that is the next job), yet it holds the loop's actions
-        platform.tc.take(Verdict("slow", 3, 1.5, False))
-        platform.tc.take(Verdict("slow", 4, 1.5, True))
+        side.trustworthiness_checker.take(Verdict("slow", 3, 1.5, False))
+        side.trustworthiness_checker.take(Verdict("slow", 4, 1.5, True))
         assert switch.state == "nominal"
-        assert "veto property slow violated at t=1.5" in switch.holds(loop_action)
-        assert switch.holds(Action("motor", {"level": 0}, "f1", "fallback")) is None
+        assert "veto property slow violated at t=1.5" in hold.holds(loop_action)
+        assert hold.holds(Action("motor", {"level": 0}, "f1", "fallback")) is None
         platform.scheduler.run_until(platform.clock.time)  # the jobs submitted: the evaluation
         assert switch.state == "fallback" and switch.engagements == 1
         assert "veto property slow violated at t=1.5" in switch.trigger_reason()

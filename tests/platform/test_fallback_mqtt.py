@@ -12,7 +12,7 @@ import sys
 import threading
 import time
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import HOTBOX, read_trace
@@ -38,8 +38,12 @@ def test_a_killed_managed_process_engages_the_fallback(tmp_path):
         env=dict(os.environ),
     )
     trace_file = tmp_path / "managing.jsonl"
-    platform = Platform(app, role="managing", transport=broker.url, trace=trace_file,
-                        knowledge="memory")
+    platform = Platform(app, RunOptions(
+        role="managing",
+        transport=broker.url,
+        trace=trace_file,
+        knowledge="memory",
+    ))
     platform.build()
     heard, engaged = threading.Event(), threading.Event()
     killed_at: list[float] = []
@@ -57,9 +61,9 @@ def test_a_killed_managed_process_engages_the_fallback(tmp_path):
         runner.start()
         assert heard.wait(30), "no reading crossed the broker"
         deadline = time.monotonic() + 30
-        while not platform.dist.managed_nodes and time.monotonic() < deadline:
+        while not platform.assembly.distribution.managed_nodes and time.monotonic() < deadline:
             time.sleep(0.05)  # presence has not announced the managed node yet
-        assert platform.dist.managed_online, "presence never saw the managed node"
+        assert platform.assembly.distribution.managed_online, "presence never saw the managed node"
         managed.send_signal(signal.SIGKILL)
         killed_at.append(time.monotonic())
         assert engaged.wait(30), "the fallback did not engage"

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.platform.components import Action, Anomaly, Plan
 from rasm.rules import RuleSet
 
@@ -92,16 +92,19 @@ def test_faulty_components_never_get_an_unchecked_action_executed(
     trace_file = tmp_path_factory.mktemp("faulty") / "trace.jsonl"
     platform = Platform(
         manifest,
-        clock="simulated",
-        seed=3,
-        trace=trace_file,
-        knowledge="memory",
-        components={"analyse": scripted, "plan": scripted, "execute": scripted},
+        RunOptions(
+            clock="simulated",
+            seed=3,
+            trace=trace_file,
+            knowledge="memory",
+            components={"analyse": scripted, "plan": scripted, "execute": scripted},
+        ),
     )
     applied = []
     platform.build()
-    original = platform.simulator.apply
-    platform.simulator.apply = lambda eff, payload, t: (
+    simulator = platform.assembly.managed_system.simulator
+    original = simulator.apply
+    simulator.apply = lambda eff, payload, t: (
         applied.append((eff, payload)),
         original(eff, payload, t),
     )
@@ -168,16 +171,19 @@ def _run_odd(tmp_path, stage, value, seconds=3.0):
     odd = _Odd(stage, value)
     platform = Platform(
         load_manifest(HOTBOX),
-        clock="simulated",
-        seed=3,
-        trace=tmp_path / "trace.jsonl",
-        knowledge="memory",
-        state_dir=tmp_path,  # its timing.lp too
-        components={"monitor": odd, "analyse": odd, "plan": odd, "execute": odd},
+        RunOptions(
+            clock="simulated",
+            seed=3,
+            trace=tmp_path / "trace.jsonl",
+            knowledge="memory",
+            state_dir=tmp_path,
+            components={"monitor": odd, "analyse": odd, "plan": odd, "execute": odd},
+        ),
     )
     applied = []
     platform.build()
-    platform.simulator.apply = lambda eff, payload, t: applied.append((eff, payload))
+    simulator = platform.assembly.managed_system.simulator
+    simulator.apply = lambda eff, payload, t: applied.append((eff, payload))
     summary = platform.run(seconds)
     return summary, read_trace(tmp_path / "trace.jsonl"), applied
 
@@ -223,9 +229,13 @@ def test_max_actions_is_a_manifest_setting(tmp_path):
     manifest = load_manifest(HOTBOX)
     manifest.max_actions = 20
     odd = _Odd("execute", [Action("heater", dict(GOOD))] * 17)
-    platform = Platform(manifest, clock="simulated", seed=3, knowledge="memory",
-                        state_dir=tmp_path,
-                        components={"monitor": odd, "analyse": odd, "plan": odd, "execute": odd})
+    platform = Platform(manifest, RunOptions(
+        clock="simulated",
+        seed=3,
+        knowledge="memory",
+        state_dir=tmp_path,
+        components={"monitor": odd, "analyse": odd, "plan": odd, "execute": odd},
+    ))
     summary = platform.run(1.0)
     assert summary.stats.executed == summary.stats.iterations > 0
     assert not summary.stats.failed_stages
@@ -256,10 +266,12 @@ def test_a_faulty_simulator_is_logged_and_the_run_goes_on(tmp_path, caplog):
     from rasm.platform.manifest import load_manifest
 
     platform = Platform(
-        load_manifest(HOTBOX), clock="simulated", seed=3, knowledge="memory", state_dir=tmp_path
+        load_manifest(HOTBOX), RunOptions(clock="simulated", seed=3, knowledge="memory",
+                                          state_dir=tmp_path)
     )
     platform.build()
-    step = platform.simulator.step
+    simulator = platform.assembly.managed_system.simulator
+    step = simulator.step
     answers = iter([SystemExit(4), "garbage", {5: {}}, {"hotbox/sensors": {"t": float("nan")}}])
 
     def faulty_step(time, dt):
@@ -271,8 +283,8 @@ def test_a_faulty_simulator_is_logged_and_the_run_goes_on(tmp_path, caplog):
     def faulty_apply(effector, payload, time):
         raise SystemExit("apply crashed")
 
-    platform.simulator.step = faulty_step
-    platform.simulator.apply = faulty_apply
+    simulator.step = faulty_step
+    simulator.apply = faulty_apply
     summary = platform.run(20.0)  # sys.exit() in the simulator used to end the run at once
     assert summary.stats.iterations == int(20.0 / 0.5) and summary.stats.executed >= 1
     errors = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]

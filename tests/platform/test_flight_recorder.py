@@ -263,10 +263,10 @@ def test_sigterm_stops_both_roles_over_a_broker_in_order(tmp_path):
 
 
 def test_a_second_signal_during_the_stop_aborts_at_once(hotbox):
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from rasm.cli.live import _stop_on_signals
 
-    platform = Platform(hotbox, clock="simulated", knowledge="memory")
+    platform = Platform(hotbox, RunOptions(clock="simulated", knowledge="memory"))
     before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt), _stop_on_signals(platform):
         signal.raise_signal(signal.SIGTERM)

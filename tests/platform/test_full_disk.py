@@ -21,6 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rasm.platform.platform import Platform
+from rasm.platform.run_options import RunOptions
 from rasm.trace import TraceWriter, format_line
 from rasm.trace_mcap import McapTrace, McapTraceWriter
 
@@ -128,8 +129,12 @@ def test_a_full_disk_under_the_trace_stops_neither_the_loop_nor_the_fallback(
 
 def test_every_record_reaches_the_checker_and_every_action_its_executed_record(small_disk):
     disk = small_disk(64)
-    platform = Platform(FALLBACK_APP, clock="simulated", seed=1, trace=disk / "out.jsonl",
-                        knowledge="memory")
+    platform = Platform(FALLBACK_APP, RunOptions(
+        clock="simulated",
+        seed=1,
+        trace=disk / "out.jsonl",
+        knowledge="memory",
+    ))
     seen: list[dict] = []
     platform.on_record.append(lambda time, record: seen.append({"time": time, **record}))
     summary = platform.run(80)
@@ -200,7 +205,8 @@ def shared_disk(tmp_path_factory) -> Iterator[Path]:
 
 def test_a_full_disk_under_the_knowledge_store_and_the_timing_file(small_disk, caplog):
     disk = small_disk(512)
-    platform = Platform(FALLBACK_APP, clock="simulated", seed=1, state_dir=disk / "state")
+    platform = Platform(FALLBACK_APP, RunOptions(clock="simulated", seed=1,
+                                                 state_dir=disk / "state"))
     platform.build()
     filler = fill(disk)
 
@@ -241,7 +247,7 @@ def test_a_full_disk_under_a_log_file_counts_its_lines(tmp_path, small_disk, cap
     log = disk / "rasm.log"
     manifest.write_text(manifest.read_text()
                         + f"logging:\n  level: info\n  sinks: [console, 'file:{log}']\n")
-    platform = Platform(manifest, clock="simulated", seed=1, knowledge="memory")
+    platform = Platform(manifest, RunOptions(clock="simulated", seed=1, knowledge="memory"))
 
     def fill_at_start(time: float, record: dict) -> None:
         if not (disk / "filler").exists():

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.cli import main
 
 from .conftest import HOTBOX, read_trace
@@ -27,7 +27,8 @@ def lid_openings(trace):
 
 def test_simulated_run_adapts_to_every_lid_opening(hotbox, tmp_path):
     trace_file = tmp_path / "trace.jsonl"
-    summary = Platform(hotbox, clock="simulated", seed=7, trace=trace_file, knowledge="memory").run(
+    summary = Platform(hotbox, RunOptions(clock="simulated", seed=7, trace=trace_file,
+                                          knowledge="memory")).run(
         70
     )
     trace = read_trace(trace_file)
@@ -52,7 +53,8 @@ def test_simulated_run_adapts_to_every_lid_opening(hotbox, tmp_path):
 
 def test_every_lid_opening_is_met_by_boost_and_followed_by_normal_mode(hotbox, tmp_path):
     trace_file = tmp_path / "trace.jsonl"
-    summary = Platform(hotbox, clock="simulated", seed=1, trace=trace_file, knowledge="memory").run(
+    summary = Platform(hotbox, RunOptions(clock="simulated", seed=1, trace=trace_file,
+                                          knowledge="memory")).run(
         300
     )
     trace = read_trace(trace_file)
@@ -75,7 +77,8 @@ def test_a_heater_left_in_boost_violates_back_to_normal(hotbox):
             return {"mode": "boost", "setpoint": 38.5, "power_limit": 100.0}
 
     summary = Platform(
-        hotbox, clock="simulated", seed=1, knowledge="memory", components={"plan": BoostOnly()}
+        hotbox, RunOptions(clock="simulated", seed=1, knowledge="memory",
+                           components={"plan": BoostOnly()})
     ).run(90)
     assert summary.verdicts["back_to_normal"] == "violated"
     assert summary.verdicts["boost_while_open"] == "satisfied"
@@ -92,7 +95,8 @@ def test_without_the_loop_the_band_is_violated(hotbox, tmp_path):
             return None
 
     summary = Platform(
-        hotbox, clock="simulated", seed=7, knowledge="memory", components={"plan": NoPlan()}
+        hotbox, RunOptions(clock="simulated", seed=7, knowledge="memory",
+                           components={"plan": NoPlan()})
     ).run(70)  # the second opening starts from a box still cool from the first
     assert summary.stats.executed == 0
     assert summary.verdicts["temperature_band"] == "violated"
@@ -106,7 +110,8 @@ def test_two_runs_with_a_seed_give_identical_traces(seed, tmp_path_factory):
     traces = []
     for run in range(2):
         path = tmp_path_factory.mktemp("run") / f"{run}.jsonl"
-        Platform(_manifest(), clock="simulated", seed=seed, trace=path, knowledge="memory").run(20)
+        Platform(_manifest(), RunOptions(clock="simulated", seed=seed, trace=path,
+                                         knowledge="memory")).run(20)
         traces.append([{k: v for k, v in r.items() if k != "duration"} for r in read_trace(path)])
     assert traces[0] == traces[1]
 
@@ -149,11 +154,13 @@ def test_wall_clock_run_adapts(hotbox, tmp_path):
     hotbox.period = 0.25
     summary = Platform(
         hotbox,
-        clock="wall",
-        seed=2,
-        trace=trace_file,
-        knowledge="memory",
-        scenario={"openings": [[0.3, 5.0]]},
+        RunOptions(
+            clock="wall",
+            seed=2,
+            trace=trace_file,
+            knowledge="memory",
+            scenario={"openings": [[0.3, 5.0]]},
+        ),
     ).run(3.0)
     trace = read_trace(trace_file)
     assert summary.clock == "wall"
@@ -167,11 +174,11 @@ def test_wall_clock_run_adapts(hotbox, tmp_path):
 
 @pytest.mark.parametrize("role", ["managing", "managed"])
 def test_roles_build_only_their_side(hotbox, role):
-    platform = Platform(hotbox, clock="simulated", role=role, knowledge="memory")
+    platform = Platform(hotbox, RunOptions(clock="simulated", role=role, knowledge="memory"))
     platform.build()
-    names = {b.name for b in platform.core.blocks}
+    names = {b.name for b in platform.assembly.core.blocks}
     assert ("ao" in names) == (role == "managing")
-    assert (platform.simulator is not None) == (role == "managed")
+    assert (platform.assembly.managed_system is not None) == (role == "managed")
 
 
 @pytest.mark.slow
@@ -179,8 +186,12 @@ def test_low_latency_keeps_the_objects_built_before_the_run_out_of_the_collector
     import gc
 
     frozen_during_run = []
-    platform = Platform(_manifest(), clock="simulated", knowledge="memory", state_dir=tmp_path,
-                        low_latency=True)
+    platform = Platform(_manifest(), RunOptions(
+        clock="simulated",
+        knowledge="memory",
+        state_dir=tmp_path,
+        low_latency=True,
+    ))
     platform.on_record.append(lambda t, record: frozen_during_run.append(gc.get_freeze_count()))
     platform.run(2)
     assert frozen_during_run and min(frozen_during_run) > 0
@@ -205,7 +216,8 @@ def test_a_live_loop_that_stalls_skips_the_iterations_it_missed(hotbox):
     hotbox.period = 0.1
     hotbox.stage_budget = 0.3
     summary = Platform(
-        hotbox, clock="wall", seed=1, knowledge="memory", components={"analyse": StallsOnce()}
+        hotbox, RunOptions(clock="wall", seed=1, knowledge="memory",
+                           components={"analyse": StallsOnce()})
     ).run(1.0)
     release.set()
     # the overrun cost about three periods: they were skipped, not run back to back

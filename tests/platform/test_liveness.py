@@ -7,7 +7,7 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.platform.liveness import ManagedSystemWatch
 from rasm.platform.manifest import Probe, Signal
 
@@ -17,8 +17,12 @@ from .guarded import write_guarded_app
 def test_a_dead_robot_leaves_no_property_satisfied_on_its_last_reading(tmp_path):
     # the robot dies at 4.0 and never comes back; its probe may stay silent for 1 s
     app = write_guarded_app(tmp_path / "app", staleness=1.0)
-    platform = Platform(app, clock="simulated", seed=1, knowledge="memory",
-                        scenario={"silent": [[4.0, 1000.0]]})
+    platform = Platform(app, RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        scenario={"silent": [[4.0, 1000.0]]},
+    ))
     records: list[dict] = []
     verdicts: list = []
     platform.on_record.append(lambda t, r: records.append({"time": t, **r}))
@@ -38,8 +42,12 @@ def test_a_dead_robot_leaves_no_property_satisfied_on_its_last_reading(tmp_path)
 def test_without_a_staleness_the_last_reading_is_held_as_before(tmp_path):
     # the same run, no staleness declared: sample-and-hold, as SPEC §4 says for any signal
     app = write_guarded_app(tmp_path / "app")
-    platform = Platform(app, clock="simulated", seed=1, knowledge="memory",
-                        scenario={"silent": [[4.0, 1000.0]]})
+    platform = Platform(app, RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        scenario={"silent": [[4.0, 1000.0]]},
+    ))
     assert platform.run(12).verdicts["slow"] == "satisfied"
 
 

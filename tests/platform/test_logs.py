@@ -12,7 +12,7 @@ from collections import Counter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.logs import RepeatedLogs
 
 from .conftest import HOTBOX
@@ -141,9 +141,11 @@ def test_a_planner_raising_every_iteration_gives_one_traceback_and_a_count(hotbo
     failing = Failing()
     platform = Platform(
         hotbox,
-        clock="simulated",
-        knowledge="memory",
-        components={"plan": failing, "monitor": failing, "analyse": failing},
+        RunOptions(
+            clock="simulated",
+            knowledge="memory",
+            components={"plan": failing, "monitor": failing, "analyse": failing},
+        ),
     )
     # counted on the simulated clock, so the intervals are the same on any machine
     platform.logs = RepeatedLogs(10.0, clock=lambda: platform.clock.time)

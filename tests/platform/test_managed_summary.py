@@ -11,7 +11,7 @@ import sys
 import threading
 from pathlib import Path
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.testing.servers import start_mosquitto
 
 HOTBOX = Path(__file__).resolve().parents[2] / "examples" / "hotbox"
@@ -24,8 +24,8 @@ def test_a_managed_only_run_says_what_the_managed_side_did(tmp_path):
          "--transport", broker.url, "--duration", "20"],
         cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )
-    platform = Platform(HOTBOX, role="managing", transport=broker.url, knowledge="memory",
-                        state_dir=tmp_path / "state")
+    platform = Platform(HOTBOX, RunOptions(role="managing", transport=broker.url,
+                                           knowledge="memory", state_dir=tmp_path / "state"))
     executed = threading.Event()
 
     def watch(when, record):

@@ -198,7 +198,7 @@ def test_cli_run_names_the_place_of_a_component_that_cannot_be_a_stage(
 
 
 def test_platform_refuses_bad_arguments_with_what_to_do(tmp_path):
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from rasm.errors import PlatformError
 
     class Analyser:
@@ -206,17 +206,18 @@ def test_platform_refuses_bad_arguments_with_what_to_do(tmp_path):
             return None
 
     with pytest.raises(PlatformError, match=r"^unknown clock 'simulatd' \(simulated or wall\)$"):
-        Platform(HOTBOX, clock="simulatd")
+        Platform(HOTBOX, RunOptions(clock="simulatd"))
     with pytest.raises(PlatformError, match=r"^components: unknown stage 'planner' \(the stages"):
-        Platform(HOTBOX, components={"planner": Analyser()})
+        Platform(HOTBOX, RunOptions(components={"planner": Analyser()}))
     with pytest.raises(PlatformError, match=r"^components\['plan'\]: Analyser has no plan\(ctx\)"):
-        Platform(HOTBOX, components={"plan": Analyser()})
+        Platform(HOTBOX, RunOptions(components={"plan": Analyser()}))
     with pytest.raises(TypeError, match=r"^components must be a dict \{stage: object\}, not list"):
-        Platform(HOTBOX, components=[Analyser()])
+        Platform(HOTBOX, RunOptions(components=[Analyser()]))
     with pytest.raises(TypeError, match=r"^Platform\(\) takes an app folder, its app.yaml or"):
         Platform(42)
     # an app folder is as good as its manifest
-    platform = Platform(HOTBOX, clock="simulated", knowledge="memory", state_dir=tmp_path)
+    platform = Platform(HOTBOX, RunOptions(clock="simulated", knowledge="memory",
+                                           state_dir=tmp_path))
     assert platform.manifest.name == "hotbox"
     assert platform.run(1.0).stats.iterations == 2
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import read_trace, start_managed
@@ -17,7 +17,8 @@ def test_managed_and_managing_processes_adapt_over_mqtt(hotbox, tmp_path):
     try:
         trace_file = tmp_path / "managing.jsonl"
         summary = Platform(
-            hotbox, role="managing", transport=broker.url, trace=trace_file, knowledge="memory"
+            hotbox, RunOptions(role="managing", transport=broker.url, trace=trace_file,
+                               knowledge="memory")
         ).run(12.0)
         managed_out, _ = managed.communicate(timeout=30)
     finally:

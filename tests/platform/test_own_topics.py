@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.cli import main
 from rasm.comm import open_transport
 from rasm.errors import SourceErrors
@@ -34,8 +34,13 @@ def test_an_effector_named_after_a_property_receives_no_verdict_as_an_action(tmp
     listener.subscribe("rasm/verdict/slow", lambda m: verdicts.append(m.payload), qos=1)
     try:
         # fast the whole run: the veto holds, no action may reach the effector
-        platform = Platform(app, transport=broker.url, clock="wall", knowledge="memory",
-                            state_dir=tmp_path / "state", scenario={"fast": [[0, 100]]})
+        platform = Platform(app, RunOptions(
+            transport=broker.url,
+            clock="wall",
+            knowledge="memory",
+            state_dir=tmp_path / "state",
+            scenario={"fast": [[0, 100]]},
+        ))
         platform.run(1.5)
     finally:
         listener.close()
@@ -71,7 +76,7 @@ def test_a_topic_the_platform_publishes_is_refused_by_lint_and_at_start(
     out = capsys.readouterr().out
     assert message in out and "app.yaml:" in out, out
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated", knowledge="memory")
+        Platform(app, RunOptions(clock="simulated", knowledge="memory"))
     assert message in str(caught.value)
 
 

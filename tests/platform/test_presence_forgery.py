@@ -14,7 +14,7 @@ import threading
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.comm import open_transport
 from rasm.testing.servers import start_mosquitto
 from tests.ros2.conftest import wait_until
@@ -95,8 +95,12 @@ def test_forged_heartbeats_neither_hide_a_dead_managed_process_nor_release_the_f
     )
     forger = _Forger(broker.url)
     trace_file = tmp_path / "managing.jsonl"
-    platform = Platform(app, role="managing", transport=broker.url, trace=trace_file,
-                        knowledge="memory")
+    platform = Platform(app, RunOptions(
+        role="managing",
+        transport=broker.url,
+        trace=trace_file,
+        knowledge="memory",
+    ))
     platform.build()
     engaged = threading.Event()
     platform.on_record.append(
@@ -106,9 +110,10 @@ def test_forged_heartbeats_neither_hide_a_dead_managed_process_nor_release_the_f
     try:
         runner.start()
 
-        wait_until(lambda: any(s == "online" for s in platform.dist.managed_nodes.values()),
+        distribution = platform.assembly.distribution
+        wait_until(lambda: any(s == "online" for s in distribution.managed_nodes.values()),
                    what="presence to verify the managed process")
-        dead = next(iter(platform.dist.managed_nodes))
+        dead = next(iter(distribution.managed_nodes))
         captured = [m.payload for m in forger.seen
                     if m.topic.endswith(dead) and m.payload.get("state") == "online"]
         assert captured and all("signature" in p for p in captured)
@@ -124,8 +129,8 @@ def test_forged_heartbeats_neither_hide_a_dead_managed_process_nor_release_the_f
         forger.start(forgeries)
         # 4 s of forgeries, long past the dwell (1 s) and the tracker's timeout (1.5 s)
         forger.wait_rounds(40)
-        assert not platform.dist.managed_online
-        assert platform.dist.tracker.refused > 30
+        assert not platform.assembly.distribution.managed_online
+        assert platform.assembly.distribution.tracker.refused > 30
     finally:
         forger.close()
         if managed.poll() is None:
@@ -151,8 +156,12 @@ def test_a_fake_managed_node_is_no_managed_system(tmp_path, monkeypatch):
     forger.start(lambda: [("rasm/presence/hotbox-managed-7", _online("hotbox-managed-7"))])
     trace_file = tmp_path / "managing.jsonl"
     try:
-        platform = Platform(app, role="managing", transport=broker.url, trace=trace_file,
-                            knowledge="memory")
+        platform = Platform(app, RunOptions(
+            role="managing",
+            transport=broker.url,
+            trace=trace_file,
+            knowledge="memory",
+        ))
         platform.run(6.0)
     finally:
         forger.close()
@@ -160,4 +169,5 @@ def test_a_fake_managed_node_is_no_managed_system(tmp_path, monkeypatch):
     trace = read_trace(trace_file)
     assert [r["fallback"] for r in trace if "fallback" in r] == ["engaged"]
     assert not [r for r in trace if r.get("executed")]
-    assert platform.dist.tracker.refused > 10 and not platform.dist.managed_nodes
+    distribution = platform.assembly.distribution
+    assert distribution.tracker.refused > 10 and not distribution.managed_nodes

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.errors import SourceErrors
 from rasm.platform.components import Plan
 from rasm.testing import run_app
@@ -83,7 +83,7 @@ def test_a_rejected_repair_goes_back_to_the_planner(tmp_path):
 def test_a_weight_for_no_rule_variable_is_refused_at_its_place(tmp_path):
     app = write_app(tmp_path / "app", weights="  weights: {levle: 2}\n")
     with pytest.raises(SourceErrors) as caught:
-        Platform(app, clock="simulated", knowledge="memory").build()
+        Platform(app, RunOptions(clock="simulated", knowledge="memory")).build()
     assert "app.yaml:" in str(caught.value)
     message = str(caught.value)
     assert "repair weight for 'levle', which is no rule variable (level, speed)" in message

@@ -18,7 +18,7 @@ from pathlib import Path
 import paho.mqtt.client as paho
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.comm import BoundSigner, MqttTransport, Presence, verify
 from rasm.testing.servers import start_mosquitto
 
@@ -201,7 +201,8 @@ def test_no_action_is_sent_before_a_managed_process_announced_its_epoch(
     once a managed process's epoch is announced, the next action is bound to it."""
     broker = start_mosquitto(tmp_path)
     monkeypatch.setenv("RASM_ACTION_KEY", ACTION_KEY)
-    platform = Platform(hotbox, role="managing", transport=broker.url, knowledge="memory")
+    platform = Platform(hotbox, RunOptions(role="managing", transport=broker.url,
+                                           knowledge="memory"))
     platform.build()
     feeder = MqttTransport(broker.url)
     feeder.connect()
@@ -212,7 +213,8 @@ def test_no_action_is_sent_before_a_managed_process_announced_its_epoch(
     # with the key only signed heartbeats bound to the managing process count
     presence = Presence(
         feeder, "hotbox-managed-x", role="managed", info={"app": "hotbox", "epoch": "e-x"},
-        signer=BoundSigner(bytes.fromhex(ACTION_KEY)), receivers=lambda: [platform.dist.epoch],
+        signer=BoundSigner(bytes.fromhex(ACTION_KEY)),
+        receivers=lambda: [platform.assembly.distribution.epoch],
     )
     refusals: list[dict] = []
 
@@ -241,8 +243,9 @@ def test_no_action_is_sent_before_a_managed_process_announced_its_epoch(
     assert warnings == ["no managed process has announced its epoch: actions are not sent"]
     binding = action["binding"]
     assert binding["epochs"] == ["e-x"] and binding["topic"] == "hotbox/heater"
-    assert binding["run"] == platform.dist.run and binding["seq"] == 1  # nothing signed before
-    assert action["plan"].startswith(f"{platform.dist.run}-p")
+    run = platform.assembly.distribution.run
+    assert binding["run"] == run and binding["seq"] == 1  # nothing signed before
+    assert action["plan"].startswith(f"{run}-p")
     assert verify(action, bytes.fromhex(ACTION_KEY))
 
 

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.cli import main
 from rasm.errors import SourceErrors
 from rasm.lint import lint_paths
@@ -433,7 +433,7 @@ def test_the_python_api_refuses_it_too_unless_told_not_to(tmp_path, monkeypatch)
     app = copy_app(tmp_path)
     edit(app / "properties" / "hotbox.rv", "always (heater_power <=", "always (heater_powr <=")
     with pytest.raises(SourceErrors, match="signal 'heater_powr' is not provided"):
-        Platform(app, clock="simulated", knowledge="memory")
+        Platform(app, RunOptions(clock="simulated", knowledge="memory"))
     with pytest.raises(SourceErrors, match="signal 'heater_powr' is not provided"):
         run_app(app, seed=1, duration=1.0)
     trace = run_app(app, seed=1, duration=1.0, check_signals=False)

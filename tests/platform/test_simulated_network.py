@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.errors import CommError
 from rasm.platform import simulated_clock
 
@@ -22,8 +22,14 @@ RUNS = 3  # the race this guards against lost readings in 2 runs of 3
 
 def seeded_trace(app, tmp_path: Path, name: str, **options) -> list[dict]:
     trace_file = tmp_path / f"{name}.jsonl"
-    Platform(app, clock="simulated", seed=1, knowledge="memory", state_dir=tmp_path / name,
-             trace=trace_file, **options).run(20.0)
+    Platform(app, RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        state_dir=tmp_path / name,
+        trace=trace_file,
+        **options,
+    )).run(20.0)
     return [{k: v for k, v in r.items() if k != "duration"} for r in read_trace(trace_file)]
 
 
@@ -42,8 +48,13 @@ def test_a_simulated_run_whose_reading_never_comes_back_fails_naming_it(
     hotbox, broker, tmp_path, monkeypatch
 ):
     monkeypatch.setattr(simulated_clock, "DELIVERY_TIMEOUT", 1.0)
-    platform = Platform(hotbox, clock="simulated", seed=1, knowledge="memory",
-                        state_dir=tmp_path, transport=broker.url)
+    platform = Platform(hotbox, RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        state_dir=tmp_path,
+        transport=broker.url,
+    ))
     # the broker goes away 5 s into the run: the next readings are lost on the way
     platform.on_record.append(lambda time, record: broker.stop() if time >= 5 else None)
     with pytest.raises(CommError, match=r"did not come back within 1 s \(1 on 'hotbox/sensors'"):
@@ -52,8 +63,13 @@ def test_a_simulated_run_whose_reading_never_comes_back_fails_naming_it(
 
 def test_a_reading_from_another_process_fails_a_simulated_run(hotbox, broker, mqtt, tmp_path):
     intruder = mqtt()
-    platform = Platform(hotbox, clock="simulated", seed=1, knowledge="memory",
-                        state_dir=tmp_path, transport=broker.url)
+    platform = Platform(hotbox, RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+        state_dir=tmp_path,
+        transport=broker.url,
+    ))
     sent: list[float] = []
 
     def intrude(time: float, record: dict) -> None:

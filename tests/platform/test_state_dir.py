@@ -9,7 +9,7 @@ import textwrap
 
 from rich.console import Console
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.cli.console import LiveView
 from rasm.platform.manifest import load_manifest
 from rasm.times import format_seconds
@@ -25,8 +25,8 @@ def copy_hotbox(folder):
 def test_two_apps_of_the_same_name_keep_their_knowledge_apart(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     first, second = copy_hotbox(tmp_path / "a" / "hotbox"), copy_hotbox(tmp_path / "b" / "hotbox")
-    Platform(load_manifest(first), clock="simulated", seed=1).run(2)
-    Platform(load_manifest(second), clock="simulated", seed=1).run(2)
+    Platform(load_manifest(first), RunOptions(clock="simulated", seed=1)).run(2)
+    Platform(load_manifest(second), RunOptions(clock="simulated", seed=1)).run(2)
     folders = sorted(p.name for p in (tmp_path / ".rasm").iterdir())
     assert folders[0] == "hotbox" and len(folders) == 2 and folders[1].startswith("hotbox-")
     for name, app in zip(folders, (first, second), strict=True):
@@ -34,8 +34,10 @@ def test_two_apps_of_the_same_name_keep_their_knowledge_apart(tmp_path, monkeypa
         assert claim == str(app.resolve())
         assert (tmp_path / ".rasm" / name / "simulated.sqlite").is_file()
     # each app finds its own folder again on its next run
-    assert Platform(load_manifest(second), clock="simulated").state_dir.name == folders[1]
-    assert Platform(load_manifest(first), clock="simulated").state_dir.name == "hotbox"
+    assert Platform(load_manifest(second), RunOptions(
+        clock="simulated",
+    )).state_dir.name == folders[1]
+    assert Platform(load_manifest(first), RunOptions(clock="simulated")).state_dir.name == "hotbox"
 
 
 HOLD = textwrap.dedent(
@@ -75,10 +77,10 @@ def test_a_second_run_on_a_store_in_use_names_the_process_and_leaves_the_store_a
 def test_a_live_run_says_its_timeline_continues_the_persisted_one(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     manifest = load_manifest(HOTBOX)
-    first = Platform(manifest, clock="wall", seed=1)
+    first = Platform(manifest, RunOptions(clock="wall", seed=1))
     assert first.restored_from is None
     first.run(0.6)
-    second = Platform(load_manifest(HOTBOX), clock="wall", seed=1)
+    second = Platform(load_manifest(HOTBOX), RunOptions(clock="wall", seed=1))
     second.run(0.3)
     assert second.restored_from == "sqlite:.rasm/hotbox/knowledge.sqlite"
     assert 0 < second.timeline_start <= 0.6 + 0.1

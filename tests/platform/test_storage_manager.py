@@ -9,6 +9,7 @@ from sismic.clock import SimulatedClock
 
 from rasm.knowledge import open_knowledge
 from rasm.platform import Platform
+from rasm.platform.run_options import RunOptions
 from rasm.platform.storage_manager import StorageManager
 
 from .conftest import HOTBOX
@@ -52,8 +53,12 @@ def test_a_simulated_run_flushes_every_ten_simulated_seconds(tmp_path: Path) -> 
     # the next simulated run starts the file afresh and ten simulated seconds pass in
     # milliseconds: a flush each simulated second would be work no crash needs
     path = tmp_path / "knowledge.sqlite"
-    platform = Platform(HOTBOX, clock="simulated", seed=1, knowledge=f"sqlite:{path}",
-                        state_dir=tmp_path)
+    platform = Platform(HOTBOX, RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge=f"sqlite:{path}",
+        state_dir=tmp_path,
+    ))
     platform.run(35.0)
     with sqlite3.connect(path) as db:
         flushed_at = [last for (last,) in db.execute(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 
-from rasm import Action, Platform
+from rasm import Action, Platform, RunOptions
 from rasm.cli import main
 from rasm.platform.manifest import Effector, load_manifest
 from rasm.platform.trustworthiness_checker import TrustworthinessChecker
@@ -85,7 +85,7 @@ def test_checker_hands_verdicts_to_the_observers_listed_now_and_a_faulty_monitor
 
 
 def test_platform_verdict_observers_added_while_running_see_the_live_verdicts(hotbox):
-    platform = Platform(hotbox, clock="simulated", knowledge="memory")
+    platform = Platform(hotbox, RunOptions(clock="simulated", knowledge="memory"))
     seen: list = []
     platform.start()
     platform.on_verdict.append(seen.append)
@@ -171,8 +171,11 @@ def test_a_run_without_an_anomaly_says_its_timeliness_was_never_put_to_the_test(
     assert code == 0  # vacuously satisfied still passes
     assert "timely_response: satisfied (vacuously: anomaly never happened)" in out
     assert "boost_while_open" in out
-    summary = Platform(load_manifest(HOTBOX), clock="simulated", seed=1,
-                       knowledge="memory").run(5)
+    summary = Platform(load_manifest(HOTBOX), RunOptions(
+        clock="simulated",
+        seed=1,
+        knowledge="memory",
+    )).run(5)
     listed = {p["name"]: p["vacuous"] for p in summary.properties()}
     assert listed["timely_response"] == ["anomaly"] and listed["prompt_planning"] == ["anomaly"]
     assert listed["stage_order"] == []  # the stages did move: it was put to the test

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 
 from .conftest import read_trace
 
@@ -63,11 +63,13 @@ def test_legitimate_rejects_plans_the_twin_predicts_unsafe(hotbox, tmp_path):
     trace_file = tmp_path / "trace.jsonl"
     summary = Platform(
         hotbox,
-        clock="simulated",
-        seed=1,
-        knowledge="memory",
-        trace=trace_file,
-        components={"twin": PessimistTwin(), "plan": AlwaysNormalFirst()},
+        RunOptions(
+            clock="simulated",
+            seed=1,
+            knowledge="memory",
+            trace=trace_file,
+            components={"twin": PessimistTwin(), "plan": AlwaysNormalFirst()},
+        ),
     ).run(20)
     trace = read_trace(trace_file)
     rejected = [r for r in trace if r.get("rejected")]
@@ -84,11 +86,13 @@ def test_residual_model_and_drift_reach_knowledge_trace_and_chart(hotbox, tmp_pa
     twin = PessimistTwin(drift_at=33)  # the drift lands between two ticks
     platform = Platform(
         hotbox,
-        clock="simulated",
-        seed=1,
-        trace=trace_file,
-        knowledge=f"sqlite:{tmp_path / 'k.sqlite'}",
-        components={"twin": twin},
+        RunOptions(
+            clock="simulated",
+            seed=1,
+            trace=trace_file,
+            knowledge=f"sqlite:{tmp_path / 'k.sqlite'}",
+            components={"twin": twin},
+        ),
     )
     platform.run(10)
     trace = read_trace(trace_file)
@@ -98,14 +102,16 @@ def test_residual_model_and_drift_reach_knowledge_trace_and_chart(hotbox, tmp_pa
     drift_at = next(r["time"] for r in trace if r.get("drift"))
     # the drift started an iteration at once, not at the next tick (ticks are on 0.5 s)
     assert any(r.get("stage") == "monitor" and r["time"] == drift_at for r in trace)
-    assert platform.ao.interpreter.context["drifts"] == 1
+    assert platform.managing.adaptation_orchestrator.interpreter.context["drifts"] == 1
     # the model was persisted and comes back into a new twin on restart
     again = PessimistTwin()
     Platform(
         hotbox,
-        clock="wall",
-        knowledge=f"sqlite:{tmp_path / 'k.sqlite'}",
-        components={"twin": again},
+        RunOptions(
+            clock="wall",
+            knowledge=f"sqlite:{tmp_path / 'k.sqlite'}",
+            components={"twin": again},
+        ),
     ).build()
     assert again.loaded == {"version": versions[-1], "params": {"points": versions[-1] * 50}}
 
@@ -130,10 +136,11 @@ def test_the_twin_gets_the_latest_value_of_each_input_however_it_was_stored(hotb
     for inputs in (("temperature", "heater_power"), ("temperature", "temperature_mean")):
         twin = WitnessTwin(inputs)
         platform = Platform(
-            hotbox, clock="simulated", seed=1, knowledge="memory", components={"twin": twin}
+            hotbox, RunOptions(clock="simulated", seed=1, knowledge="memory",
+                               components={"twin": twin})
         )
         platform.build()
-        twin.kb = platform.kb
+        twin.kb = platform.managing.knowledge.store
         platform.run(5)
         assert len(twin.seen) > 40
         assert all(given == held and list(given) == list(inputs) for given, held in twin.seen)
@@ -144,19 +151,19 @@ def test_the_twin_gets_the_latest_value_of_each_input_however_it_was_stored(hotb
     # float stored
     twin = WitnessTwin(("temperature", "temperature_mean"))
     platform = Platform(
-        hotbox, clock="simulated", seed=1, knowledge="memory", components={"twin": twin}
+        hotbox, RunOptions(clock="simulated", seed=1, knowledge="memory", components={"twin": twin})
     )
     platform.build()
-    twin.kb = platform.kb
+    twin.kb = platform.managing.knowledge.store
     platform.start()
     platform.scheduler.run_until(2.0)
     time = platform.clock.time
-    before = platform.kb.read_knowledge("temperature")
-    platform._register({"temperature": "hot", "heater_power": 5}, time + 1.0)
+    before = platform.managing.knowledge.store.read_knowledge("temperature")
+    platform.register_values({"temperature": "hot", "heater_power": 5}, time + 1.0)
     given, held = twin.seen[-1]
     assert given == held == {"temperature": before, "temperature_mean": held["temperature_mean"]}
     twin.inputs = ("temperature", "heater_power")
-    platform._register({"temperature": 36, "heater_power": 5}, time + 2.0)
+    platform.register_values({"temperature": 36, "heater_power": 5}, time + 2.0)
     given, held = twin.seen[-1]
     assert given == held == {"temperature": 36.0, "heater_power": 5.0}
     assert type(given["temperature"]) is float and type(given["heater_power"]) is float

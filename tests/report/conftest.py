@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.platform.manifest import load_manifest
 
 CHROMIUM = "/usr/bin/chromium"
@@ -36,7 +36,7 @@ def hotbox_trace(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 40 s simulated Hotbox run's adaptation trace (three adaptations)."""
     path = tmp_path_factory.mktemp("hotbox") / "hotbox.jsonl"
     platform = Platform(
-        load_manifest(HOTBOX), clock="simulated", seed=1, trace=path, knowledge="memory"
+        load_manifest(HOTBOX), RunOptions(clock="simulated", seed=1, trace=path, knowledge="memory")
     )
     summary = platform.run(40)
     assert summary.stats.executed >= 1

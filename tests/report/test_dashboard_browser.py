@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.errors import PlatformError
 from rasm.platform.manifest import load_manifest
 from rasm.report.dashboard import serve
@@ -24,7 +24,8 @@ SCENARIO = {"openings": [[0.3, 3.0]]}
 
 def _hotbox(clock: str = "wall") -> Platform:
     platform = Platform(
-        load_manifest(HOTBOX), clock=clock, seed=1, knowledge="memory", scenario=SCENARIO
+        load_manifest(HOTBOX), RunOptions(clock=clock, seed=1, knowledge="memory",
+                                          scenario=SCENARIO)
     )
     platform.build()
     return platform
@@ -76,7 +77,7 @@ def test_the_dashboard_follows_a_running_loop(page, tmp_path: Path) -> None:
     p.wait_for_function("document.getElementById('status').textContent === 'run finished'")
     modes = p.locator("#modes td.mode").all_inner_texts()
     assert modes and set(modes) == {"terminated"}
-    assert set(platform.sm.get_status().values()) == {"terminated"}
+    assert set(platform.assembly.state_manager.get_status().values()) == {"terminated"}
     assert page.errors == []
 
 

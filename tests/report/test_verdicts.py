@@ -65,9 +65,9 @@ def test_the_dashboard_says_not_judged_and_names_the_signal(tmp_path: Path):
         extra="\nproperty steady:\n    always (heading <= 90)\n",
         every=8,
     )
-    from rasm import Platform
+    from rasm import Platform, RunOptions
 
-    platform = Platform(app, clock="simulated", seed=1)
+    platform = Platform(app, RunOptions(clock="simulated", seed=1))
     platform.build()
     dashboard = serve(platform, 0)
     try:
@@ -81,5 +81,6 @@ def test_the_dashboard_says_not_judged_and_names_the_signal(tmp_path: Path):
     assert timelines["steady"]["describe"] == "not judged: no value for heading"
     assert timelines["slow"]["verdict"] == "satisfied" and timelines["slow"]["judged"] > 0
     # the dashboard's states are the run summary's
-    summary_states = {name: o.state for name, o in platform.tc.outcomes.items()}
+    outcomes = platform.managing.trustworthiness_checker.outcomes
+    summary_states = {name: o.state for name, o in outcomes.items()}
     assert {name: t["verdict"] for name, t in timelines.items()} == summary_states

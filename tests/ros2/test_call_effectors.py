@@ -210,3 +210,38 @@ def test_over_dds_a_service_and_an_action_answer_into_knowledge(peers, tmp_path,
     assert any(r.get("sixth") == 5 for r in found) and any(r.get("third") == 1 for r in found)
     assert any(e["event"] == "goal" and e["order"] == 6 for e in server.events)
     assert code == 0, output
+
+
+def test_the_calls_are_made_before_the_checker_and_hold_no_block(tmp_path, zenoh_router):
+    # the assembly: the calls are made before the Trustworthiness Checker (its action sender
+    # starts them) with the veto properties, and read a veto from the verdict alone, so they
+    # hold neither the Trustworthiness Manager nor any other block; a veto's verdict reaches
+    # them before the fallback switch's, a record the fallback engaged on reaches them too
+    from rasm import Platform, RunOptions
+    from rasm.platform.block import Block
+
+    def veto_and_fallback(manifest):
+        manifest["trustworthiness"] = {"veto_properties": ["progress"]}
+        manifest["effectors"]["stop"] = {"topic": "/stop", "type": "std_msgs/msg/Bool",
+                                         "fields": {"data": "halt"}}
+        manifest["fallback"] = {"actions": {"stop": {"halt": True}},
+                                "when": ["managed_system_lost"], "dwell": 1}
+
+    platform = Platform(calls_app(tmp_path, veto_and_fallback), RunOptions(
+        transport=f"zenoh://127.0.0.1:{zenoh_router}", knowledge="memory",
+        state_dir=tmp_path / "state",
+    ))
+    platform.build()
+    try:
+        side = platform.managing
+        calls = side.call_effectors
+        assert calls is not None
+        assert tuple(calls.veto_properties) == side.trustworthiness_manager.veto_properties
+        assert "progress" in calls.veto_properties
+        assert not any(isinstance(value, Block) for value in vars(calls).values())
+        verdicts = platform.on_verdict
+        assert (verdicts.index(calls.observe_verdict)
+                < verdicts.index(side.fallback_switch.watch_verdict))
+        assert calls.observe_record in platform.on_record
+    finally:
+        platform.stop()

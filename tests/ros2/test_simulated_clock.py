@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from ruamel.yaml import YAML
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.platform.manifest import load_manifest
 from rasm.ros2.zenoh import ZenohTransport
 
@@ -60,8 +60,14 @@ def seeded_traces(app: Path, url: str, tmp_path: Path) -> list[list[dict]]:
     traces = []
     for run in range(RUNS):
         trace_file = tmp_path / f"run-{run}.jsonl"
-        Platform(app, clock="simulated", seed=1, transport=url, knowledge="memory",
-                 state_dir=tmp_path / f"state-{run}", trace=trace_file).run(20.0)
+        Platform(app, RunOptions(
+            clock="simulated",
+            seed=1,
+            transport=url,
+            knowledge="memory",
+            state_dir=tmp_path / f"state-{run}",
+            trace=trace_file,
+        )).run(20.0)
         records = [json.loads(line) for line in trace_file.read_text().splitlines()]
         traces.append([{k: v for k, v in r.items() if k != "duration"} for r in records])
     return traces

@@ -17,6 +17,7 @@ from rasm.comm import open_transport
 from rasm.platform import Platform
 from rasm.platform.external_verdicts import ExternalVerdicts
 from rasm.platform.manifest import ExternalVerdict, load_manifest
+from rasm.platform.run_options import RunOptions
 from rasm.testing.servers import start_mosquitto
 from tests.ros2.conftest import DATA
 from tests.ros2.test_replay import record
@@ -115,8 +116,12 @@ def test_verdicts_go_out_on_mqtt_under_rasm_verdict_as_the_public_checker_words_
         got: queue.Queue = queue.Queue()
         listener.connect()
         listener.subscribe("rasm/verdict/temperature_band", lambda m: got.put(m.payload))
-        platform = Platform(HOTBOX, transport=url, clock="wall", state_dir=tmp_path / "state",
-                            knowledge="memory")
+        platform = Platform(HOTBOX, RunOptions(
+            transport=url,
+            clock="wall",
+            state_dir=tmp_path / "state",
+            knowledge="memory",
+        ))
         platform.run(1.5)
         listener.close()
     finally:
@@ -131,9 +136,10 @@ def test_publish_verdicts_says_whether_they_go_out(tmp_path, flag, published):
     manifest = load_manifest(HOTBOX)
     manifest.publish_verdicts = flag  # None: only on a network transport
     bus = []
-    platform = Platform(manifest, clock="simulated", state_dir=tmp_path, knowledge="memory")
+    platform = Platform(manifest, RunOptions(clock="simulated", state_dir=tmp_path,
+                                             knowledge="memory"))
     platform.build()
-    platform.transport.subscribe("#", bus.append)
+    platform.assembly.transport.subscribe("#", bus.append)
     platform.run(3)
     names = {m.topic for m in bus}
     assert ("rasm/verdict/temperature_band" in names) is published

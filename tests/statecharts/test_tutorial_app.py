@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.knowledge import KnowledgeBase
 from rasm.lint import lint_paths
 from rasm.platform.chart_stages import ChartStage
@@ -47,7 +47,8 @@ def edit(path: Path, old: str, new: str) -> None:
 
 def run(app: Path, tmp_path: Path, clock: str = "simulated", duration: float | None = None):
     trace = tmp_path / f"{clock}.jsonl"
-    platform = Platform(app, clock=clock, seed=1, trace=trace, state_dir=tmp_path / "state")
+    platform = Platform(app, RunOptions(clock=clock, seed=1, trace=trace,
+                                        state_dir=tmp_path / "state"))
     summary = platform.run(duration)
     return summary, [json.loads(line) for line in trace.read_text().splitlines()]
 

@@ -110,13 +110,14 @@ def test_run_app_leaves_nothing_on_disk_but_the_trace_it_was_asked_for(tmp_path,
 
 
 def test_a_simulated_run_starts_its_timing_file_afresh(tmp_path, monkeypatch):
-    from rasm import Platform
+    from rasm import Platform, RunOptions
     from rasm.platform.manifest import load_manifest
 
     monkeypatch.chdir(tmp_path)
     sizes = []
     for _ in range(2):
-        Platform(load_manifest(HOTBOX), clock="simulated", seed=1, knowledge="memory").run(3)
+        Platform(load_manifest(HOTBOX), RunOptions(clock="simulated", seed=1,
+                                                   knowledge="memory")).run(3)
         sizes.append((tmp_path / ".rasm" / "hotbox" / "timing.lp").stat().st_size)
     # the same seed writes the same points: a second run replaces the first, not adds to it
     assert sizes[0] > 0 and abs(sizes[1] - sizes[0]) < sizes[0] / 2

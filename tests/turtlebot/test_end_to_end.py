@@ -8,7 +8,7 @@ import json
 import pytest
 from tb4.evaluation import APP, run
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.cli import main
 from rasm.platform.manifest import load_manifest
 
@@ -61,7 +61,8 @@ def test_rasm_run_adapts_and_rasm_check_agrees_on_its_trace(tmp_path, capsys, mo
 
 @pytest.mark.slow
 def test_the_default_run_reaches_the_goal_without_collision_and_every_property_holds():
-    summary = Platform(load_manifest(APP), clock="simulated", seed=1, knowledge="memory").run()
+    summary = Platform(load_manifest(APP), RunOptions(clock="simulated", seed=1,
+                                                      knowledge="memory")).run()
     assert summary.ok, summary.verdicts
     assert {summary.verdicts[p] for p in APP_PROPERTIES} == {"satisfied"}
     assert summary.stats.executed == 2 and summary.stats.rejected == 0
@@ -88,7 +89,8 @@ def test_two_simulated_runs_with_a_seed_give_identical_traces(tmp_path):
     traces = []
     for name in ("a", "b"):
         path = tmp_path / f"{name}.jsonl"
-        Platform(load_manifest(APP), clock="simulated", seed=4, trace=path, knowledge="memory").run(
+        Platform(load_manifest(APP), RunOptions(clock="simulated", seed=4, trace=path,
+                                                knowledge="memory")).run(
             6.0
         )
         # stage durations are wall-clock measurements; everything else is the simulation's

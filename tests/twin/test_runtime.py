@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from rasm import Platform
+from rasm import Platform, RunOptions
 from rasm.testing.apps import app_manifest
 from tests.twin.hotbox import APP, HotboxTwin, box
 
@@ -15,16 +15,18 @@ def run(scenario, seed=1, duration=90.0):
     twin = HotboxTwin()
     platform = Platform(
         manifest,
-        clock="simulated",
-        seed=seed,
-        knowledge="memory",
-        scenario=scenario,
-        components={"twin": twin},
+        RunOptions(
+            clock="simulated",
+            seed=seed,
+            knowledge="memory",
+            scenario=scenario,
+            components={"twin": twin},
+        ),
     )
     records = []
     platform.on_record.append(lambda time, record: records.append((time, dict(record))))
     platform.build()
-    platform.simulator = box(500.0, 2.0, 12.0)(scenario, seed)
+    platform.assembly.managed_system.simulator = box(500.0, 2.0, 12.0)(scenario, seed)
     platform.run(duration)
     return platform, records
 
@@ -38,7 +40,7 @@ def test_the_runtime_records_the_twins_residual_and_model_versions():
     assert residuals and max(residuals) < 0.2  # the nominal box: sensor noise only
     versions = [r["twin_model_version"] for _, r in records if "twin_model_version" in r]
     assert versions and versions == sorted(versions) and versions[0] == 1
-    assert platform.kb.read_knowledge("twin_model")["version"] == versions[-1]
+    assert platform.managing.knowledge.store.read_knowledge("twin_model")["version"] == versions[-1]
     assert not [t for t, r in records if r.get("drift")]
 
 

@@ -77,15 +77,17 @@ def run(
 ) -> Outcome:
     """Run scenario ``seed`` (:func:`~tb4.world.generate_scenario`, or ``scenario``) with the
     simulator seeded by ``seed``, on the simulated clock unless told otherwise."""
-    from rasm import Platform, load_manifest
+    from rasm import Platform, RunOptions, load_manifest
 
     platform = Platform(
         load_manifest(APP),
-        clock=clock,
-        seed=seed,
-        knowledge="memory",
-        scenario=generate_scenario(seed) if scenario is None else scenario,
-        components=None if loop else {"plan": NoPlan()},
+        RunOptions(
+            clock=clock,
+            seed=seed,
+            knowledge="memory",
+            scenario=generate_scenario(seed) if scenario is None else scenario,
+            components=None if loop else {"plan": NoPlan()},
+        ),
     )
     records: list[tuple[float, dict[str, Any]]] = []
     platform.on_record.append(lambda time, record: records.append((time, dict(record))))
