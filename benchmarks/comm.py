@@ -12,7 +12,7 @@ shared by all processes of the machine):
 
 Local cases: messages per second through ``LocalTransport.publish`` to one exact subscriber, one
 wildcard subscriber among 20 patterns, in strict (JSON round trip) mode, and through a
-CommunicationManager publisher/subscriber queue.
+Endpoints publisher/subscriber queue.
 
 Run: ``.venv/bin/python benchmarks/comm.py [--quick] [--url mqtt://host:port]``. Without ``--url``
 a mosquitto is started on a free loopback port (it must be installed). Figures are recorded in
@@ -33,7 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from rasm.comm import CommunicationManager, LocalTransport, Message, MqttTransport  # noqa: E402
+from rasm.comm import Endpoints, LocalTransport, Message, MqttTransport  # noqa: E402
 
 WAIT = 30.0
 
@@ -183,7 +183,7 @@ def local_case(name: str, n: int) -> float:
         transport.subscribe("robot/pose", count)
         topic = "robot/pose"
     if name == "manager":
-        cm = CommunicationManager(transport)
+        cm = Endpoints(transport)
         subscriber = cm.create_subscriber("robot/pose", maxsize=n)
         publisher = cm.create_publisher("robot/pose")
         begin = time.perf_counter()

@@ -226,7 +226,7 @@ def _report_many(outcomes: list, args: argparse.Namespace, explain: bool) -> int
 def _cmd_verify_rules(args: argparse.Namespace) -> int:
     from rasm.rules import format_json, format_text, load_rules, verify
     from rasm.rules.against import check_against
-    from rasm.rules.fallback import prove_fixed_plan
+    from rasm.rules.fixed_plan import prove_fixed_plan
 
     paths, fallback, plan_fields = _rules_of(args.rules)
     failed = False

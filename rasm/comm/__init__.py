@@ -2,8 +2,8 @@
 
 ``open_transport("local")`` is the in-process bus; ``open_transport("mqtt://host:port")`` talks
 to an MQTT broker. Both take MQTT topic patterns (``+``, ``#``) and JSON-able dict payloads, and
-deliver :class:`Message` objects. :class:`CommunicationManager` adds the Communication
-Manager's operations: ``create_publisher`` / ``publish_message`` and ``create_subscriber`` /
+deliver :class:`Message` objects. :class:`Endpoints` gives the Communication Manager's
+operations: ``create_publisher`` / ``publish_message`` and ``create_subscriber`` /
 ``get_queue_message``.
 
 For a distributed loop: :class:`Presence` / :class:`PresenceTracker` (node start-up, heartbeats,
@@ -13,10 +13,10 @@ shutdown, crash via :func:`presence_will`), :func:`sign` / :func:`verify` with
 InfluxDB).
 """
 
+from rasm.comm.endpoints import Endpoints, Publisher, Subscriber
 from rasm.comm.envelope import MalformedPayload
 from rasm.comm.influx import InfluxWriter
 from rasm.comm.local import LocalTransport
-from rasm.comm.manager import CommunicationManager, Publisher, Subscriber
 from rasm.comm.message import Message
 from rasm.comm.presence import Presence, PresenceTracker, presence_will
 from rasm.comm.signing import (
@@ -35,7 +35,7 @@ from rasm.errors import CommError
 __all__ = [
     "BoundSigner",
     "CommError",
-    "CommunicationManager",
+    "Endpoints",
     "InfluxWriter",
     "LocalTransport",
     "MalformedPayload",

@@ -63,7 +63,7 @@ class Transport(ABC):
     :class:`Message`. Patterns may use ``+`` and ``#`` on every transport. Callbacks run on the
     transport's delivery thread (the publisher's thread for :class:`LocalTransport`, one
     dispatcher thread per :class:`MqttTransport`): keep them short and hand long work to a
-    queue (:class:`~rasm.comm.manager.Subscriber` does exactly that). A callback that raises is
+    queue (:class:`~rasm.comm.endpoints.Subscriber` does exactly that). A callback that raises is
     logged and counted in ``stats.errors``; the transport carries on.
 
     ``qos=None`` (the default) means the QoS configured for the topic, else 0.

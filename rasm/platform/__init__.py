@@ -17,7 +17,7 @@ _PUBLIC = {
     "Anomaly": "rasm.platform.components",
     "AppManifest": "rasm.platform.manifest",
     "ChartStage": "rasm.platform.chart_stages",
-    "LoopStats": "rasm.platform.adaptation_orchestrator",
+    "LoopStats": "rasm.platform.protocols",
     "Plan": "rasm.platform.components",
     "Platform": "rasm.platform.platform",
     "RunOptions": "rasm.platform.run_options",
@@ -45,11 +45,11 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
-    from rasm.platform.adaptation_orchestrator import LoopStats
     from rasm.platform.chart_stages import ChartStage
     from rasm.platform.components import Action, Anomaly, Plan, StageContext
     from rasm.platform.manifest import AppManifest, load_manifest
     from rasm.platform.platform import Platform
+    from rasm.platform.protocols import LoopStats
     from rasm.platform.run_options import Clock, Role, RunOptions
     from rasm.platform.summary import RunSummary
 

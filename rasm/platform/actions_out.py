@@ -11,11 +11,13 @@ the action goes in the trace as it would have been sent.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from rasm.errors import CommError
+from rasm.platform.action_outcome import Emit
 from rasm.platform.components import Action
 from rasm.platform.manifest import AppManifest, Effector
+from rasm.platform.protocols import CallStarter
 from rasm.statechart import Clock
 
 if TYPE_CHECKING:
@@ -31,13 +33,6 @@ def message_types(m: AppManifest) -> TypeStore:
     from rasm.ros2.types import default_store
 
     return default_store()
-
-
-class CallStarter(Protocol):
-    """What starts a service or action effector's call (:class:`rasm.platform.calls.
-    CallEffectors`): returns at once, saying what it started."""
-
-    def start(self, effector: Effector, action: Action, request: dict[str, Any]) -> str: ...
 
 
 class ActionSender:
@@ -56,7 +51,7 @@ class ActionSender:
         *,
         publish: Callable[[str, dict[str, Any]], object],
         seal: Callable[[str, dict[str, Any]], dict[str, Any]],
-        emit: Callable[[float, dict[str, Any]], object],
+        emit: Emit,
         clock: Clock,
         replaying: bool,
         calls: CallStarter | None = None,

@@ -4,37 +4,14 @@ the Trustworthiness Checker."""
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Protocol
+from typing import Any
 
 from rasm.platform.action_outcome import ActionOutcome
 from rasm.platform.block import Block
 from rasm.platform.components import Action
+from rasm.platform.protocols import ActionGate, Hold, TrustJudge
 
-__all__ = ["ActionGate", "AdaptationManager", "Hold", "TrustJudge"]
-
-
-class TrustJudge(Protocol):
-    """What decides whether an action is trustworthy: the Trustworthiness Manager."""
-
-    def check_trustworthiness(self, action: Action) -> ActionOutcome:
-        """Whether ``action`` is trusted (and as corrective), and why; not sent yet."""
-
-
-class ActionGate(Protocol):
-    """The only path to the effectors: the Trustworthiness Checker."""
-
-    def register_action(self, action: Action) -> ActionOutcome:
-        """Whether ``action`` was sent to its effector, and why."""
-
-
-class Hold(Protocol):
-    """What may hold the loop's actions back: the fallback switch while it holds the effectors."""
-
-    def holds(self, action: Action) -> str | None:
-        """Why ``action`` is held back, or None."""
-
-    def correctable(self) -> bool:
-        """Whether a corrective action may pass the hold (only vetoes hold it)."""
+__all__ = ["AdaptationManager"]
 
 
 class AdaptationManager(Block):

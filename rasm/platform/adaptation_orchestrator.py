@@ -12,20 +12,17 @@ from __future__ import annotations
 
 import logging
 import traceback
-from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from sismic.clock import SimulatedClock
 
 from rasm.errors import is_interrupt
 from rasm.knowledge.base import KnowledgeBase
-from rasm.platform.action_outcome import ActionOutcome, perform_and_trace
+from rasm.platform.action_outcome import Emit, perform_and_trace
 from rasm.platform.block import Block, shared_chart
 from rasm.platform.chart_stages import NoAnswer
 from rasm.platform.components import (
-    Action,
     Plan,
     StageContext,
     StageError,
@@ -36,6 +33,7 @@ from rasm.platform.components import (
     as_verdict,
     describe_failure,
 )
+from rasm.platform.protocols import Adapter, LoopStats, PlanRegistry, Register, StageTimer
 from rasm.platform.stages import StageOutcome, StageRunner
 from rasm.resources import platform_monitors
 from rasm.times import format_seconds
@@ -44,52 +42,13 @@ if TYPE_CHECKING:
     from rasm.rules import RuleSet
     from rasm.twin import DigitalTwin
 
-__all__ = ["AdaptationOrchestrator", "Adapter", "LoopStats", "PlanRegistry", "StageTimer"]
+__all__ = ["AdaptationOrchestrator", "Repairer"]
 
 _log = logging.getLogger("rasm.loop")
 
 
-@dataclass
-class LoopStats:
-    """Counts the summary of ``rasm run`` reports."""
-
-    iterations: int = 0
-    anomalies: int = 0
-    plans: int = 0
-    rejected: int = 0
-    accepted: int = 0
-    executed: int = 0
-    dropped: int = 0
-    cancelled: int = 0
-    failed_stages: Counter[str] = field(default_factory=Counter)
-    timeouts: Counter[str] = field(default_factory=Counter)
-
-
-class Adapter(Protocol):
-    """What performs an action: the Adaptation Manager."""
-
-    def perform_adaptation(self, action: Action) -> ActionOutcome:
-        """What became of the action."""
-
-
-class PlanRegistry(Protocol):
-    """What holds the plans the Legitimate stage accepted: the Trustworthiness Manager."""
-
-    def accept_plan(self, plan: Plan) -> None: ...
-
-    def forget_plan(self, plan_id: str) -> None: ...
-
-
-class StageTimer(Protocol):
-    """What keeps each stage's timing: the State Manager."""
-
-    def record_stage(self, stage: str, start: float, duration: float) -> None: ...
-
-
-Register = Callable[[dict[str, Any], float], Any]
 # (rejected plan, knowledge snapshot) -> the nearest plan the rules accept, or None
 Repairer = Callable[[Plan, dict[str, Any]], Plan | None]
-Emit = Callable[[float, dict[str, Any]], Any]
 
 
 class AdaptationOrchestrator(Block):

@@ -443,6 +443,7 @@ def _assemble(
                 hold=fallback_hold,
                 adapter=adaptation_manager,
                 plans=trustworthiness_manager,
+                vetoes=trustworthiness_manager,
                 online=watch.online,
                 stats=adaptation_orchestrator.stats,
                 emit=paths.emit,

@@ -23,8 +23,10 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
 from rasm.logs import RepeatedLogs
+from rasm.platform.action_outcome import Emit
 from rasm.platform.components import Action
 from rasm.platform.manifest import Effector
+from rasm.platform.protocols import Register
 
 if TYPE_CHECKING:
     from rasm.properties.monitor import Verdict
@@ -103,8 +105,8 @@ class CallEffectors:
         caller: Caller,
         *,
         submit: Callable[[Callable[[], object]], object],
-        register: Callable[[dict[str, Any], float], object],
-        emit: Callable[[float, dict[str, Any]], object],
+        register: Register,
+        emit: Emit,
         now: Callable[[], float],
         veto_properties: Collection[str] = (),
         veto_reason: Callable[[str, Verdict], str | None] | None = None,

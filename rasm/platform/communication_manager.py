@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rasm.comm import CommunicationManager as Endpoints
-from rasm.comm import Publisher, Subscriber, Subscription, Transport
+from rasm.comm import Endpoints, Publisher, Subscriber, Subscription, Transport
 from rasm.comm.transport import Callback
 from rasm.platform.block import Block
 
@@ -16,7 +15,7 @@ class CommunicationManager(Block):
     """Communication Manager (cm): publishers and subscribers on one transport.
 
     The operations (``create_publisher``, ``create_subscriber``, ``publish_message``,
-    ``get_queue_message``) are :class:`rasm.comm.CommunicationManager`'s; this block adds the
+    ``get_queue_message``) are :class:`rasm.comm.Endpoints`'s; this block adds the
     operation modes: the transport is connected in ``initialization`` and closed on
     termination, and nothing is published unless the block is ``initialized``.
     """

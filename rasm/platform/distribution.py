@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 from rasm.comm import Transport
 from rasm.comm.signing import BoundSigner, SignedEffector, SignedGate, new_epoch
 from rasm.errors import CommError, PlatformError
+from rasm.platform.action_outcome import Emit
 from rasm.platform.run_options import Role
 
 if TYPE_CHECKING:
@@ -51,7 +52,7 @@ __all__ = ["Distribution", "DistributionHooks", "key_from_env"]
 
 _log = logging.getLogger("rasm.platform")
 
-Observers = list[Callable[[float, dict[str, Any]], object]]
+Observers = list[Emit]
 """The trace's observers: each is called with every record (time, record)."""
 
 

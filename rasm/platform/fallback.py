@@ -15,23 +15,22 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from rasm.errors import SourceError, SourceErrors
-from rasm.platform.action_outcome import ActionOutcome, perform_and_trace
+from rasm.platform.action_outcome import Emit, perform_and_trace
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
 from rasm.platform.manifest import AppManifest, Fallback, manifest_location
+from rasm.platform.protocols import Adapter, LoopStats, PlanRegistry, Vetoes
 from rasm.times import format_seconds
 
 if TYPE_CHECKING:
-    from collections import Counter
-
     from sismic.model import MacroStep
 
     from rasm.properties.monitor import Verdict
     from rasm.rules import Rules, RuleSet
-    from rasm.rules.fallback import FixedPlanProof
+    from rasm.rules.fixed_plan import FixedPlanProof
 
 __all__ = [
     "FailedIterations",
@@ -46,45 +45,12 @@ _log = logging.getLogger("rasm.fallback")
 PROVED = "the fallback actions, proved legitimate in every context before the run"
 
 
-class Sender(Protocol):
-    """What sends an action down the one path to the effectors: the Adaptation Manager."""
-
-    def perform_adaptation(self, action: Action) -> ActionOutcome: ...
-
-
-class LoopStats(Protocol):
-    """The loop's counts the stage_failures trigger reads (the orchestrator's ``stats``)."""
-
-    iterations: int
-    anomalies: int
-    executed: int
-    dropped: int
-    cancelled: int
-    failed_stages: Counter[str]
-    timeouts: Counter[str]
-
-
-class Vetoes(Protocol):
-    """What holds the plans actions may come from and says which veto properties stop
-    actions: the Trustworthiness Manager."""
-
-    def accept_plan(self, plan: Plan) -> None: ...
-
-    def forget_plan(self, plan_id: str) -> None: ...
-
-    def vetoing(self) -> dict[str, str]:
-        """The veto properties that stop actions now, each with why."""
-
-    def veto_reason(self, name: str, verdict: Verdict | None) -> str | None:
-        """Why ``verdict`` of veto property ``name`` stops actions (None: it vouches)."""
-
-
 def prove_fallback(
     fallback: Fallback, rules: Sequence[Rules]
 ) -> list[tuple[Rules, FixedPlanProof]]:
     """The proof of the fallback actions against each rule set (together, as one plan: the
     Trustworthiness Manager judges each action with the fallback plan's values)."""
-    from rasm.rules.fallback import prove_fixed_plan
+    from rasm.rules.fixed_plan import prove_fixed_plan
 
     return [(rule_set, prove_fixed_plan(rule_set, fallback.values)) for rule_set in rules]
 
@@ -202,11 +168,12 @@ class FallbackSwitch(Block):
         *,
         spec: Fallback,
         hold: FallbackHold,
-        adapter: Sender,
-        plans: Vetoes,
+        adapter: Adapter,
+        plans: PlanRegistry,
+        vetoes: Vetoes,
         online: Callable[[], bool],
         stats: LoopStats,
-        emit: Callable[[float, dict[str, Any]], Any],
+        emit: Emit,
         veto_properties: Collection[str],
         submit: Callable[[Callable[[], object]], object],
         plan_prefix: str = "",
@@ -216,6 +183,7 @@ class FallbackSwitch(Block):
         self.hold = hold
         self.adapter = adapter
         self.plans = plans
+        self.vetoes = vetoes
         self.veto_properties = veto_properties
         self.submit = submit  # hands a job to the loop, to run after the job in hand
         self._veto_good: dict[str, bool] = {}  # each veto property's latest: vouches or not
@@ -263,7 +231,7 @@ class FallbackSwitch(Block):
                 )
                 kinds.add("stage_failures")
         if "veto" in when:
-            vetoing = self.plans.vetoing()
+            vetoing = self.vetoes.vetoing()
             # a veto that held only between two readings of the triggers counts too
             vetoes = [*vetoing.values(), *self.hold.unread_reasons(skip=vetoing)]
             self.hold.unread.clear()

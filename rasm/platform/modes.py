@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from sismic.model import Event, Statechart
 
 from rasm.errors import ExecutionError
+from rasm.platform.action_outcome import Emit
 from rasm.statechart import Clock, Interpreter, SimulatedClock, load_statechart
 
 if TYPE_CHECKING:
@@ -184,7 +185,7 @@ class ModesRunner:
         *,
         register_values: Callable[[dict[str, Any], float], Mapping[str, Exception]],
         refused: Callable[[str, object, Exception], object],
-        emit: Callable[[float, dict[str, Any]], object],
+        emit: Emit,
         at: Callable[[float, Callable[[], object]], object],
         clock: Clock,
     ) -> None:

@@ -30,6 +30,7 @@ from rasm.comm import Message
 from rasm.errors import PlatformError
 from rasm.logs import RepeatedLogs
 from rasm.losses import WriteFailure
+from rasm.platform.action_outcome import Emit
 from rasm.platform.actions_out import message_types
 from rasm.platform.assembly import Assembly, ManagingSide, assemble
 from rasm.platform.distribution import DistributionHooks
@@ -82,7 +83,7 @@ class Platform:
             Path(options.state_dir) if options.state_dir else default_state_dir(manifest)
         )
         self.scenario = options.scenario_of(manifest)
-        self.on_record: list[Callable[[float, dict[str, Any]], object]] = []
+        self.on_record: list[Emit] = []
         # every verdict of the online monitors goes to these callables (loop thread); nothing
         # keeps them, so a long run does not grow (the trace file has the records they judge).
         # Append to and remove from this list: the Trustworthiness Checker holds it.

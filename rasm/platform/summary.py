@@ -8,11 +8,12 @@ from typing import Any
 from rasm.comm import Transport
 from rasm.loop import STAGES
 from rasm.losses import Damage, WriteFailure
-from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator, LoopStats
+from rasm.platform.adaptation_orchestrator import AdaptationOrchestrator
 from rasm.platform.calls import CallCounts
 from rasm.platform.distribution import Distribution
 from rasm.platform.fallback import FallbackSwitch
 from rasm.platform.managed_system import ManagedSystem, describe_activity
+from rasm.platform.protocols import LoopStats
 from rasm.platform.run_options import Role
 from rasm.platform.state_manager import StateManager
 from rasm.platform.telegraf import Telegraf

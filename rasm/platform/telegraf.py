@@ -10,13 +10,13 @@ from typing import Any
 from rasm.errors import Misfit
 from rasm.platform.block import Block
 from rasm.platform.manifest import Probe, Signal
+from rasm.platform.protocols import Register
 from rasm.values import fit
 
 __all__ = ["Telegraf"]
 
 _log = logging.getLogger("rasm.telegraf")
 
-Register = Callable[[dict[str, Any], float], Any]
 """Stores one message's values, all at one time: ``register(values, time)``."""
 
 

@@ -3,31 +3,22 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
-from rasm.platform.action_outcome import ActionOutcome
+from rasm.platform.action_outcome import ActionOutcome, Emit
 from rasm.platform.block import Block
 from rasm.platform.components import Action, Plan
+from rasm.platform.protocols import VerdictSource
 from rasm.properties.monitor import Verdict
 from rasm.times import format_seconds
 
 if TYPE_CHECKING:
     from rasm.rules import RuleSet
 
-__all__ = ["Corrective", "TrustworthinessManager", "VerdictSource", "verdict_veto_reason"]
+__all__ = ["Corrective", "TrustworthinessManager", "verdict_veto_reason"]
 
 # (plan values, context, violated veto properties) -> why the plan is corrective, or None
 Corrective = Callable[[dict[str, Any], dict[str, Any], list[str]], "str | None"]
-
-
-class VerdictSource(Protocol):
-    """What vouches for the veto properties: the Trustworthiness Checker."""
-
-    def latest_verdict(self, name: str) -> Verdict | None:
-        """The latest verdict of property ``name``, or None before its first."""
-
-    def missing(self, name: str) -> tuple[str, ...]:
-        """The signals property ``name`` still waits for."""
 
 
 class TrustworthinessManager(Block):
@@ -52,7 +43,7 @@ class TrustworthinessManager(Block):
         checker: VerdictSource,
         context: Callable[[], dict[str, Any]],
         corrective: Corrective | None = None,
-        emit: Callable[[float, dict[str, Any]], Any] | None = None,
+        emit: Emit | None = None,
         **kw: Any,
     ) -> None:
         # trustworthiness.corrective: while veto properties are violated, a plan the twin

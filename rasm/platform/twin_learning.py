@@ -15,6 +15,7 @@ from typing import Any, Protocol
 
 from rasm.errors import is_interrupt
 from rasm.logs import RepeatedLogs
+from rasm.platform.action_outcome import Emit
 from rasm.platform.components import describe_failure
 from rasm.twin import DigitalTwin
 
@@ -45,7 +46,7 @@ class TwinLearning:
         knowledge: Knowledge,
         store: Callable[[str, Any, float], object],
         register: Callable[[dict[str, Any], float], object],
-        emit: Callable[[float, dict[str, Any]], object],
+        emit: Emit,
         refused: Callable[[str, object, Exception], object],
         drift: Callable[[], object],
         logs: RepeatedLogs,

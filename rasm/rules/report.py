@@ -52,7 +52,7 @@ class Report:
     # an app's fallback actions (as one plan) and z3's proof that they are legitimate in every
     # context the rules admit (``rasm verify-rules APP``)
     fallback: dict[str, Any] | None = None
-    fallback_proof: Any = None  # a rasm.rules.fallback.FixedPlanProof
+    fallback_proof: Any = None  # a rasm.rules.fixed_plan.FixedPlanProof
 
     @property
     def consistent(self) -> bool:

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from paho.mqtt.enums import CallbackAPIVersion
 
-from rasm.comm import CommError, CommunicationManager, Message, MqttTransport
+from rasm.comm import CommError, Endpoints, Message, MqttTransport
 from rasm.comm.envelope import MalformedPayload, decode
 from rasm.comm.mqtt import Will
 from rasm.testing.servers import free_port
@@ -333,7 +333,7 @@ def test_publishing_before_connect_is_an_error(broker):
 
 
 def test_communication_manager_over_mqtt(broker, mqtt_factory):
-    cm = CommunicationManager(mqtt_factory(broker.url))
+    cm = Endpoints(mqtt_factory(broker.url))
     subscriber = cm.create_subscriber("k/#", maxsize=10)
     cm.create_publisher("k/speed").publish_message({"v": 0.4})
     message = subscriber.get_queue_message(timeout=WAIT)

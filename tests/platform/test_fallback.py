@@ -355,8 +355,8 @@ OUTCOMES = st.sampled_from(["idle", "executed", "dropped", "failed", "timeout", 
 def test_the_stage_failures_trigger_follows_its_rule_for_any_run_of_iterations(outcomes, n):
     """The trigger holds from the n-th failed iteration since the last adaptation that reached
     Execute, until such an adaptation or n iterations in a row without a failure."""
-    from rasm.platform.adaptation_orchestrator import LoopStats
     from rasm.platform.fallback import FailedIterations
+    from rasm.platform.protocols import LoopStats
 
     stats, counter = LoopStats(), FailedIterations(n)
     failures = clean = 0

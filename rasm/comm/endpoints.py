@@ -18,11 +18,11 @@ from rasm.comm.queues import DropOldestQueue
 from rasm.comm.topics import validate_topic
 from rasm.comm.transport import Subscription, Transport
 
-__all__ = ["CommunicationManager", "Publisher", "Subscriber"]
+__all__ = ["Endpoints", "Publisher", "Subscriber"]
 
 
 class Publisher:
-    """Publishes on one topic (made by :meth:`CommunicationManager.create_publisher`)."""
+    """Publishes on one topic (made by :meth:`Endpoints.create_publisher`)."""
 
     def __init__(self, transport: Transport, topic: str, qos: int | None = None) -> None:
         self.topic = validate_topic(topic)
@@ -85,11 +85,13 @@ class Subscriber:
         return f"<Subscriber {self.pattern!r} queued={len(self)} dropped={self.dropped}>"
 
 
-class CommunicationManager:
-    """The Communication Manager: publishers and queued subscribers over one transport.
+class Endpoints:
+    """The Communication Manager's operations: publishers and queued subscribers over one
+    transport (the Communication Manager block, :mod:`rasm.platform.communication_manager`,
+    adds its operation modes).
 
     It does not own the transport's life cycle: connect it before and close it after (closing
-    the manager closes its subscribers only).
+    them closes their subscribers only).
     """
 
     def __init__(self, transport: Transport) -> None:

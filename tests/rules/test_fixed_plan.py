@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rasm.rules import CompiledRules, parse_rules
-from rasm.rules.fallback import prove_fixed_plan
+from rasm.rules.fixed_plan import prove_fixed_plan
 
 from .gen import rules_files
 

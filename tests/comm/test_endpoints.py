@@ -8,11 +8,11 @@ import time
 
 import pytest
 
-from rasm.comm import CommError, CommunicationManager
+from rasm.comm import CommError, Endpoints
 
 
 def test_a_subscriber_queues_what_a_publisher_sends(local):
-    cm = CommunicationManager(local)
+    cm = Endpoints(local)
     subscriber = cm.create_subscriber("robot/+")
     publisher = cm.create_publisher("robot/pose")
     publisher.publish_message({"x": 1})
@@ -24,7 +24,7 @@ def test_a_subscriber_queues_what_a_publisher_sends(local):
 
 
 def test_overflow_drops_the_oldest_and_counts_it(local):
-    cm = CommunicationManager(local)
+    cm = Endpoints(local)
     subscriber = cm.create_subscriber("t", maxsize=3)
     publisher = cm.create_publisher("t")
     for i in range(5):
@@ -34,12 +34,12 @@ def test_overflow_drops_the_oldest_and_counts_it(local):
 
 
 def test_get_queue_message_returns_none_when_the_timeout_expires(local):
-    subscriber = CommunicationManager(local).create_subscriber("quiet")
+    subscriber = Endpoints(local).create_subscriber("quiet")
     assert subscriber.get_queue_message(timeout=0.01) is None
 
 
 def test_a_blocked_reader_wakes_when_a_message_arrives(local):
-    cm = CommunicationManager(local)
+    cm = Endpoints(local)
     subscriber = cm.create_subscriber("wake")
     publisher = cm.create_publisher("wake")
     waiting = threading.Event()
@@ -59,7 +59,7 @@ def test_a_blocked_reader_wakes_when_a_message_arrives(local):
 
 
 def test_closing_wakes_a_blocked_reader_with_none(local):
-    cm = CommunicationManager(local)
+    cm = Endpoints(local)
     subscriber = cm.create_subscriber("never")
     result = []
     thread = threading.Thread(target=lambda: result.append(subscriber.get_queue_message()))
@@ -72,16 +72,16 @@ def test_closing_wakes_a_blocked_reader_with_none(local):
 
 def test_a_publisher_needs_a_topic_name_not_a_pattern(local):
     with pytest.raises(CommError, match="wildcard"):
-        CommunicationManager(local).create_publisher("robot/#")
+        Endpoints(local).create_publisher("robot/#")
 
 
 def test_maxsize_must_be_positive(local):
     with pytest.raises(ValueError, match="maxsize"):
-        CommunicationManager(local).create_subscriber("t", maxsize=0)
+        Endpoints(local).create_subscriber("t", maxsize=0)
 
 
 def test_publish_message_sends_on_any_topic_to_callbacks_and_queues(local):
-    cm = CommunicationManager(local)
+    cm = Endpoints(local)
     seen = []
     arrived = threading.Event()
 
@@ -98,7 +98,7 @@ def test_publish_message_sends_on_any_topic_to_callbacks_and_queues(local):
 
 
 def test_closing_the_manager_cancels_its_callback_subscriptions(local):
-    cm = CommunicationManager(local)
+    cm = Endpoints(local)
     seen = []
     subscription = cm.subscribe("t", seen.append)
     assert subscription.active and local.subscriptions == 1
@@ -110,11 +110,11 @@ def test_closing_the_manager_cancels_its_callback_subscriptions(local):
 
 def test_publish_message_needs_a_topic_name_not_a_pattern(local):
     with pytest.raises(CommError, match="wildcard"):
-        CommunicationManager(local).publish_message("robot/+", {"x": 1})
+        Endpoints(local).publish_message("robot/+", {"x": 1})
 
 
 def test_the_operations_work_over_a_real_broker(shared_broker, mqtt_factory):
-    cm = CommunicationManager(mqtt_factory(shared_broker.url))
+    cm = Endpoints(mqtt_factory(shared_broker.url))
     arrived = threading.Event()
     seen = []
     cm.subscribe("cm/+", lambda message: (seen.append(message.payload), arrived.set()))
