@@ -7,8 +7,10 @@ the form editors and CI logs understand.
 
 from __future__ import annotations
 
+import difflib
 import os
 import signal
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -204,3 +206,10 @@ class KnowledgeError(RasmError):
 
 class CommError(RasmError):
     """The communication layer failed: a bad transport URL, topic or payload, or a broker fault."""
+
+
+def closest(name: str, candidates: Collection[str]) -> str | None:
+    """The candidate most like ``name`` (a likely misspelling of it, for a "did you mean"), or
+    None."""
+    found = difflib.get_close_matches(name, sorted(candidates), n=1)
+    return found[0] if found else None

@@ -1,10 +1,11 @@
 """The adaptation trace: JSON lines, one record a line, ``time`` first, then what it updates.
 
-Written by :class:`TraceWriter` (``rasm run --trace``), read whole by :func:`read_trace` and
-:func:`parse_trace` (``rasm report``) or record by record by :func:`read_records` and
-:func:`parse_records` (``rasm check``), held in memory as a :class:`Trace` of records
-(``run_app``). A record in memory is what :func:`trace_line` gives: the record as it
-reads back from its line, so a trace in memory and the same trace read from its file are equal.
+Written by :class:`TraceWriter` (``rasm run --trace``; :func:`rasm.trace_mcap.open_trace_writer`
+picks it or the MCAP writer), read whole by :func:`read_trace` and :func:`parse_trace`
+(``rasm report``) or record by record by :func:`read_records` and :func:`parse_records`
+(``rasm check``), held in memory as a :class:`rasm.testing.Trace` of records (``run_app``). A
+record in memory is what :func:`trace_line` gives: the record as it reads back from its line, so
+a trace in memory and the same trace read from its file are equal.
 
 A line holds ``time`` rounded to the nanosecond and every other value as JSON has it; a
 non-finite number at the top level (a sensor's NaN) is written as ``null``.
@@ -26,10 +27,10 @@ import math
 import os
 import re
 import sys
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from json.scanner import make_scanner
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, BinaryIO
+from typing import Any, BinaryIO
 
 from rasm.errors import (
     Location,
@@ -45,14 +46,10 @@ from rasm.losses import WriteFailure, WriteGuard, describe_error
 from rasm.properties.times import FAST, Seconds, format_seconds, nanoseconds
 from rasm.values import fit, wanted
 
-if TYPE_CHECKING:
-    from rasm.platform.summary import RunSummary
-
 _log = logging.getLogger("rasm.trace")
 
 __all__ = [
-    "MAX_REPORTED", "MalformedTrace", "Trace", "TraceWriter", "format_line", "open_trace_writer",
-    "parse_records",
+    "MAX_REPORTED", "MalformedTrace", "TraceWriter", "format_line", "parse_records",
     "parse_trace", "read_records", "read_trace", "scan_records", "trace_line",
 ]
 
@@ -262,20 +259,6 @@ class TraceWriter:
 
     def _finish(self) -> None:
         """Write what a file ends with (nothing: JSONL has no footer)."""
-
-
-def open_trace_writer(
-    path: str | Path | None, *, max_bytes: int | None = None, keep: int = 4
-) -> TraceWriter:
-    """The writer of a run's trace: MCAP for a ``.mcap`` path (Foxglove opens it; not rotated),
-    else JSONL, rotated by size with ``max_bytes`` (``keep`` files); None writes nothing."""
-    if path is not None and str(path).endswith(".mcap"):
-        if max_bytes is not None:
-            raise PlatformError("an MCAP trace is not rotated: write JSONL to rotate")
-        from rasm.trace_mcap import McapTraceWriter
-
-        return McapTraceWriter(path)
-    return TraceWriter(path, max_bytes=max_bytes, keep=keep)
 
 
 # ----------------------------------------------------------------------------- reading
@@ -511,72 +494,3 @@ def read_records(
 def read_trace(path: str | Path, signals: Mapping[str, str] | None = None) -> list:
     """Read a JSONL trace file; see :func:`parse_trace`."""
     return list(read_records(path, signals))
-
-
-# ----------------------------------------------------------------------------- in memory
-
-
-class Trace(Sequence[dict[str, Any]]):
-    """An adaptation trace in memory: a list of records, and how it was made.
-
-    ``records`` is the list, each record as :func:`trace_line` gives it; ``summary`` the run's
-    :class:`~rasm.RunSummary` (None for a trace that was not made by
-    :func:`rasm.testing.run_app`); ``seed``, ``scenario`` and ``duration`` say how to make it
-    again.
-    """
-
-    def __init__(
-        self,
-        records: Sequence[Mapping[str, Any]],
-        *,
-        summary: RunSummary | None = None,
-        app: str = "",
-        seed: int | None = None,
-        scenario: Mapping[str, Any] | None = None,
-        duration: float | None = None,
-    ) -> None:
-        self.records = [dict(r) for r in records]
-        self.summary = summary
-        self.app = app
-        self.seed = seed
-        self.scenario = dict(scenario) if scenario is not None else None
-        self.duration = duration
-
-    def __len__(self) -> int:
-        return len(self.records)
-
-    def __getitem__(self, index):  # type: ignore[override]
-        return self.records[index]
-
-    def __iter__(self) -> Iterator[dict[str, Any]]:
-        return iter(self.records)
-
-    def __repr__(self) -> str:
-        how = f" seed={self.seed} scenario={self.scenario}" if self.app else ""
-        return f"<Trace {self.app}{how}: {len(self.records)} records>"
-
-    def when(self, event: str) -> list[float]:
-        """The times of the records on which ``event`` is true (``trace.when("executed")``)."""
-        return [r["time"] for r in self.records if r.get(event) is True]
-
-    def values(self, signal: str) -> list[tuple[float, Any]]:
-        """``(time, value)`` for every record that sets ``signal``."""
-        return [(r["time"], r[signal]) for r in self.records if signal in r]
-
-    def lines(self) -> list[str]:
-        """The trace as JSON lines (what ``rasm run --trace`` writes)."""
-        return [json.dumps(r) for r in self.records]
-
-    def save(self, path: str | Path) -> Path:
-        """Write the trace as JSONL to ``path`` (for ``rasm check``); returns the path."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text("".join(line + "\n" for line in self.lines()), encoding="utf-8")
-        return path
-
-    def check(self, props: Any) -> Any:
-        """Check a property file on this trace: a :class:`rasm.properties.check.CheckReport`
-        (as :func:`rasm.testing.check_trace` does)."""
-        from rasm.testing.assertions import check_trace  # the test helpers build on this module
-
-        return check_trace(props, self)

@@ -19,7 +19,8 @@ it is written, like a JSONL line, so a process killed at any moment leaves every
 emitted readable (the summary and footer come at the end of a run that ends in order). The
 MCAP records are made by the ``mcap`` library's writer. ``rasm check`` reads an MCAP trace back
 (:func:`read_mcap_trace`), a cut one too: what its writer never finished is reported as damage
-(:class:`McapTrace`).
+(:class:`McapTrace`). :func:`open_trace_writer` gives a run the writer its trace file's name
+asks for, this one or the JSONL one.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import RasmError
+from rasm.errors import PlatformError, RasmError
 from rasm.losses import Damage
 from rasm.mcapfile import McapError, McapReader, read_header
 from rasm.trace import TraceWriter, format_line
@@ -40,6 +41,7 @@ __all__ = [
     "McapTraceWriter",
     "VERDICT_PREFIX",
     "is_mcap_trace",
+    "open_trace_writer",
     "read_mcap_trace",
 ]
 
@@ -232,3 +234,15 @@ def read_mcap_trace(path: str | Path) -> Iterator[str]:
     """The JSON lines of an MCAP trace, in log-time order (for :func:`rasm.trace.parse_trace`);
     :class:`McapTrace` also says what was damaged."""
     return iter(McapTrace(path))
+
+
+def open_trace_writer(
+    path: str | Path | None, *, max_bytes: int | None = None, keep: int = 4
+) -> TraceWriter:
+    """The writer of a run's trace: MCAP for a ``.mcap`` path (Foxglove opens it; not rotated),
+    else JSONL, rotated by size with ``max_bytes`` (``keep`` files); None writes nothing."""
+    if path is not None and str(path).endswith(".mcap"):
+        if max_bytes is not None:
+            raise PlatformError("an MCAP trace is not rotated: write JSONL to rotate")
+        return McapTraceWriter(path)
+    return TraceWriter(path, max_bytes=max_bytes, keep=keep)

@@ -14,11 +14,11 @@ from rasm.errors import PlatformError, SourceErrors
 from rasm.trace import (
     TraceWriter,
     format_line,
-    open_trace_writer,
     parse_trace,
     read_trace,
     trace_line,
 )
+from rasm.trace_mcap import open_trace_writer
 
 
 class Reading(float):

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, SourceError, SourceErrors, marked_error, read_utf8
+from rasm.errors import Location, SourceError, SourceErrors, closest, marked_error, read_utf8
 from rasm.platform.chart_stages import STAGE_OUTCOMES
 from rasm.platform.manifest import AppManifest, is_chart_ref, manifest_location
 from rasm.platform.modes import mode_signals
@@ -316,7 +316,6 @@ def _loaded(path: Path, problems: list[SourceError]) -> Any:
 
 
 def _effector_mode_problems(manifest: AppManifest, states: set[str]) -> Iterator[SourceError]:
-    from rasm.platform.signals import closest
 
     for name, effector in manifest.effectors.items():
         for i, mode in enumerate(effector.modes or ()):
@@ -333,7 +332,6 @@ def _effector_mode_problems(manifest: AppManifest, states: set[str]) -> Iterator
 def _unknown_effectors(manifest: AppManifest, path: Path) -> list[SourceError]:
     """An Execute chart's actions for an effector the app does not declare would all be
     dropped."""
-    from rasm.platform.signals import closest
 
     problems = []
     for name, where in outline(path).effectors:

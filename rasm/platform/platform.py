@@ -42,7 +42,8 @@ from rasm.platform.summary import RunSummary, bus_refusals, summarise
 from rasm.properties.monitor import Monitor, Verdict
 from rasm.statechart import MonotonicClock, SimulatedClock
 from rasm.times import elapsed_seconds, from_nanoseconds
-from rasm.trace import TraceWriter, open_trace_writer
+from rasm.trace import TraceWriter
+from rasm.trace_mcap import open_trace_writer
 
 __all__ = ["Platform", "RunSummary"]
 

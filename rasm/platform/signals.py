@@ -23,7 +23,6 @@ and a rule would reject every plan; that is an error like a missing provider.
 
 from __future__ import annotations
 
-import difflib
 import functools
 import os
 from collections.abc import Collection, Iterator, Mapping
@@ -31,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rasm.errors import Location, SourceError, SourceErrors, marked_error, read_utf8
+from rasm.errors import Location, SourceError, SourceErrors, closest, marked_error, read_utf8
 from rasm.loop import LOOP_SIGNAL_TYPES
 from rasm.platform.manifest import AppManifest, manifest_location
 from rasm.platform.own_topics import own_topic_problems
@@ -42,7 +41,6 @@ __all__ = [
     "Provider",
     "app_problems",
     "check_app",
-    "closest",
     "provided",
     "reads",
     "unprovided",
@@ -142,12 +140,6 @@ def _mode_signals(manifest: AppManifest) -> dict[str, Provider]:
     except (OSError, SourceError, SourceErrors):
         return {}  # the chart check reports it
     return {key: Provider(kind, "the modes chart") for key, kind in mode_signals(chart).items()}
-
-
-def closest(name: str, candidates: Collection[str]) -> str | None:
-    """The candidate most like ``name`` (a likely misspelling of it), or None."""
-    found = difflib.get_close_matches(name, sorted(candidates), n=1)
-    return found[0] if found else None
 
 
 def reads(spec: Any) -> list[tuple[str, Location]]:

@@ -25,7 +25,7 @@ _PUBLIC = {
     "ChartFailure": "rasm.testing.machine",
     "ChartState": "rasm.testing.machine",
     "PropertyViolation": "rasm.testing.assertions",
-    "Trace": "rasm.trace",
+    "Trace": "rasm.testing.apps",
     "applicable_monitors": "rasm.testing.monitors",
     "assert_properties": "rasm.testing.assertions",
     "check_trace": "rasm.testing.assertions",
@@ -58,14 +58,13 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
-    from rasm.testing.apps import run_app
+    from rasm.testing.apps import Trace, run_app
     from rasm.testing.assertions import PropertyViolation, assert_properties, check_trace
     from rasm.testing.failures import failures_dir
     from rasm.testing.machine import ChartFailure, ChartState, statechart_machine
     from rasm.testing.monitors import applicable_monitors, watched_states
     from rasm.testing.scenarios import scenarios, windows
     from rasm.testing.traces import signal_domains, traces
-    from rasm.trace import Trace
 
 
 def __getattr__(name: str) -> object:

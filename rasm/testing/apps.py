@@ -9,17 +9,20 @@ the wall-clock ``duration`` of each stage).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from rasm.platform.manifest import AppManifest, load_manifest
 from rasm.platform.platform import Platform
 from rasm.platform.run_options import Clock, RunOptions
-from rasm.trace import Trace, trace_line
+from rasm.platform.summary import RunSummary
+from rasm.testing.assertions import check_trace
+from rasm.trace import trace_line
 
-__all__ = ["run_app", "app_manifest"]
+__all__ = ["Trace", "app_manifest", "run_app"]
 
 _MANIFESTS: dict[tuple[str, float], AppManifest] = {}
 # manifest fields run_app() may override that are durations (a string there failed every tick)
@@ -127,3 +130,67 @@ def run_app(
         records, summary=summary, app=manifest.name, seed=seed, scenario=platform.scenario,
         duration=duration,
     )
+
+
+class Trace(Sequence[dict[str, Any]]):
+    """An adaptation trace in memory: a list of records, and how it was made.
+
+    ``records`` is the list, each record as :func:`trace_line` gives it; ``summary`` the run's
+    :class:`~rasm.RunSummary` (None for a trace that was not made by
+    :func:`rasm.testing.run_app`); ``seed``, ``scenario`` and ``duration`` say how to make it
+    again.
+    """
+
+    def __init__(
+        self,
+        records: Sequence[Mapping[str, Any]],
+        *,
+        summary: RunSummary | None = None,
+        app: str = "",
+        seed: int | None = None,
+        scenario: Mapping[str, Any] | None = None,
+        duration: float | None = None,
+    ) -> None:
+        self.records = [dict(r) for r in records]
+        self.summary = summary
+        self.app = app
+        self.seed = seed
+        self.scenario = dict(scenario) if scenario is not None else None
+        self.duration = duration
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return self.records[index]
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        return iter(self.records)
+
+    def __repr__(self) -> str:
+        how = f" seed={self.seed} scenario={self.scenario}" if self.app else ""
+        return f"<Trace {self.app}{how}: {len(self.records)} records>"
+
+    def when(self, event: str) -> list[float]:
+        """The times of the records on which ``event`` is true (``trace.when("executed")``)."""
+        return [r["time"] for r in self.records if r.get(event) is True]
+
+    def values(self, signal: str) -> list[tuple[float, Any]]:
+        """``(time, value)`` for every record that sets ``signal``."""
+        return [(r["time"], r[signal]) for r in self.records if signal in r]
+
+    def lines(self) -> list[str]:
+        """The trace as JSON lines (what ``rasm run --trace`` writes)."""
+        return [json.dumps(r) for r in self.records]
+
+    def save(self, path: str | Path) -> Path:
+        """Write the trace as JSONL to ``path`` (for ``rasm check``); returns the path."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("".join(line + "\n" for line in self.lines()), encoding="utf-8")
+        return path
+
+    def check(self, props: Any) -> Any:
+        """Check a property file on this trace: a :class:`rasm.properties.check.CheckReport`
+        (as :func:`rasm.testing.check_trace` does)."""
+        return check_trace(props, self)
