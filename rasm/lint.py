@@ -103,7 +103,7 @@ def _lint_app_signals(manifest: Any) -> list[str]:
 
 
 def _lint_model(path: Path, text: str) -> list[str]:
-    from rasm.workflow.model import lint_model
+    from rasm.workflow.checks import lint_model
 
     return [_one_line(e) for e in lint_model(path)]
 
@@ -111,7 +111,7 @@ def _lint_model(path: Path, text: str) -> list[str]:
 def _lint_model_beside_app(path: Path, text: str) -> list[str]:
     """A model linted with its app's manifest: the app's signal check (the one ``rasm run``
     applies) judges the property and rule files both name, so the model's own is left out."""
-    from rasm.workflow.model import lint_model
+    from rasm.workflow.checks import lint_model
 
     return [_one_line(e) for e in lint_model(path, signals=False)]
 

@@ -29,7 +29,7 @@ from rasm.comm.signing import (
     verify,
 )
 from rasm.comm.transport import Subscription, Transport
-from rasm.comm.url import open_transport
+from rasm.comm.transports import open_transport
 from rasm.errors import CommError
 
 __all__ = [

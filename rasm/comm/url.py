@@ -1,18 +1,16 @@
 """Transport URLs: ``local``, ``mqtt://host:port``, ``mqtts://host:port``, and ROS 2's
-``zenoh://host:port[?domain=N]`` and ``dds://[?domain=N]``."""
+``zenoh://host:port[?domain=N]`` and ``dds://[?domain=N]``; what they say (the transport each
+opens is :func:`rasm.comm.transports.open_transport`'s)."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from typing import Any
 from urllib.parse import urlsplit
 
-from rasm.comm.transport import Transport
 from rasm.errors import CommError
-from rasm.extras import missing_extra
 
-__all__ = ["open_transport", "parse_mqtt_url", "credentials_from_env", "ACCEPTED_FORMS"]
+__all__ = ["ACCEPTED_FORMS", "credentials_from_env", "parse_mqtt_url"]
 
 ACCEPTED_FORMS = (
     "'local', 'mqtt://HOST:PORT', 'mqtts://HOST:PORT' (TLS), 'zenoh://HOST:PORT[?domain=N]' "
@@ -48,37 +46,6 @@ def parse_mqtt_url(url: str) -> tuple[str, int, bool]:
     if not host:
         raise bad("no host")
     return host, port if port is not None else _DEFAULT_PORTS[parts.scheme], parts.scheme == "mqtts"
-
-
-def open_transport(url: str, **options: Any) -> Transport:
-    """A new, not yet connected transport for ``url``.
-
-    ``local`` gives a :class:`~rasm.comm.local.LocalTransport`; ``mqtt://host:port`` (or
-    ``mqtts://``) an :class:`~rasm.comm.mqtt.MqttTransport`; ``zenoh://host:port`` a
-    :class:`~rasm.ros2.zenoh.ZenohTransport` and ``dds://`` a
-    :class:`~rasm.ros2.dds.DdsTransport` (ROS 2); ``options`` go to its constructor.
-    Anything else raises :class:`CommError` naming the URL and the accepted forms.
-    """
-    if isinstance(url, str) and url.strip() == "local":
-        from rasm.comm.local import LocalTransport
-
-        return LocalTransport(**options)
-    scheme = urlsplit(url.strip()).scheme if isinstance(url, str) else ""
-    if scheme in ("zenoh", "dds"):
-        # imported lazily: only ROS 2 users need Zenoh, Cyclone DDS and the type store
-        try:
-            from rasm.ros2.dds import DdsTransport
-            from rasm.ros2.zenoh import ZenohTransport
-        except ModuleNotFoundError as exc:
-            missing = missing_extra(exc, f"{scheme}://")
-            if missing is None:
-                raise
-            raise CommError(str(missing)) from None
-        return (ZenohTransport if scheme == "zenoh" else DdsTransport)(url, **options)
-    parse_mqtt_url(url)  # raises with the accepted forms
-    from rasm.comm.mqtt import MqttTransport  # imported lazily: paho is not needed for 'local'
-
-    return MqttTransport(url, **options)
 
 
 def credentials_from_env(url: str, environ: Mapping[str, str] | None = None) -> dict[str, str]:

@@ -218,7 +218,7 @@ def _check_effector(
 ) -> Effector:
     from rasm.platform.messages import value_type
     from rasm.ros2 import RosError, field_type
-    from rasm.ros2.types import interface_kind
+    from rasm.ros2.names import interface_kind
 
     where = ["effectors", effector.name]
     _check_topic(src, effector.topic, where + [effector.kind], problems)

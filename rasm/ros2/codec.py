@@ -28,7 +28,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys.base import normalize_fieldname
 
 from rasm.ros2.errors import MalformedMessage, MessageError
-from rasm.ros2.types import PLACEHOLDER_FIELD, WSTRING_TYPE, FieldType, dds_type_name
+from rasm.ros2.names import PLACEHOLDER_FIELD, WSTRING_TYPE, FieldType, dds_type_name
 
 if TYPE_CHECKING:
     from rasm.ros2.types import TypeStore

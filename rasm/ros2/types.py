@@ -26,7 +26,6 @@ import ast
 import json
 import re
 from collections.abc import Iterable
-from dataclasses import dataclass
 from functools import cache
 from hashlib import sha256
 from pathlib import Path
@@ -37,6 +36,15 @@ from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typest
 
 from rasm.errors import Location, SourceError
 from rasm.ros2.errors import UnknownTypeError
+from rasm.ros2.names import (
+    NAME_PART,
+    PLACEHOLDER_FIELD,
+    WSTRING_TYPE,
+    FieldType,
+    dds_type_name,
+    normalize_type,
+    ros_type_name,
+)
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -64,15 +72,6 @@ DISTROS = {
 DEFAULT_DISTRO = "jazzy"  # the current long-term-support release
 _STORES = {**DISTROS, "empty": Stores.EMPTY}  # "empty": only what is added (a bag's own types)
 
-# ROS 2 requires an empty message to carry this one byte; rasm hides it from users.
-PLACEHOLDER_FIELD = "structure_needs_at_least_one_member"
-
-_PART = r"[A-Za-z][A-Za-z0-9_]*"
-_TYPE_NAME = re.compile(rf"({_PART})/(?:(msg|srv|action)/)?({_PART})")
-_DDS_NAME = re.compile(rf"({_PART})::(msg|srv|action)::dds_::({_PART})_")
-
-#: The stand-in for ``wstring`` in rosbags' definitions (see the module docstring).
-WSTRING_TYPE = "rasm_cdr/msg/WString"
 _WSTRING_DEFS = {
     WSTRING_TYPE: ([], [("data", (Nodetype.SEQUENCE, ((Nodetype.BASE, ("uint16", 0)), 0)))])
 }
@@ -96,65 +95,6 @@ _EXTRA_INTERFACES = (
         "int8 return_code\naction_msgs/GoalInfo[] goals_canceling\n"
     )),
 )
-
-
-def normalize_type(name: str) -> str:
-    """``pkg/msg/Name`` for ``pkg/msg/Name`` or ``pkg/Name`` (``pkg/srv/...`` and
-    ``pkg/action/...`` stay as they are); :class:`UnknownTypeError` else."""
-    match = _TYPE_NAME.fullmatch(name) if isinstance(name, str) else None
-    if match is None:
-        raise UnknownTypeError(
-            f"{name!r} is not a ROS 2 interface type name (write it as pkg/msg/Name, e.g. "
-            "nav_msgs/msg/Odometry, or pkg/srv/Name, pkg/action/Name)"
-        )
-    return f"{match[1]}/{match[2] or 'msg'}/{match[3]}"
-
-
-def interface_kind(name: str) -> str:
-    """``msg``, ``srv`` or ``action``: the kind of a type name."""
-    return normalize_type(name).split("/")[1]
-
-
-def dds_type_name(name: str) -> str:
-    """The DDS (and rmw_zenoh) name of a type: ``std_msgs::msg::dds_::String_``,
-    ``example_interfaces::srv::dds_::AddTwoInts_``."""
-    package, kind, short = normalize_type(name).split("/")
-    return f"{package}::{kind}::dds_::{short}_"
-
-
-def ros_type_name(dds_name: str) -> str | None:
-    """``pkg/msg/Name`` for a DDS type name ``pkg::msg::dds_::Name_``, else None."""
-    match = _DDS_NAME.fullmatch(dds_name)
-    return f"{match[1]}/{match[2]}/{match[3]}" if match else None
-
-
-@dataclass(frozen=True)
-class FieldType:
-    """The type of one message field, as ROS writes it (``float64[36]``, ``float32[]``, ...).
-
-    ``base`` is a primitive (``float64``, ``string``, ...) or a message type name;
-    ``array`` is ``None``, ``"fixed"`` (``length`` elements) or ``"sequence"`` (at most
-    ``length`` elements, 0 meaning unbounded); ``string_bound`` limits a string's length.
-    """
-
-    base: str
-    is_message: bool = False
-    array: str | None = None
-    length: int = 0
-    string_bound: int = 0
-
-    @property
-    def element(self) -> FieldType:
-        """The type of one element (the field itself when it is not an array)."""
-        return FieldType(self.base, self.is_message, None, 0, self.string_bound)
-
-    def __str__(self) -> str:
-        text = self.base + (f"<={self.string_bound}" if self.string_bound else "")
-        if self.array == "fixed":
-            return f"{text}[{self.length}]"
-        if self.array == "sequence":
-            return f"{text}[<={self.length}]" if self.length else f"{text}[]"
-        return text
 
 
 def _field_type(desc: tuple) -> FieldType:
@@ -353,7 +293,7 @@ class TypeStore:
         :class:`SourceError` with its file, line and column. Files may refer to each other.
         """
         files = [Path(p) for p in paths]
-        if not re.fullmatch(_PART, package or ""):
+        if not re.fullmatch(NAME_PART, package or ""):
             where = Location(str(files[0])) if files else Location(str(package))
             raise SourceError(f"{package!r} is not a valid ROS package name", where)
         found: dict[str, tuple] = {}
@@ -371,7 +311,7 @@ class TypeStore:
                 raise SourceError(
                     f"cannot read the interface definition: {exc}", Location(str(path))
                 ) from None
-            if not re.fullmatch(_PART, path.stem):
+            if not re.fullmatch(NAME_PART, path.stem):
                 raise SourceError(
                     f"{path.stem!r} is not a valid interface name (letters, digits and '_', "
                     "starting with a letter)",

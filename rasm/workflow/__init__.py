@@ -5,12 +5,12 @@ Architecture model (``model.yaml``) → lint (:func:`lint_model`) → applicatio
 verified deployment of one compute unit (:func:`deploy_package`, ``rasm deploy``).
 """
 
-from rasm.workflow.checks import check_model
+from rasm.workflow.checks import check_model, lint_model
 from rasm.workflow.deploy import DeployError, DeployReport, deploy_package, run_workflow
 from rasm.workflow.derive import app_config, model_from_manifest
 from rasm.workflow.generate import Generated, GenerateError, generate_app, new_app
 from rasm.workflow.integrity import IntegrityError, configured_key
-from rasm.workflow.model import ArchitectureModel, lint_model, load_model, parse_model
+from rasm.workflow.model import ArchitectureModel, load_model, parse_model
 from rasm.workflow.package import PackageError, PackageReport, package_app
 
 __all__ = [

@@ -12,15 +12,30 @@ produces (the shared check of :mod:`rasm.platform.signals`).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from pathlib import PurePosixPath
+from pathlib import Path, PurePosixPath
 from typing import Any
 
-from rasm.errors import Location, SourceError, SourceErrors, mark
+from rasm.errors import Location, SourceError, SourceErrors, closest, mark
 from rasm.loop import LOOP_KEYS, STAGES
-from rasm.platform.signals import closest, reads, unprovided
-from rasm.workflow.model import ArchitectureModel, Check, ModesChart
+from rasm.platform.signals import reads, unprovided
+from rasm.workflow.model import ArchitectureModel, Check, ModesChart, load_model
 
-__all__ = ["check_model", "mode_states", "produced_signals", "property_reads"]
+__all__ = ["check_model", "lint_model", "mode_states", "produced_signals", "property_reads"]
+
+
+def lint_model(path: str | Path, *, signals: bool = True) -> list[SourceError]:
+    """Every problem in a model (schema and cross-checks) as :class:`SourceError` with positions.
+
+    ``signals=False`` leaves out the names its property and rule files read that no component
+    produces (for a model linted with its app, whose manifest's check is the one that runs).
+    """
+    try:
+        model = load_model(path)
+    except SourceErrors as exc:
+        return list(exc.errors)
+    except SourceError as exc:
+        return [exc]
+    return check_model(model, signals=signals)
 
 
 def check_model(model: ArchitectureModel, *, signals: bool = True) -> list[SourceError]:

@@ -4,7 +4,7 @@ The shape is a JSON Schema (``model.schema.json`` beside this module); a value t
 reported at its own line and column. The model is recognised by its top-level ``architecture``
 key. Cross-checks the schema cannot express (dangling references, unconnected ports, mismatched
 message types, unreachable units, a MAPLE-K loop missing a stage, ...) live in
-:mod:`rasm.workflow.checks`; :func:`lint_model` runs both.
+:mod:`rasm.workflow.checks`; :func:`rasm.workflow.checks.lint_model` runs both.
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ __all__ = [
     "Port",
     "MANAGED_ROLES",
     "SCHEMA",
-    "lint_model",
     "load_model",
     "parse_model",
 ]
@@ -283,23 +282,6 @@ def load_model(path: str | Path) -> ArchitectureModel:
             [SourceError("not a UTF-8 text file", Location(str(file), 1, 1))]
         ) from None
     return parse_model(text, file)
-
-
-def lint_model(path: str | Path, *, signals: bool = True) -> list[SourceError]:
-    """Every problem in a model (schema and cross-checks) as :class:`SourceError` with positions.
-
-    ``signals=False`` leaves out the names its property and rule files read that no component
-    produces (for a model linted with its app, whose manifest's check is the one that runs).
-    """
-    from rasm.workflow.checks import check_model
-
-    try:
-        model = load_model(path)
-    except SourceErrors as exc:
-        return list(exc.errors)
-    except SourceError as exc:
-        return [exc]
-    return check_model(model, signals=signals)
 
 
 def _modes_chart(src: YamlSource, component: str, spec: Any) -> ModesChart | None:
