@@ -103,7 +103,7 @@ def load_app_components(
     m: AppManifest, given: dict[str, object]
 ) -> tuple[dict[str, object], object | None]:
     """The run's stage components and its twin (not restored yet: :func:`load_twin`): those
-    ``given`` (``Platform(components=...)``, by stage or ``twin``), else the manifest's."""
+    ``given`` (``RunOptions(components=...)``, by stage or ``twin``), else the manifest's."""
     package = package_name(m)
     components = {
         stage: given.get(stage) or load_stage_component(m, stage, ref, package)
@@ -130,7 +130,7 @@ def load_twin(twin: DigitalTwin | None, model: dict[str, Any] | None) -> Digital
 
 
 def check_components(components: object) -> None:
-    """``Platform(components=...)``: a dict of stage (or ``twin``) to an object serving it."""
+    """``RunOptions(components=...)``: a dict of stage (or ``twin``) to an object serving it."""
     if not isinstance(components, dict):
         raise TypeError(
             f"components must be a dict {{stage: object}}, not {type(components).__name__}"
