@@ -1,8 +1,9 @@
 """rasm.platform: the MAPLE-K loop and the building blocks it runs on.
 
 One module per building block (``telegraf``, ``knowledge_manager``, ``trustworthiness_checker``,
-...), each a :class:`~rasm.platform.block.Block` driven by its statechart; ``platform``
-assembles them into a :class:`Platform`. The names below are loaded on first use.
+...), each a :class:`~rasm.platform.block.Block` driven by its statechart; ``assembly``
+builds them for a :class:`Platform`, which runs them with :class:`RunOptions`. The names below
+are loaded on first use.
 """
 
 from __future__ import annotations
