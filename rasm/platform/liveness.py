@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 from rasm.errors import SourceError
 from rasm.platform.manifest import AppManifest, Probe, manifest_location
-from rasm.times import format_seconds
+from rasm.times import elapsed_seconds, format_seconds, from_nanoseconds, nanoseconds
 
 __all__ = [
     "ManagedSystemWatch",
@@ -104,9 +104,10 @@ class ManagedSystemWatch:
         """When the next watched probe goes stale if nothing comes (None: none can)."""
         now = self.clock()
         times = [
-            w.last + w.probe.staleness
+            due
             for w in self._watched.values()
-            if w.probe.staleness is not None and w.last + w.probe.staleness > now
+            if w.probe.staleness is not None
+            and (due := _stale_from(w.last, w.probe.staleness)) > now
         ]
         return min(times, default=None)
 
@@ -136,13 +137,25 @@ class ManagedSystemWatch:
         probe = watched.probe
         if probe.publisher and self.alive is not None and not self.alive(probe.publisher):
             return f"probe {topic}: its publisher {probe.publisher} is not in the ROS graph"
-        if probe.staleness is not None and now - watched.last >= probe.staleness:
-            silent = now - watched.last
+        if probe.staleness is not None and now >= _stale_from(watched.last, probe.staleness):
+            silent = elapsed_seconds(watched.last, now)
             return (
                 f"probe {topic} silent for {_seconds(silent)} "
                 f"(staleness {format_seconds(probe.staleness)} s)"
             )
         return None
+
+
+def _stale_from(last: float, staleness: float) -> float:
+    """When a probe last heard at ``last`` goes stale if nothing comes: their sum, exact to the
+    nanosecond (heard at 1.8 with a staleness of 0.5, stale from 2.3, where in floats
+    ``2.3 - 1.8`` falls short of 0.5); ``-inf`` for a probe not heard yet (stale already).
+    Being stale (now at or past it) and the next deadline (after now) read this one time, so
+    the two never disagree."""
+    heard, limit = nanoseconds(last), nanoseconds(staleness)
+    if heard is None or limit is None:
+        return last + staleness
+    return from_nanoseconds(heard + limit)
 
 
 def _seconds(value: float) -> str:

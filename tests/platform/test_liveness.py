@@ -4,7 +4,7 @@ reading) and the managed system lost, on the simulated clock; the rule itself fo
 
 from __future__ import annotations
 
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from rasm import Platform, RunOptions
@@ -60,6 +60,7 @@ def _probe(staleness):
     heard=st.lists(st.integers(0, 400), max_size=20).map(sorted),
     checks=st.lists(st.integers(0, 500), min_size=1, max_size=20).map(sorted),
 )
+@example(staleness=0.5, heard=[18], checks=[23])  # in floats, 2.3 - 1.8 < 0.5
 def test_a_probe_is_stale_exactly_when_silent_for_its_staleness(staleness, heard, checks):
     # times in tenths of a second: the watch is told of each message and asked at each check
     now = [0.0]
@@ -78,8 +79,9 @@ def test_a_probe_is_stale_exactly_when_silent_for_its_staleness(staleness, heard
             watch.heard("robot/odom", now[0])
             continue
         watch.evaluate()
-        last = max([t / 10 for t in heard if t <= tenths], default=0.0)
-        expected = now[0] - last >= staleness
+        # exactly, in tenths: heard at 1.8 and asked at 2.3, a staleness of 0.5 has passed
+        last = max([t for t in heard if t <= tenths], default=0)
+        expected = tenths - last >= round(staleness * 10)
         assert watch.online() is not expected
         assert ("speed" in stale_now[0]) is expected
         assert (watch.next_deadline() is None) is expected
