@@ -41,6 +41,7 @@ class Runtime(NamedTuple):
 
     STATE: Any  # the closure variables' initial values, by name (Program.state)
     Verdict: Any  # the class of the verdicts step gives
+    VERDICT_NEW: Any  # tuple.__new__: a Verdict from the tuple of all its fields, in C
     NAMES: Any  # the property names, in file order
     STARTS: Any  # per property: the index of its first judged record (set by the code)
     VALUES: Any  # per property: the list run appends its values to, in record order

@@ -150,6 +150,7 @@ class Monitor:
         runtime = Runtime(
             STATE=self.program.state,
             Verdict=Verdict,
+            VERDICT_NEW=tuple.__new__,
             NAMES=self.names,
             STARTS=self.starts,
             VALUES=self._values,

@@ -177,7 +177,7 @@ def test_offline_run_counts_the_errors_per_record():
 
 
 def test_a_fault_while_finishing_makes_the_open_records_errors():
-    # the generated code makes its verdicts through the name ``Verdict`` of its namespace:
+    # the generated code makes its verdicts through the name ``VERDICT_NEW`` of its namespace:
     # replaced by one that raises, the end of the trace fails half way through a property
     text = "event p\nevent q\nproperty response: p -> eventually[0, 5] q\nproperty calm: not q\n"
     monitor = compile_properties(text)
@@ -186,7 +186,7 @@ def test_a_fault_while_finishing_makes_the_open_records_errors():
     assert [(v.property, v.index) for v in verdicts if v.property == "response"] == [
         ("response", 2)
     ]
-    monitor._namespace["Verdict"] = _raising_verdict
+    monitor._namespace["VERDICT_NEW"] = _raising_verdict
     finished = monitor.finish()
     assert [(v.index, v.value) for v in finished] == [(0, False), (1, False)]
     assert all("RuntimeError at the end of the trace: no verdicts" in v.error for v in finished)

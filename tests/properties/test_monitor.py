@@ -20,6 +20,19 @@ def test_step_returns_the_verdicts_of_this_record():
     assert mon.finish() == []
 
 
+def test_step_builds_whole_verdicts():
+    # step builds each Verdict as the tuple of all its fields (without the NamedTuple's
+    # __new__): a field added to Verdict must be added there too (rasm.properties.lines.Emit)
+    mon = compile_properties("input a: bool\nproperty p: a -> eventually[0, 1] a\n")
+    verdicts = mon.step(0, {"a": False}) + mon.step(1, {"a": True}) + mon.step(3, {"a": True})
+    verdicts += mon.finish()
+    assert [v.index for v in verdicts] == [0, 1, 2]
+    for verdict in verdicts:
+        assert type(verdict) is Verdict and len(verdict) == len(Verdict._fields)
+        assert verdict == Verdict(verdict.property, verdict.index, verdict.time, verdict.value)
+        assert verdict.error is None
+
+
 def test_warm_up_and_defaults():
     mon = compile_properties(
         "input v: float\ninput mode: str = \"idle\"\n"
