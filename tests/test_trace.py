@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from rasm.errors import PlatformError, SourceErrors
@@ -285,3 +285,37 @@ def test_a_time_going_back_is_named_to_the_nanosecond():
         "t.jsonl:2:2: time 1700000000.123456788 goes back in time (the previous record has "
         "1700000000.123456789)",
     ]
+
+
+# Lines for the fast reader: records, and lines that only decode as records when read together
+# with their neighbours (one cut short, one of two values, the reader's own separator).
+READER_LINES = st.sampled_from([
+    '{"time": 0.5, "a": true}\n', '{"time": 1, "b": [1, 2]}\n', '{"time": 2.25}', '\n', '  \n',
+    '{"time": 1, "a": [1\n', '2]}\n', '{"time": 1, "a": {"x": 1\n', '"y": 2}}\n',
+    '{"time": 2}, {"time": 3}\n', '{"time": 2}, "\\u0000", {"time": 3}\n', '"\\u0000"\n',
+    '{"time": 3, "s": "\\u0000"}\n', '{"time": NaN}\n', '{"time": 1700000000.123456789}\n',
+    '{"time": null}\n', '{"a": 1}\n', '[{"time": 1}]\n', '{"time": "1"}\n', '{"time": 1}]\n',
+    '{"time": true}\n', '{"time": 5e6}\n', '{"time": 4, "time": 5}\n', '{"time": 1} x\n',
+])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(READER_LINES, max_size=12), st.integers(1, 5))
+# a line cut short takes the separator after it into its value, the last line gives the values
+# missing: as many values as lines, or a separator at every other place
+@example(['{"time": 1, "a": [1\n', '2]}\n', '{"time": 2}, "\\u0000", {"time": 3}\n'], 3)
+@example(['{"time": 1, "a": [1\n', '2]}\n', '{"time": 2}, {"time": 3}, {"time": 4}\n'], 3)
+def test_the_fast_reader_reads_blocks_as_it_reads_lines(lines, block):
+    from rasm import trace
+
+    def read(scan):
+        try:
+            return [json.dumps([t, r]) for t, r in scan()], None
+        except trace.MalformedTrace as exc:
+            return None, str(exc)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(trace, "SCANNED", block)
+        by_blocks = read(lambda: trace.scan_records(lines, source="t"))
+    by_lines = read(lambda: trace._scan_lines(lines, {}, "t", 0))
+    assert by_blocks == by_lines
