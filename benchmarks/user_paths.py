@@ -8,7 +8,9 @@
    Goal: ratio <= 1.3.
 2. **``rasm check`` on a large file**: a 1e6-record JSONL trace (``always (b -> once[0, 1s] a)``)
    against reelay fed record by record from ``json.loads`` of the same file; CPU seconds and
-   peak memory of each, in its own process. Goal: rasm >= 1.5x reelay's speed, peak <= 64 MB.
+   peak memory of each, in its own process (``--jobs 1``: one process, as reelay's; checking
+   in parts side by side is ``benchmarks/scale.py``'s). Goal: rasm >= 1.5x reelay's speed, peak
+   <= 64 MB.
 3. **``rasm check`` explaining a violation at the end**: the same kind of trace with ``b`` left
    without ``a`` in its last seconds, checked with the text report, which explains the violations
    from the trace read again; against the same trace when it holds. Goal: the same peak memory
@@ -109,7 +111,8 @@ def large_check(repeats: int, records: int) -> tuple[float, float]:
         size = trace.stat().st_size / 1e6
         rasm_code = (
             "import sys\nfrom rasm.cli import main\n"
-            "if main(['check', sys.argv[1], sys.argv[2], '--format', 'json']) != 0:\n"
+            "argv = ['check', sys.argv[1], sys.argv[2], '--format', 'json', '--jobs', '1']\n"
+            "if main(argv) != 0:\n"
             "    sys.exit('rasm check did not find the property satisfied')"
         )
         # reelay's discrete-time monitor counts records: at 100 Hz, 1 s is 100 records
@@ -150,7 +153,7 @@ def late_violation(repeats: int, records: int) -> tuple[float, float]:
                     out.write(json.dumps(record) + "\n")
         code = (
             "import sys\nfrom rasm.cli import main\n"
-            "if main(['check', sys.argv[1], sys.argv[2]]) != int(sys.argv[3]):\n"
+            "if main(['check', sys.argv[1], sys.argv[2], '--jobs', '1']) != int(sys.argv[3]):\n"
             "    sys.exit('rasm check did not give the verdict the trace was made for')"
         )
         found = {}

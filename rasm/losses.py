@@ -17,7 +17,7 @@ where known) and the time range it covers; a verdict that depended on it is not 
 from __future__ import annotations
 
 import logging
-import sqlite3
+import sys
 from dataclasses import dataclass, field
 
 from rasm.times import format_nanoseconds, format_seconds
@@ -32,7 +32,8 @@ def describe_error(exc: BaseException) -> str:
     ``No space left on device (errno 28)``."""
     if isinstance(exc, OSError) and exc.strerror:
         return f"{exc.strerror} (errno {exc.errno})" if exc.errno else exc.strerror
-    if isinstance(exc, sqlite3.Error):
+    sqlite3 = sys.modules.get("sqlite3")  # (its errors come only from it, loaded by then)
+    if sqlite3 is not None and isinstance(exc, sqlite3.Error):
         return str(exc) or type(exc).__name__
     cause = exc.__cause__
     if cause is not None and cause is not exc:

@@ -75,8 +75,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     # checked in --jobs processes or on a --cluster (rasm.scale); a recording that cannot be
     # checked is reported by name while the others are (exit 2).
     from rasm.properties.check import format_json, format_text
-    from rasm.properties.loader import load_specification
     from rasm.scale import Job, check_recording
+    from rasm.scale.recordings import spec_of
 
     if args.app is not None and args.topics is not None:
         raise UsageError("give a recording's topics by --app APP or by --topics MAP.yaml, not both")
@@ -87,7 +87,6 @@ def _cmd_check(args: argparse.Namespace) -> int:
     if args.verdicts and len(args.recordings) > 1:
         raise UsageError("--verdicts prints every verdict of one recording: give one")
     text = read_utf8(args.props)
-    load_specification(text, source=args.props)  # a bad property file is refused first
     explain = args.format == "text" and not args.verdicts
     named = args.format == "text" or args.verdicts
     app, topics = args.app, args.topics
@@ -98,6 +97,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         app = os.path.abspath(app) if app is not None else None
         topics = os.path.abspath(topics) if topics is not None else None
     job = Job(args.props, text, app, topics, explain, named)
+    spec_of(job)  # a bad property file is refused first (and loaded once: the job's)
     if args.verdicts:
         checked = check_recording(job, args.recordings[0], verdicts=sys.stdout)
         _notes(checked, explain)

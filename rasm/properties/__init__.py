@@ -27,7 +27,6 @@ from rasm.properties.ast import (
 from rasm.properties.expr import compile_expression, evaluate
 from rasm.properties.loader import load_specification
 from rasm.properties.monitor import Monitor, PropertyRun, Rejection, Verdict, compile_properties
-from rasm.properties.parser import parse_expression
 from rasm.properties.types import Typing, infer_types
 
 __all__ = [
@@ -58,3 +57,12 @@ __all__ = [
     "load_specification",
     "parse_expression",
 ]
+
+
+def __getattr__(name: str) -> object:
+    # the parser (and lark) load on first use: a command on a cached property file needs none
+    if name == "parse_expression":
+        from rasm.properties.parser import parse_expression
+
+        return parse_expression
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -7,8 +7,12 @@ all properties together so that a signal has one type in the whole file.
 
 from __future__ import annotations
 
+import os
+import pickle
+import sys
+import zlib
 from dataclasses import replace
-from pathlib import PurePath
+from pathlib import Path, PurePath
 
 from rasm.errors import SourceError, mark
 from rasm.properties.ast import (
@@ -25,10 +29,10 @@ from rasm.properties.ast import (
     rebuild,
     walk,
 )
-from rasm.properties.parser import parse_declarations
+from rasm.properties.cache import cache_folder, trusted
 from rasm.properties.types import TypeScope
 
-__all__ = ["load_specification", "signals_of"]
+__all__ = ["cached_specification", "load_specification", "signals_of"]
 
 # Deeper formulas would overflow Python's parser (200 nested parentheses) in the generated
 # monitor, or its recursion limit in the passes over the tree: refuse them with their place.
@@ -61,7 +65,61 @@ def load_specification(text: str, *, source: str = "<text>") -> Specification:
         raise
 
 
+SLOTS = 64  # specifications kept in the cache folder
+
+
+def cached_specification(text: str, source: str) -> Specification:
+    """:func:`load_specification` of a property file ``source`` whose text is ``text``, kept
+    in the user's cache folder for the next command on the same file: unchanged, it is read
+    back, without building the parser (or loading lark) or parsing again.
+
+    An entry per file name, rewritten when the text changes; read back only if its text, its
+    name and the code that made it (:func:`_stamp`) are those of this call. A file that does
+    not load raises each time, as :func:`load_specification` does.
+    """
+    folder = cache_folder()
+    # at most SLOTS entries, whatever the files and test runs: two names in one slot take turns
+    slot = zlib.crc32(source.encode()) % SLOTS
+    path = None if folder is None else folder / f"spec-{slot:02d}.pickle"
+    stamp = (_stamp(), text, source)
+    if path is not None:
+        try:
+            with path.open("rb") as handle:
+                if trusted(os.fstat(handle.fileno())):
+                    kept, spec = pickle.load(handle)
+                    if kept == stamp and isinstance(spec, Specification):
+                        return spec
+        except Exception:  # missing, unreadable, stale (a class renamed): load it afresh
+            pass
+    spec = load_specification(text, source=source)
+    if path is not None:
+        try:
+            fresh = path.with_suffix(f".{os.getpid()}")
+            with open(os.open(fresh, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600), "wb") as out:
+                pickle.dump((stamp, spec), out, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(fresh, path)  # whole or not at all, for a command running beside
+        except OSError:
+            pass
+    return spec
+
+
+def _stamp() -> tuple:
+    """What a cached specification depends on besides its text: Python, lark, and the size
+    and time of change of each source file of the property language and the modules it uses
+    (as Python's own bytecode cache does)."""
+    from importlib.util import find_spec
+
+    here = Path(__file__).parent
+    lark = find_spec("lark")
+    files = [*sorted(here.glob("*.py")), here / "grammar.lark", here.parent / "times.py",
+             here.parent / "errors.py", *([Path(lark.origin)] if lark and lark.origin else [])]
+    stats = [(file.name, file.stat()) for file in files]
+    return sys.version, tuple((name, info.st_size, info.st_mtime_ns) for name, info in stats)
+
+
 def _load(text: str, source: str) -> Specification:
+    from rasm.properties.parser import parse_declarations  # here: a cached file needs no lark
+
     declarations = parse_declarations(text, source=source)
     inputs: list[Input] = []
     events: list[Event] = []

@@ -10,7 +10,6 @@ from __future__ import annotations
 import ast as python_ast
 import hashlib
 import math
-import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -41,6 +40,7 @@ from rasm.properties.ast import (
     Unary,
     Until,
 )
+from rasm.properties.cache import cache_folder, trusted
 from rasm.properties.times import bound_nanoseconds, format_nanoseconds
 
 __all__ = ["parse_declarations", "parse_expression"]
@@ -75,28 +75,17 @@ def _cache_file(grammar: str, start: str) -> str | bool:
     """Where lark keeps the parser it built: building its tables takes longer than the rest of
     ``rasm lint`` on a small file. A file in the user's cache folder, which lark rebuilds when
     the grammar, lark or Python changed; False (no cache) where there is none to trust."""
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    folder = Path(base) / "rasm"
+    folder = cache_folder()
+    if folder is None:
+        return False
     digest = hashlib.sha256(grammar.encode("utf-8")).hexdigest()[:16]
     path = folder / f"properties-{start}-{digest}.lark"
     try:
-        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-        if not _trusted(folder.stat()):
+        if path.exists() and not trusted(path.stat()):
             return False
-        if path.exists() and not _trusted(path.stat()):
-            return False
-    except OSError:  # no home, a read-only one: build the parser each time
+    except OSError:
         return False
     return str(path)
-
-
-def _trusted(info: os.stat_result) -> bool:
-    """Whether a cache file or folder with this status may be read back: lark unpickles the
-    file, which runs code, so only what this user owns and no one else can write."""
-    getuid = getattr(os, "getuid", None)
-    if getuid is None:  # no owners to compare: no cache
-        return False
-    return info.st_uid == getuid() and not info.st_mode & 0o022
 
 
 class _Place:

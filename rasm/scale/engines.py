@@ -15,9 +15,7 @@ futures. A worker that dies takes its tasks with it: :meth:`result` then raises
 from __future__ import annotations
 
 import concurrent.futures
-import multiprocessing
 from collections.abc import Callable, Collection
-from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
 from rasm.errors import RasmError
@@ -73,6 +71,8 @@ class Processes:
         self._pool: concurrent.futures.ProcessPoolExecutor | None = None
 
     def _fresh(self) -> concurrent.futures.ProcessPoolExecutor:
+        import multiprocessing  # here: a check in this process needs none of it
+
         if self._pool is not None:
             self._pool.shutdown(wait=False, cancel_futures=True)
         # spawn: a worker starts clean, whatever threads this process runs (a progress bar)
@@ -84,7 +84,7 @@ class Processes:
         pool = self._pool or self._fresh()
         try:
             return pool.submit(fn, *args)
-        except BrokenProcessPool:  # a worker died: the pool takes no more tasks
+        except concurrent.futures.BrokenExecutor:  # a worker died: the pool takes no more tasks
             return self._fresh().submit(fn, *args)
 
     def wait(self, futures: Collection[Any]) -> set[Any]:
@@ -94,7 +94,7 @@ class Processes:
     def result(self, future: Any) -> Any:
         try:
             return future.result()
-        except BrokenProcessPool as exc:
+        except concurrent.futures.BrokenExecutor as exc:
             raise WorkerLost(f"a worker process died ({exc})") from None
 
     def close(self) -> None:

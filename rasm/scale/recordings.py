@@ -12,7 +12,7 @@ from typing import TextIO
 from rasm.errors import RasmError
 from rasm.properties.ast import Specification
 from rasm.properties.check import CheckReport, check_file, check_stream
-from rasm.properties.loader import load_specification
+from rasm.properties.loader import cached_specification
 
 __all__ = ["Job", "RecordingError", "check_recording", "is_recording", "is_trace", "spec_of"]
 
@@ -37,11 +37,12 @@ class Job:
 
 @functools.lru_cache(maxsize=16)
 def _specification(text: str, source: str) -> Specification:
-    return load_specification(text, source=source)
+    return cached_specification(text, source)
 
 
 def spec_of(job: Job) -> Specification:
-    """The job's property file, loaded once per process."""
+    """The job's property file, loaded once per process (and read back from the user's cache
+    folder while the file is unchanged)."""
     return _specification(job.text, job.props)
 
 

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rasm.properties.parser import _trusted
+from rasm.properties.cache import trusted as _trusted
 
 PROPERTY = "input a: bool\nproperty p: always a\n"
 CHECK = "from rasm.properties import load_specification\nload_specification(open('p.rv').read())\n"
@@ -84,3 +84,56 @@ def test_a_cache_file_someone_else_owns_is_not_read(planted):
     os.chown(file, 4242, 4242)
     _parse_in_fresh_process(work, cache)
     assert not marker.exists()
+
+
+# a property file's checked specification, kept for the next command on the same file
+SPEC = (
+    "import sys\nfrom rasm.properties.loader import cached_specification\n"
+    "spec = cached_specification(open('p.rv').read(), 'p.rv')\n"
+    "print([p.name for p in spec.properties], 'lark' in sys.modules)\n"
+)
+
+
+def _spec_in_fresh_process(work: Path, cache: Path) -> str:
+    env = {**os.environ, "XDG_CACHE_HOME": str(cache)}
+    return subprocess.run([sys.executable, "-c", SPEC], cwd=work, env=env, check=True,
+                          timeout=60, capture_output=True, text=True).stdout.strip()
+
+
+def test_an_unchanged_property_file_is_read_back_without_the_parser(tmp_path: Path):
+    work, cache = tmp_path / "work", tmp_path / "cache"
+    work.mkdir()
+    (work / "p.rv").write_text(PROPERTY)
+    assert _spec_in_fresh_process(work, cache) == "['p'] True"  # parsed, then kept
+    [kept] = (cache / "rasm").glob("spec-*.pickle")
+    assert kept.stat().st_mode & 0o777 == 0o600
+    assert _spec_in_fresh_process(work, cache) == "['p'] False"  # read back: no lark
+    (work / "p.rv").write_text(PROPERTY.replace("property p", "property q"))
+    assert _spec_in_fresh_process(work, cache) == "['q'] True"  # changed: parsed again
+    assert _spec_in_fresh_process(work, cache) == "['q'] False"
+
+
+def test_a_kept_specification_in_a_folder_others_can_write_to_is_not_read(tmp_path: Path):
+    work, cache, marker = tmp_path / "work", tmp_path / "cache", tmp_path / "unpickled"
+    work.mkdir()
+    (work / "p.rv").write_text(PROPERTY)
+    _spec_in_fresh_process(work, cache)
+    [kept] = (cache / "rasm").glob("spec-*.pickle")
+    kept.write_bytes(pickle.dumps(_Plant(marker)))
+    (cache / "rasm").chmod(0o770)
+    assert _spec_in_fresh_process(work, cache) == "['p'] True"
+    assert not marker.exists()
+    (cache / "rasm").chmod(0o700)
+    kept.write_bytes(pickle.dumps(_Plant(marker)))  # (a planted file, as the user's own)
+    assert _spec_in_fresh_process(work, cache) == "['p'] True"  # not a specification: loaded
+
+
+def test_a_kept_specification_is_the_one_loaded():
+    from rasm.properties.loader import cached_specification, load_specification
+
+    text = "input x: float\nevent e\nlet big = x > 2\nproperty p: e -> eventually[0, 1.5s] big\n"
+    assert cached_specification(text, "<kept>") == load_specification(text, source="<kept>")
+    kept = cached_specification(text, "<kept>")
+    assert kept == load_specification(text, source="<kept>")
+    assert [p.location for p in kept.properties] == [
+        p.location for p in load_specification(text, source="<kept>").properties]
