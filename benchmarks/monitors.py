@@ -10,6 +10,9 @@ record) and produces one verdict per record. Reported, in events (records) per s
   compiling (~5–10 ms) is not timed, as building reelay's and rtamt's monitors is not;
 * ``rasm step`` — ``Monitor.step(t, values)`` once per record, the online path (a list of
   ``Verdict`` objects per call);
+* the classic properties again on a 10 Hz trace whose times are floats (k / 10), each
+  converted to exact nanoseconds per record (``BASIC_10HZ``), against reelay on the same
+  records;
 * properties whose operators get their operands' values late and in any order (``LATE``;
   no peer monitors them online), on the same trace;
 * properties that read ``time`` (``TIME_READING``; no peer has that expression) on the same
@@ -49,6 +52,16 @@ BASIC = [
      "historically((not (b >= 0.5)) or once[0:10](a >= 0.5))"),
     ("a -> eventually[0,10] b", "a -> eventually[0, 10] b", None,
      "(not (a >= 0.5)) or eventually[0:10](b >= 0.5)"),
+]
+
+# The same properties on the 10 Hz trace (times k / 10, floats: each converted exactly to
+# nanoseconds per record), their bounds in seconds a tenth of the above, so that reelay's
+# pattern (which counts records) computes the same verdicts.
+BASIC_10HZ = [
+    ("historically (x <= 0.5) (10 Hz)", "historically (x <= 0.5)", "historically({x <= 0.5})"),
+    ("historically (b -> once[0,1] a) (10 Hz)", "historically (b -> once[0, 1] a)",
+     "historically({b} -> once[0:10]{a})"),
+    ("a -> eventually[0,1] b (10 Hz)", "a -> eventually[0, 1] b", None),
 ]
 
 # Properties that read ``time`` (no peer has such an expression): on a 10 Hz trace whose times
@@ -231,11 +244,15 @@ def main(argv=None) -> int:
             rt, ["x", "a", "b"], trace[:n_rtamt], "eventually" in rt, repeat)
         report(name, run, step, reelay_rate, rtamt_rate)
 
+    decimal = decimal_trace(n)
+    for name, mine, theirs in BASIC_10HZ:
+        run, step, reelay_rate = measure_case(basic_header, mine, theirs, decimal, repeat)
+        report(name, run, step, reelay_rate, None)
+
     for formula in LATE:
         run, step, _ = measure_case(basic_header, formula, None, trace, repeat)
         report(formula, run, step, None, None)
 
-    decimal = decimal_trace(n)
     for formula in TIME_READING:
         run, step, _ = measure_case(basic_header, formula, None, decimal, repeat)
         report(f"{formula} (10 Hz)", run, step, None, None)
