@@ -10,7 +10,6 @@ from __future__ import annotations
 import gc
 import json
 import shutil
-import tempfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import islice
@@ -270,6 +269,8 @@ def check_stream(
     if verdicts is not None:
         # the lines go out property by property, and only for a trace read to its end without
         # a malformed record: until then they wait in temporary files
+        import tempfile
+
         spools = [tempfile.TemporaryFile("w+", encoding="utf-8") for _ in spec.properties]
     outputs = spools or [None] * len(spec.properties)
     limit = NAMED if named else None

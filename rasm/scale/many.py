@@ -129,13 +129,13 @@ class _Run:
         self.out[self.engine.submit(task.fn, *task.args)] = task
 
     def start(self, jobs: int, part_size: int | None) -> None:
-        from rasm.trace_parts import cut_points
-
         sizes = [_size(r.path) for r in self.recordings]
         counts = plan_parts(sizes, jobs, part_size)
         tasks = []
         for k, (rec, size, n) in enumerate(zip(self.recordings, sizes, counts, strict=True)):
             if n > 1 and self.bounded and is_trace(rec.path):
+                from rasm.trace_parts import cut_points  # here: a trace checked whole needs none
+
                 try:
                     rec.cuts = cut_points(rec.path, n)
                 except OSError:

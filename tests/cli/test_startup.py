@@ -5,6 +5,7 @@ a JSONL trace, and the pytest plugin (imported by every pytest run), each load o
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -29,10 +30,10 @@ except SystemExit as exc:  # --help
 """
 
 
-def _loaded(code: str, *args: str, cwd: Path) -> set[str]:
+def _loaded(code: str, *args: str, cwd: Path, env: dict[str, str] | None = None) -> set[str]:
     script = code + "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))\n"
     out = subprocess.run([sys.executable, "-c", script, *args], cwd=cwd, capture_output=True,
-                         text=True, check=True, timeout=60)
+                         text=True, check=True, timeout=60, env=env)
     return set(json.loads(out.stdout.splitlines()[-1]))
 
 
@@ -64,6 +65,18 @@ def test_lint_and_check_of_a_property_file_load_the_property_language_only(
     loaded = _loaded(RUN_MAIN + "assert code == 0, code\n", *command, cwd=inputs)
     assert "rasm.properties.monitor" in loaded
     assert _heavy(loaded) == []
+
+
+def test_a_check_of_an_unchanged_property_file_loads_no_parser_and_no_pool(inputs: Path) -> None:
+    # the first check keeps the checked file in the cache folder; the next reads it back
+    env = {**os.environ, "XDG_CACHE_HOME": str(inputs / "cache")}
+    run = RUN_MAIN + "assert code == 0, code\n"
+    first = _loaded(run, "check", "p.rv", "t.jsonl", cwd=inputs, env=env)
+    again = _loaded(run, "check", "p.rv", "t.jsonl", cwd=inputs, env=env)
+    assert "lark" in first
+    unused = {"lark", "rasm.properties.parser", "multiprocessing", "concurrent.futures.process",
+              "sqlite3", "tempfile", "rasm.trace_parts"}
+    assert unused & again == set()
 
 
 def test_the_pytest_plugin_loads_neither_rasm_testing_nor_the_platform(inputs: Path) -> None:
