@@ -29,6 +29,7 @@ from rasm.properties.emitter import Names, signal_variable
 from rasm.properties.formula_code import FormulaGenerator
 from rasm.properties.lines import Block, Code, Fault, Line, Reject, render
 from rasm.properties.loader import signals_of
+from rasm.properties.robust_code import RobustnessGenerator
 from rasm.properties.times import FAST
 
 __all__ = ["RUNTIME", "UNSET", "Program", "Runtime", "checked_signals", "generate"]
@@ -60,6 +61,7 @@ class Runtime(NamedTuple):
     RECOVER: Any  # (index, ns, out) -> out: the verdicts of recovering properties, online
     RECOVER_RUN: Any  # (index, ns): offline
     FAULT_HOOK: Any  # (property name, index): a test's way to make a property raise
+    ROBUST: Any  # per property: the list its final robustness values go to, in record order
 
 
 RUNTIME: tuple[str, ...] = Runtime._fields
@@ -80,6 +82,9 @@ class Program:
     # the InOrder that hands its values on in record order offline (None: they come so)
     owed: list[str | None] = field(default_factory=list)
     orders: list[str | None] = field(default_factory=list)
+    # with robustness: per property, the constant naming the stream its robustness comes off
+    # (None: known at each record)
+    robust_tops: list[str | None] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- whole programs
@@ -88,7 +93,11 @@ UNSET = type("Unset", (), {"__repr__": lambda self: "<unset>"})()
 
 
 def generate(
-    spec: Specification, reads: list[tuple[str, ...]] | None = None, *, hook: bool = False
+    spec: Specification,
+    reads: list[tuple[str, ...]] | None = None,
+    *,
+    hook: bool = False,
+    robustness: bool = False,
 ) -> Program:
     """Generate the step and run functions' source for every property of ``spec``.
 
@@ -96,6 +105,9 @@ def generate(
     default: those it reads); explanations use it to evaluate sub-formulas in context.
     ``hook``: each property's code starts with a call ``FAULT_HOOK(property, index)`` (a test's
     way to make a property raise; see :class:`rasm.properties.monitor.Monitor`).
+    ``robustness``: each property's code also computes its robustness (SPEC §12,
+    :mod:`rasm.properties.robust_code`), after its boolean lines, appending each record's final
+    value to ``ROBUST[k]``; without it the program is the same as before.
 
     The source defines ``factory()`` returning ``(step, run, finish_step, finish_run, held,
     resets)``: ``held()`` tells which held signals have had a value, ``resets[k]()`` puts
@@ -105,6 +117,7 @@ def generate(
     """
     names = Names()
     gen = FormulaGenerator(spec, names)
+    robust = RobustnessGenerator(spec, names) if robustness else None
     defaults = {item.name: item.default for item in spec.inputs if item.default is not None}
     events = {item.name for item in spec.events}
     blocks: list[list[Line]] = []
@@ -117,7 +130,12 @@ def generate(
         program.reads.append(warm)
         program.owed.append(code.owed)
         program.orders.append(code.order)
-        body = list(code.body)
+        body, finish = list(code.body), list(code.finish)
+        if robust is not None:
+            rcode = robust.compile(number, prop.formula)
+            body += rcode.body
+            finish += rcode.finish
+            program.robust_tops.append(rcode.top)
         if hook:
             body.insert(0, Code(f"FAULT_HOOK(NAME_{number}, i)"))
         guarded = _guarded(body, number, finishing=False)
@@ -138,8 +156,8 @@ def generate(
                 first += f"; {code.order}.next = 0"
             block = [Code(f"if i == 0: {first}"), *guarded]
         blocks.append(block)
-        if code.late:
-            finishes.append([Block(f"if {started}:", tuple(_guarded(code.finish, number, True)))])
+        if code.late or finish:
+            finishes.append([Block(f"if {started}:", tuple(_guarded(finish, number, True)))])
     # an event holds no value from one record to the next (absent means false): its variable is
     # a local of each function, set by every record; only inputs are held in the closure.
     # A warm-up may wait for a signal no formula reads (``reads``): it is held all the same.
@@ -189,6 +207,9 @@ def _assemble(
     for number in range(len(blocks)):
         factory.append(f"    values_{number} = VALUES[{number}].append")
         factory.append(f"    NAME_{number} = NAMES[{number}]")
+        if program.robust_tops:
+            factory.append(f"    ROBUST_{number} = ROBUST[{number}].append")
+            factory.append(f"    ROBUSTS_{number} = ROBUST[{number}].extend")
     factory += ["    " + line for line in step + run]
     for online, mode in ((True, "step"), (False, "run")):
         factory += [

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 import numbers
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -15,11 +16,13 @@ from rasm.properties.ast import Specification
 from rasm.properties.codegen import UNSET, Runtime, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
+from rasm.properties.robust_ops import as_float
 from rasm.properties.times import format_seconds, nanoseconds, seconds_value
 from rasm.values import fit, wanted
 
 __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties"]
 
+INF = math.inf
 NUMERIC = frozenset((int, float))
 SCALAR = frozenset((int, float, str, bool))
 
@@ -36,6 +39,11 @@ class Verdict(NamedTuple):
     time: float
     value: bool | None
     error: str | None = None
+    # with Monitor(robustness=True) (SPEC §12): the final robustness, or None where it is not
+    # final yet (a verdict decided early, or inconclusive at the end); an interval that
+    # contains the final value (lo == hi once final). An error's is -inf.
+    robustness: float | None = None
+    robustness_interval: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -61,6 +69,8 @@ class PropertyRun:
     values: list
     errors: dict[int, str] = field(default_factory=dict)
     missing: tuple[str, ...] = ()
+    # with robustness: ``robustness[k]`` is the robustness at ``start + k`` (None: not final)
+    robustness: list | None = None
 
 
 BAD = type("Bad", (), {"__repr__": lambda self: "<bad value>"})()
@@ -131,12 +141,14 @@ class Monitor:
         *,
         reads: list[tuple[str, ...]] | None = None,
         fault_hook: Callable[[str, int], object] | None = None,
+        robustness: bool = False,
     ) -> None:
         self.spec = spec
         self.names = [p.name for p in spec.properties]
         self._reads = reads
         self._hook = fault_hook is not None
-        self.program = generate(spec, reads, hook=self._hook)
+        self.robustness = robustness
+        self.program = generate(spec, reads, hook=self._hook, robustness=robustness)
         self.starts: list[int | None] = [None] * len(self.names)
         self.rejected: list[Rejection] = []
         self._values: list[list] = [[] for _ in self.names]
@@ -169,7 +181,14 @@ class Monitor:
             RECOVER=self._recover,
             RECOVER_RUN=self._recover_run,
             FAULT_HOOK=fault_hook,
+            ROBUST=[[] for _ in self.names],
         )
+        self._robust: list[list] = runtime.ROBUST
+        self._number = {name: k for k, name in enumerate(self.names)}
+        self._rnext: list[int | None] = [None] * len(self.names)  # the next robustness's record
+        self._rknown: list[dict[int, float]] = [{} for _ in self.names]  # final, verdict to come
+        self._early: list[set[int]] = [set() for _ in self.names]  # verdicts given before it
+        self._rtaken = [0] * len(self.names)  # offline: robustness values handed out
         namespace = {**self.program.constants, **runtime._asdict()}
         self._namespace = namespace
         code = compile_source(self.program.source, spec.source)
@@ -183,7 +202,7 @@ class Monitor:
             self._resets,
         ) = namespace["factory"]()
         # the generated function itself, not a method around it: one call less per record
-        self.step = self._step
+        self.step = self._step if not robustness else self._step_robust
 
     # ----------------------------------------------------------------- online
     @property
@@ -197,6 +216,64 @@ class Monitor:
         (Each monitor replaces this method by its generated step function.)
         """
         return self._step(time, values)
+
+    def _step_robust(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
+        return self._with_robustness(self._step(time, values))
+
+    def _with_robustness(self, out: list[Verdict]) -> list[Verdict]:
+        """The verdicts ``out`` with their robustness (online)."""
+        self._take_robustness()
+        for position, verdict in enumerate(out):
+            k = self._number[verdict.property]
+            known = self._rknown[k].pop(verdict.index, None)
+            if verdict.error is not None:
+                out[position] = verdict._replace(robustness=-INF, robustness_interval=(-INF, -INF))
+                if known is None:
+                    self._early[k].add(verdict.index)
+            elif known is not None:
+                r = as_float(known)
+                out[position] = verdict._replace(robustness=r, robustness_interval=(r, r))
+            else:  # decided before its robustness is final
+                self._early[k].add(verdict.index)
+                out[position] = verdict._replace(
+                    robustness_interval=self._interval(k, verdict.index)
+                )
+        return out
+
+    def _take_robustness(self) -> None:
+        """File the final robustness values the generated code gave since the last call."""
+        for k, values in enumerate(self._robust):
+            if not values:
+                continue
+            j = self._rnext[k]
+            if j is None:
+                j = self.starts[k]
+            known, early = self._rknown[k], self._early[k]
+            for v in values:
+                if j in early:
+                    early.discard(j)  # its verdict has gone out already
+                else:
+                    known[j] = v
+                j += 1
+            values.clear()
+            self._rnext[k] = j
+
+    def _interval(self, k: int, index: int) -> tuple[float, float]:
+        """The interval property ``k``'s robustness at record ``index`` is known to lie in."""
+        return self.intervals(self.names[k]).get(index, (-INF, INF))
+
+    def intervals(self, name: str) -> dict[int, tuple[float, float]]:
+        """With robustness: for each record whose robustness is not final yet (its window
+        reaches records still to come), the interval known to contain it, by record index.
+        It costs in proportion to the records in the property's windows."""
+        k = self.names.index(name)
+        top = self.program.robust_tops[k] if self.robustness else None
+        if top is None or self.starts[k] is None:
+            return {}
+        self._take_robustness()
+        first = self._rnext[k] if self._rnext[k] is not None else self.starts[k]
+        pending = self._namespace[top].intervals()
+        return {first + n: (as_float(lo), as_float(hi)) for n, (lo, hi) in enumerate(pending)}
 
     def reads(self, name: str) -> tuple[str, ...]:
         """The signals property ``name`` reads (those of the lets it uses too)."""
@@ -230,7 +307,7 @@ class Monitor:
         out = self._finish()
         for k, recovery in self._recovering.items():
             self._taint(k, recovery, out)
-        return out
+        return self._with_robustness(out) if self.robustness else out
 
     # ----------------------------------------------------------------- faults
     def _fault(self, k: int, index: int | None, time, ns: int | None, exc: Exception,
@@ -255,6 +332,11 @@ class Monitor:
         if index is not None:
             self._reset(k)
             self._recovering[k] = Recovery(self.spec.properties[k].formula, index, ns, why)
+            if self.robustness:  # the fresh state's robustness values start at the next record
+                self._take_robustness()
+                self._rnext[k] = index + 1
+                self._rknown[k].clear()
+                self._early[k] = {j for j in self._early[k] if j > index}
 
     def _recover(self, index: int, ns: int, out: list[Verdict]) -> list[Verdict]:
         """After each record while a property recovers (online): its verdicts that depend on
@@ -293,6 +375,9 @@ class Monitor:
             else:
                 values.append(False)
                 errors[j] = why
+        if self.robustness:  # the records up to this one have theirs (an error's: -inf)
+            robust = self._robust[k]
+            robust += [-INF] * (index + 1 - self.starts[k] - self._taken[k] - len(robust))
         if ns is not None:
             self._reset(k)
             if order is not None:  # the values decided from now on follow this record's
@@ -311,7 +396,8 @@ class Monitor:
         """Property ``k``'s state as before the first record: fresh constants (deques, streams),
         closure variables back to their initial values. Whether it has started stays."""
         if k not in self._pristine:
-            fresh = generate(self.spec, self._reads, hook=self._hook)
+            fresh = generate(self.spec, self._reads, hook=self._hook,
+                             robustness=self.robustness)
             owned = self.program.owned[k]
             self._pristine[k] = {n: fresh.constants[n] for n in owned if n in fresh.constants}
         # copied together, the objects keep their links to one another (a stream's inputs)
@@ -332,10 +418,10 @@ class Monitor:
         self.settle()
         runs = []
         for k, name in enumerate(self.names):
-            _, values, errors = self.take(k)
-            runs.append(
-                PropertyRun(name, self.starts[k], values, errors, missing=self.missing(name))
-            )
+            _, values, errors, robustness = self.take_with_robustness(k)
+            runs.append(PropertyRun(name, self.starts[k], values, errors,
+                                    missing=self.missing(name),
+                                    robustness=robustness if self.robustness else None))
         return runs
 
     def feed(self, records: Iterable[tuple[float, Mapping[str, object]]]) -> None:
@@ -354,6 +440,11 @@ class Monitor:
         self._finished = True
         self.step = self._refuse
         self._finish_run()
+        if self.robustness:  # what is not final at the end is not known: None
+            for k in range(len(self.names)):
+                top = self.program.robust_tops[k]
+                if top is not None and self.starts[k] is not None:
+                    self._robust[k] += [None] * len(self._namespace[top].intervals())
 
     def verdicts_taken(self, k: int) -> int:
         """How many of property ``k``'s verdicts :meth:`take` has handed out."""
@@ -362,10 +453,20 @@ class Monitor:
     def take(self, k: int) -> tuple[int, list, dict[int, str]]:
         """Property ``k``'s verdicts decided since the last take (offline): the index of the
         first, the values in record order, and why, by index, where it could not be evaluated.
-        The monitor keeps none of them afterwards."""
+        The monitor keeps none of them afterwards. (With robustness: only those whose
+        robustness is known too, see :meth:`take_with_robustness`.)"""
+        return self.take_with_robustness(k)[:3]
+
+    def take_with_robustness(self, k: int) -> tuple[int, list, dict[int, str], list]:
+        """:meth:`take`, and the robustness of each verdict taken (None where it is not final
+        at the end of the trace; -inf where the property could not be evaluated). With
+        robustness, a verdict waits for its robustness to be final (or the end)."""
         values, errors = self._values[k], self._errors[k]
         first = (self.starts[k] or 0) + self._taken[k]
-        end = first + len(values)
+        count = len(values)
+        if self.robustness:
+            count = min(count, len(self._robust[k]))
+        end = first + count
         # a verdict that depends on records before a reset is an error; every record up to
         # the last one fed has been noted by its recovery, so that is known for these
         for recovery in self._resets_run[k]:
@@ -374,10 +475,17 @@ class Monitor:
                     values[j - first] = False
                     errors[j] = recovery.why
         taken = {j: errors.pop(j) for j in sorted(errors) if j < end}
-        out = values.copy()
-        values.clear()  # in place: the generated code appends to this very list
+        out = values[:count]
+        del values[:count]  # in place: the generated code appends to this very list
+        robust: list = []
+        if self.robustness:
+            given = self._robust[k]
+            robust = [as_float(v) if v is not None else None for v in given[:count]]
+            del given[:count]
+            for j in taken:
+                robust[j - first] = -INF
         self._taken[k] += len(out)
-        return first, out, taken
+        return first, out, taken, robust
 
 def _why(exc: Exception, index: int | None) -> str:
     where = f"at record {index}" if index is not None else "at the end of the trace"
@@ -398,8 +506,10 @@ def _specification(text: str, source: str) -> Specification:
     return load_specification(text, source=source)
 
 
-def compile_properties(text: str, *, source: str = "<text>") -> Monitor:
-    """Parse, check and compile a property file into a fresh :class:`Monitor`."""
+def compile_properties(text: str, *, source: str = "<text>", robustness: bool = False) -> Monitor:
+    """Parse, check and compile a property file into a fresh :class:`Monitor`; ``robustness``:
+    its verdicts carry their robustness too (SPEC §12)."""
     if type(text) is str and type(source) is str:
-        return Monitor(_specification(text, source))
-    return Monitor(load_specification(text, source=source))  # says what is wrong with them
+        return Monitor(_specification(text, source), robustness=robustness)
+    # says what is wrong with them
+    return Monitor(load_specification(text, source=source), robustness=robustness)

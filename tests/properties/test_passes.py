@@ -159,8 +159,8 @@ def test_the_corpus_covers_every_operator():
 def test_the_generated_code_reads_exactly_the_runtime_names():
     spec = load_specification(CORPUS)
     beyond: set[str] = set()
-    for hook in (False, True):
-        program = generate(spec, hook=hook)
+    for hook, robustness in ((False, False), (True, False), (False, True)):
+        program = generate(spec, hook=hook, robustness=robustness)
         read = _globals(compile(program.source, "<corpus>", "exec")) - {"factory"}
         outside = read - set(program.constants) - set(dir(builtins))
         assert outside <= set(RUNTIME), outside - set(RUNTIME)

@@ -1,0 +1,276 @@
+"""One property's code in the robustness semantics (SPEC §12): a float per record.
+
+A second generator on the base the boolean one stands on (:mod:`rasm.properties.emitter`): it
+walks the formula top-down, and where a formula compares values (``x <= 0.5``,
+``avg[0, 5s](t) <= 40``, ``count[0, 2](p) >= 1``) it has the values computed exactly as the
+boolean semantics computes them (:class:`~rasm.properties.formula_code.FormulaGenerator`, over
+the same names) and turns the comparison into a distance. Robustness known at its own record
+is a Python expression (:class:`Now`); above a future operator it is a stream of final values
+in record order (:class:`Late`, :mod:`rasm.properties.robust_ops`).
+
+The lines go after the property's boolean lines (:mod:`rasm.properties.codegen`) only when the
+monitor is asked for robustness: the boolean code is the same either way.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from rasm.properties.ast import (
+    COMPARISONS,
+    Binary,
+    Expr,
+    Future,
+    Literal,
+    Name,
+    Not,
+    Past,
+    Prev,
+    Since,
+    Specification,
+    Until,
+    children,
+)
+from rasm.properties.emitter import Emitter, Later, Names, signal_variable
+from rasm.properties.emitter import Now as ValueNow
+from rasm.properties.formula_code import FormulaGenerator
+from rasm.properties.lines import Code, Line
+from rasm.properties.robust_ops import (
+    RCMP,
+    FutureWindow,
+    Ordered,
+    PastStream,
+    PastWindow,
+    Pointwise,
+    PrevStream,
+    SinceCore,
+    SinceStream,
+    UntilStream,
+    compare_interval,
+)
+from rasm.properties.types import TypeScope
+from rasm.properties.units import is_time, looks_ahead
+from rasm.properties.visitor import Visitor
+
+__all__ = ["RobustCode", "RobustnessGenerator"]
+
+
+@dataclass(frozen=True)
+class Now:
+    """A robustness known at its own record: the source of the expression computing it."""
+
+    source: str
+
+
+@dataclass(frozen=True)
+class Late:
+    """Robustness values that come late, final and in record order, in ``stream.out``."""
+
+    stream: object
+
+
+RValue = Now | Late
+
+
+@dataclass(frozen=True)
+class RobustCode:
+    """One property's robustness lines, at each record and at the end; ``top``: the constant
+    naming the stream its values come off when they come late (None: known at each record)."""
+
+    body: tuple[Line, ...]
+    finish: tuple[Line, ...]
+    top: str | None
+
+
+def _neg(v):
+    return -v
+
+
+def _neg_interval(x):
+    return (-x[1], -x[0])
+
+
+def _min_interval(x, y):
+    return (min(x[0], y[0]), min(x[1], y[1]))
+
+
+def _max_interval(x, y):
+    return (max(x[0], y[0]), max(x[1], y[1]))
+
+
+def _implies(a, b):
+    a = -a
+    return a if a > b else b
+
+
+def _implies_interval(x, y):
+    return (max(-x[1], y[0]), max(-x[0], y[1]))
+
+
+def _compare_interval(op: str):
+    return lambda x, y: compare_interval(op, x, y)
+
+
+_NUMBERS = ("int", "float")
+# robustness of `a op b` for two numbers, neither nan: (source over a and b)
+_DISTANCE = {"<": "{b} - {a}", "<=": "{b} - {a}", ">": "{a} - {b}", ">=": "{a} - {b}",
+             "==": "-abs({a} - {b})", "!=": "abs({a} - {b})"}
+
+
+class RobustnessGenerator(Emitter, Visitor[RValue]):
+    """The robustness lines of each property in turn (:meth:`compile`)."""
+
+    def __init__(self, spec: Specification, names: Names) -> None:
+        super().__init__(names)
+        self._types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
+        # the values compared, computed as the boolean semantics computes them
+        self._values = FormulaGenerator(spec, names)
+        self._names.constants.update(RCMP=RCMP)
+
+    def compile(self, number: int, formula: Expr) -> RobustCode:
+        self._begin(number)
+        values = self._values
+        values._begin(number)
+        values._lines, values._finish = self._lines, self._finish  # one list of lines
+        values._root = values._owed = values._order = None
+        values._windows, values._prevs = {}, {}
+        value = self.visit(formula)
+        if isinstance(value, Now):
+            self._code(f"ROBUST_{number}({value.source})")
+            top = None
+        else:
+            top = self.constant("top", value.stream)
+            self._code(f"if {top}.out: ROBUSTS_{number}({top}.out); {top}.out.clear()")
+        return RobustCode(tuple(self._lines), tuple(self._finish), top)
+
+    def _code(self, *texts: str) -> None:
+        self._lines += map(Code, texts)
+
+    def _held(self, source: str) -> str:
+        """``source`` in a variable, so that it is computed once."""
+        if source.isidentifier() or source in ("INF", "-INF"):
+            return source
+        name = self.fresh("v")
+        self._code(f"{name} = {source}")
+        return name
+
+    def _stream(self, stream: object, *now: str, index: bool = False) -> Late:
+        """``stream``, stepped at every record with the immediate values ``now``."""
+        name = self.constant("rs", stream)
+        args = "".join(f", {v}" for v in now)
+        self._code(f"{name}.step({'i' if index else 'tn'}{args})")
+        return Late(stream)
+
+    def _pointwise(self, parts: list[RValue], function, interval) -> Late:
+        sources = [part.stream if isinstance(part, Late) else None for part in parts]
+        now = [self._held(part.source) for part in parts if isinstance(part, Now)]
+        return self._stream(Pointwise(sources, function, interval), *now)
+
+    # ----------------------------------------------------------------- atoms
+    def literal(self, node: Literal) -> RValue:
+        return Now("INF" if node.value else "-INF")
+
+    def name(self, node: Name) -> RValue:
+        return Now(f"(INF if {signal_variable(node.name)} else -INF)")
+
+    def _not_a_formula(self, node: Expr, *args) -> RValue:
+        raise TypeError(f"{type(node).__name__} is a value, not a formula")
+
+    time = unary = call = aggregate = _not_a_formula
+
+    # ----------------------------------------------------------------- pointwise
+    def not_(self, node: Not) -> RValue:
+        part = self.visit(node.operand)
+        if isinstance(part, Now):
+            return Now(f"(-{part.source})")
+        return self._pointwise([part], _neg, _neg_interval)
+
+    def binary(self, node: Binary) -> RValue:
+        if node.op in COMPARISONS:
+            return self._compare(node)
+        parts = [self.visit(node.left), self.visit(node.right)]
+        if all(isinstance(part, Now) for part in parts):
+            a, b = (self._held(part.source) for part in parts)
+            if node.op == "and":
+                return Now(self._held(f"{a} if {a} < {b} else {b}"))
+            if node.op == "or":
+                return Now(self._held(f"{a} if {a} > {b} else {b}"))
+            return Now(self._held(f"-{a} if -{a} > {b} else {b}"))
+        if node.op == "and":
+            return self._pointwise(parts, min, _min_interval)
+        if node.op == "or":
+            return self._pointwise(parts, max, _max_interval)
+        return self._pointwise(parts, _implies, _implies_interval)
+
+    def _compare(self, node: Binary) -> RValue:
+        op, operands = node.op, children(node)
+        exact = any(map(is_time, operands)) and not looks_ahead(node)
+        parts = self._values._in_units(operands, [self._value(x) for x in operands], exact)
+        if any(isinstance(part, Later) for part in parts):
+            late = [Late(self._ordered(part)) if isinstance(part, Later) else Now(part.source)
+                    for part in parts]
+            return self._pointwise(late, RCMP[op], _compare_interval(op))
+        a, b = (self._held(part.source) for part in parts)
+        if exact:  # nanoseconds (ints, or a float where a value is undefined or infinite)
+            return Now(self._held(f"RCMP[{op!r}]({a}, {b}) / 1000000000"))
+        if all(self._types.check(x) in _NUMBERS for x in operands):
+            out = self.fresh("v")
+            self._code(f"{out} = {_DISTANCE[op].format(a=a, b=b)}",
+                       f"if {out} != {out}: {out} = RCMP[{op!r}]({a}, {b})")
+            return Now(out)
+        return Now(self._held(f"RCMP[{op!r}]({a}, {b})"))
+
+    def _value(self, node: Expr) -> ValueNow | Later:
+        """A value compared: its source, or the stream of its values where it comes late."""
+        return self._values.visit(node)
+
+    def _ordered(self, part: Later) -> Ordered:
+        ordered = Ordered(part.stream)
+        self._stream(ordered, index=True)
+        return ordered
+
+    # ----------------------------------------------------------------- past
+    def prev(self, node: Prev) -> RValue:
+        part = self.visit(node.operand)
+        if isinstance(part, Late):
+            return self._stream(PrevStream(part.stream, -math.inf))
+        held = self.variable("rp", -math.inf)  # undefined at the first record
+        out = self.fresh("v")
+        self._code(f"{out} = {held}", f"{held} = {part.source}")
+        return Now(out)
+
+    def past(self, node: Past) -> RValue:
+        part = self.visit(node.operand)
+        high, a, b = node.op == "once", node.bound.low_ns, node.bound.high_ns
+        if isinstance(part, Late):
+            return self._stream(PastStream(part.stream, high, a, b))
+        window = self.constant("rw", PastWindow(high, a, b))
+        return Now(self._held(f"{window}.push(tn, {part.source})"))
+
+    def since(self, node: Since) -> RValue:
+        parts = [self.visit(node.left), self.visit(node.right)]
+        a, b = node.bound.low_ns, node.bound.high_ns
+        if all(isinstance(part, Now) for part in parts):
+            core = self.constant("rc", SinceCore(a, b))
+            left, right = (self._held(part.source) for part in parts)
+            return Now(self._held(f"{core}.push(tn, {left}, {right})"))
+        return self._pair(SinceStream, parts, a, b)
+
+    def _pair(self, cls, parts: list[RValue], a, b) -> Late:
+        sources = [part.stream if isinstance(part, Late) else None for part in parts]
+        now = [self._held(part.source) for part in parts if isinstance(part, Now)]
+        return self._stream(cls(*sources, a, b), *now)
+
+    # ----------------------------------------------------------------- future
+    def future(self, node: Future) -> RValue:
+        part = self.visit(node.operand)
+        high, a, b = node.op == "eventually", node.bound.low_ns, node.bound.high_ns
+        if isinstance(part, Late):
+            return self._stream(FutureWindow(part.stream, high, a, b))
+        return self._stream(FutureWindow(None, high, a, b), self._held(part.source))
+
+    def until(self, node: Until) -> RValue:
+        parts = [self.visit(node.left), self.visit(node.right)]
+        return self._pair(UntilStream, parts, node.bound.low_ns, node.bound.high_ns)
+
