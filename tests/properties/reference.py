@@ -335,3 +335,126 @@ class Reference:
 def reference_verdicts(spec: Specification, records) -> dict[str, dict[int, object]]:
     ref = Reference(spec, records)
     return {prop.name: ref.verdicts(prop) for prop in spec.properties}
+
+
+# --------------------------------------------------------------------------- robustness (§12)
+
+
+def _distance(op: str, a, b) -> float:
+    """The robustness of ``a op b`` for two numbers neither undefined (``b - a`` for ``<=``)."""
+    d = (b - a) if op in ("<", "<=") else (a - b)
+    if isinstance(d, Fraction):
+        d = to_float(d)
+    if d != d:  # inf - inf: two equal infinities
+        d = 0.0
+    return -abs(d) if op == "==" else abs(d) if op == "!=" else d
+
+
+class RobustReference(Reference):
+    """SPEC §12 by its definition, over the records of the trace (windows compared exactly).
+
+    ``robustness(node, i)`` is the value where every window it reaches is covered by the trace;
+    ``open_(node, i)`` says whether some window might still take a record after the end (then
+    the value is not final)."""
+
+    def robust_verdicts(self, prop):
+        """{index: robustness, or None where it is not final} for every judged record."""
+        if not self.verdicts(prop):
+            return {}
+        self.rmemo: dict = {}
+        self.omemo: dict = {}
+        out = {}
+        for i in range(self.start, self.n):
+            out[i] = None if self.open_(prop.formula, i) else float(
+                self.robustness(prop.formula, i))
+        return out
+
+    def open_(self, node, i) -> bool:
+        key = (id(node), i)
+        if key not in self.omemo:
+            self.omemo[key] = self._open(node, i)
+        return self.omemo[key]
+
+    def _open(self, node, i) -> bool:
+        t = self.exact
+        if isinstance(node, (Future, Until)):
+            a, b = exact_bound(node.bound.low), exact_bound(node.bound.high)
+            if t[-1] - t[i] <= b:
+                return True
+            window = [j for j in range(i, self.n) if t[j] - t[i] <= b]
+            if isinstance(node, Future):
+                return any(self.open_(node.operand, j) for j in window if t[j] - t[i] >= a)
+            return any(self.open_(node.left, j) or self.open_(node.right, j) for j in window)
+        if isinstance(node, Prev):
+            return i > self.start and self.open_(node.operand, i - 1)
+        if isinstance(node, Aggregate):  # a value: final where its boolean operands are
+            return self.value(node, i) is None
+        if isinstance(node, (Past, Since)):
+            a, b = exact_bound(node.bound.low), exact_bound(node.bound.high)
+            window = [j for j in range(self.start, i + 1) if a <= t[i] - t[j] <= b]
+            if not window:
+                return False
+            if isinstance(node, Since):
+                return any(self.open_(node.right, j) for j in window) or any(
+                    self.open_(node.left, k) for k in range(window[0] + 1, i + 1))
+            return any(self.open_(node.operand, j) for j in window)
+        return any(self.open_(child, i) for child in children(node))
+
+    def robustness(self, node, i):
+        key = (id(node), i)
+        if key not in self.rmemo:
+            self.rmemo[key] = self._robustness(node, i)
+        return self.rmemo[key]
+
+    def _robustness(self, node, i):  # noqa: C901
+        t = self.exact
+        rob = self.robustness
+        if isinstance(node, (Literal, Name)):
+            return INF if self.value(node, i) else -INF
+        if isinstance(node, Not):
+            return -rob(node.operand, i)
+        if isinstance(node, Binary):
+            if node.op in ("and", "or", "->"):
+                a, b = rob(node.left, i), rob(node.right, i)
+                if node.op == "and":
+                    return min(a, b)
+                if node.op == "or":
+                    return max(a, b)
+                return max(-a, b)
+            a, b = self.value(node.left, i), self.value(node.right, i)
+            if any(isinstance(v, (str, bool)) for v in (a, b)):
+                return INF if self.value(node, i) else -INF
+            if a != a or b != b:
+                return -INF
+            timed = (isinstance(a, Exact) or isinstance(b, Exact)) and not looks_ahead(node)
+            if timed and all(map(finite, (a, b))):
+                return _distance(node.op, exact_number(a), exact_number(b))
+            return _distance(node.op, plain(a), plain(b))
+        if isinstance(node, Prev):
+            return -INF if i == self.start else rob(node.operand, i - 1)
+        a, b = exact_bound(node.bound.low), exact_bound(node.bound.high)
+        if isinstance(node, Past):
+            window = [rob(node.operand, j) for j in range(self.start, i + 1)
+                      if a <= t[i] - t[j] <= b]
+            if node.op == "once":
+                return max(window, default=-INF)
+            return min(window, default=INF)
+        if isinstance(node, Future):
+            window = [rob(node.operand, j) for j in range(i, self.n) if a <= t[j] - t[i] <= b]
+            if node.op == "eventually":
+                return max(window, default=-INF)
+            return min(window, default=INF)
+        if isinstance(node, Since):
+            terms = [min([rob(node.right, j)] + [rob(node.left, k) for k in range(j + 1, i + 1)])
+                     for j in range(self.start, i + 1) if a <= t[i] - t[j] <= b]
+            return max(terms, default=-INF)
+        if isinstance(node, Until):
+            terms = [min([rob(node.right, j)] + [rob(node.left, k) for k in range(i, j)])
+                     for j in range(i, self.n) if a <= t[j] - t[i] <= b]
+            return max(terms, default=-INF)
+        raise TypeError(node)
+
+
+def reference_robustness(spec: Specification, records) -> dict[str, dict[int, object]]:
+    ref = RobustReference(spec, records)
+    return {prop.name: ref.robust_verdicts(prop) for prop in spec.properties}

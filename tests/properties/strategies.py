@@ -215,3 +215,35 @@ def _record(draw) -> dict:
     if draw(st.integers(0, 2)) > 0:
         rec["y"] = draw(st.sampled_from([0, 1, 2]))
     return rec
+
+
+@st.composite
+def numeric_formulas(draw, depth: int = 3, future: bool = True,
+                     unit: Decimal | None = None) -> str:
+    """A random formula whose atoms are mostly comparisons of numbers (robustness is then a
+    distance, not ±inf), over every operator of :func:`formulas`."""
+    if depth <= 0 or draw(st.integers(0, 3)) == 0:
+        if draw(st.integers(0, 5)) == 0:
+            return draw(formulas(0, future, unit))
+        c = draw(st.sampled_from(["0", "0.5", "1", "2"]))
+        op = draw(st.sampled_from([">", "<=", "==", "!=", "<", ">="]))
+        return draw(st.sampled_from([f"x {op} {c}", f"x {op} {c}", f"y {op} {c}",
+                                     f"abs(x - y) {op} {c}", f"x - prev(x) {op} {c}"]))
+    sub = numeric_formulas(depth - 1, future, unit)
+    ops = ["not", "once", "historically", "and", "or", "->", "since"]
+    if future:
+        ops += ["eventually", "always", "until", "eventually", "always"]
+    op = draw(st.sampled_from(ops))
+    if op == "not":
+        return f"not ({draw(sub)})"
+    if op in ("once", "historically"):
+        bound = draw(st.one_of(st.just(""), bounds(True, unit)))
+        return f"{op}{bound} ({draw(sub)})"
+    if op in ("eventually", "always"):
+        return f"{op}{draw(bounds(False, unit))} ({draw(sub)})"
+    if op in ("and", "or", "->"):
+        return f"({draw(sub)}) {op} ({draw(sub)})"
+    if op == "since":
+        bound = draw(st.one_of(st.just(""), bounds(True, unit)))
+        return f"({draw(sub)}) since{bound} ({draw(sub)})"
+    return f"({draw(sub)}) until{draw(bounds(False, unit))} ({draw(sub)})"
