@@ -84,6 +84,11 @@ def _cmd_check(args: argparse.Namespace) -> int:
         raise UsageError(f"--jobs must be 1 or more, not {args.jobs}")
     if args.cluster is not None and args.jobs is not None:
         raise UsageError("--jobs sets the local processes; a --cluster has its own workers")
+    if args.robustness and (args.cluster is not None or (args.jobs or 1) > 1
+                            or args.part_size is not None):
+        # a minimum over the records, and values across a cut: one pass per recording
+        raise UsageError("--robustness is computed in one pass over each recording: "
+                         "not with --jobs above 1, --part-size or --cluster")
     if args.verdicts and len(args.recordings) > 1:
         raise UsageError("--verdicts prints every verdict of one recording: give one")
     text = read_utf8(args.props)
@@ -96,7 +101,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         args.recordings = [os.path.abspath(p) for p in args.recordings]
         app = os.path.abspath(app) if app is not None else None
         topics = os.path.abspath(topics) if topics is not None else None
-    job = Job(args.props, text, app, topics, explain, named)
+    job = Job(args.props, text, app, topics, explain, named, args.robustness)
     spec_of(job)  # a bad property file is refused first (and loaded once: the job's)
     if args.verdicts:
         checked = check_recording(job, args.recordings[0], verdicts=sys.stdout)
@@ -128,7 +133,7 @@ def _check_many(job, args: argparse.Namespace) -> list:
         engine = DaskCluster(args.cluster)
         jobs = sum(engine.client.nthreads().values()) or 1
     else:
-        jobs = args.jobs or cores()
+        jobs = args.jobs or (1 if args.robustness else cores())
         sizes = [os.path.getsize(p) if is_trace(p) and os.path.isfile(p) else 0 for p in paths]
         alone = len(paths) == 1 and plan_parts(sizes, jobs, args.part_size) == [1]
         engine = InProcess() if jobs == 1 or alone else Processes(jobs)

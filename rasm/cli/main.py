@@ -97,6 +97,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--verdicts", action="store_true", help="print every verdict as JSONL")
+    p.add_argument("--robustness", action="store_true",
+                   help="add each property's robustness (how far from a violation; the "
+                   "minimum over the judged records) and, with --verdicts, each verdict's")
     p.add_argument(
         "--allow-damaged", action="store_true",
         help="accept verdicts on what a damaged recording still holds (the damage is reported, "

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import gc
 import json
+import math
 import shutil
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -64,6 +65,10 @@ class PropertyReport:
     explanations: list[Explanation] = field(default_factory=list)
     # its verdict depended on records a damaged recording lost (CheckReport.note_damage)
     lost_data: bool = False
+    # with robustness (SPEC §12): the minimum over the judged records whose robustness is
+    # final (None: none is); ``robust`` says whether it was asked for
+    robustness: float | None = None
+    robust: bool = False
 
     @classmethod
     def of(cls, name: str, location: str, run: PropertyRun, times: Sequence[float]):
@@ -218,9 +223,17 @@ class _Tally:
         self.first_errors: list[tuple[int, float, str]] = []
         self.verdicts = verdicts
         self.json_name = json.dumps(name)
+        self.robustness: float | None = None  # the minimum so far (robustness asked for)
 
-    def add(self, first: int, values: list, errors: dict[int, str], times: _Times) -> None:
-        """Count the verdicts of records ``first``, ``first + 1``, … (errors by index)."""
+    def add(self, first: int, values: list, errors: dict[int, str], times: _Times,
+            robustness: list | None = None) -> None:
+        """Count the verdicts of records ``first``, ``first + 1``, … (errors by index), and
+        their ``robustness`` where asked for."""
+        if robustness:
+            known = [r for r in robustness if r is not None]
+            if known:
+                low = min(known)
+                self.robustness = low if self.robustness is None else min(self.robustness, low)
         outcome = self.outcome
         outcome.judged += len(values)
         outcome.inconclusive += values.count(None)
@@ -239,9 +252,15 @@ class _Tally:
             self.first_errors.extend((j, times[j], errors[j]) for j in sorted(errors)[:room])
         if self.verdicts is not None:
             name, write = self.json_name, self.verdicts.write
-            for k, value in enumerate(values):
-                j = first + k
-                write(_verdict_line(name, j, times[j], value, errors.get(j)))
+            if robustness is None:
+                for k, value in enumerate(values):
+                    j = first + k
+                    write(_verdict_line(name, j, times[j], value, errors.get(j)))
+            else:
+                for k, value in enumerate(values):
+                    j = first + k
+                    write(_verdict_line(name, j, times[j], value, errors.get(j),
+                                        robustness[k], True))
 
 
 def check_stream(
@@ -253,6 +272,7 @@ def check_stream(
     named: bool = False,
     verdicts: TextIO | None = None,
     chunk: int = CHUNK,
+    robustness: bool = False,
 ) -> CheckReport:
     """Check every property of ``spec`` on ``records`` read one by one, as :func:`check_records`
     does on a list, holding no more of the trace than the properties' windows need.
@@ -261,9 +281,10 @@ def check_stream(
     the trace to a little past the last one explained); without it nothing is explained.
     ``named``: keep only the violations the text report names (``outcome`` counts them all).
     ``verdicts``: write every verdict there, as :func:`format_verdicts` would. ``chunk``: how
-    many records are checked between two counts of the verdicts.
+    many records are checked between two counts of the verdicts. ``robustness``: each
+    property's report and verdict lines carry its robustness too (SPEC §12).
     """
-    monitor = Monitor(spec)
+    monitor = Monitor(spec, robustness=robustness)
     vacuity = Vacuity(spec)
     spools: list = []
     if verdicts is not None:
@@ -280,8 +301,12 @@ def check_stream(
 
     def take() -> None:
         for k, tally in enumerate(tallies):
-            first, values, errors = monitor.take(k)
-            tally.add(first, values, errors, times)
+            if robustness:
+                first, values, errors, robust = monitor.take_with_robustness(k)
+                tally.add(first, values, errors, times, robust)
+            else:
+                first, values, errors = monitor.take(k)
+                tally.add(first, values, errors, times)
         # a property not started yet gives its first verdict at a record still to come
         owed = [s + monitor.verdicts_taken(k) for k, s in enumerate(monitor.starts)
                 if s is not None]
@@ -319,7 +344,8 @@ def check_stream(
             tally.outcome.missing = monitor.missing(prop.name)
         tally.outcome.vacuous = vacuity.vacuous(prop.name)
         reports.append(PropertyReport(prop.name, str(prop.location), tally.outcome,
-                                      tally.violations, None, tally.first_errors))
+                                      tally.violations, None, tally.first_errors,
+                                      robustness=tally.robustness, robust=robustness))
     if again is not None:
         _explain_first(spec, reports, again)
     return CheckReport(spec.source, trace, count, reports)
@@ -333,6 +359,7 @@ def check_file(
     named: bool = False,
     verdicts: TextIO | None = None,
     chunk: int = CHUNK,
+    robustness: bool = False,
 ) -> CheckReport:
     """``rasm check``: :func:`check_stream` of the JSONL trace ``path``, read line by line.
 
@@ -355,6 +382,7 @@ def check_file(
                 named=named,
                 verdicts=verdicts,
                 chunk=chunk,
+                robustness=robustness,
             )
     except (MalformedTrace, SpecError, UnicodeDecodeError) as problem:
         for _ in read_records(path, spec.signals):  # raises SourceErrors: every bad record
@@ -406,6 +434,7 @@ def json_object(report: CheckReport) -> dict:
                 "missing": list(p.missing),
                 "vacuous": [u.text for u in p.outcome.vacuous],
                 **({"lost_data": True} if p.lost_data else {}),
+                **({"robustness": _json_number(p.robustness)} if p.robust else {}),
             }
             for p in report.properties
         ],
@@ -441,13 +470,23 @@ _VALUES = {True: "true", False: "false", None: "null"}
 
 
 def _verdict_line(name: str, index: int, time: float, value: bool | None,
-                  error: str | None) -> str:
+                  error: str | None, robustness: float | None = None,
+                  robust: bool = False) -> str:
     """One line of ``--verdicts``, as ``json.dumps`` writes the record; ``name`` is JSON
     already. A time is written as a plain int or float (:func:`seconds_value`), whose JSON is
-    its ``repr``."""
+    its ``repr``; ``robust``: the line carries the ``robustness`` (null: not final)."""
     tail = "}\n" if error is None else f", \"error\": {json.dumps(error)}}}\n"
+    if robust:
+        tail = f', "robustness": {json.dumps(_json_number(robustness))}' + tail
     return (f'{{"property": {name}, "index": {index}, "time": {seconds_value(time)!r}, '
             f'"value": {_VALUES[value]}{tail}')
+
+
+def _json_number(value: float | None) -> float | str | None:
+    """A robustness in JSON: a number, or "inf" / "-inf" (JSON has no infinities)."""
+    if value is None or math.isfinite(value):
+        return value
+    return "inf" if value > 0 else "-inf"
 
 
 def _one_line(e: Explanation) -> str:
@@ -524,6 +563,9 @@ def format_text(report: CheckReport) -> str:
                            f"[{p.location}]")
             else:
                 out.append(f"  {p.name}: satisfied ({p.judged} records judged)")
+        if p.robust:
+            shown = "none final" if p.robustness is None else f"{p.robustness:.6g}"
+            out.append(f"    robustness (minimum over the judged records): {shown}")
     if report.damage:
         out.append(f"damaged: {report.trace} lost data:")
         out.extend(f"  {d.describe()}" for d in report.damage)

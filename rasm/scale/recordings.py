@@ -33,6 +33,7 @@ class Job:
     topics: str | None = None  # or with this topic map
     explain: bool = True  # explain the first violations (the text report shows them)
     named: bool = False  # keep only the violations a text report names
+    robustness: bool = False  # each property's robustness too (one pass over each recording)
 
 
 @functools.lru_cache(maxsize=16)
@@ -130,7 +131,8 @@ def check_recording(job: Job, path: str, *, names: Collection[str] | None = None
         records, notes, damage = _records(job, path, spec.signals)
         report = check_stream(spec, records(), trace=path,
                               again=records if job.explain else None,
-                              named=job.named, verdicts=verdicts)
+                              named=job.named, verdicts=verdicts,
+                              robustness=job.robustness)
         report.note_damage(damage())
         return Checked(path, report, [f"{path}: {note}" for note in notes()])
     if job.app is not None or job.topics is not None:
@@ -139,5 +141,5 @@ def check_recording(job: Job, path: str, *, names: Collection[str] | None = None
             "JSONL trace names its signals itself"
         )
     report = check_file(spec, path, explain_violations=job.explain, named=job.named,
-                        verdicts=verdicts)
+                        verdicts=verdicts, robustness=job.robustness)
     return Checked(path, report)

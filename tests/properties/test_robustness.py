@@ -4,6 +4,7 @@ not zero, and every interval given contains the final value."""
 
 from __future__ import annotations
 
+import json
 import math
 from decimal import Decimal
 
@@ -138,3 +139,61 @@ def test_an_early_verdict_carries_an_interval_and_the_final_value_comes_at_the_e
     assert [v.robustness for v in monitor.step(2.5, {"x": 0.0})] == []  # record 2: x > 1 fails
     assert monitor.intervals("p") == {1: (4.0, math.inf), 2: (-1.0, math.inf)}
     assert [(v.index, v.value, v.robustness) for v in monitor.finish()] == [(2, None, None)]
+
+
+# --------------------------------------------------------------------------- rasm check
+
+
+CLI_PROPS = """input x: float
+property band: always (x <= 0.5)
+property react: always (x > 0.4 -> eventually[0, 1] x < 0.2)
+"""
+CLI_TRACE = ('{"time": 0, "x": 0.1}\n{"time": 0.5, "x": 0.45}\n{"time": 1, "x": 0.1}\n'
+             '{"time": 3, "x": 0.3}\n')
+
+
+def _cli_files(tmp_path):
+    props, trace = tmp_path / "p.rv", tmp_path / "t.jsonl"
+    props.write_text(CLI_PROPS)
+    trace.write_text(CLI_TRACE)
+    return str(props), str(trace)
+
+
+def test_check_json_adds_the_minimum_robustness(tmp_path, capsys):
+    from rasm.cli import main
+
+    props, trace = _cli_files(tmp_path)
+    assert main(["check", props, trace, "--robustness", "--format", "json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    got = {p["name"]: p["robustness"] for p in report["properties"]}
+    assert close(got["band"], 0.05) and close(got["react"], 0.1)
+    assert main(["check", props, trace, "--format", "json"]) == 0
+    assert "robustness" not in json.loads(capsys.readouterr().out)["properties"][0]
+
+
+def test_check_verdicts_add_each_robustness_null_where_not_final(tmp_path, capsys):
+    from rasm.cli import main
+
+    props, trace = _cli_files(tmp_path)
+    assert main(["check", props, trace, "--robustness", "--verdicts"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    react = [line["robustness"] for line in lines if line["property"] == "react"]
+    assert [round(r, 9) for r in react[:3]] == [0.3, 0.1, 0.3] and react[3] is None
+
+
+def test_check_text_shows_the_robustness(tmp_path, capsys):
+    from rasm.cli import main
+
+    props, trace = _cli_files(tmp_path)
+    assert main(["check", props, trace, "--robustness"]) == 0
+    assert "robustness (minimum over the judged records): 0.05" in capsys.readouterr().out
+
+
+def test_check_robustness_refuses_parts_and_workers(tmp_path, capsys):
+    from rasm.cli import main
+
+    props, trace = _cli_files(tmp_path)
+    for extra in (["--jobs", "2"], ["--part-size", "1M"], ["--cluster", "tcp://127.0.0.1:1"]):
+        assert main(["check", props, trace, "--robustness", *extra]) == 2
+        err = capsys.readouterr().err
+        assert "--robustness is computed in one pass" in err and "Traceback" not in err
