@@ -41,7 +41,8 @@ class Verdict(NamedTuple):
     error: str | None = None
     # with Monitor(robustness=True) (SPEC §12): the final robustness, or None where it is not
     # final yet (a verdict decided early, or inconclusive at the end); an interval that
-    # contains the final value (lo == hi once final). An error's is -inf.
+    # contains the final value (lo == hi once final; for a verdict decided early only with
+    # Monitor(intervals=True), else None). An error's is -inf.
     robustness: float | None = None
     robustness_interval: tuple[float, float] | None = None
 
@@ -142,8 +143,12 @@ class Monitor:
         reads: list[tuple[str, ...]] | None = None,
         fault_hook: Callable[[str, int], object] | None = None,
         robustness: bool = False,
+        intervals: bool = False,
     ) -> None:
         self.spec = spec
+        # an early verdict's robustness interval costs in proportion to the records in the
+        # property's windows: given only when asked for
+        self._intervals = intervals
         self.names = [p.name for p in spec.properties]
         self._reads = reads
         self._hook = fault_hook is not None
@@ -235,9 +240,10 @@ class Monitor:
                 out[position] = verdict._replace(robustness=r, robustness_interval=(r, r))
             else:  # decided before its robustness is final
                 self._early[k].add(verdict.index)
-                out[position] = verdict._replace(
-                    robustness_interval=self._interval(k, verdict.index)
-                )
+                if self._intervals:
+                    out[position] = verdict._replace(
+                        robustness_interval=self._interval(k, verdict.index)
+                    )
         return out
 
     def _take_robustness(self) -> None:
@@ -506,10 +512,13 @@ def _specification(text: str, source: str) -> Specification:
     return load_specification(text, source=source)
 
 
-def compile_properties(text: str, *, source: str = "<text>", robustness: bool = False) -> Monitor:
+def compile_properties(text: str, *, source: str = "<text>", robustness: bool = False,
+                       intervals: bool = False) -> Monitor:
     """Parse, check and compile a property file into a fresh :class:`Monitor`; ``robustness``:
-    its verdicts carry their robustness too (SPEC §12)."""
+    its verdicts carry their robustness too (SPEC §12); ``intervals``: a verdict decided
+    before its robustness is final carries the interval known then."""
     if type(text) is str and type(source) is str:
-        return Monitor(_specification(text, source), robustness=robustness)
+        return Monitor(_specification(text, source), robustness=robustness, intervals=intervals)
     # says what is wrong with them
-    return Monitor(load_specification(text, source=source), robustness=robustness)
+    return Monitor(load_specification(text, source=source), robustness=robustness,
+                   intervals=intervals)

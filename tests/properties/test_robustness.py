@@ -34,7 +34,7 @@ def offline(text: str, records):
 def online(text: str, records):
     """Each verdict's robustness and interval, and the intervals of the open records after
     each step (to check that they contain the final values)."""
-    monitor = compile_properties(text, robustness=True)
+    monitor = compile_properties(text, robustness=True, intervals=True)
     verdicts: dict[tuple[str, int], object] = {}
     seen_intervals: list[tuple[str, int, tuple[float, float]]] = []
     for t, rec in records:
@@ -130,7 +130,7 @@ def test_prev_undefined_strings_and_booleans():
 
 def test_an_early_verdict_carries_an_interval_and_the_final_value_comes_at_the_end():
     text = "input x: float\nproperty p: eventually[0, 2] x > 1\n"
-    monitor = compile_properties(text, robustness=True)
+    monitor = compile_properties(text, robustness=True, intervals=True)
     (v,) = monitor.step(0, {"x": 3.0})
     assert v.value is True and v.robustness is None and v.robustness_interval == (2.0, math.inf)
     (w,) = monitor.step(1, {"x": 5.0})  # record 1 is decided early too
@@ -197,3 +197,11 @@ def test_check_robustness_refuses_parts_and_workers(tmp_path, capsys):
         assert main(["check", props, trace, "--robustness", *extra]) == 2
         err = capsys.readouterr().err
         assert "--robustness is computed in one pass" in err and "Traceback" not in err
+
+
+def test_without_intervals_an_early_verdict_has_none():
+    monitor = compile_properties("input x: float\nproperty p: eventually[0, 2] x > 1\n",
+                                 robustness=True)
+    (v,) = monitor.step(0, {"x": 3.0})
+    assert v.value is True and v.robustness is None and v.robustness_interval is None
+    assert monitor.intervals("p") == {0: (2.0, math.inf)}  # on demand
