@@ -6,7 +6,10 @@ with these names; this module is where they are defined, once.
 
 from __future__ import annotations
 
-__all__ = ["EVENTS", "LOOP_KEYS", "LOOP_SIGNAL_TYPES", "STAGES"]
+__all__ = [
+    "EVENTS", "LOOP_KEYS", "LOOP_SIGNAL_TYPES", "MEASURED_KEYS", "ROBUSTNESS_PREFIX", "STAGES",
+    "robustness_key",
+]
 
 STAGES: tuple[str, ...] = ("monitor", "analyse", "plan", "legitimate", "execute")
 """The MAPLE-K stages, in the order one iteration runs them (Knowledge is shared by all)."""
@@ -41,3 +44,18 @@ LOOP_KEYS: frozenset[str] = frozenset(LOOP_SIGNAL_TYPES)
 """The keys the loop writes in trace records. A knowledge signal of one of these names would
 forge the loop's own events in the trace and in what the monitors see, so probe signals and
 Monitor results may not use them."""
+
+ROBUSTNESS_PREFIX = "robustness_"
+"""Property ``p``'s robustness (SPEC §12) is the knowledge key and trace signal
+``robustness_p``, written by the Trustworthiness Checker."""
+
+
+def robustness_key(name: str) -> str:
+    """The knowledge key and trace signal that hold property ``name``'s robustness."""
+    return ROBUSTNESS_PREFIX + name
+
+
+MEASURED_KEYS: frozenset[str] = frozenset({"duration", robustness_key("stage_budget")})
+"""The trace keys whose values are measured on the wall clock even in a simulated run: a
+stage's duration, and the robustness of the platform's ``stage_budget`` (it reads the duration).
+With the simulated clock and a seed, two runs agree on every other key."""

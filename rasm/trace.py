@@ -7,8 +7,10 @@ picks it or the MCAP writer), read whole by :func:`read_trace` and :func:`parse_
 record in memory is what :func:`trace_line` gives: the record as it reads back from its line, so
 a trace in memory and the same trace read from its file are equal.
 
-A line holds ``time`` rounded to the nanosecond and every other value as JSON has it; a
-non-finite number at the top level (a sensor's NaN) is written as ``null``.
+A line holds ``time`` rounded to the nanosecond and every other value as JSON has it; NaN at
+the top level (a sensor's failed reading) is written as ``null``, and the infinities as
+``Infinity`` and ``-Infinity`` (Python's JSON dialect, which the reader takes back): they are
+values, a property's robustness among them (SPEC §12: ±inf where only booleans decide).
 
 Reading reports every malformed record at its line (and the column of the offending key): not
 a JSON object, no numeric ``time``, a time going back, a value of the wrong type for a signal
@@ -59,8 +61,9 @@ __all__ = [
 
 
 def _jsonable(value: Any) -> Any:
-    """``value`` as a line holds it at the top level: a non-finite float (not JSON) is None."""
-    if isinstance(value, float) and not math.isfinite(value):
+    """``value`` as a line holds it at the top level: NaN (no reading) is None; the
+    infinities stay (a robustness of ±inf is a value, and reads back as one)."""
+    if isinstance(value, float) and value != value:
         return None
     return value
 

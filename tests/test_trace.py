@@ -44,7 +44,7 @@ KEYS = st.sampled_from(["time", "stage", "temperature", "plan", "é"]) | st.text
 
 def expected_line(time, record) -> str:
     def jsonable(value):
-        return None if isinstance(value, float) and not math.isfinite(value) else value
+        return None if isinstance(value, float) and math.isnan(value) else value
 
     line = {"time": round(time, 9), **{k: jsonable(v) for k, v in record.items()}}
     return json.dumps(line, separators=(", ", ": ")) + "\n"

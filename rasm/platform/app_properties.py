@@ -89,7 +89,9 @@ def compile_app_properties(m: AppManifest) -> list[Monitor]:
         raise SourceErrors(problems)
     specs = platform_specifications(m.platform_properties, stage_budget=m.stage_budget)
     specs += [load_specification(read_utf8(p), source=str(p)) for p in m.properties]
-    monitors = [Monitor(spec) for spec in specs]
+    # with robustness: the checker writes each property's into knowledge (SPEC §12); with the
+    # intervals of early verdicts, whose lower bound it writes until the value is final
+    monitors = [Monitor(spec, robustness=True, intervals=True) for spec in specs]
     defined: dict[str, str] = {}
     for spec in specs:
         for prop in spec.properties:

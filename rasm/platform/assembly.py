@@ -85,6 +85,10 @@ class DataPaths(Protocol):
     def emit(self, time: float, record: dict[str, Any]) -> None:
         """Write one trace record."""
 
+    def write_robustness(self, values: dict[str, float], time: float) -> None:
+        """Store the properties' robustness (``robustness_<property>``) in knowledge, and
+        trace it."""
+
     def refused(self, key: str, value: object, exc: Exception) -> None:
         """Say that knowledge refused ``value`` for ``key``."""
 
@@ -360,6 +364,7 @@ def _assemble(
             observers=paths.on_verdict,  # the list itself: observers added later are called
             batch_observers=batch_observers,
             vacuity=vacuity,
+            write_robustness=paths.write_robustness,
             depends_on=(state_manager, communication_manager),
             **common("trustworthiness_checker"),
         )

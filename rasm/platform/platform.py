@@ -89,6 +89,8 @@ class Platform:
         # keeps them, so a long run does not grow (the trace file has the records they judge).
         # Append to and remove from this list: the Trustworthiness Checker holds it.
         self.on_verdict: list[Callable[[Verdict], object]] = []
+        # robustness values the checker wrote, for the trace's next record
+        self._robustness_due: dict[str, float] = {}
         self.stopped_by: str | None = None  # why the run ended early (request_stop)
         # every failure the loop logs per iteration or record: once in full, then counted
         self.logs = RepeatedLogs()
@@ -211,8 +213,20 @@ class Platform:
             exc,
         )
 
+    def write_robustness(self, values: dict[str, float], time: float) -> None:
+        """The properties' robustness into knowledge now, and into the trace on the next record
+        the loop writes: a record of its own would be judged again and give robustness again."""
+        refused = self.managing.knowledge_manager.register_values(values, time)
+        for key, exc in refused.items():
+            self.refused(key, values[key], exc)
+        self._robustness_due.update(values)
+
     def emit(self, time: float, record: dict[str, Any]) -> None:
-        """Write one trace record (and hand it to :attr:`on_record`)."""
+        """Write one trace record (and hand it to :attr:`on_record`), with the robustness
+        values written since the last one."""
+        if self._robustness_due:
+            record = {**record, **self._robustness_due}
+            self._robustness_due.clear()
         self.trace.emit(time, record)
         for observer in self.on_record:
             observer(time, record)

@@ -10,11 +10,12 @@ What an app provides (:func:`provided`):
 * to properties (the trace): its probes' signals, what its service and action effectors'
   answers put in knowledge (``response``, ``feedback``), the loop's own keys, the Monitor's derived
   signals (``components.monitor.produces``), the Plan's fields (``components.plan.produces``:
-  the ``planned`` record carries them) and, with a twin, ``twin_residual``; inside a property
-  file, ``let`` names and inputs declared with a default need no provider;
-* to rules: knowledge (probe signals, the Monitor's derived signals, the twin's outputs) and
-  plan fields (``components.plan.produces`` and the effectors' ``fields``: the Trustworthiness
-  Manager judges the action's payload over the plan).
+  the ``planned`` record carries them), ``robustness_<property>`` for every property checked
+  (the Trustworthiness Checker writes it, SPEC §12) and, with a twin, ``twin_residual``;
+  inside a property file, ``let`` names and inputs declared with a default need no provider;
+* to rules: knowledge (probe signals, the Monitor's derived signals, the twin's outputs, the
+  properties' robustness) and plan fields (``components.plan.produces`` and the effectors'
+  ``fields``: the Trustworthiness Manager judges the action's payload over the plan).
 
 Types are checked too: a value of a type the reader cannot take is refused at run time (an
 ``int`` input given floats, a ``bool`` event given numbers), so a property would never be judged
@@ -31,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import Location, SourceError, SourceErrors, closest, marked_error, read_utf8
-from rasm.loop import LOOP_SIGNAL_TYPES
+from rasm.loop import LOOP_SIGNAL_TYPES, robustness_key
 from rasm.platform.manifest import AppManifest, manifest_location
 from rasm.platform.own_topics import own_topic_problems
 from rasm.resources import data_dir
@@ -109,6 +110,9 @@ def provided(manifest: AppManifest) -> Provided:
     if manifest.twin:
         for key, kind in _TWIN_KNOWLEDGE.items():
             knowledge[key] = Provider(kind, "the digital twin")
+    for name in _checked_properties(manifest):
+        knowledge.setdefault(robustness_key(name), Provider(
+            "float", f"the Trustworthiness Checker (property {name}'s robustness)"))
     planned = {
         key: Provider(kind, "components.plan.produces")
         for key, kind in manifest.produces.get("plan", {}).items()
@@ -126,6 +130,20 @@ def provided(manifest: AppManifest) -> Provided:
     for key, provider in planned.items():
         trace.setdefault(key, provider)
     return Provided(trace, knowledge, plan)
+
+
+def _checked_properties(manifest: AppManifest) -> list[str]:
+    """The names of the properties a run checks: the platform's that are on, then the app's
+    (a file that does not parse has none here: it is reported on its own)."""
+    off = {name for name, limits in manifest.platform_properties.items() if limits is None}
+    names = [name for name in sorted(_platform_property_names()) if name not in off]
+    for path in manifest.properties:
+        try:
+            spec = _load_properties(read_utf8(path), os.path.normpath(path))
+        except (OSError, SourceError, SourceErrors):
+            continue
+        names += [p.name for p in spec.properties]
+    return names
 
 
 def _mode_signals(manifest: AppManifest) -> dict[str, Provider]:

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import Any, Protocol
 
+from rasm.loop import robustness_key
 from rasm.platform.action_outcome import ActionOutcome
 from rasm.platform.block import Block
 from rasm.platform.components import Action
@@ -14,7 +16,7 @@ from rasm.properties.monitor import Verdict
 from rasm.properties.outcome import PropertyOutcome, Untested
 from rasm.times import format_seconds
 
-__all__ = ["AntecedentWatch", "PropertyMonitor", "TrustworthinessChecker"]
+__all__ = ["AntecedentWatch", "PropertyMonitor", "TrustworthinessChecker", "written_robustness"]
 
 _log = logging.getLogger("rasm.tc")
 
@@ -65,6 +67,10 @@ class TrustworthinessChecker(Block):
     is stale, its verdicts are errors naming it, not judgements of the last reading.
     ``vacuity`` watches the antecedents of the properties' ``->``: at the end, each outcome
     names those that never held (``vacuous``).
+
+    ``write_robustness``, if given, is called once per record with the robustness values
+    (SPEC §12) that record's verdicts changed, ``{robustness_<property>: value}``
+    (:func:`written_robustness` says which value), and the record's time.
     """
 
     chart_name = "trustworthiness_checker"
@@ -81,9 +87,15 @@ class TrustworthinessChecker(Block):
         batch_observers: Sequence[Callable[[list[Verdict]], Any]] = (),
         online: Callable[[], bool] = lambda: True,
         vacuity: Sequence[AntecedentWatch] = (),
+        write_robustness: Callable[[dict[str, float], float], Any] | None = None,
         **kw: Any,
     ) -> None:
         self.online = online
+        self.write_robustness = write_robustness
+        # robustness_<property> -> the value last written: only changes are written again
+        self.robustness: dict[str, float] = {}
+        self._robust = {name for m in monitors if getattr(m, "robustness", False)
+                        for name in m.properties}
         self.monitors = monitors
         self.vacuity = list(vacuity)
         self.effectors = effectors
@@ -142,6 +154,8 @@ class TrustworthinessChecker(Block):
         if self._stale:
             decided = [self._unless_stale(verdict) for verdict in decided]
         self._take(decided)
+        if self.write_robustness is not None and decided:
+            self._write_robustness(decided, time)
         for watch in self.vacuity:
             try:
                 watch.step(time, record)
@@ -160,7 +174,29 @@ class TrustworthinessChecker(Block):
         why = self._stale.get(verdict.property)
         if why is None or verdict.value is None:
             return verdict
-        return verdict._replace(value=False, error=why)
+        # an error's robustness is -inf, as the monitors give it (fail closed)
+        return verdict._replace(value=False, error=why, robustness=-math.inf,
+                                robustness_interval=(-math.inf, -math.inf))
+
+    def _write_robustness(self, verdicts: list[Verdict], time: float) -> None:
+        """Hand on each property's robustness at the newest record this step judged, where it
+        changed: one call for the step."""
+        newest: dict[str, Verdict] = {}
+        for verdict in verdicts:
+            known = newest.get(verdict.property)
+            if known is None or verdict.index >= known.index:
+                newest[verdict.property] = verdict
+        changed = {}
+        for name, verdict in newest.items():
+            if name not in self._robust:
+                continue  # its monitor gives no robustness (an external verdict source)
+            value = written_robustness(verdict)
+            key = robustness_key(name)
+            if self.robustness.get(key) != value:
+                changed[key] = value
+        if changed:
+            self.robustness.update(changed)
+            self.write_robustness(changed, time)
 
     def finish(self) -> list[Verdict]:
         """The end of the run: settle every monitor (``None``: the run ended before a verdict
@@ -188,6 +224,8 @@ class TrustworthinessChecker(Block):
     def add_monitor(self, monitor: PropertyMonitor) -> None:
         """Check ``monitor``'s properties too, from the next record on."""
         self.monitors.append(monitor)
+        if getattr(monitor, "robustness", False):
+            self._robust.update(monitor.properties)
 
     def take(self, verdict: Verdict) -> None:
         """A verdict decided outside the monitors (an external verdict source): counted, and
@@ -292,6 +330,20 @@ class TrustworthinessChecker(Block):
 
     def _refuse(self, why: str) -> None:
         self.answer(ActionOutcome(False, why), "action_refused")
+
+
+def written_robustness(verdict: Verdict) -> float:
+    """The robustness the checker writes for ``verdict``: its final value; -inf for an error;
+    for a verdict decided before its robustness is final (a bounded-future property), the
+    lower bound of the interval known to contain it, so a reader never sees more margin than
+    there is (-inf where the monitor gives no interval: nothing more is known)."""
+    if verdict.error is not None:
+        return -math.inf
+    if verdict.robustness is not None:
+        return verdict.robustness
+    if verdict.robustness_interval is not None:
+        return verdict.robustness_interval[0]
+    return -math.inf
 
 
 def _rank(verdict: Verdict) -> int:

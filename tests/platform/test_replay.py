@@ -20,6 +20,7 @@ import pytest
 
 from rasm import Platform, RunOptions
 from rasm.comm import BoundSigner, MqttTransport, Presence, verify
+from rasm.loop import MEASURED_KEYS
 from rasm.testing.servers import start_mosquitto
 
 from .conftest import HOTBOX
@@ -262,7 +263,7 @@ def test_seeded_simulated_runs_with_signed_actions_stay_reproducible(tmp_path, m
         args = ["run", str(HOTBOX), "--clock", "simulated", "--seed", "7", "--duration", "20"]
         assert main([*args, "--trace", f"{run}.jsonl"]) == 0
         records = [json.loads(line) for line in Path(f"{run}.jsonl").read_text().splitlines()]
-        traces.append([{k: v for k, v in r.items() if k != "duration"} for r in records])
+        traces.append([{k: v for k, v in r.items() if k not in MEASURED_KEYS} for r in records])
     assert traces[0] == traces[1]
     plans = [r["plan"] for r in traces[0] if r.get("planned")]
     assert plans and plans == [f"p{n}" for n in range(1, len(plans) + 1)]

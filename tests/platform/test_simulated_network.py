@@ -12,6 +12,7 @@ import pytest
 
 from rasm import Platform, RunOptions
 from rasm.errors import CommError
+from rasm.loop import MEASURED_KEYS
 from rasm.platform import simulated_clock
 
 from .conftest import read_trace
@@ -30,7 +31,7 @@ def seeded_trace(app, tmp_path: Path, name: str, **options) -> list[dict]:
         trace=trace_file,
         **options,
     )).run(20.0)
-    return [{k: v for k, v in r.items() if k != "duration"} for r in read_trace(trace_file)]
+    return [{k: v for k, v in r.items() if k not in MEASURED_KEYS} for r in read_trace(trace_file)]
 
 
 @pytest.mark.slow
