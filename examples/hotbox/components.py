@@ -102,30 +102,42 @@ class HotboxMonitor:
 
 
 class HotboxAnalyse:
-    """An anomaly when the temperature leaves the band or is about to, or when the heater's
-    mode no longer fits (boost with the lid closed and the box warm again)."""
+    """An anomaly when the temperature comes within ``margin`` °C of leaving the safety band,
+    now or ``HORIZON`` seconds ahead at its present trend, or when the heater's mode no longer
+    fits (boost with the lid closed and the box warm again).
+
+    How far inside the band the box is, is the robustness of the ``temperature_band`` property
+    (properties/hotbox.rv), which the Trustworthiness Checker writes into knowledge: the
+    distance in °C to the band's nearer edge, negative outside. Adapting while it is still
+    above ``margin`` boosts the heater before the band is left, not after.
+    """
 
     HORIZON = 5.0  # seconds of trend to look ahead
 
+    def __init__(self, margin: float = 1.5) -> None:
+        self.margin = margin
+
     def analyse(self, ctx):
         k = ctx.knowledge
+        room = k.read_knowledge("robustness_temperature_band")  # °C inside the band
         mean = k.read_knowledge("temperature_mean")
         trend = k.read_knowledge("temperature_trend", 0.0)
         mode = k.read_knowledge("heater_mode", "normal")
-        if mean is None:
+        if room is None or mean is None:
             return None
-        ahead = mean + trend * self.HORIZON
-        if mode == "normal" and (mean < BAND[0] + 1.0 or ahead < BAND[0] + 0.5):
+        # in the band's lower half the room shrinks as the temperature falls
+        room_ahead = room + trend * self.HORIZON
+        if mode == "normal" and mean < sum(BAND) / 2 and min(room, room_ahead) < self.margin:
             return Anomaly(
-                "temperature falling out of the band",
-                {"mean": mean, "trend": trend, "want": "boost"},
+                "temperature close to leaving the band",
+                {"mean": mean, "room": room, "room_ahead": room_ahead, "want": "boost"},
             )
         if mode == "boost" and not k.read_knowledge("lid_open", False) and mean >= 36.5:
             return Anomaly(
                 "boost no longer needed: lid closed and temperature back",
                 {"mean": mean, "want": "normal"},
             )
-        if mode == "boost" and ahead > BAND[1]:
+        if mode == "boost" and mean + trend * self.HORIZON > BAND[1]:
             return Anomaly("temperature rising out of the band", {"mean": mean, "want": "normal"})
         return None
 

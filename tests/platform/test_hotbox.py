@@ -226,3 +226,46 @@ def test_a_live_loop_that_stalls_skips_the_iterations_it_missed(hotbox):
     assert summary.missed_iterations >= 2
     assert summary.stats.iterations <= 10 - summary.missed_iterations + 1
     assert summary.stats.timeouts["analyse"] == 1
+
+
+def _first(trace, test):
+    return next((r["time"] for r in trace if test(r)), None)
+
+
+def test_the_band_robustness_margin_adapts_before_the_band_is_left(hotbox, tmp_path):
+    """Analyse raises when the band property's robustness (how far inside the band the box
+    is), now or 5 s ahead at the present trend, falls below its margin, 1.5 °C. Without the
+    loop, the second lid opening takes the box out of the band; with the margin, an anomaly
+    comes before that moment at every opening, earlier than with no margin (the loop then
+    boosts too late for boost_while_open), and every property holds."""
+    from rasm.platform.loading import load_component
+
+    class NoPlan:
+        def plan(self, ctx):
+            return None
+
+    analyse = type(load_component("components:HotboxAnalyse", HOTBOX, package="rasm_app_hotbox"))
+    runs = {}
+    for name, components in [("no loop", {"plan": NoPlan()}),
+                             ("no margin", {"analyse": analyse(margin=0.0)}),
+                             ("margin", {})]:
+        trace_file = tmp_path / f"{name}.jsonl"
+        summary = Platform(hotbox, clock="simulated", seed=7, trace=trace_file,
+                           knowledge="memory", components=components).run(70)
+        runs[name] = summary, read_trace(trace_file)
+
+    unadapted, trace = runs["no loop"]
+    left = _first(trace, lambda r: r.get("robustness_temperature_band", 1) < 0)
+    assert unadapted.verdicts["temperature_band"] == "violated" and 38.0 < left < 68.0
+
+    late, trace = runs["no margin"]
+    late_anomaly = _first(trace, lambda r: r.get("anomaly"))
+    assert late.verdicts["boost_while_open"] == "violated"
+
+    predictive, trace = runs["margin"]
+    anomalies = [r["time"] for r in trace if r.get("anomaly")]
+    assert anomalies[0] < late_anomaly
+    assert any(38.0 <= t < left for t in anomalies)  # the opening that leaves the band unadapted
+    assert predictive.ok and set(predictive.verdicts.values()) == {"satisfied"}
+    assert min(r["robustness_temperature_band"] for r in trace
+               if "robustness_temperature_band" in r) > 0.5
