@@ -7,6 +7,8 @@ turns them into plain JSON-able data that ``assets/report.js`` draws:
 - the MAPLE-K loop iterations: for each, its start time and each stage's duration (Gantt);
 - each stage's duration distribution with the platform's nearest-rank percentiles;
 - the knowledge signals (every key that is not one of the loop's own keys);
+- each property's robustness (``robustness_<property>``, SPEC §12), drawn beside its verdicts
+  rather than as a signal; ±inf is the text ``"inf"``/``"-inf"`` (JSON has no infinity);
 - the adaptations: anomaly, plan, legitimacy verdict with broken rules, trust check, outcome
   (executed, dropped, cancelled, no plan) and the explanations given on the way;
 - the managed system's mode changes, when the app has a modes chart (``mode`` records; their
@@ -24,7 +26,7 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from rasm.loop import EVENTS, LOOP_KEYS, STAGES
+from rasm.loop import EVENTS, LOOP_KEYS, ROBUSTNESS_PREFIX, STAGES
 
 __all__ = ["Adaptation", "TraceModel", "percentiles"]
 
@@ -86,6 +88,8 @@ class TraceModel:
         self.durations: dict[str, list[float]] = {s: [] for s in STAGES}
         self.other_stages: set[str] = set()
         self.signals: dict[str, dict[str, Any]] = {}
+        # property -> its robustness over time (robustness_<property> in the records)
+        self.robustness: dict[str, dict[str, list]] = {}
         self.adaptations: list[Adaptation] = []
         self.mode_changes: list[dict[str, Any]] = []  # {"time": t, "mode": active modes}
         self._open: Adaptation | None = None  # the adaptation the loop is working on
@@ -120,7 +124,9 @@ class TraceModel:
             self.mode_changes.append({"time": time, "mode": record["mode"]})
             self._trim(self.mode_changes)
         for key, value in record.items():
-            if key not in LOOP_KEYS and not (changed and key.startswith("mode_")):
+            if key.startswith(ROBUSTNESS_PREFIX):
+                self._robustness(time, key.removeprefix(ROBUSTNESS_PREFIX), value)
+            elif key not in LOOP_KEYS and not (changed and key.startswith("mode_")):
                 self._signal(time, key, value)
 
     def _fallback(self, time: float, record: dict[str, Any]) -> None:
@@ -198,6 +204,19 @@ class TraceModel:
                 series["kind"] = "number"
             else:
                 series["kind"] = "str"
+        series["t"].append(time)
+        series["v"].append(value)
+        if self.max_points is not None and len(series["t"]) > self.max_points:
+            del series["t"][0], series["v"][0]
+
+    def _robustness(self, time: float, name: str, value: Any) -> None:
+        """A property's robustness, drawn beside its verdicts: JSON has no infinity, so ±inf
+        (decided by booleans alone) is kept as the text "inf" or "-inf"."""
+        if isinstance(value, bool) or not isinstance(value, int | float) or value != value:
+            return
+        if math.isinf(value):
+            value = "inf" if value > 0 else "-inf"
+        series = self.robustness.setdefault(name, {"t": [], "v": []})
         series["t"].append(time)
         series["v"].append(value)
         if self.max_points is not None and len(series["t"]) > self.max_points:
@@ -321,6 +340,9 @@ class TraceModel:
             "signals": {
                 name: {"kind": s["kind"], "t": list(s["t"]), "v": list(s["v"])}
                 for name, s in self.signals.items()
+            },
+            "robustness": {
+                name: {"t": list(r["t"]), "v": list(r["v"])} for name, r in self.robustness.items()
             },
             "adaptations": [asdict(a) for a in self.adaptations],
             "mode_changes": [dict(change) for change in self.mode_changes],

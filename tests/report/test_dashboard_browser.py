@@ -59,7 +59,7 @@ def test_the_dashboard_follows_a_running_loop(page, tmp_path: Path) -> None:
         assert "boost" in p.inner_text("#adaptations tbody tr:first-child")
         assert p.locator("#modes tr[data-block='ao'] td.mode").inner_text() == "initialized"
         assert "single process: no remote nodes" in p.inner_text("#nodes")
-        for figure in ("gantt", "timing", "verdicts", "signals"):
+        for figure in ("gantt", "timing", "verdicts", "robustness", "signals"):
             assert p.evaluate(f"document.getElementById('{figure}').data.length") > 0, figure
         shot = tmp_path / "dashboard.png"
         p.screenshot(path=str(shot), full_page=True)

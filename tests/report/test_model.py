@@ -165,3 +165,17 @@ def test_a_fallback_episode_is_no_adaptation_and_says_why_and_how_long() -> None
     assert (second["reason"], second["released"], second["plan"]) == (
         "managed system lost", None, "f2")
     assert model.counts()["fallback"] == 2 and model.counts()["executed"] == 0
+
+
+def test_robustness_is_its_own_series_with_infinities_as_text() -> None:
+    model = _model([
+        {"time": 0.0, "temperature": 37.0},
+        {"time": 0.1, "robustness_band": 2.5, "robustness_order": float("inf")},
+        {"time": 0.2, "robustness_band": 2.25, "robustness_order": float("-inf")},
+    ])
+    data = model.to_dict()
+    assert data["robustness"] == {
+        "band": {"t": [0.1, 0.2], "v": [2.5, 2.25]},
+        "order": {"t": [0.1, 0.2], "v": ["inf", "-inf"]},
+    }
+    assert set(data["signals"]) == {"temperature"}

@@ -42,7 +42,7 @@ def test_every_view_renders_with_data(page, hotbox_report: Path, tmp_path: Path)
     fetched: list[str] = []  # the page must need no network: any request is refused and noted
     p.route("http*://**", lambda route: (fetched.append(route.request.url), route.abort()))
     _open(page, hotbox_report)
-    for figure in ("gantt", "gantt-detail", "timing", "verdicts", "signals"):
+    for figure in ("gantt", "gantt-detail", "timing", "verdicts", "robustness", "signals"):
         assert p.evaluate(TRACES, figure) > 0, figure
         assert p.locator(f"#{figure} .main-svg").count() > 0, figure  # plotly drew SVG
     assert p.evaluate(TRACES, "gantt") == 5  # one bar trace per MAPLE-K stage
@@ -262,3 +262,21 @@ def test_fallback_episodes_violation_episodes_and_where_properties_are_defined(
     assert where["stage_order"][1].startswith("rasm:properties/maple_k.rv:")
     assert where["no_oscillation"][1].startswith("rasm:properties/adaptation.rv:")
     assert not page.errors
+
+
+def test_each_numeric_propertys_robustness_is_drawn_beside_the_verdicts(
+    page, hotbox_report: Path
+) -> None:
+    """One line per property with a finite robustness (a gap where it is infinite), the
+    boolean ones named; the robustness keys are not drawn again as knowledge signals."""
+    p = page.page
+    _open(page, hotbox_report)
+    names = p.evaluate("document.getElementById('robustness').data.map(d => d.name)")
+    assert {"temperature_band", "heater_rating", "stage_budget", "no_oscillation"} <= set(names)
+    assert "stage_order" not in names and "stage_order" in p.inner_text("#robustness-note")
+    band = p.evaluate("document.getElementById('robustness').data"
+                      ".find(d => d.name === 'temperature_band').y")
+    assert len(band) > 100 and all(0 < v < 3.5 for v in band)
+    signals = p.evaluate("document.getElementById('signals').data.map(d => d.name)")
+    assert not [s for s in signals if s.startswith("robustness_")]
+    assert page.errors == []

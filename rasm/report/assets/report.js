@@ -10,7 +10,7 @@
                         "error": "#7b3294", "warm-up": "#f2c14e"};
   var VERDICT_NAMES = {"true": "holds", "false": "violated", "null": "inconclusive",
                        "error": "error (not evaluated)", "warm-up": "not judged yet"};
-  var TIMELINES = ["gantt", "verdicts", "signals"];
+  var TIMELINES = ["gantt", "verdicts", "robustness", "signals"];
   var MAX_SIGNALS = 12;
   var MAX_ROWS = 500;
   var state = {model: null, focus: null, half: 2, iteration: null, drawn: {}};
@@ -296,6 +296,37 @@
     $("violations").innerHTML = items.join("");
   }
 
+  /* ------------------------------------------------------------------ robustness */
+  function robustness(m) {
+    /* Each property's robustness (SPEC §12) as the Trustworthiness Checker wrote it: how far
+       from a violation, 0 the boundary. ±inf ("inf" in the model: decided by booleans alone)
+       breaks the line; a property that never had a finite value is named, not drawn. */
+    var all = m.robustness || {}, drawn = [], infinite = [];
+    Object.keys(all).sort().forEach(function (name) {
+      var s = all[name];
+      var y = s.v.map(function (v) { return typeof v === "number" ? v : null; });
+      if (y.some(function (v) { return v !== null; })) {
+        drawn.push({type: "scatter", mode: "lines", line: {shape: "hv", width: 1.5}, x: s.t,
+          y: y, name: name, connectgaps: false,
+          hovertemplate: name + " robustness %{y:.4g} at %{x:.3f} s<extra></extra>"});
+      } else {
+        infinite.push(name);
+      }
+    });
+    $("robustness-note").textContent = (drawn.length ? "How far each property is from a " +
+      "violation (its robustness, written by the Trustworthiness Checker): above 0 it holds. " +
+      "A gap is an infinite value (decided by booleans alone)." : "") +
+      (infinite.length ? " Only ±∞ (boolean): " + infinite.join(", ") + "." : "");
+    if (!drawn.length) {
+      missing("robustness", "No robustness in this trace: its records carry no " +
+        "robustness_<property> values (a trace that rasm run writes has them).");
+      return;
+    }
+    draw("robustness", drawn, {xaxis: timeAxis(), yaxis: {title: {text: "robustness"},
+      zeroline: false}, height: 280, shapes: markers(m, "robustness"),
+      legend: {orientation: "h"}});
+  }
+
   /* ------------------------------------------------------------------ signals */
   function signals(m) {
     var all = m.signals || {};
@@ -409,12 +440,16 @@
   /* ------------------------------------------------------------------ focus */
   function markers(m, id) {
     var shapes = [];
-    if (id === "signals" || id === "verdicts") {
+    if (id === "signals" || id === "verdicts" || id === "robustness") {
       (m.fallback || []).forEach(function (f) {  /* the fallback's episodes, shaded */
         shapes.push({type: "rect", xref: "x", yref: "paper", x0: f.engaged,
           x1: f.released === null ? m.end : f.released, y0: 0, y1: 1, layer: "below",
           fillcolor: "rgba(242, 142, 43, 0.12)", line: {width: 0}});
       });
+    }
+    if (id === "robustness") {  /* the boundary: below it, the property is violated */
+      shapes.push({type: "line", xref: "paper", yref: "y", x0: 0, x1: 1, y0: 0, y1: 0,
+        line: {color: "#e15759", width: 1, dash: "dash"}});
     }
     if (id === "signals") {
       (m.adaptations || []).forEach(function (a) {
@@ -505,6 +540,7 @@
     gantt(m);
     timing(m);
     verdicts(m);
+    robustness(m);
     signals(m);
     adaptations(m);
     fallback(m);
