@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from rasm import Platform, load_manifest
+from rasm import Platform, RunOptions, load_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 HOTBOX = ROOT / "examples" / "hotbox"
@@ -28,8 +28,8 @@ class NoPlan:
 
 
 def run(components: dict | None) -> list[tuple[float, dict]]:
-    platform = Platform(load_manifest(HOTBOX), clock="simulated", seed=7, knowledge="memory",
-                        components=components)
+    platform = Platform(load_manifest(HOTBOX), RunOptions(
+        clock="simulated", seed=7, knowledge="memory", components=components))
     records: list[tuple[float, dict]] = []
     platform.on_record.append(lambda time, record: records.append((time, dict(record))))
     platform.run(70)

@@ -250,8 +250,8 @@ def test_the_band_robustness_margin_adapts_before_the_band_is_left(hotbox, tmp_p
                              ("no margin", {"analyse": analyse(margin=0.0)}),
                              ("margin", {})]:
         trace_file = tmp_path / f"{name}.jsonl"
-        summary = Platform(hotbox, clock="simulated", seed=7, trace=trace_file,
-                           knowledge="memory", components=components).run(70)
+        summary = Platform(hotbox, RunOptions(clock="simulated", seed=7, trace=trace_file,
+                                              knowledge="memory", components=components)).run(70)
         runs[name] = summary, read_trace(trace_file)
 
     unadapted, trace = runs["no loop"]
