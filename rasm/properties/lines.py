@@ -79,7 +79,7 @@ class Emit:
             # built as its tuple of fields (VERDICT_NEW is tuple.__new__): the NamedTuple's own
             # __new__ is a Python function, a third of step's time on a cheap property
             out.append(f"{pad}out.append(VERDICT_NEW(Verdict, "
-                       f"(NAME_{number}, {index}, {self.time}, {value}, None)))")
+                       f"(NAME_{number}, {index}, {self.time}, {value}, None, None, None)))")
         elif order is None:
             out.append(f"{pad}values_{number}({value})")
         elif index == "i":

@@ -34,7 +34,7 @@ from rasm.properties.ast import (
 )
 from rasm.properties.emitter import Emitter, Later, Names, signal_variable
 from rasm.properties.emitter import Now as ValueNow
-from rasm.properties.formula_code import FormulaGenerator
+from rasm.properties.formula_code import FormulaGenerator, normalise
 from rasm.properties.lines import Code, Line
 from rasm.properties.robust_ops import (
     RCMP,
@@ -223,7 +223,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
 
     def _value(self, node: Expr) -> ValueNow | Later:
         """A value compared: its source, or the stream of its values where it comes late."""
-        return self._values.visit(node)
+        return self._values.visit(normalise(node))  # as the boolean compile sees it
 
     def _ordered(self, part: Later) -> Ordered:
         ordered = Ordered(part.stream)
