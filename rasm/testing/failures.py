@@ -23,6 +23,8 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from rasm.loop import MEASURED_KEYS
+
 __all__ = ["failures_dir", "is_final_example", "save_jsonl", "saved_files"]
 
 _ENVIRONMENT = "RASM_FAILURES"
@@ -52,11 +54,12 @@ def _slug(name: str) -> str:
 
 
 def save_jsonl(stem: str, lines: Iterable[Mapping[str, Any]]) -> Path:
-    """Write ``lines`` as JSON lines to ``<failures dir>/<stem>-<hash>.jsonl``; return the path."""
+    """Write ``lines`` as JSON lines to ``<failures dir>/<stem>-<hash>.jsonl``; return the path.
+    The hash leaves out what the wall clock measures (MEASURED_KEYS): a seed names its file."""
     records = [dict(line) for line in lines]
     text = "".join(json.dumps(record) + "\n" for record in records)
     timeless = "".join(
-        json.dumps({k: v for k, v in r.items() if not (k == "duration" and "stage" in r)}) + "\n"
+        json.dumps({k: v for k, v in r.items() if k not in MEASURED_KEYS}) + "\n"
         for r in records
     )
     digest = hashlib.sha256(timeless.encode("utf-8")).hexdigest()[:10]

@@ -204,7 +204,7 @@ def shared_disk(tmp_path_factory) -> Iterator[Path]:
 
 
 def test_a_full_disk_under_the_knowledge_store_and_the_timing_file(small_disk, caplog):
-    disk = small_disk(512)
+    disk = small_disk(2048)
     platform = Platform(FALLBACK_APP, RunOptions(clock="simulated", seed=1,
                                                  state_dir=disk / "state"))
     platform.build()
