@@ -10,6 +10,7 @@ message`` where one exists.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 from rasm.errors import RasmError, printable, read_utf8
@@ -226,6 +227,43 @@ def _report_many(outcomes: list, args: argparse.Namespace, explain: bool) -> int
     if counts["not checked"]:
         return EXIT_BAD_INPUT
     return EXIT_FAILED if counts["fails"] else EXIT_OK
+
+
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from rasm.verify import verify_chart
+    from rasm.verify.text import format_verification
+
+    if args.max_states < 1:
+        raise UsageError(f"--max-states must be at least 1, not {args.max_states}")
+    target = Path(args.target)
+    if not target.exists():
+        raise UsageError(f"{args.target}: no such chart or app")
+    result = verify_chart(
+        target, environment=args.env, properties=args.properties, max_states=args.max_states
+    )
+    if args.counterexamples:
+        _write_counterexamples(result, Path(args.counterexamples))
+    if args.format == "json":
+        sys.stdout.write(json.dumps(result.as_dict()) + "\n")
+    else:
+        sys.stdout.write(format_verification(result))
+    return result.exit_code
+
+
+def _write_counterexamples(result, folder) -> None:
+    """One events file per violated property and per problem with a path, named after it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    numbered: dict[str, int] = {}
+    named = [(f"property-{p.name}", p.counterexample) for p in result.properties]
+    named += [(f.kind.replace(" ", "-"), f.counterexample) for f in result.problems]
+    for name, cex in named:
+        if cex is None or not cex.moves and name.startswith("unreachable"):
+            continue
+        numbered[name] = numbered.get(name, 0) + 1
+        suffix = "" if numbered[name] == 1 else f"-{numbered[name]}"
+        (folder / f"{name}{suffix}.jsonl").write_text(cex.jsonl(), encoding="utf-8")
 
 
 def _cmd_verify_rules(args: argparse.Namespace) -> int:

@@ -18,6 +18,7 @@ from rasm.cli.commands import (
     _cmd_package,
     _cmd_report,
     _cmd_simulate,
+    _cmd_verify,
     _cmd_verify_rules,
 )
 from rasm.cli.live import _byte_size, _cmd_monitor, _cmd_run, _count
@@ -119,6 +120,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("rules", help="rules file (YAML), or an app: its rules and fallback actions")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--against", default=None, metavar="PROPS.rv")
+
+    p = command("verify", _cmd_verify, "prove a statechart: explore every state it can reach")
+    p.add_argument("target", metavar="CHART|APP", help="statechart YAML file")
+    p.add_argument("--env", default=None, metavar="ENV.yaml",
+                   help="the events that may arrive and how the clock may advance")
+    p.add_argument("--properties", default=None, metavar="PROPS.rv",
+                   help="past-time properties judged at every macro step")
+    p.add_argument("--max-states", type=int, default=100_000, metavar="N",
+                   help="stop (inconclusive) after this many states (default 100000)")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.add_argument("--counterexamples", default=None, metavar="DIR",
+                   help="write each counterexample there as an events file for rasm simulate")
 
     p = command("lint", _cmd_lint, "check statecharts, properties, rules and manifests")
     p.add_argument("paths", nargs="+", metavar="PATH")

@@ -1,0 +1,256 @@
+"""What a chart's code reads and writes: the static facts the exploration is built on.
+
+The exploration keeps in its states only what can change what the chart does next. A context
+variable is *state* when a guard or a contract reads it, when a property reads it, or when code
+that assigns a state variable reads it (the closure, computed here). Everything else (counters
+nobody tests, reasons kept for a log) is sliced away: two runs that differ only there take the
+same transitions. The timers' thresholds (``after(x)``, ``idle(x)``) and the event data a guard
+reads are found here too.
+
+The analysis is conservative: code that could reach its namespace by introspection (``locals()``,
+``exec``, ``globals()``) makes every variable state, and a method call or an item assignment on a
+variable counts as assigning it.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+from sismic.model import Statechart
+
+__all__ = ["ChartCode", "Timer", "analyse_chart"]
+
+# names the interpreter puts beside the context in guards and actions
+_EXPOSED = frozenset({
+    "active", "time", "after", "idle", "event", "send", "notify", "setdefault", "__old__",
+})
+_INTROSPECTION = frozenset({"globals", "locals", "vars", "dir", "eval", "exec", "__dict__"})
+
+
+@dataclass(frozen=True)
+class Timer:
+    """An ``after(x)`` or ``idle(x)`` in the guard of a transition from ``state``: ``seconds``
+    is the argument's source, evaluated in the context when a threshold is needed."""
+
+    state: str
+    kind: str  # "after" | "idle"
+    seconds: str
+
+
+@dataclass
+class _Code:
+    """One piece of chart code: the names it reads and assigns, and the event data it reads."""
+
+    reads: set[str] = field(default_factory=set)
+    writes: set[str] = field(default_factory=set)
+    data: set[str] = field(default_factory=set)  # event data keys
+    whole_data: bool = False  # reads event.data as a whole (iterates it, passes it on)
+    introspects: bool = False
+    reads_time: bool = False
+    timers: list[tuple[str, str]] = field(default_factory=list)  # (after|idle, argument source)
+
+
+@dataclass
+class ChartCode:
+    """The static facts of a chart: see the module docstring."""
+
+    #: context variables that are state (None: all of them, the code introspects)
+    state_variables: frozenset[str] | None
+    #: whether the chart's behaviour depends on the absolute time (a guard reads ``time``)
+    reads_time: bool
+    #: the timers of each state
+    timers: dict[str, list[Timer]]
+    #: per event name, the data keys its transitions' guards read (to split into regions)
+    guard_data: dict[str, set[str]]
+    #: per event name, the data keys any code run on it reads
+    data: dict[str, set[str]]
+    #: the guards of each event's transitions, as source text (for the regions)
+    guards: dict[str, list[str]]
+    #: event names the chart's transitions wait for
+    events: list[str]
+    #: events the chart's code sends (send('name', ...))
+    sends: set[str]
+
+
+def _parse(code: str | None, mode: str) -> ast.AST | None:
+    if not code:
+        return None
+    try:
+        return ast.parse(code.strip() if mode == "eval" else code, mode=mode)
+    except SyntaxError:
+        return None  # load_statechart reported it; a chart with one does not get here
+
+
+def _base_name(node: ast.AST) -> str | None:
+    while isinstance(node, ast.Attribute | ast.Subscript):
+        node = node.value
+    return node.id if isinstance(node, ast.Name) else None
+
+
+def _literal_key(node: ast.AST) -> str | None:
+    return node.value if isinstance(node, ast.Constant) and isinstance(node.value, str) else None
+
+
+def _is_event_data(node: ast.AST) -> bool:
+    return (
+        isinstance(node, ast.Attribute) and node.attr == "data"
+        and isinstance(node.value, ast.Name) and node.value.id == "event"
+    )
+
+
+def _scan(tree: ast.AST | None) -> _Code:
+    found = _Code()
+    if tree is None:
+        return found
+    used_data: set[int] = set()  # ids of event.data nodes accounted for by a key
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            if isinstance(node.ctx, ast.Load):
+                if node.id in _INTROSPECTION:
+                    found.introspects = True
+                elif node.id == "time":
+                    found.reads_time = True
+                found.reads.add(node.id)
+            else:
+                found.writes.add(node.id)
+        elif isinstance(node, ast.Attribute | ast.Subscript) and isinstance(
+            node.ctx, ast.Store | ast.Del
+        ):
+            base = _base_name(node)
+            if base is not None:
+                found.writes.add(base)
+        elif isinstance(node, ast.Call):
+            func = node.func
+            if isinstance(func, ast.Name) and func.id in ("after", "idle") and node.args:
+                found.timers.append((func.id, ast.unparse(node.args[0])))
+            elif isinstance(func, ast.Name) and func.id == "setdefault" and node.args:
+                key = _literal_key(node.args[0])
+                if key is None:
+                    found.introspects = True
+                else:
+                    found.writes.add(key)
+            elif isinstance(func, ast.Attribute):
+                if _is_event_data(func.value) and func.attr == "get" and node.args:
+                    key = _literal_key(node.args[0])
+                    if key is None:
+                        found.whole_data = True
+                    else:
+                        found.data.add(key)
+                    used_data.add(id(func.value))
+                else:
+                    base = _base_name(func.value)
+                    if base is not None and base != "event":
+                        found.writes.add(base)  # items.append(x) changes items
+        elif isinstance(node, ast.Subscript) and _is_event_data(node.value):
+            key = _literal_key(node.slice)
+            if key is None:
+                found.whole_data = True
+            else:
+                found.data.add(key)
+            used_data.add(id(node.value))
+        elif (
+            isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+            and node.value.id == "event" and node.attr not in ("data", "name")
+        ):
+            found.data.add(node.attr)  # event.x is event.data['x']
+    for node in ast.walk(tree):
+        if _is_event_data(node) and id(node) not in used_data:
+            found.whole_data = True
+    found.reads -= _EXPOSED
+    found.writes -= _EXPOSED
+    return found
+
+
+def _conditions(obj) -> Iterator[str]:
+    for kind in ("preconditions", "postconditions", "invariants"):
+        yield from getattr(obj, kind, None) or ()
+
+
+def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCode:
+    """The static facts of ``statechart``; ``roots`` are variables that are state whatever the
+    chart does with them (those a property reads)."""
+    guards_read: set[str] = set(roots)
+    actions: list[_Code] = []
+    introspects = False
+    reads_time = False
+    timers: dict[str, list[Timer]] = {}
+    guard_data: dict[str, set[str]] = {}
+    data: dict[str, set[str]] = {}
+    guards: dict[str, list[str]] = {}
+    events: list[str] = []
+    sends: set[str] = set()
+
+    def note_sends(tree: ast.AST | None) -> None:
+        for node in ast.walk(tree) if tree is not None else ():
+            if (
+                isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                and node.func.id == "send" and node.args
+            ):
+                name = _literal_key(node.args[0])
+                if name is not None:
+                    sends.add(name)
+
+    preamble = _scan(_parse(statechart.preamble, "exec"))
+    note_sends(_parse(statechart.preamble, "exec"))
+    actions.append(preamble)
+    for transition in statechart.transitions:
+        event = transition.event
+        if event is not None and event not in events:
+            events.append(event)
+        guard = _scan(_parse(transition.guard, "eval"))
+        guards_read |= guard.reads
+        introspects |= guard.introspects
+        reads_time |= guard.reads_time
+        for kind, seconds in guard.timers:
+            timers.setdefault(transition.source, []).append(
+                Timer(transition.source, kind, seconds)
+            )
+        tree = _parse(transition.action, "exec")
+        action = _scan(tree)
+        note_sends(tree)
+        actions.append(action)
+        if event is not None:
+            if transition.guard:
+                guards.setdefault(event, []).append(transition.guard)
+            guard_data.setdefault(event, set()).update(guard.data)
+            data.setdefault(event, set()).update(guard.data | action.data)
+        for condition in _conditions(transition):
+            contract = _scan(_parse(condition, "eval"))
+            guards_read |= contract.reads
+            introspects |= contract.introspects
+    for name in statechart.states:
+        state = statechart.state_for(name)
+        for code in (getattr(state, "on_entry", None), getattr(state, "on_exit", None)):
+            tree = _parse(code, "exec")
+            actions.append(_scan(tree))
+            note_sends(tree)
+        for condition in _conditions(state):
+            contract = _scan(_parse(condition, "eval"))
+            guards_read |= contract.reads
+            introspects |= contract.introspects
+    introspects |= any(code.introspects for code in actions)
+    state = set(guards_read)
+    for timer_list in timers.values():
+        for timer in timer_list:
+            state |= _scan(_parse(timer.seconds, "eval")).reads
+    changed = True
+    while changed:  # the closure: code that assigns a state variable makes what it reads state
+        changed = False
+        for code in actions:
+            if code.writes & state and not code.reads <= state:
+                state |= code.reads
+                changed = True
+            if code.writes & state and code.reads_time:
+                reads_time = True
+    return ChartCode(
+        state_variables=None if introspects else frozenset(state),
+        reads_time=reads_time,
+        timers=timers,
+        guard_data=guard_data,
+        data=data,
+        guards=guards,
+        events=events,
+        sends=sends,
+    )
