@@ -50,6 +50,10 @@ class _Code:
     introspects: bool = False
     reads_time: bool = False
     timers: list[tuple[str, str]] = field(default_factory=list)  # (after|idle, argument source)
+    # per statement: (what it may assign, what that may depend on: the names it reads and those
+    # of the conditions it runs under), so that one line counting events does not make every
+    # variable of its block state
+    effects: list[tuple[set[str], set[str], bool]] = field(default_factory=list)
 
 
 @dataclass
@@ -163,6 +167,41 @@ def _scan(tree: ast.AST | None) -> _Code:
     return found
 
 
+def _effects(tree: ast.AST | None) -> list[tuple[set[str], set[str], bool]]:
+    """(assigned, read, reads time) of each simple statement of ``tree``, a statement under an
+    ``if``/``for``/``while``/``with``/``try`` also reading what decides whether it runs."""
+    out: list[tuple[set[str], set[str], bool]] = []
+
+    def visit(statements: list[ast.stmt], control: set[str], control_time: bool) -> None:
+        for stmt in statements:
+            if isinstance(stmt, ast.If | ast.While):
+                test = _scan(stmt.test)
+                inner = control | test.reads
+                visit(stmt.body + stmt.orelse, inner, control_time or test.reads_time)
+            elif isinstance(stmt, ast.For | ast.AsyncFor):
+                head = _scan(ast.Module(body=[ast.Expr(stmt.iter)], type_ignores=[]))
+                target = _scan(ast.Module(body=[ast.Assign(targets=[stmt.target], value=ast.Constant(0))], type_ignores=[]))
+                inner = control | head.reads
+                out.append((target.writes, inner, control_time or head.reads_time))
+                visit(stmt.body + stmt.orelse, inner, control_time or head.reads_time)
+            elif isinstance(stmt, ast.With | ast.AsyncWith | ast.Try):
+                body = list(getattr(stmt, "body", []))
+                for handler in getattr(stmt, "handlers", []):
+                    body.extend(handler.body)
+                body += list(getattr(stmt, "orelse", [])) + list(getattr(stmt, "finalbody", []))
+                visit(body, control, control_time)
+            else:
+                found = _scan(ast.Module(body=[stmt], type_ignores=[]))
+                out.append((found.writes, found.reads | control, found.reads_time or control_time))
+
+    if isinstance(tree, ast.Module):
+        visit(tree.body, set(), False)
+    elif tree is not None:
+        found = _scan(tree)
+        out.append((found.writes, found.reads, found.reads_time))
+    return out
+
+
 def _conditions(obj) -> Iterator[str]:
     for kind in ("preconditions", "postconditions", "invariants"):
         yield from getattr(obj, kind, None) or ()
@@ -173,7 +212,6 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
     chart does with them (those a property reads)."""
     guards_read: set[str] = set(roots)
     actions: list[_Code] = []
-    introspects = False
     reads_time = False
     timers: dict[str, list[Timer]] = {}
     guard_data: dict[str, set[str]] = {}
@@ -192,9 +230,11 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
                 if name is not None:
                     sends.add(name)
 
+    # the preamble runs once, before the first step: what it reads is in the initial state
+    # already, so it makes nothing state (its introspection still counts)
     preamble = _scan(_parse(statechart.preamble, "exec"))
     note_sends(_parse(statechart.preamble, "exec"))
-    actions.append(preamble)
+    introspects = preamble.introspects
     for transition in statechart.transitions:
         event = transition.event
         if event is not None and event not in events:
@@ -209,6 +249,7 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
             )
         tree = _parse(transition.action, "exec")
         action = _scan(tree)
+        action.effects = _effects(tree)
         note_sends(tree)
         actions.append(action)
         if event is not None:
@@ -224,7 +265,9 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
         state = statechart.state_for(name)
         for code in (getattr(state, "on_entry", None), getattr(state, "on_exit", None)):
             tree = _parse(code, "exec")
-            actions.append(_scan(tree))
+            scanned = _scan(tree)
+            scanned.effects = _effects(tree)
+            actions.append(scanned)
             note_sends(tree)
         for condition in _conditions(state):
             contract = _scan(_parse(condition, "eval"))
@@ -235,14 +278,15 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
     for timer_list in timers.values():
         for timer in timer_list:
             state |= _scan(_parse(timer.seconds, "eval")).reads
+    effects = [effect for code in actions for effect in code.effects]
     changed = True
-    while changed:  # the closure: code that assigns a state variable makes what it reads state
+    while changed:  # the closure: a statement that assigns a state variable makes what it reads
         changed = False
-        for code in actions:
-            if code.writes & state and not code.reads <= state:
-                state |= code.reads
+        for writes, reads, uses_time in effects:
+            if writes & state and not reads <= state:
+                state |= reads
                 changed = True
-            if code.writes & state and code.reads_time:
+            if writes & state and uses_time:
                 reads_time = True
     return ChartCode(
         state_variables=None if introspects else frozenset(state),
