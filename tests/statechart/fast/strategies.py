@@ -97,8 +97,15 @@ def _contract(draw: Any, with_invariants: bool = True) -> list[dict[str, str]] |
 
 
 @st.composite
-def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict[str, Any]:
-    """A random statechart, as the dict sismic's YAML importer reads."""
+def chart_dicts(
+    draw: Any,
+    max_states: int = 14,
+    contracts: bool = True,
+    guards: list[str] = GUARDS,
+    actions: list[str] = ACTIONS,
+) -> dict[str, Any]:
+    """A random statechart, as the dict sismic's YAML importer reads (its guards and actions
+    drawn from ``guards`` and ``actions``)."""
     counter = iter(range(1000))
     budget = [max_states]
     sources: list[dict[str, Any]] = []
@@ -134,7 +141,7 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
         if kind != "shallow history" and kind != "deep history":
             for key in ("on entry", "on exit"):
                 if draw(st.integers(0, 4)) == 0:
-                    node[key] = draw(st.sampled_from(ACTIONS))
+                    node[key] = draw(st.sampled_from(actions))
         if contracts:
             contract = _contract(draw)
             if contract:
@@ -176,9 +183,9 @@ def chart_dicts(draw: Any, max_states: int = 14, contracts: bool = True) -> dict
             if event is not None:
                 t["event"] = event
             if draw(st.integers(0, 2)) > 0 or event is None:
-                t["guard"] = draw(st.sampled_from(GUARDS))
+                t["guard"] = draw(st.sampled_from(guards))
             if draw(st.booleans()):
-                t["action"] = draw(st.sampled_from(ACTIONS))
+                t["action"] = draw(st.sampled_from(actions))
             if draw(st.booleans()):  # often: ties between enabled transitions are errors
                 t["priority"] = draw(st.sampled_from(["high", "low", 2, -1, 0]))
             if contracts:
