@@ -17,14 +17,14 @@ from typing import Any
 
 from sismic.model import Statechart
 
-from rasm.errors import Location, SourceError, read_utf8
+from rasm.errors import Location, SourceError, SourceErrors, read_utf8
 from rasm.statechart.load import load_statechart
 from rasm.statechart.simulate import SimulatedStep, TimedEvent, simulate
 from rasm.times import format_nanoseconds, from_nanoseconds
 from rasm.verify.environment import Environment, default_environment, load_environment
 from rasm.verify.explore import ChartExplorer, Move, Problem, explore
 from rasm.verify.interfaces import receives
-from rasm.verify.past import PastProperty, explain, load_past_properties
+from rasm.verify.past import PastProperty, calls, explain, load_past_properties
 
 __all__ = ["Counterexample", "Finding", "PropertyVerdict", "Verification", "verify_chart"]
 
@@ -112,7 +112,9 @@ class Verification:
         }
 
 
-def _replay(statechart: Statechart, moves: list[Move], context: dict[str, Any] | None) -> list[SimulatedStep]:
+def _replay(
+    statechart: Statechart, moves: list[Move], context: dict[str, Any] | None
+) -> list[SimulatedStep]:
     events = [
         TimedEvent(from_nanoseconds(m.time_ns), m.event, dict(m.data), line=i + 1)
         for i, m in enumerate(moves)
@@ -153,6 +155,7 @@ def verify_chart(
             explorer.code, receives(chart, statechart, explorer.code.events)
         )
     explorer.environment = env
+    _check_names(props, statechart, env, explorer.code.sends)
     found = explore(explorer, max_states=max_states)
     property_verdicts = []
     for prop in props:
@@ -193,6 +196,31 @@ def verify_chart(
         environment=env.describe(),
         max_states=max_states,
     )
+
+
+def _check_names(
+    props: list[PastProperty], statechart: Statechart, env: Environment, sends: set[str]
+) -> None:
+    """A state, event or sent event a property names that the chart and environment do not
+    have is a typo that would make the property vacuous: refused at its place."""
+    known = {
+        "in_state": (set(statechart.states), "a state of the chart"),
+        "received": (
+            {e.name for e in env.events} | sends, "an event the environment or the chart sends"
+        ),
+        "sent": (sends, "an event the chart's code sends (send('name'))"),
+    }
+    errors = []
+    for prop in props:
+        for call in calls(prop):
+            names, what = known[call.func]
+            name = call.args[0].value
+            if name not in names:
+                errors.append(SourceError(
+                    f"{call.func}({name!r}): {name!r} is not {what}", call.location
+                ))
+    if errors:
+        raise SourceErrors(errors)
 
 
 def _explain_on_replay(

@@ -180,7 +180,8 @@ def _effects(tree: ast.AST | None) -> list[tuple[set[str], set[str], bool]]:
                 visit(stmt.body + stmt.orelse, inner, control_time or test.reads_time)
             elif isinstance(stmt, ast.For | ast.AsyncFor):
                 head = _scan(ast.Module(body=[ast.Expr(stmt.iter)], type_ignores=[]))
-                target = _scan(ast.Module(body=[ast.Assign(targets=[stmt.target], value=ast.Constant(0))], type_ignores=[]))
+                assign = ast.Assign(targets=[stmt.target], value=ast.Constant(0))
+                target = _scan(ast.Module(body=[assign], type_ignores=[]))
                 inner = control | head.reads
                 out.append((target.writes, inner, control_time or head.reads_time))
                 visit(stmt.body + stmt.orelse, inner, control_time or head.reads_time)

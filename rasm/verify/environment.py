@@ -82,7 +82,8 @@ def _event(src: YamlSource, item: Any, index: int, seq: Any) -> EnvEvent:
         )
     unknown = sorted(set(item) - {"name", "data"})
     if unknown:
-        raise src.error(f"unknown key {unknown[0]!r} (expected name, data)", src.key(item, unknown[0]))
+        where = src.key(item, unknown[0])
+        raise src.error(f"unknown key {unknown[0]!r} (expected name, data)", where)
     name = item.get("name")
     if not isinstance(name, str) or not name:
         raise src.error("an event needs a name (a non-empty string)", src.node(item))
@@ -96,9 +97,13 @@ def _event(src: YamlSource, item: Any, index: int, seq: Any) -> EnvEvent:
     for key, values in data.items():
         at = src.value(data, key)
         if not isinstance(key, str) or not key.isidentifier():
-            raise src.error(f"data key {key!r} is not a name an event's data can have", src.key(data, key))
+            raise src.error(
+                f"data key {key!r} is not a name an event's data can have", src.key(data, key)
+            )
         if key in ("name", "data", "delay"):
-            raise src.error(f"data key {key!r} is reserved by sismic; rename it", src.key(data, key))
+            raise src.error(
+                f"data key {key!r} is reserved by sismic; rename it", src.key(data, key)
+            )
         if _scalar(values):
             values = [values]
         if not isinstance(values, list) or not values:
@@ -106,7 +111,8 @@ def _event(src: YamlSource, item: Any, index: int, seq: Any) -> EnvEvent:
         for i, value in enumerate(values):
             if not _scalar(plain(value)):
                 raise src.error(
-                    f"a value of {key!r} is a number, a string, true, false or null", src.item(values, i)
+                    f"a value of {key!r} is a number, a string, true, false or null",
+                    src.item(values, i),
                 )
         count *= len(values)
         if count > MAX_COMBINATIONS:
@@ -145,7 +151,8 @@ def load_environment(path: str | Path, *, text: str | None = None) -> Environmen
         except UnicodeDecodeError as exc:
             raise not_utf8(file, exc) from None
         except OSError as exc:
-            raise SourceError(f"cannot read the environment: {exc.strerror}", Location(file)) from None
+            why = f"cannot read the environment: {exc.strerror}"
+            raise SourceError(why, Location(file)) from None
     src = load_yaml(text, file)
     doc = src.data
     if doc is None:
@@ -154,10 +161,13 @@ def load_environment(path: str | Path, *, text: str | None = None) -> Environmen
         raise src.error("an environment is a mapping with events: and clock:", src.start())
     unknown = sorted(set(doc) - {"events", "clock"})
     if unknown:
-        raise src.error(f"unknown key {unknown[0]!r} (expected events, clock)", src.key(doc, unknown[0]))
+        where = src.key(doc, unknown[0])
+        raise src.error(f"unknown key {unknown[0]!r} (expected events, clock)", where)
     seq = doc.get("events") or []
     if not isinstance(seq, list):
-        raise src.error("events is a list of event names or {name, data} mappings", src.value(doc, "events"))
+        raise src.error(
+            "events is a list of event names or {name, data} mappings", src.value(doc, "events")
+        )
     events = tuple(_event(src, item, i, seq) for i, item in enumerate(seq))
     return Environment(events, _clock(src, doc), file)
 

@@ -16,7 +16,7 @@ event e) and ``sent("e")`` (the step sent e).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +26,7 @@ from rasm.properties.parser import parse_declarations
 from rasm.properties.printer import format_value, unparse
 from rasm.times import from_nanoseconds
 
-__all__ = ["PastProperty", "Record", "STEP_FUNCTIONS", "load_past_properties"]
+__all__ = ["PastProperty", "Record", "STEP_FUNCTIONS", "calls", "explain", "load_past_properties"]
 
 STEP_FUNCTIONS = ("in_state", "received", "sent")
 UNDEFINED = None  # prev() at the first step, a variable the context does not have, x / 0
@@ -387,10 +387,9 @@ class _Compiler:
             return _Aggregate(node.op, node.bound, self.compile(node.operand), self.slot())
         if isinstance(node, A.Future | A.Until):
             raise self.error(
-                "rasm verify judges properties at every step with past-time operators only "
-                "(once, historically, since, prev, aggregates); a future operator has no "
-                "verdict until later steps: state it in the past (e.g. 'always (p -> eventually "
-                "q)' as a check that q follows p is 'historically ...' or an in_state property)",
+                "rasm verify judges a property at every step, with past-time operators only "
+                "(once, historically, since, prev and the aggregates): write what must have "
+                "happened, not what will (e.g. 'in_state(\"done\") -> once received(\"go\")')",
                 node,
             )
         raise self.error("not allowed in a verified property", node)
@@ -401,6 +400,16 @@ def _strip_always(node: A.Expr) -> A.Expr:
             and node.bound.low == 0:
         return node.operand
     return node
+
+
+def calls(prop: PastProperty) -> Iterator[A.Call]:
+    """The ``in_state``, ``received`` and ``sent`` calls of ``prop``'s formula."""
+    stack = [prop.formula]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, A.Call) and node.func in STEP_FUNCTIONS:
+            yield node
+        stack.extend(A.children(node))
 
 
 def load_past_properties(text: str, *, source: str) -> list[PastProperty]:

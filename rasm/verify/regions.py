@@ -134,7 +134,8 @@ class _Translator:
         value = self._constant(node)
         if value is not _NO:
             return _literal(value)
-        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add | ast.Sub | ast.Mult | ast.Div):
+        arithmetic = ast.Add | ast.Sub | ast.Mult | ast.Div
+        if isinstance(node, ast.BinOp) and isinstance(node.op, arithmetic):
             left, right = self.term(node.left), self.term(node.right)
             if isinstance(node.op, ast.Add):
                 return left + right

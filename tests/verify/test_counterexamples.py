@@ -133,7 +133,8 @@ def test_rasm_verify_writes_the_counterexample_and_exits_1(lock, tmp_path, capsy
     report = json.loads(capsys.readouterr().out)
     assert report["verdict"] == "violated" and report["complete"] is True
     (prop,) = report["properties"]
-    written = [json.loads(line) for line in (out / "property-no_alarm.jsonl").read_text().splitlines()]
+    lines = (out / "property-no_alarm.jsonl").read_text().splitlines()
+    written = [json.loads(line) for line in lines]
     assert written == prop["counterexample"]
     assert main(["simulate", str(chart), "--events", str(out / "property-no_alarm.jsonl"),
                  "--format", "json"]) == 0
