@@ -39,6 +39,8 @@ from rasm.verify.regions import split_data
 
 __all__ = ["ChartExplorer", "Move", "Problem", "Exploration"]
 
+_next_deadline = Interpreter.next_deadline
+
 
 @dataclass(frozen=True)
 class Move:
@@ -164,6 +166,24 @@ class ChartExplorer:
         self._property_variables = sorted(
             set().union(*(p.variables for p in self.properties)) if self.properties else ()
         )
+        self._state_names = sorted(self.state_variables or ())
+        self._timed_states = [
+            (state, sorted({t.kind for t in timers}))
+            for state, timers in sorted(self.code.timers.items())
+        ]
+        # event -> the states with a transition on it (an event none of them is active for is
+        # only consumed)
+        self._handled: dict[str, set[str]] = {}
+        for transition in statechart.transitions:
+            if transition.event is not None:
+                self._handled.setdefault(transition.event, set()).add(transition.source)
+        self._contracts = any(
+            getattr(x, kind, None)
+            for x in [*statechart.transitions, *map(statechart.state_for, statechart.states)]
+            for kind in ("preconditions", "postconditions", "invariants")
+        )
+        self._regions: dict[tuple, list[dict[str, Any]]] = {}
+        self.skipped = 0  # moves not even made: events the active states ignore
 
     # -- snapshots -------------------------------------------------------------------------
     def save(self) -> tuple:
@@ -173,7 +193,8 @@ class ChartExplorer:
             self.now_ns, it._initialized, it._time,
             {k: (list(v) if v is not None else None) for k, v in it._memory.items()},
             set(it._configuration), dict(it._entry_time), dict(it._idle_time),
-            it._context_copy(), list(it._internal_queue), list(it._external_queue),
+            _context_snapshot(it._evaluator._context),
+            list(it._internal_queue), list(it._external_queue),
             list(getattr(ev, "deadlines", None) or ()),
         )
 
@@ -187,7 +208,8 @@ class ChartExplorer:
         it._idle_time = dict(idle)
         ctx = it._evaluator._context
         ctx.clear()
-        ctx.update({k: _copy(v) for k, v in context.items()})
+        values, immutable = context
+        ctx.update(values if immutable else {k: _copy(v) for k, v in values.items()})
         it._internal_queue = list(internal)
         it._external_queue = list(external)
         ev = it._evaluator
@@ -196,19 +218,19 @@ class ChartExplorer:
         self.clock.time = from_nanoseconds(self.now_ns)
 
     # -- the state key ---------------------------------------------------------------------
-    def key(self, prop_states: tuple, since_record: int | None) -> tuple:
+    def chart_key(self) -> tuple:
+        """What decides the chart's future (see the module docstring), properties aside."""
         it = self.interp
         context = it._evaluator._context
-        names = sorted(context) if self.state_variables is None else sorted(
-            n for n in self.state_variables if n in context
-        )
-        values = tuple((n, _freeze(context[n])) for n in names)
+        names = sorted(context) if self.state_variables is None else self._state_names
+        values = tuple((n, _freeze(context[n])) for n in names if n in context)
+        configuration = it._configuration
         timers = []
-        for state in sorted(self.code.timers):
-            if state not in it._configuration:
+        for state, kinds in self._timed_states:
+            if state not in configuration:
                 continue
             cap = self._timer_cap(state)
-            for kind in sorted({t.kind for t in self.code.timers[state]}):
+            for kind in kinds:
                 since = it._entry_time.get(state) if kind == "after" else it._idle_time.get(state)
                 start = nanoseconds(since)
                 age = None if start is None else self.now_ns - start
@@ -224,13 +246,40 @@ class ChartExplorer:
         )
         memory = tuple(sorted(
             (k, tuple(v) if v is not None else None) for k, v in it._memory.items()
-        ))
-        since = None
-        if since_record is not None and self.properties:
-            since = min(since_record, self._property_horizon)
+        )) if it._memory else ()
         return (
-            frozenset(it._configuration), memory, values, tuple(timers), queued,
-            self.now_ns if self.reads_time else None, prop_states, since,
+            frozenset(configuration), memory, values, tuple(timers), queued,
+            self.now_ns if self.reads_time else None,
+        )
+
+    def key(self, chart_key: tuple, prop_states: tuple, since_record: int | None) -> tuple:
+        """The whole state: the chart's, each property's memory, and how long ago the last
+        record was (as far as a property's windows can tell)."""
+        if not self.properties:
+            return chart_key
+        since = None if since_record is None else min(since_record, self._property_horizon)
+        return (chart_key, prop_states, since)
+
+    def ignores(self, move: Move) -> bool:
+        """Whether ``move`` is an event no transition of the active states waits for: the step
+        only consumes it, and nothing changes (charts with contracts are always executed: an
+        invariant may read ``received()``)."""
+        if move.event is None or self._contracts:
+            return False
+        sources = self._handled.get(move.event)
+        return not sources or sources.isdisjoint(self.interp._configuration)
+
+    def ignored_record(self, move: Move) -> Record:
+        """The record of the step that consumes an ignored event (see :meth:`ignores`)."""
+        context = self.interp._evaluator._context
+        wanted = self._property_variables
+        return Record(
+            time_ns=self.now_ns,
+            configuration=frozenset(self.interp._configuration),
+            received=move.event,
+            sent=_NONE,
+            context={n: context[n] for n in wanted if n in context} if wanted else _EMPTY,
+            transitions=False,
         )
 
     def _timer_cap(self, state: str) -> int | None:
@@ -254,31 +303,54 @@ class ChartExplorer:
         return best
 
     # -- moves -----------------------------------------------------------------------------
-    def moves(self) -> Iterator[Move]:
-        """The environment's moves from the current (stable) state."""
+    def moves(self, *, skip_ignored: bool = False) -> Iterator[Move]:
+        """The environment's moves from the current (stable) state (with ``skip_ignored``,
+        not the events :meth:`ignores` would say are only consumed)."""
         context = self.interp._evaluator._context
+        configuration = self.interp._configuration
         for event in self.environment.events:
+            if skip_ignored and not self._contracts:
+                sources = self._handled.get(event.name)
+                if not sources or sources.isdisjoint(configuration):
+                    self.skipped += len(event.combinations())
+                    continue
             wanted = self.code.guard_data.get(event.name, set())
             read = self.code.data.get(event.name, set())
             for fixed in event.combinations():
                 free = wanted - set(fixed)
-                datas, capped = split_data(
-                    self.code.guards.get(event.name, []), free, context, fixed
-                )
-                self.capped_regions |= capped
-                for data in datas:
-                    for key in sorted(read - set(data)):
-                        data[key] = None  # read by an action only: present, with no value
-                    yield Move(self.now_ns, event.name, tuple(sorted(data.items())))
+                for data in self._split(event.name, free, read, fixed, context):
+                    yield Move(self.now_ns, event.name, data)
         if self.environment.clock_ns:
             for amount in self.environment.clock_ns:
                 yield Move(self.now_ns + amount)
         else:
-            due = self.interp.next_deadline()
+            due = _next_deadline(self.interp)
             if due is not None:
                 due_ns = nanoseconds(due)
                 if due_ns is not None and due_ns > self.now_ns:
                     yield Move(due_ns)
+
+    def _split(
+        self, event: str, free: set[str], read: set[str], fixed: dict[str, Any],
+        context: Mapping[str, Any],
+    ) -> list[tuple[tuple[str, Any], ...]]:
+        """The data of ``event`` to try: ``fixed`` given, ``free`` split into regions (cached by
+        the values of the state variables, which are all the guards' comparisons can read)."""
+        names = self._state_names if self.state_variables is not None else sorted(context)
+        cache = (event, tuple(sorted(fixed.items())), tuple(
+            _freeze(context.get(n)) for n in names
+        ) if free else ())
+        found = self._regions.get(cache)
+        if found is None:
+            datas, capped = split_data(self.code.guards.get(event, []), free, context, fixed)
+            self.capped_regions |= capped
+            found = []
+            for data in datas:
+                for key in sorted(read - set(data)):
+                    data[key] = None  # read by an action only: present, with no value
+                found.append(tuple(sorted(data.items())))
+            self._regions[cache] = found
+        return found
 
     def apply(self, move: Move) -> tuple[list[Record], list[tuple[str, str]], bool]:
         """Play ``move`` from the current state: the macro steps taken, the failures
@@ -339,6 +411,17 @@ class _SettableClock(Clock):
     @time.setter
     def time(self, value: float) -> None:
         self._time = value
+
+
+_IMMUTABLE = (bool, int, float, str, bytes, type(None))
+
+
+def _context_snapshot(context: Mapping[str, Any]) -> tuple[dict[str, Any], bool]:
+    """A copy of the context, and whether all its values are immutable (then restoring it
+    needs no copy of each value)."""
+    if all(type(v) in _IMMUTABLE for v in context.values()):
+        return dict(context), True
+    return {k: _copy(v) for k, v in context.items()}, False
 
 
 def _copy(value: Any) -> Any:
@@ -423,61 +506,88 @@ def explore(explorer: ChartExplorer, *, max_states: int = 100_000) -> Exploratio
                 path = path_to(parent, move) if parent is not None else []
                 result.problems.append(Problem("no stable state", message, path))
 
+    def since(last_ns: int | None) -> int | None:
+        return None if last_ns is None else explorer.now_ns - last_ns
+
     steps, failures, stable = explorer.execute()
     note(failures, stable, None, None)
     prop_states, last_ns = judge(tuple(p.initial() for p in props), None, steps, None, None)
     result.configurations.update(record.configuration for record in steps)
-    since = None if last_ns is None else explorer.now_ns - last_ns
-    key = explorer.key(prop_states, since)
-    index[key] = 0
+    chart = explorer.chart_key()
+    index[explorer.key(chart, prop_states, since(last_ns))] = 0
     nodes.append(_Node(None, None, 0))
-    frontier: deque[tuple[int, tuple, tuple, int | None]] = deque(
-        [(0, explorer.save(), prop_states, last_ns)]
+    frontier: deque[tuple[int, tuple, tuple, tuple, int | None]] = deque(
+        [(0, explorer.save(), chart, prop_states, last_ns)]
     )
     stuck_seen: set[frozenset[str]] = set()
+
+    def add(key: tuple, parent: int, move: Move, entry: tuple) -> bool:
+        """Queue a state not seen before; False when --max-states is reached."""
+        if key in index:
+            return True
+        if len(nodes) >= max_states:
+            return False
+        index[key] = len(nodes)
+        nodes.append(_Node(parent, move, nodes[parent].depth + 1))
+        frontier.append((index[key], *entry))
+        return True
+
     while frontier:
-        current, snap, prop_states, last_ns = frontier.popleft()
+        current, snap, own_chart, prop_states, last_ns = frontier.popleft()
         explorer.restore(snap)
-        own = key_of(explorer, prop_states, last_ns)
-        moves = list(explorer.moves())
-        explorer.restore(snap)
+        configuration = frozenset(explorer.interp._configuration)
+        final = explorer.interp.final
+        moves = list(explorer.moves(skip_ignored=not props))
+        # decided before any move changes the interpreter: events nobody waits for are only
+        # consumed, so they are not executed
+        ignored = [explorer.ignores(move) for move in moves]
+        records = [explorer.ignored_record(m) if skip and props else None
+                   for m, skip in zip(moves, ignored, strict=True)]
         way_out = False
-        for move in moves:
-            explorer.restore(snap)
-            steps, failures, stable = explorer.apply(move)
+        dirty = False
+        for move, skip, record in zip(moves, ignored, records, strict=True):
             result.transitions += 1
+            if skip:
+                if not props:
+                    continue  # the same state again
+                new_props, new_last = judge(prop_states, last_ns, [record], current, move)
+                key = explorer.key(own_chart, new_props, 0)
+                if not add(key, current, move, (snap, own_chart, new_props, new_last)):
+                    return _stopped(result, explorer, nodes)
+                continue
+            if dirty:
+                explorer.restore(snap)
+            dirty = True
+            steps, failures, stable = explorer.apply(move)
             note(failures, stable, current, move)
             new_props, new_last = judge(prop_states, last_ns, steps, current, move)
             result.configurations.update(record.configuration for record in steps)
-            succ = key_of(explorer, new_props, new_last)
-            if succ != own or any(record.transitions for record in steps):
+            chart = explorer.chart_key()
+            if chart != own_chart or any(record.transitions for record in steps):
                 way_out = True
-            if succ in index:
-                continue
-            if len(nodes) >= max_states:
-                result.states = len(nodes)
-                result.entered = explorer.entered
-                return result
-            index[succ] = len(nodes)
-            nodes.append(_Node(current, move, nodes[current].depth + 1))
-            frontier.append((index[succ], explorer.save(), new_props, new_last))
-        explorer.restore(snap)
-        if not way_out and not explorer.interp.final:
-            conf = frozenset(explorer.interp._configuration)
-            if conf not in stuck_seen:
-                stuck_seen.add(conf)
-                result.problems.append(Problem(
-                    "stuck",
-                    "stuck in " + ", ".join(sorted(conf)) + ": every event is ignored and no "
-                    "timer is pending",
-                    path_to(current, None) if current else [],
-                ))
+            key = explorer.key(chart, new_props, since(new_last))
+            if key not in index and not add(
+                key, current, move, (explorer.save(), chart, new_props, new_last)
+            ):
+                return _stopped(result, explorer, nodes)
+        if not way_out and not final and configuration not in stuck_seen:
+            stuck_seen.add(configuration)
+            result.problems.append(Problem(
+                "stuck",
+                "stuck in " + ", ".join(sorted(configuration)) + ": every event is ignored and "
+                "no timer is pending",
+                path_to(current, None) if current else [],
+            ))
     result.states = len(nodes)
     result.entered = explorer.entered
+    result.transitions += explorer.skipped
     result.complete = True
     return result
 
 
-def key_of(explorer: ChartExplorer, prop_states: tuple, last_ns: int | None) -> tuple:
-    since = None if last_ns is None else explorer.now_ns - last_ns
-    return explorer.key(prop_states, since)
+def _stopped(result: Exploration, explorer: ChartExplorer, nodes: list) -> Exploration:
+    """The exploration reached --max-states: what it found so far, incomplete."""
+    result.states = len(nodes)
+    result.entered = explorer.entered
+    result.transitions += explorer.skipped
+    return result
