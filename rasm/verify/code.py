@@ -296,6 +296,6 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
         guard_data=guard_data,
         data=data,
         guards=guards,
-        events=events,
+        events=sorted(events),
         sends=sends,
     )
