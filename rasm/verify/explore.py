@@ -183,6 +183,9 @@ class ChartExplorer:
             for kind in ("preconditions", "postconditions", "invariants")
         )
         self._regions: dict[tuple, list[dict[str, Any]]] = {}
+        # states whose eventless transitions or timers may fire without an event
+        self._unsettled = {t.source for t in statechart.transitions if t.event is None}
+        self._unsettled |= set(self.code.timers)
         self.skipped = 0  # moves not even made: events the active states ignore
 
     # -- snapshots -------------------------------------------------------------------------
@@ -391,7 +394,23 @@ class ChartExplorer:
                 context={n: context[n] for n in wanted if n in context} if wanted else _EMPTY,
                 transitions=bool(macro.transitions),
             ))
+            if self._settled(interp):
+                return records, failures, True
         return records, failures, False
+
+    def _settled(self, interp: Any) -> bool:
+        """Whether the chart is surely stable after a step, without the step sismic would take
+        to find out: no event queued, and no active state with an eventless transition or a
+        timer (a chart with contracts always takes it: its invariants are checked there)."""
+        if interp._internal_queue or interp._external_queue or self._contracts:
+            return False
+        configuration = interp._configuration
+        if not self._unsettled.isdisjoint(configuration):
+            return False
+        deadlines = getattr(interp._evaluator, "deadlines", None)
+        if deadlines:
+            deadlines.clear()  # those of guards before the step: none applies to this state
+        return True
 
 
 _NONE: frozenset[str] = frozenset()
