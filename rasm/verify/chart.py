@@ -229,7 +229,7 @@ def _explain_on_replay(
 ) -> list[str]:
     """The property's failing sub-formula on the counterexample, judged on a fresh run of it."""
     explorer = ChartExplorer(statechart, Environment(()), [prop], initial_context=initial_context)
-    records, _, _ = explorer.execute()
+    records, _, _ = explorer.start()
     for move in cex.moves:
         more, _, _ = explorer.apply(move)
         records.extend(more)

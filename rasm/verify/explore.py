@@ -1,45 +1,37 @@
-"""Exhaustive exploration of a chart as it executes: every stable state, breadth first.
+"""Exhaustive exploration of charts as they execute: every stable state, breadth first.
 
-The chart runs on rasm's own interpreter (the one ``rasm run`` and ``rasm simulate`` use), macro
-step by macro step. From the initial state, and from every stable state found, each move of the
-environment is tried: queue one event (with each of its data), or advance the clock. The chart
-executes until it is stable again, exactly as ``rasm simulate`` executes a line of an events
-file. Each macro step is a record the properties judge.
+A *system* is what is explored: one chart under an environment (:class:`ChartExplorer`), or the
+charts of an application bound together (:mod:`rasm.verify.app`). From the initial state, and
+from every stable state found, each move of the environment is tried — queue one event (with each
+of its data), or advance the clock — and the charts execute until they are stable again, exactly
+as ``rasm simulate`` executes a line of an events file. Each macro step is a record the
+properties judge.
 
-A state is what decides the chart's future (:meth:`ChartExplorer.key`): the active
-configuration, the history memory, the context variables that are state
-(:mod:`rasm.verify.code`), the age of every timer up to the largest threshold it is compared
-with, the delayed events still queued, and each property's memory. One concrete interpreter
-snapshot per distinct state is kept until the state is expanded; the exploration's memory grows
-with the number of states, not of paths. Breadth first, so the first path found to a problem is
-a shortest one.
+A state is what decides the future (:meth:`System.key`): for each chart its configuration,
+history memory, the context variables that are state, each timer's age up to its largest
+threshold and the delayed events still queued (:mod:`rasm.verify.component`), and each
+property's memory. One concrete snapshot per distinct state is kept until the state is expanded;
+the exploration's memory grows with the number of states, not of paths. Breadth first, so the
+first path found to a problem is a shortest one.
 """
 
 from __future__ import annotations
 
-import ast
 import math
 from collections import deque
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
-from sismic.clock import Clock
-from sismic.exceptions import ConflictingTransitionsError, ContractError, NonDeterminismError
-from sismic.model import Event, Statechart
+from sismic.model import Statechart
 
-from rasm.errors import ExecutionError
-from rasm.statechart.interpreter import Interpreter
-from rasm.statechart.simulate import MAX_STEPS
-from rasm.times import from_nanoseconds, nanoseconds
-from rasm.verify.code import ChartCode, analyse_chart
+from rasm.times import format_nanoseconds
+from rasm.verify.component import ChartRun, SettableClock, Step, freeze
 from rasm.verify.environment import Environment
 from rasm.verify.past import PastProperty, Record
 from rasm.verify.regions import split_data
 
-__all__ = ["ChartExplorer", "Move", "Problem", "Exploration"]
-
-_next_deadline = Interpreter.next_deadline
+__all__ = ["ChartExplorer", "Exploration", "Move", "Problem", "System", "explore", "record_of"]
 
 
 @dataclass(frozen=True)
@@ -53,9 +45,8 @@ class Move:
 
     def as_line(self) -> dict[str, Any]:
         """The move as a line of ``rasm simulate``'s events format."""
-        from rasm.times import format_nanoseconds
-
-        time = _json_time(format_nanoseconds(self.time_ns))
+        text = format_nanoseconds(self.time_ns)
+        time: int | float = int(text) if text.lstrip("-").isdigit() else float(text)
         if self.event is None:
             return {"time": time}
         line: dict[str, Any] = {"time": time, "event": self.event}
@@ -64,29 +55,16 @@ class Move:
         return line
 
 
-def _json_time(text: str) -> int | float:
-    number = float(text)
-    return int(number) if number.is_integer() and "." not in text and "e" not in text else number
-
-
 @dataclass
 class Problem:
     """Something wrong found on some path: ``kind`` is one of raising code, non-determinism,
-    contract, no stable state, property (``name`` the property's), unreachable, stuck."""
+    contract, no stable state, property (``name`` the property's), stuck, or one of an
+    application's checks."""
 
     kind: str
     message: str
     path: list[Move] | None = None
     name: str | None = None
-
-
-@dataclass
-class _Node:
-    """A distinct state found: how it was reached (for the counterexamples)."""
-
-    parent: int | None
-    move: Move | None
-    depth: int
 
 
 @dataclass
@@ -100,37 +78,47 @@ class Exploration:
     entered: set[str] = field(default_factory=set)  # every state some step entered
     problems: list[Problem] = field(default_factory=list)
     violated: dict[str, Problem] = field(default_factory=dict)
-    capped_regions: bool = False
 
 
-def _freeze(value: Any) -> Any:
-    """A hashable stand-in for a context value (equal values, equal stand-ins)."""
-    if isinstance(value, bool | int | float | str | bytes | type(None)):
-        return value
-    if isinstance(value, list | tuple):
-        return (type(value).__name__, tuple(_freeze(v) for v in value))
-    if isinstance(value, dict):
-        return ("dict", tuple(sorted(((repr(k), _freeze(v)) for k, v in value.items()))))
-    if isinstance(value, set | frozenset):
-        return ("set", tuple(sorted(repr(_freeze(v)) for v in value)))
-    try:
-        hash(value)
-        return value
-    except TypeError:
-        return ("repr", repr(value))
+class System(Protocol):
+    """What :func:`explore` explores."""
 
+    properties: list[PastProperty]
+    clock: SettableClock
+    skipped: int  # moves not even made: events nobody waits for
 
-def _problem_kind(exc: BaseException) -> str:
-    cause = exc.__cause__ if isinstance(exc, ExecutionError) and exc.__cause__ else exc
-    if isinstance(cause, NonDeterminismError | ConflictingTransitionsError):
-        return "non-determinism"
-    if isinstance(cause, ContractError):
-        return "contract"
-    return "raising code"
+    def start(self) -> tuple[list[Record], list[tuple[str, str]], bool]:
+        """The initial steps: records, failures (kind, message), whether it became stable."""
+
+    def key(self) -> tuple:
+        """The state of the charts (properties aside)."""
+
+    def save(self) -> Any: ...
+
+    def restore(self, snapshot: Any) -> None: ...
+
+    def moves(self, *, skip_ignored: bool) -> list[Move]:
+        """The environment's moves from the current stable state."""
+
+    def ignored_record(self, move: Move) -> Record | None:
+        """The record of ``move`` if it is an event nobody waits for (nothing then changes:
+        it is not executed), else None."""
+
+    def apply(self, move: Move) -> tuple[list[Record], list[tuple[str, str]], bool]:
+        """Play ``move``: like :meth:`start`."""
+
+    def configuration(self) -> frozenset[str]: ...
+
+    def final(self) -> bool: ...
+
+    def entered(self) -> set[str]: ...
+
+    def checks(self, records: list[Record], move: Move | None) -> list[tuple[str, str]]:
+        """Problems the system itself finds in a move's records (an application's checks)."""
 
 
 class ChartExplorer:
-    """The transition system of one chart under an environment, explored breadth first."""
+    """One chart under an environment, as a :class:`System`."""
 
     def __init__(
         self,
@@ -144,194 +132,71 @@ class ChartExplorer:
         self.statechart = statechart
         self.environment = environment
         self.properties = list(properties)
-        roots = set().union(*(p.variables for p in self.properties)) if self.properties else set()
-        self.code: ChartCode = analyse_chart(statechart, roots)
-        state_vars = self.code.state_variables
-        self.state_variables = None if (state_vars is None or not slice_context) else state_vars
-        self.reads_time = self.code.reads_time or any(
-            _reads_time(p) for p in self.properties
+        watched = sorted(set().union(*(p.variables for p in self.properties))) if properties else []
+        self.clock = SettableClock()
+        self.run = ChartRun(
+            statechart, self.clock, initial_context=initial_context, watch=set(watched),
+            slice_context=slice_context, watched_values=watched,
         )
-        self.clock = _SettableClock()
-        self.interp = Interpreter(
-            statechart, clock=self.clock, initial_context=dict(initial_context or {})
-        )
-        self.now_ns = 0
-        self._timer_args: dict[str, Any] = {}
-        # the largest window bound a property compares the time since its last record with
-        self._property_horizon = max(
-            (b for p in self.properties for b in _bounds(p)), default=0
-        )
-        self.capped_regions = False
-        self.entered: set[str] = set()  # every state some step entered
-        self._property_variables = sorted(
-            set().union(*(p.variables for p in self.properties)) if self.properties else ()
-        )
-        self._state_names = sorted(self.state_variables or ())
-        self._timed_states = [
-            (state, sorted({t.kind for t in timers}))
-            for state, timers in sorted(self.code.timers.items())
-        ]
-        # event -> the states with a transition on it (an event none of them is active for is
-        # only consumed)
-        self._handled: dict[str, set[str]] = {}
-        for transition in statechart.transitions:
-            if transition.event is not None:
-                self._handled.setdefault(transition.event, set()).add(transition.source)
-        self._contracts = any(
-            getattr(x, kind, None)
-            for x in [*statechart.transitions, *map(statechart.state_for, statechart.states)]
-            for kind in ("preconditions", "postconditions", "invariants")
-        )
-        self._regions: dict[tuple, list[dict[str, Any]]] = {}
-        # states whose eventless transitions or timers may fire without an event
-        self._unsettled = {t.source for t in statechart.transitions if t.event is None}
-        self._unsettled |= set(self.code.timers)
-        self.skipped = 0  # moves not even made: events the active states ignore
+        self.code = self.run.code
+        self.reads_time = any(_reads_time(p) for p in self.properties)
+        self._regions: dict[tuple, list[tuple[tuple[str, Any], ...]]] = {}
+        self.skipped = 0
 
-    # -- snapshots -------------------------------------------------------------------------
-    def save(self) -> tuple:
-        it = self.interp
-        ev = it._evaluator
-        return (
-            self.now_ns, it._initialized, it._time,
-            {k: (list(v) if v is not None else None) for k, v in it._memory.items()},
-            set(it._configuration), dict(it._entry_time), dict(it._idle_time),
-            _context_snapshot(it._evaluator._context),
-            list(it._internal_queue), list(it._external_queue),
-            list(getattr(ev, "deadlines", None) or ()),
-        )
+    @property
+    def interp(self) -> Any:
+        return self.run.interp
 
-    def restore(self, snap: tuple) -> None:
-        it = self.interp
-        (self.now_ns, it._initialized, it._time, memory, configuration, entry, idle, context,
-         internal, external, deadlines) = snap
-        it._memory = {k: (list(v) if v is not None else None) for k, v in memory.items()}
-        it._configuration = set(configuration)
-        it._entry_time = dict(entry)
-        it._idle_time = dict(idle)
-        ctx = it._evaluator._context
-        ctx.clear()
-        values, immutable = context
-        ctx.update(values if immutable else {k: _copy(v) for k, v in values.items()})
-        it._internal_queue = list(internal)
-        it._external_queue = list(external)
-        ev = it._evaluator
-        if getattr(ev, "deadlines", None) is not None:
-            ev.deadlines[:] = deadlines
-        self.clock.time = from_nanoseconds(self.now_ns)
+    def start(self) -> tuple[list[Record], list[tuple[str, str]], bool]:
+        return self._records(*self.run.execute())
 
-    # -- the state key ---------------------------------------------------------------------
-    def chart_key(self) -> tuple:
-        """What decides the chart's future (see the module docstring), properties aside."""
-        it = self.interp
-        context = it._evaluator._context
-        names = sorted(context) if self.state_variables is None else self._state_names
-        values = tuple((n, _freeze(context[n])) for n in names if n in context)
-        configuration = it._configuration
-        timers = []
-        for state, kinds in self._timed_states:
-            if state not in configuration:
-                continue
-            cap = self._timer_cap(state)
-            for kind in kinds:
-                since = it._entry_time.get(state) if kind == "after" else it._idle_time.get(state)
-                start = nanoseconds(since)
-                age = None if start is None else self.now_ns - start
-                if age is not None and cap is not None:
-                    age = min(age, cap)
-                timers.append((state, kind, age))
-        queued = tuple(
-            (
-                (nanoseconds(t) or 0) - self.now_ns, e.name, type(e).__name__,
-                _freeze(dict(getattr(e, "data", {}) or {})),
-            )
-            for queue in (it._internal_queue, it._external_queue) for t, e in queue
-        )
-        memory = tuple(sorted(
-            (k, tuple(v) if v is not None else None) for k, v in it._memory.items()
-        )) if it._memory else ()
-        return (
-            frozenset(configuration), memory, values, tuple(timers), queued,
-            self.now_ns if self.reads_time else None,
-        )
+    def key(self) -> tuple:
+        key = self.run.key()
+        return (key, self.clock.now_ns) if self.reads_time else key
 
-    def key(self, chart_key: tuple, prop_states: tuple, since_record: int | None) -> tuple:
-        """The whole state: the chart's, each property's memory, and how long ago the last
-        record was (as far as a property's windows can tell)."""
-        if not self.properties:
-            return chart_key
-        since = None if since_record is None else min(since_record, self._property_horizon)
-        return (chart_key, prop_states, since)
+    def save(self) -> Any:
+        return (self.clock.now_ns, self.run.save())
 
-    def ignores(self, move: Move) -> bool:
-        """Whether ``move`` is an event no transition of the active states waits for: the step
-        only consumes it, and nothing changes (charts with contracts are always executed: an
-        invariant may read ``received()``)."""
-        if move.event is None or self._contracts:
-            return False
-        sources = self._handled.get(move.event)
-        return not sources or sources.isdisjoint(self.interp._configuration)
+    def restore(self, snapshot: Any) -> None:
+        now, run = snapshot
+        self.clock.set(now)
+        self.run.restore(run)
 
-    def ignored_record(self, move: Move) -> Record:
-        """The record of the step that consumes an ignored event (see :meth:`ignores`)."""
-        context = self.interp._evaluator._context
-        wanted = self._property_variables
-        return Record(
-            time_ns=self.now_ns,
-            configuration=frozenset(self.interp._configuration),
-            received=move.event,
-            sent=_NONE,
-            context={n: context[n] for n in wanted if n in context} if wanted else _EMPTY,
-            transitions=False,
-        )
+    def configuration(self) -> frozenset[str]:
+        return frozenset(self.run.configuration)
 
-    def _timer_cap(self, state: str) -> int | None:
-        """The largest threshold the timers of ``state`` compare its age with, in the current
-        context (None when one cannot be evaluated: the age is then kept exactly)."""
-        context = self.interp._evaluator._context
-        best = 0
-        for timer in self.code.timers[state]:
-            compiled = self._timer_args.get(timer.seconds)
-            if compiled is None:
-                compiled = self._timer_args[timer.seconds] = compile(
-                    ast.parse(timer.seconds, mode="eval"), "<timer>", "eval"
-                )
-            try:
-                ns = nanoseconds(eval(compiled, {}, dict(context)))  # noqa: S307 - chart code
-            except Exception:
-                return None
-            if ns is None:
-                return None
-            best = max(best, ns)
-        return best
+    def final(self) -> bool:
+        return self.run.interp.final
 
-    # -- moves -----------------------------------------------------------------------------
-    def moves(self, *, skip_ignored: bool = False) -> Iterator[Move]:
-        """The environment's moves from the current (stable) state (with ``skip_ignored``,
-        not the events :meth:`ignores` would say are only consumed)."""
-        context = self.interp._evaluator._context
-        configuration = self.interp._configuration
+    def entered(self) -> set[str]:
+        return self.run.entered
+
+    def checks(self, records: list[Record], move: Move | None) -> list[tuple[str, str]]:
+        return []
+
+    def moves(self, *, skip_ignored: bool) -> list[Move]:
+        now = self.clock.now_ns
+        context = self.run.context
+        out = []
         for event in self.environment.events:
-            if skip_ignored and not self._contracts:
-                sources = self._handled.get(event.name)
-                if not sources or sources.isdisjoint(configuration):
-                    self.skipped += len(event.combinations())
-                    continue
+            if skip_ignored and self.run.ignores(event.name):
+                self.skipped += len(event.combinations())
+                continue
             wanted = self.code.guard_data.get(event.name, set())
             read = self.code.data.get(event.name, set())
             for fixed in event.combinations():
                 free = wanted - set(fixed)
-                for data in self._split(event.name, free, read, fixed, context):
-                    yield Move(self.now_ns, event.name, data)
+                out.extend(
+                    Move(now, event.name, data)
+                    for data in self._split(event.name, free, read, fixed, context)
+                )
         if self.environment.clock_ns:
-            for amount in self.environment.clock_ns:
-                yield Move(self.now_ns + amount)
+            out.extend(Move(now + amount) for amount in self.environment.clock_ns)
         else:
-            due = _next_deadline(self.interp)
-            if due is not None:
-                due_ns = nanoseconds(due)
-                if due_ns is not None and due_ns > self.now_ns:
-                    yield Move(due_ns)
+            due = self.run.next_deadline()
+            if due is not None and due > now:
+                out.append(Move(due))
+        return out
 
     def _split(
         self, event: str, free: set[str], read: set[str], fixed: dict[str, Any],
@@ -339,14 +204,13 @@ class ChartExplorer:
     ) -> list[tuple[tuple[str, Any], ...]]:
         """The data of ``event`` to try: ``fixed`` given, ``free`` split into regions (cached by
         the values of the state variables, which are all the guards' comparisons can read)."""
-        names = self._state_names if self.state_variables is not None else sorted(context)
+        names = self.run.state_names if not self.run.all_state else sorted(context)
         cache = (event, tuple(sorted(fixed.items())), tuple(
-            _freeze(context.get(n)) for n in names
+            freeze(context.get(n)) for n in names
         ) if free else ())
         found = self._regions.get(cache)
         if found is None:
-            datas, capped = split_data(self.code.guards.get(event, []), free, context, fixed)
-            self.capped_regions |= capped
+            datas, _ = split_data(self.code.guards.get(event, []), free, context, fixed)
             found = []
             for data in datas:
                 for key in sorted(read - set(data)):
@@ -355,98 +219,43 @@ class ChartExplorer:
             self._regions[cache] = found
         return found
 
+    def ignored_record(self, move: Move) -> Record | None:
+        if move.event is None or not self.run.ignores(move.event):
+            return None
+        context = self.run.context
+        return Record(
+            time_ns=self.clock.now_ns,
+            configuration=frozenset(self.run.configuration),
+            received=move.event,
+            sent=frozenset(),
+            context={n: context[n] for n in self.run._watched if n in context},
+            transitions=False,
+        )
+
     def apply(self, move: Move) -> tuple[list[Record], list[tuple[str, str]], bool]:
-        """Play ``move`` from the current state: the macro steps taken, the failures
-        (kind, message) and whether the chart became stable."""
-        if move.time_ns != self.now_ns:
-            self.now_ns = move.time_ns
-            self.clock.time = from_nanoseconds(move.time_ns)
+        if move.time_ns != self.clock.now_ns:
+            self.clock.set(move.time_ns)
         if move.event is not None:
-            self.interp.queue(Event(move.event, **dict(move.data)))
-        return self.execute()
+            self.run.queue(move.event, dict(move.data))
+        return self._records(*self.run.execute())
 
-    def execute(self) -> tuple[list[Record], list[tuple[str, str]], bool]:
-        """Execute until stable, as ``rasm simulate`` does: the records of the macro steps
-        taken (each with the configuration and the variables the properties read as after
-        it), the failures (kind, message), and whether the chart became stable."""
-        records: list[Record] = []
-        failures: list[tuple[str, str]] = []
-        interp = self.interp
-        context = interp._evaluator._context
-        wanted = self._property_variables
-        for _ in range(MAX_STEPS):
-            try:
-                macro = interp.execute_once()
-            except Exception as exc:
-                failures.append((_problem_kind(exc), str(exc)))
-                failure = interp.last_failure
-                if failure is None or failure.event is None:
-                    return records, failures, True
-                continue
-            if macro is None:
-                return records, failures, True
-            self.entered.update(macro.entered_states)
-            records.append(Record(
-                time_ns=self.now_ns,
-                configuration=frozenset(interp._configuration),
-                received=macro.event.name if macro.event is not None else None,
-                sent=frozenset(e.name for e in macro.sent_events) if macro.sent_events else _NONE,
-                context={n: context[n] for n in wanted if n in context} if wanted else _EMPTY,
-                transitions=bool(macro.transitions),
-            ))
-            if self._settled(interp):
-                return records, failures, True
-        return records, failures, False
-
-    def _settled(self, interp: Any) -> bool:
-        """Whether the chart is surely stable after a step, without the step sismic would take
-        to find out: no event queued, and no active state with an eventless transition or a
-        timer (a chart with contracts always takes it: its invariants are checked there)."""
-        if interp._internal_queue or interp._external_queue or self._contracts:
-            return False
-        configuration = interp._configuration
-        if not self._unsettled.isdisjoint(configuration):
-            return False
-        deadlines = getattr(interp._evaluator, "deadlines", None)
-        if deadlines:
-            deadlines.clear()  # those of guards before the step: none applies to this state
-        return True
+    def _records(
+        self, steps: list[Step], failures: list[tuple[str, str]], stable: bool
+    ) -> tuple[list[Record], list[tuple[str, str]], bool]:
+        now = self.clock.now_ns
+        return [record_of(step, now) for step in steps], failures, stable
 
 
-_NONE: frozenset[str] = frozenset()
-_EMPTY: dict[str, Any] = {}
-
-
-class _SettableClock(Clock):
-    """A simulated clock the exploration may set back (to a saved state's time)."""
-
-    def __init__(self) -> None:
-        self._time = 0.0
-
-    @property
-    def time(self) -> float:
-        return self._time
-
-    @time.setter
-    def time(self, value: float) -> None:
-        self._time = value
-
-
-_IMMUTABLE = (bool, int, float, str, bytes, type(None))
-
-
-def _context_snapshot(context: Mapping[str, Any]) -> tuple[dict[str, Any], bool]:
-    """A copy of the context, and whether all its values are immutable (then restoring it
-    needs no copy of each value)."""
-    if all(type(v) in _IMMUTABLE for v in context.values()):
-        return dict(context), True
-    return {k: _copy(v) for k, v in context.items()}, False
-
-
-def _copy(value: Any) -> Any:
-    from rasm.statechart.interpreter import _copy_value
-
-    return _copy_value(value)
+def record_of(step: Step, now: int) -> Record:
+    """A chart's step as the properties see it."""
+    return Record(
+        time_ns=now,
+        configuration=step.configuration,
+        received=step.event,
+        sent=frozenset(name for name, _ in step.sent),
+        context=step.context,
+        transitions=step.transitions,
+    )
 
 
 def _reads_time(prop: PastProperty) -> bool:
@@ -473,25 +282,35 @@ def _bounds(prop: PastProperty) -> Iterator[int]:
         stack.extend(A.children(node))
 
 
-def explore(explorer: ChartExplorer, *, max_states: int = 100_000) -> Exploration:
-    """Breadth-first search over ``explorer``'s states; see the module docstring."""
-    props = explorer.properties
+def explore(system: System, *, max_states: int = 100_000) -> Exploration:
+    """Breadth-first search over ``system``'s states; see the module docstring."""
+    props = system.properties
+    # the largest window bound a property compares the time since its last record with
+    horizon = max((b for p in props for b in _bounds(p)), default=0)
     result = Exploration(complete=False, states=0, transitions=0)
-    nodes: list[_Node] = []
+    nodes: list[tuple[int | None, Move | None]] = []  # (parent, move) of each state found
     index: dict[tuple, int] = {}
     seen_problem: set[tuple[str, str]] = set()
 
-    def path_to(i: int, last: Move | None) -> list[Move]:
+    def path_to(i: int | None, last: Move | None) -> list[Move]:
         moves = [] if last is None else [last]
-        while i is not None and nodes[i].move is not None:
-            moves.append(nodes[i].move)
-            i = nodes[i].parent
+        while i is not None and nodes[i][1] is not None:
+            moves.append(nodes[i][1])
+            i = nodes[i][0]
         moves.reverse()
         return moves
 
-    def judge(states: tuple, last_ns: int | None, steps: list[Record],
+    def full_key(chart: tuple, prop_states: tuple, last_ns: int | None) -> tuple:
+        if not props:
+            return chart
+        since = None if last_ns is None else min(system.clock.now_ns - last_ns, horizon)
+        return (chart, prop_states, since)
+
+    def judge(states: tuple, last_ns: int | None, records: list[Record],
               parent: int | None, move: Move | None) -> tuple[tuple, int | None]:
-        for record in steps:
+        if not props:
+            return states, last_ns
+        for record in records:
             dt = None if last_ns is None else record.time_ns - last_ns
             new = []
             for prop, state in zip(props, states, strict=True):
@@ -500,9 +319,8 @@ def explore(explorer: ChartExplorer, *, max_states: int = 100_000) -> Exploratio
                 if not value and prop.name not in result.violated:
                     result.violated[prop.name] = Problem(
                         "property", f"property {prop.name} violated at "
-                        f"t={from_nanoseconds(record.time_ns):g}",
-                        path_to(parent, move) if parent is not None else [],
-                        name=prop.name,
+                        f"t={format_nanoseconds(record.time_ns)}",
+                        path_to(parent, move), name=prop.name,
                     )
             states = tuple(new)
             last_ns = record.time_ns
@@ -510,33 +328,26 @@ def explore(explorer: ChartExplorer, *, max_states: int = 100_000) -> Exploratio
 
     def note(failures: list[tuple[str, str]], stable: bool, parent: int | None,
              move: Move | None) -> None:
+        if not stable:
+            failures = [*failures, (
+                "no stable state",
+                "the charts do not become stable: more than 10000 macro steps without an event "
+                "(an eventless transition cycle?)",
+            )]
         for kind, message in failures:
             if (kind, message) not in seen_problem:
                 seen_problem.add((kind, message))
-                path = path_to(parent, move) if parent is not None else []
-                result.problems.append(Problem(kind, message, path))
-        if not stable:
-            message = (
-                f"the chart does not become stable: more than {MAX_STEPS} macro steps without "
-                "an event (an eventless transition cycle?)"
-            )
-            if ("no stable state", message) not in seen_problem:
-                seen_problem.add(("no stable state", message))
-                path = path_to(parent, move) if parent is not None else []
-                result.problems.append(Problem("no stable state", message, path))
+                result.problems.append(Problem(kind, message, path_to(parent, move)))
 
-    def since(last_ns: int | None) -> int | None:
-        return None if last_ns is None else explorer.now_ns - last_ns
-
-    steps, failures, stable = explorer.execute()
-    note(failures, stable, None, None)
-    prop_states, last_ns = judge(tuple(p.initial() for p in props), None, steps, None, None)
-    result.configurations.update(record.configuration for record in steps)
-    chart = explorer.chart_key()
-    index[explorer.key(chart, prop_states, since(last_ns))] = 0
-    nodes.append(_Node(None, None, 0))
-    frontier: deque[tuple[int, tuple, tuple, tuple, int | None]] = deque(
-        [(0, explorer.save(), chart, prop_states, last_ns)]
+    records, failures, stable = system.start()
+    note([*failures, *system.checks(records, None)], stable, None, None)
+    prop_states, last_ns = judge(tuple(p.initial() for p in props), None, records, None, None)
+    result.configurations.update(record.configuration for record in records)
+    chart = system.key()
+    index[full_key(chart, prop_states, last_ns)] = 0
+    nodes.append((None, None))
+    frontier: deque[tuple[int, Any, tuple, tuple, int | None]] = deque(
+        [(0, system.save(), chart, prop_states, last_ns)]
     )
     stuck_seen: set[frozenset[str]] = set()
 
@@ -547,66 +358,59 @@ def explore(explorer: ChartExplorer, *, max_states: int = 100_000) -> Exploratio
         if len(nodes) >= max_states:
             return False
         index[key] = len(nodes)
-        nodes.append(_Node(parent, move, nodes[parent].depth + 1))
+        nodes.append((parent, move))
         frontier.append((index[key], *entry))
         return True
 
+    def finished(complete: bool) -> Exploration:
+        result.states = len(nodes)
+        result.entered = set(system.entered())
+        result.transitions += system.skipped
+        result.complete = complete
+        return result
+
     while frontier:
         current, snap, own_chart, prop_states, last_ns = frontier.popleft()
-        explorer.restore(snap)
-        configuration = frozenset(explorer.interp._configuration)
-        final = explorer.interp.final
-        moves = list(explorer.moves(skip_ignored=not props))
-        # decided before any move changes the interpreter: events nobody waits for are only
+        system.restore(snap)
+        configuration = system.configuration()
+        final = system.final()
+        moves = system.moves(skip_ignored=not props)
+        # decided before any move changes the charts: events nobody waits for are only
         # consumed, so they are not executed
-        ignored = [explorer.ignores(move) for move in moves]
-        records = [explorer.ignored_record(m) if skip and props else None
-                   for m, skip in zip(moves, ignored, strict=True)]
+        ignored = [system.ignored_record(move) for move in moves]
         way_out = False
         dirty = False
-        for move, skip, record in zip(moves, ignored, records, strict=True):
+        for move, record in zip(moves, ignored, strict=True):
             result.transitions += 1
-            if skip:
+            if record is not None:
                 if not props:
                     continue  # the same state again
                 new_props, new_last = judge(prop_states, last_ns, [record], current, move)
-                key = explorer.key(own_chart, new_props, 0)
+                key = full_key(own_chart, new_props, new_last)
                 if not add(key, current, move, (snap, own_chart, new_props, new_last)):
-                    return _stopped(result, explorer, nodes)
+                    return finished(False)
                 continue
             if dirty:
-                explorer.restore(snap)
+                system.restore(snap)
             dirty = True
-            steps, failures, stable = explorer.apply(move)
-            note(failures, stable, current, move)
-            new_props, new_last = judge(prop_states, last_ns, steps, current, move)
-            result.configurations.update(record.configuration for record in steps)
-            chart = explorer.chart_key()
-            if chart != own_chart or any(record.transitions for record in steps):
+            records, failures, stable = system.apply(move)
+            note([*failures, *system.checks(records, move)], stable, current, move)
+            new_props, new_last = judge(prop_states, last_ns, records, current, move)
+            result.configurations.update(record.configuration for record in records)
+            chart = system.key()
+            if chart != own_chart or any(record.transitions for record in records):
                 way_out = True
-            key = explorer.key(chart, new_props, since(new_last))
+            key = full_key(chart, new_props, new_last)
             if key not in index and not add(
-                key, current, move, (explorer.save(), chart, new_props, new_last)
+                key, current, move, (system.save(), chart, new_props, new_last)
             ):
-                return _stopped(result, explorer, nodes)
+                return finished(False)
         if not way_out and not final and configuration not in stuck_seen:
             stuck_seen.add(configuration)
             result.problems.append(Problem(
                 "stuck",
                 "stuck in " + ", ".join(sorted(configuration)) + ": every event is ignored and "
                 "no timer is pending",
-                path_to(current, None) if current else [],
+                path_to(current, None),
             ))
-    result.states = len(nodes)
-    result.entered = explorer.entered
-    result.transitions += explorer.skipped
-    result.complete = True
-    return result
-
-
-def _stopped(result: Exploration, explorer: ChartExplorer, nodes: list) -> Exploration:
-    """The exploration reached --max-states: what it found so far, incomplete."""
-    result.states = len(nodes)
-    result.entered = explorer.entered
-    result.transitions += explorer.skipped
-    return result
+    return finished(True)
