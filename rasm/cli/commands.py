@@ -240,9 +240,19 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     target = Path(args.target)
     if not target.exists():
         raise UsageError(f"{args.target}: no such chart or app")
-    result = verify_chart(
-        target, environment=args.env, properties=args.properties, max_states=args.max_states
-    )
+    if target.is_dir() or target.name == "app.yaml" or _is_manifest(target):
+        from rasm.verify.app import verify_app
+
+        if args.env or args.properties:
+            raise UsageError(
+                "rasm verify APP explores what the app's own manifest allows: --env and "
+                "--properties apply to one chart (rasm verify CHART.yaml)"
+            )
+        result = verify_app(target, max_states=args.max_states)
+    else:
+        result = verify_chart(
+            target, environment=args.env, properties=args.properties, max_states=args.max_states
+        )
     if args.counterexamples:
         _write_counterexamples(result, Path(args.counterexamples))
     if args.format == "json":
@@ -250,6 +260,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(format_verification(result))
     return result.exit_code
+
+
+def _is_manifest(path) -> bool:
+    """Whether a YAML file is an app manifest (it names components), not a chart."""
+    try:
+        head = path.read_text(encoding="utf-8", errors="replace")[:20_000]
+    except OSError:
+        return False
+    return "\ncomponents:" in f"\n{head}" and "statechart:" not in head
 
 
 def _write_counterexamples(result, folder) -> None:

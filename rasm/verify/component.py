@@ -16,7 +16,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from sismic.clock import Clock
-from sismic.exceptions import ConflictingTransitionsError, ContractError, NonDeterminismError
+from sismic.exceptions import (
+    ConflictingTransitionsError,
+    ContractError,
+    NonDeterminismError,
+    PropertyStatechartError,
+)
 from sismic.model import Event, MacroStep, Statechart
 
 from rasm.errors import ExecutionError
@@ -81,6 +86,8 @@ def problem_kind(exc: BaseException) -> str:
         return "non-determinism"
     if isinstance(cause, ContractError):
         return "contract"
+    if isinstance(cause, PropertyStatechartError):
+        return "monitor"
     return "raising code"
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -282,8 +282,15 @@ def _bounds(prop: PastProperty) -> Iterator[int]:
         stack.extend(A.children(node))
 
 
-def explore(system: System, *, max_states: int = 100_000) -> Exploration:
-    """Breadth-first search over ``system``'s states; see the module docstring."""
+def explore(
+    system: System, *, max_states: int = 100_000, goal: Callable[[], bool] | None = None,
+    goal_problem: tuple[str, str] | None = None,
+) -> Exploration:
+    """Breadth-first search over ``system``'s states; see the module docstring.
+
+    With ``goal`` (a test of the current state), every state found must be able to reach one
+    where it holds: those that cannot are reported as ``goal_problem`` (kind, message), with a
+    shortest path to the first of them."""
     props = system.properties
     # the largest window bound a property compares the time since its last record with
     horizon = max((b for p in props for b in _bounds(p)), default=0)
@@ -351,15 +358,23 @@ def explore(system: System, *, max_states: int = 100_000) -> Exploration:
     )
     stuck_seen: set[frozenset[str]] = set()
 
+    edges: list[tuple[int, int]] = []  # (from, to), kept only to check the goal
+    reached: list[bool] = [goal()] if goal is not None else []
+
     def add(key: tuple, parent: int, move: Move, entry: tuple) -> bool:
         """Queue a state not seen before; False when --max-states is reached."""
         if key in index:
+            if goal is not None:
+                edges.append((parent, index[key]))
             return True
         if len(nodes) >= max_states:
             return False
         index[key] = len(nodes)
         nodes.append((parent, move))
         frontier.append((index[key], *entry))
+        if goal is not None:
+            edges.append((parent, index[key]))
+            reached.append(goal())
         return True
 
     def finished(complete: bool) -> Exploration:
@@ -401,9 +416,10 @@ def explore(system: System, *, max_states: int = 100_000) -> Exploration:
             if chart != own_chart or any(record.transitions for record in records):
                 way_out = True
             key = full_key(chart, new_props, new_last)
-            if key not in index and not add(
-                key, current, move, (system.save(), chart, new_props, new_last)
-            ):
+            if key in index:
+                if goal is not None:
+                    edges.append((current, index[key]))
+            elif not add(key, current, move, (system.save(), chart, new_props, new_last)):
                 return finished(False)
         if not way_out and not final and configuration not in stuck_seen:
             stuck_seen.add(configuration)
@@ -413,4 +429,24 @@ def explore(system: System, *, max_states: int = 100_000) -> Exploration:
                 "no timer is pending",
                 path_to(current, None),
             ))
+    if goal is not None and goal_problem is not None:
+        stranded = _cannot_reach(len(nodes), edges, reached)
+        if stranded:
+            kind, message = goal_problem
+            result.problems.append(Problem(kind, message, path_to(min(stranded), None)))
     return finished(True)
+
+
+def _cannot_reach(count: int, edges: list[tuple[int, int]], goal: list[bool]) -> set[int]:
+    """The states from which no path leads to one where the goal holds."""
+    back: dict[int, list[int]] = {}
+    for a, b in edges:
+        back.setdefault(b, []).append(a)
+    can = {i for i in range(count) if goal[i]}
+    stack = list(can)
+    while stack:
+        for a in back.get(stack.pop(), ()):
+            if a not in can:
+                can.add(a)
+                stack.append(a)
+    return set(range(count)) - can
