@@ -509,7 +509,8 @@ class AppSystem:
         """Count the iteration for the stage_failures trigger, as FailedIterations does."""
         it = self.iteration
         consecutive, clean = self.failures
-        threshold = self.fallback.after_failures if self.fallback else 0
+        counted = self.fallback is not None and "stage_failures" in self.fallback.when
+        threshold = self.fallback.after_failures if counted else 0
         failed = it.get("failed", False)
         no_plan = it.get("anomaly") is not None and not it.get("ended") and not failed
         if failed or no_plan:
@@ -518,6 +519,8 @@ class AppSystem:
             clean = min(clean + 1, threshold)
             if it.get("ended") or (consecutive >= threshold and clean >= threshold):
                 consecutive = 0
+        if consecutive < threshold:
+            clean = 0  # counted only while the trigger holds (to release it): not state before
         self.failures = (consecutive, clean) if threshold else (0, 0)
         self.iteration = {}
 
@@ -700,9 +703,11 @@ def _restore_monitor(interp: Any, snap: tuple) -> None:
 def load_app(app: str | Path) -> AppSystem:
     """The system of the app at ``app`` (its folder or manifest)."""
     from rasm.platform.manifest import load_manifest
+    from rasm.platform.signals import check_app
     from rasm.rules.engine import RuleSet
 
     manifest = load_manifest(app)
+    check_app(manifest)  # what rasm run refuses at start-up is refused here too (exit 2)
     rules = [RuleSet.load(path, plan_fields=manifest.plan_fields) for path in manifest.rules]
     return AppSystem(manifest, rules)
 
