@@ -741,6 +741,15 @@ def verify_app(app: str | Path, *, max_states: int = 100_000) -> Any:
             properties.append(
                 PropertyVerdict(name, "satisfied" if found.complete else "inconclusive")
             )
+    unreachable: list[str] = []
+    if found.complete:  # the app's own charts: a state no run enters is dead code, or a bug
+        own = {name: run for name, run in system.charts.items() if name not in ("ao", "fallback")}
+        for name, run in own.items():
+            for state in sorted(set(run.statechart.states) - run.entered):
+                unreachable.append(f"{name}:{state}")
+                problems.append(Finding(
+                    "unreachable", f"state {state!r} of the {name} chart is entered on no path"
+                ))
     if problems or any(p.verdict == "violated" for p in properties):
         verdict = "violated"
     else:
@@ -749,7 +758,7 @@ def verify_app(app: str | Path, *, max_states: int = 100_000) -> Any:
         chart=str(app), verdict=verdict, complete=found.complete, states=found.states,
         transitions=found.transitions,
         reachable=sorted(sorted(conf) for conf in found.configurations),
-        unreachable=[], properties=properties, problems=problems,
+        unreachable=unreachable, properties=properties, problems=problems,
         environment="ticks, readings, veto verdicts and the managed system coming and going; "
         "each Python stage's outcomes; the clock advancing to each next deadline",
         max_states=max_states,
