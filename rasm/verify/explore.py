@@ -346,8 +346,18 @@ def explore(
                 seen_problem.add((kind, message))
                 result.problems.append(Problem(kind, message, path_to(parent, move)))
 
+    def finished(complete: bool) -> Exploration:
+        result.states = len(nodes)
+        result.entered = set(system.entered())
+        result.transitions += system.skipped
+        result.complete = complete
+        return result
+
     records, failures, stable = system.start()
     note([*failures, *system.checks(records, None)], stable, None, None)
+    if not stable:  # the initial step never settles: there is nothing to explore from
+        nodes.append((None, None))
+        return finished(True)
     prop_states, last_ns = judge(tuple(p.initial() for p in props), None, records, None, None)
     result.configurations.update(record.configuration for record in records)
     chart = system.key()
@@ -377,13 +387,6 @@ def explore(
             reached.append(goal())
         return True
 
-    def finished(complete: bool) -> Exploration:
-        result.states = len(nodes)
-        result.entered = set(system.entered())
-        result.transitions += system.skipped
-        result.complete = complete
-        return result
-
     while frontier:
         current, snap, own_chart, prop_states, last_ns = frontier.popleft()
         system.restore(snap)
@@ -410,6 +413,9 @@ def explore(
             dirty = True
             records, failures, stable = system.apply(move)
             note([*failures, *system.checks(records, move)], stable, current, move)
+            if not stable:  # reported: a state that never settles is no state to go on from
+                way_out = True
+                continue
             new_props, new_last = judge(prop_states, last_ns, records, current, move)
             result.configurations.update(record.configuration for record in records)
             chart = system.key()

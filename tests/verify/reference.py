@@ -11,8 +11,11 @@ from collections.abc import Iterable
 from typing import Any
 
 from sismic.clock import SimulatedClock
+from sismic.exceptions import SismicError
 from sismic.interpreter import Interpreter
 from sismic.model import Event, Statechart
+
+from rasm.statechart.simulate import MAX_STEPS
 
 __all__ = ["brute_force"]
 
@@ -34,6 +37,16 @@ def _key(it: Interpreter, with_time: bool) -> tuple:
     )
 
 
+def _settle(it: Interpreter, configurations: set[frozenset[str]]) -> None:
+    """Macro step by macro step until stable, noting the configuration after each one (as
+    ``rasm simulate`` prints them; ``Interpreter.execute`` would show only the last)."""
+    for _ in range(MAX_STEPS):
+        if it.execute_once() is None:
+            return
+        configurations.add(frozenset(it._configuration))
+    raise RuntimeError("a step never settles")  # internal events sent forever: rasm reports it
+
+
 def brute_force(
     statechart: Statechart,
     events: Iterable[tuple[str, dict[str, Any]]],
@@ -49,8 +62,7 @@ def brute_force(
     with_time = bool(clock)
     root = Interpreter(statechart, clock=SimulatedClock())
     configurations: set[frozenset[str]] = set()
-    for _ in root.execute():
-        configurations.add(frozenset(root._configuration))
+    _settle(root, configurations)
     seen = {_key(root, with_time)}
     frontier = deque([(root, 0)])
     memo_key = id(statechart)
@@ -66,9 +78,8 @@ def brute_force(
             if name is not None:
                 nxt.queue(Event(name, **data))
             try:
-                for _ in nxt.execute(max_steps=1000):
-                    configurations.add(frozenset(nxt._configuration))
-            except Exception:
+                _settle(nxt, configurations)
+            except SismicError:
                 continue
             key = _key(nxt, with_time)
             if key not in seen:
