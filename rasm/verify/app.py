@@ -45,11 +45,12 @@ from rasm.platform.chart_stages import STAGE_OUTCOMES
 from rasm.platform.manifest import AppManifest
 from rasm.resources import platform_chart, platform_monitors
 from rasm.statechart import load_statechart
+from rasm.verify.chart import Finding, PropertyVerdict, Verification
 from rasm.verify.component import ChartRun, SettableClock, freeze
-from rasm.verify.explore import Move
+from rasm.verify.explore import Move, explore
 from rasm.verify.past import Record
 
-__all__ = ["APP_CHECKS", "AppSystem", "signal_values"]
+__all__ = ["APP_CHECKS", "AppSystem", "signal_values", "verify_app"]
 
 APP_CHECKS = {
     "effector_modes": "no effector action in a mode its effector does not allow",
@@ -712,11 +713,9 @@ def load_app(app: str | Path) -> AppSystem:
     return AppSystem(manifest, rules)
 
 
-def verify_app(app: str | Path, *, max_states: int = 100_000) -> Any:
+def verify_app(app: str | Path, *, max_states: int = 100_000) -> Verification:
     """``rasm verify APP``: explore the app's charts bound together; the checks of
     :data:`APP_CHECKS` are its properties (see :func:`rasm.verify.chart.verify_chart`)."""
-    from rasm.verify.chart import Finding, PropertyVerdict, Verification
-    from rasm.verify.explore import explore
 
     system = load_app(app)
     found = explore(

@@ -117,9 +117,11 @@ class ChartRun:
         inputs: set[str] = frozenset(),  # type: ignore[assignment]
         slice_context: bool = True,
         watched_values: list[str] = (),  # type: ignore[assignment]
+        max_steps: int = MAX_STEPS,
     ) -> None:
         self.statechart = statechart
         self.clock = clock
+        self.max_steps = max_steps  # macro steps one move may take before it "never settles"
         self.code: ChartCode = analyse_chart(statechart, watch)
         state = self.code.state_variables
         self.all_state = state is None or not slice_context
@@ -275,7 +277,7 @@ class ChartRun:
         interp = self.interp
         context = interp._evaluator._context
         watched = self._watched
-        for _ in range(MAX_STEPS):
+        for _ in range(self.max_steps):
             try:
                 macro: MacroStep | None = interp.execute_once()
             except Exception as exc:

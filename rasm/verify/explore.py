@@ -25,6 +25,7 @@ from typing import Any, Protocol
 
 from sismic.model import Statechart
 
+from rasm.statechart.simulate import MAX_STEPS
 from rasm.times import format_nanoseconds
 from rasm.verify.component import ChartRun, SettableClock, Step, freeze
 from rasm.verify.environment import Environment
@@ -128,6 +129,7 @@ class ChartExplorer:
         *,
         initial_context: Mapping[str, Any] | None = None,
         slice_context: bool = True,
+        max_steps: int = MAX_STEPS,
     ) -> None:
         self.statechart = statechart
         self.environment = environment
@@ -136,7 +138,7 @@ class ChartExplorer:
         self.clock = SettableClock()
         self.run = ChartRun(
             statechart, self.clock, initial_context=initial_context, watch=set(watched),
-            slice_context=slice_context, watched_values=watched,
+            slice_context=slice_context, watched_values=watched, max_steps=max_steps,
         )
         self.code = self.run.code
         self.reads_time = any(_reads_time(p) for p in self.properties)

@@ -37,10 +37,10 @@ def _key(it: Interpreter, with_time: bool) -> tuple:
     )
 
 
-def _settle(it: Interpreter, configurations: set[frozenset[str]]) -> None:
+def _settle(it: Interpreter, configurations: set[frozenset[str]], max_steps: int) -> None:
     """Macro step by macro step until stable, noting the configuration after each one (as
     ``rasm simulate`` prints them; ``Interpreter.execute`` would show only the last)."""
-    for _ in range(MAX_STEPS):
+    for _ in range(max_steps):
         if it.execute_once() is None:
             return
         configurations.add(frozenset(it._configuration))
@@ -54,6 +54,7 @@ def brute_force(
     *,
     max_depth: int | None = None,
     max_states: int = 1_000_000,
+    max_steps: int = MAX_STEPS,
 ) -> tuple[set[frozenset[str]], int]:
     """Every configuration stock sismic reaches after a macro step, from every stable state
     trying each event (name, data) and each clock advance; and the number of states."""
@@ -62,7 +63,7 @@ def brute_force(
     with_time = bool(clock)
     root = Interpreter(statechart, clock=SimulatedClock())
     configurations: set[frozenset[str]] = set()
-    _settle(root, configurations)
+    _settle(root, configurations, max_steps)
     seen = {_key(root, with_time)}
     frontier = deque([(root, 0)])
     memo_key = id(statechart)
@@ -78,7 +79,7 @@ def brute_force(
             if name is not None:
                 nxt.queue(Event(name, **data))
             try:
-                _settle(nxt, configurations)
+                _settle(nxt, configurations, max_steps)
             except SismicError:
                 continue
             key = _key(nxt, with_time)

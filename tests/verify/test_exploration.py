@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from sismic.io.datadict import import_from_dict
@@ -53,23 +54,29 @@ def _failed(found) -> bool:
                for p in found.problems)
 
 
+# a move taking more macro steps never settles (internal sends forever): few, so that such
+# charts are cheap to tell (a growing list copied at every one of 10,000 steps is not)
+STEPS = 50
+
 bounded_charts = chart_dicts(max_states=8, contracts=False, guards=GUARDS, actions=ACTIONS)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(bounded_charts)
 def test_reachable_configurations_are_those_of_a_brute_force_over_stock_sismic(chart: dict) -> None:
     statechart = import_from_dict(chart)
     try:
-        expected, _ = brute_force(statechart, _stock_moves(), max_states=2_000)
+        expected, _ = brute_force(statechart, _stock_moves(), max_states=2_000, max_steps=STEPS)
     except Exception:
         assume(False)  # a step stock sismic cannot take, or more states than the budget
-    found = explore(ChartExplorer(statechart, _environment()), max_states=2_000)
+    found = explore(ChartExplorer(statechart, _environment(), max_steps=STEPS), max_states=2_000)
     assume(not _failed(found))
     assert found.complete
     assert found.configurations == expected
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(bounded_charts, st.sampled_from(["z = z + 1", "log = log + [x]", "z = (z * 7 + x) % 1000"]))
 def test_slicing_away_variables_no_guard_depends_on_reaches_the_same_configurations(
@@ -83,9 +90,10 @@ def test_slicing_away_variables_no_guard_depends_on_reaches_the_same_configurati
     for transition in root.get("transitions", []):
         transition["action"] = (transition.get("action", "") + "\n" + bookkeeping).strip()
     statechart = import_from_dict(chart)
-    sliced = explore(ChartExplorer(statechart, _environment()), max_states=1_000)
+    sliced = explore(ChartExplorer(statechart, _environment(), max_steps=STEPS), max_states=1_000)
     whole = explore(
-        ChartExplorer(statechart, _environment(), slice_context=False), max_states=1_000
+        ChartExplorer(statechart, _environment(), slice_context=False, max_steps=STEPS),
+        max_states=1_000,
     )
     assume(whole.complete and not _failed(whole))
     assert sliced.complete
