@@ -163,7 +163,11 @@ def formulas(draw, depth: int = 3, future: bool = True, unit: Decimal | None = N
     ops = ["not", "once", "historically", "and", "or", "->", "since"]
     if future:
         ops += ["eventually", "always", "until"]
-    op = draw(st.sampled_from(ops))
+    return _operator(draw, draw(st.sampled_from(ops)), sub, unit)
+
+
+def _operator(draw, op: str, sub, unit: Decimal | None) -> str:
+    """``op`` applied to operands drawn from ``sub``, with a bound where it takes one."""
     if op == "not":
         return f"not ({draw(sub)})"
     if op in ("once", "historically"):
@@ -233,17 +237,4 @@ def numeric_formulas(draw, depth: int = 3, future: bool = True,
     ops = ["not", "once", "historically", "and", "or", "->", "since"]
     if future:
         ops += ["eventually", "always", "until", "eventually", "always"]
-    op = draw(st.sampled_from(ops))
-    if op == "not":
-        return f"not ({draw(sub)})"
-    if op in ("once", "historically"):
-        bound = draw(st.one_of(st.just(""), bounds(True, unit)))
-        return f"{op}{bound} ({draw(sub)})"
-    if op in ("eventually", "always"):
-        return f"{op}{draw(bounds(False, unit))} ({draw(sub)})"
-    if op in ("and", "or", "->"):
-        return f"({draw(sub)}) {op} ({draw(sub)})"
-    if op == "since":
-        bound = draw(st.one_of(st.just(""), bounds(True, unit)))
-        return f"({draw(sub)}) since{bound} ({draw(sub)})"
-    return f"({draw(sub)}) until{draw(bounds(False, unit))} ({draw(sub)})"
+    return _operator(draw, draw(st.sampled_from(ops)), sub, unit)
