@@ -31,9 +31,13 @@ alike. Ratios are rasm's rate over the peer's.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
+import json
 import random
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -85,6 +89,178 @@ LATE = [
     "(eventually[0, 2] a) until[0, 10] (b)",
     "count[0, 10](eventually[0, 5] b) >= 2",
 ]
+
+
+# Robustness (SPEC §12): (name, rasm, mstlo-python, rtamt) over floats x, y in [-1, 1].
+# mstlo-python has future operators only (None: no such formula there); mstlo's ``until``
+# also takes the left operand at the right one's position, so its values differ from rasm's
+# and rtamt's there (the work is the same).
+ROBUST = [
+    ("historically (x <= 0.5)", "historically (x <= 0.5)", None, "historically(x <= 0.5)"),
+    ("historically (y > 0.5 -> once[0,10] x > 0.5)",
+     "historically (y > 0.5 -> once[0, 10] (x > 0.5))", None,
+     "historically((not (y > 0.5)) or once[0:10](x > 0.5))"),
+    ("x > 0.5 -> eventually[0,10] y > 0.5", "x > 0.5 -> eventually[0, 10] (y > 0.5)",
+     "(x > 0.5) -> F[0,10](y > 0.5)", "(not (x > 0.5)) or eventually[0:10](y > 0.5)"),
+    # mstlo's published formulas
+    ("always[0,1000](x > 0.5 -> eventually[0,100] x < 0)",
+     "always[0, 1000] (x > 0.5 -> eventually[0, 100] (x < 0))",
+     "G[0,1000]((x > 0.5) -> F[0,100](x < 0))",
+     "always[0:1000]((not (x > 0.5)) or eventually[0:100](x < 0))"),
+    ("(x > -0.9) until[0,100] (y > 0.9)", "(x > -0.9) until[0, 100] (y > 0.9)",
+     "(x > -0.9) U[0,100] (y > 0.9)", "(x > -0.9) until[0:100] (y > 0.9)"),
+]
+ROBUST_HEADER = "input x: float\ninput y: float\n"
+
+
+def robust_trace(n: int, seed: int = 1) -> list[dict]:
+    rng = random.Random(seed)
+    return [{"time": k, "x": rng.uniform(-1, 1), "y": rng.uniform(-1, 1)} for k in range(n)]
+
+
+def _budgeted(update, rows, budget: float) -> float:
+    """Records per CPU second of ``update(k, row)`` over ``rows``, stopping after ``budget``."""
+    start = time.process_time()
+    done = 0
+    for k, row in enumerate(rows):
+        update(k, row)
+        done = k + 1
+        if done % 100 == 0 and time.process_time() - start > budget:
+            break
+    return done / (time.process_time() - start)
+
+
+def measure_robust(formula: str, theirs: str | None, rt: str, trace: list[dict], n_rtamt: int,
+                   repeat: int, work: Path, no_rtamt: bool = False,
+                   budget: float = 2.0) -> dict[str, float | None]:
+    """Median rates (records per CPU second) of every path, the repetitions interleaved:
+    rasm ``run``, ``step`` and ``rasm check --robustness`` on a JSONL file; mstlo-python's
+    ``update`` per signal, in memory and from ``json.loads`` of the same file; rtamt offline
+    (``evaluate``), online (``update``, after ``pastify()`` for a future formula) and online
+    from the file (rtamt on the first ``n_rtamt`` records, at most ``budget`` s a run)."""
+    text = ROBUST_HEADER + f"property p: {formula}\n"
+    props = work / "robust.rv"
+    props.write_text(text)
+    big, small = work / "robust.jsonl", work / "robust_rtamt.jsonl"
+    records = [(r["time"], {"x": r["x"], "y": r["y"]}) for r in trace]
+    rates: dict[str, list[float]] = {k: [] for k in (
+        "run", "step", "check", "mstlo", "mstlo file", "rtamt off", "rtamt on", "rtamt file")}
+    future = "eventually" in rt or "always" in rt or "until" in rt
+    parsed = None
+    if theirs is not None:
+        import mstlo_python as mstlo
+
+        parsed = mstlo.parse_formula(theirs)
+    few = trace[:n_rtamt]
+    dataset = {"time": [r["time"] for r in few], "x": [r["x"] for r in few],
+               "y": [r["y"] for r in few]}
+    rows = [[("x", r["x"]), ("y", r["y"])] for r in few]
+    for _ in range(repeat):
+        batch = compile_properties(text, robustness=True)
+        rates["run"].append(timed(lambda m=batch: m.run(records), len(records)))
+        online = compile_properties(text, robustness=True)
+
+        def step(monitor=online):
+            feed = monitor.step
+            for t, values in records:
+                feed(t, values)
+            monitor.finish()
+
+        rates["step"].append(timed(step, len(records)))
+        argv = ["check", str(props), str(big), "--robustness", "--format", "json", "--jobs", "1"]
+
+        def check(argv=argv):
+            from rasm.cli import main as rasm_main
+
+            with contextlib.redirect_stdout(io.StringIO()):
+                rasm_main(argv)
+
+        rates["check"].append(timed(check, len(records)))
+        if parsed is not None:
+
+            def peer(formula=parsed):
+                update = mstlo.Monitor(formula, semantics="DelayedQuantitative").update
+                for r in trace:
+                    t = float(r["time"])
+                    update("x", r["x"], t)
+                    update("y", r["y"], t)
+
+            rates["mstlo"].append(timed(peer, len(trace)))
+
+            def peer_file(formula=parsed):
+                update = mstlo.Monitor(formula, semantics="DelayedQuantitative").update
+                with big.open() as lines:
+                    for line in lines:
+                        r = json.loads(line)
+                        t = float(r.pop("time"))
+                        for name, value in r.items():
+                            update(name, value, t)
+
+            rates["mstlo file"].append(timed(peer_file, len(trace)))
+        if no_rtamt:
+            continue
+        import rtamt
+
+        def spec(online: bool):
+            s = rtamt.StlDiscreteTimeSpecification()
+            s.declare_var("x", "float")
+            s.declare_var("y", "float")
+            s.spec = rt
+            s.parse()
+            if online and future:
+                s.pastify()
+            return s
+
+        offline = spec(False)
+        rates["rtamt off"].append(timed(lambda s=offline: s.evaluate(dataset), len(few)))
+        rates["rtamt on"].append(_budgeted(spec(True).update, rows, budget))
+
+        def from_file(update):
+            start = time.process_time()
+            done = 0
+            with small.open() as lines:
+                for k, line in enumerate(lines):
+                    r = json.loads(line)
+                    del r["time"]
+                    update(k, list(r.items()))
+                    done = k + 1
+                    if done % 100 == 0 and time.process_time() - start > budget:
+                        break
+            return done / (time.process_time() - start)
+
+        rates["rtamt file"].append(from_file(spec(True).update))
+    return {k: statistics.median(v) if v else None for k, v in rates.items()}
+
+
+def robustness_section(n: int, n_rtamt: int, repeat: int, no_rtamt: bool) -> list[tuple]:
+    """The robustness table: rasm against mstlo-python and rtamt (see :data:`ROBUST`)."""
+    trace = robust_trace(n)
+    print()
+    print(f"robustness: {n} records (rtamt: {n_rtamt}); median of {repeat}")
+    columns = ("case", "rasm run", "rasm step", "rasm check", "mstlo", "mstlo file",
+               "rtamt off", "rtamt on", "rtamt file", "run/mstlo", "step/mstlo",
+               "check/mstlo file", "run/rtamt off", "step/rtamt on", "check/rtamt file")
+    print(" | ".join(columns))
+    rows = []
+    import rasm.cli  # noqa: F401  (imported before timing: rasm check's start-up is not timed)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        for path, part in ((work / "robust.jsonl", trace),
+                           (work / "robust_rtamt.jsonl", trace[:n_rtamt])):
+            with path.open("w") as out:
+                for r in part:
+                    out.write(json.dumps(r) + "\n")
+        for name, mine, theirs, rt in ROBUST:
+            r = measure_robust(mine, theirs, rt, trace, n_rtamt, repeat, work, no_rtamt)
+            row = (name, *(fmt(r[k]) for k in ("run", "step", "check", "mstlo", "mstlo file",
+                                              "rtamt off", "rtamt on", "rtamt file")),
+                   ratio(r["run"], r["mstlo"]), ratio(r["step"], r["mstlo"]),
+                   ratio(r["check"], r["mstlo file"]), ratio(r["run"], r["rtamt off"]),
+                   ratio(r["step"], r["rtamt on"]), ratio(r["check"], r["rtamt file"]))
+            print(" | ".join(row), flush=True)
+            rows.append((name, r))
+    return rows
 
 
 def basic_trace(n: int, seed: int = 1) -> list[dict]:
@@ -220,11 +396,16 @@ def main(argv=None) -> int:
     parser.add_argument("--repeat", type=int, default=None)
     parser.add_argument("--bounds", default="10,100,1000")
     parser.add_argument("--no-rtamt", action="store_true")
+    parser.add_argument("--robustness", action="store_true",
+                        help="only the robustness table (rasm against mstlo-python and rtamt)")
     args = parser.parse_args(argv)
     n = args.records or (20_000 if args.quick else 100_000)
     n_rtamt = args.rtamt_records or (2_000 if args.quick else 10_000)
     repeat = args.repeat or (1 if args.quick else 3)
     bounds = [int(b) for b in args.bounds.split(",")]
+    if args.robustness:
+        robustness_section(n, n_rtamt, repeat, args.no_rtamt)
+        return 0
 
     print(f"records: {n} (rtamt: {n_rtamt}); median of {repeat}; Python {sys.version.split()[0]}")
     header = ("case", "rasm run", "rasm step", "reelay", "rtamt", "run/reelay", "step/reelay",
@@ -282,6 +463,7 @@ def main(argv=None) -> int:
             worst = min(ratios)
             who = "reelay" if peer == 3 else "rtamt"
             print(f"lowest rasm-{label}/{who}: {worst[0]:.2f}x ({worst[1]})")
+    robustness_section(n, n_rtamt, repeat, args.no_rtamt)
     return 0
 
 
