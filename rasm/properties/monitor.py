@@ -450,7 +450,7 @@ class Monitor:
             for k in range(len(self.names)):
                 top = self.program.robust_tops[k]
                 if top is not None and self.starts[k] is not None:
-                    self._robust[k] += [None] * len(self._namespace[top].intervals())
+                    self._robust[k] += [None] * self._namespace[top].waiting()
 
     def verdicts_taken(self, k: int) -> int:
         """How many of property ``k``'s verdicts :meth:`take` has handed out."""

@@ -35,7 +35,7 @@ from rasm.properties.ast import (
 from rasm.properties.emitter import Emitter, Later, Names, signal_variable
 from rasm.properties.emitter import Now as ValueNow
 from rasm.properties.formula_code import FormulaGenerator, normalise
-from rasm.properties.lines import Code, Line
+from rasm.properties.lines import Block, Code, Line
 from rasm.properties.robust_ops import (
     RCMP,
     FutureWindow,
@@ -141,7 +141,8 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
             top = None
         else:
             top = self.constant("top", value.stream)
-            self._code(f"if {top}.out: ROBUSTS_{number}({top}.out); {top}.out.clear()")
+            out = self.constant("ro", value.stream.out)
+            self._code(f"if {out}: ROBUSTS_{number}({out}); {out}.clear()")
         return RobustCode(tuple(self._lines), tuple(self._finish), top)
 
     def _code(self, *texts: str) -> None:
@@ -162,10 +163,26 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         self._code(f"{name}.step({'i' if index else 'tn'}{args})")
         return Late(stream)
 
-    def _pointwise(self, parts: list[RValue], function, interval) -> Late:
+    def _pointwise(self, parts: list[RValue], function, interval, template: str) -> Late:
+        """:class:`Pointwise`'s step written out: ``template`` is the function's source over
+        its arguments ``{0}``, ``{1}``, … (each a plain name, read as often as need be)."""
         sources = [part.stream if isinstance(part, Late) else None for part in parts]
         now = [self._held(part.source) for part in parts if isinstance(part, Now)]
-        return self._stream(Pointwise(sources, function, interval), *now)
+        stream = Pointwise(sources, function, interval)
+        queues = [self.constant("pq", part.stream.out) for part in parts
+                  if isinstance(part, Late)]
+        held, out = self.constant("ph", stream.held), self.constant("px", stream.out)
+        self._code(f"{held}.append(({''.join(v + ', ' for v in now)}))")  # () for none
+        args = [self.fresh("a") for _ in parts]
+        immediate = [x for x, part in zip(args, parts, strict=True) if isinstance(part, Now)]
+        take: list[Line] = [Code(f"({''.join(x + ', ' for x in immediate)}) = {held}.popleft()"
+                                 if immediate else f"{held}.popleft()")]
+        late = iter(queues)
+        take += [Code(f"{x} = {next(late)}.popleft()")
+                 for x, part in zip(args, parts, strict=True) if isinstance(part, Late)]
+        take.append(Code(f"{out}.append({template.format(*args)})"))
+        self._lines.append(Block(f"while {' and '.join(queues)}:", tuple(take)))
+        return Late(stream)
 
     # ----------------------------------------------------------------- atoms
     def literal(self, node: Literal) -> RValue:
@@ -184,7 +201,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         part = self.visit(node.operand)
         if isinstance(part, Now):
             return Now(f"(-{part.source})")
-        return self._pointwise([part], _neg, _neg_interval)
+        return self._pointwise([part], _neg, _neg_interval, "-{0}")
 
     def binary(self, node: Binary) -> RValue:
         if node.op in COMPARISONS:
@@ -198,10 +215,11 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
                 return Now(self._held(f"{a} if {a} > {b} else {b}"))
             return Now(self._held(f"-{a} if -{a} > {b} else {b}"))
         if node.op == "and":
-            return self._pointwise(parts, min, _min_interval)
+            return self._pointwise(parts, min, _min_interval, "{0} if {0} < {1} else {1}")
         if node.op == "or":
-            return self._pointwise(parts, max, _max_interval)
-        return self._pointwise(parts, _implies, _implies_interval)
+            return self._pointwise(parts, max, _max_interval, "{0} if {0} > {1} else {1}")
+        return self._pointwise(parts, _implies, _implies_interval,
+                               "-{0} if -{0} > {1} else {1}")
 
     def _compare(self, node: Binary) -> RValue:
         op, operands = node.op, children(node)
@@ -210,7 +228,8 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         if any(isinstance(part, Later) for part in parts):
             late = [Late(self._ordered(part)) if isinstance(part, Later) else Now(part.source)
                     for part in parts]
-            return self._pointwise(late, RCMP[op], _compare_interval(op))
+            return self._pointwise(late, RCMP[op], _compare_interval(op),
+                                   f"RCMP[{op!r}]({{0}}, {{1}})")
         a, b = (self._held(part.source) for part in parts)
         if exact:  # nanoseconds (ints, or a float where a value is undefined or infinite)
             return Now(self._held(f"RCMP[{op!r}]({a}, {b}) / 1000000000"))
@@ -264,11 +283,50 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
 
     # ----------------------------------------------------------------- future
     def future(self, node: Future) -> RValue:
+        """:class:`FutureWindow`'s step written out in the generated code (one per operator
+        per record: a method call and its attribute lookups cost more than the work), over
+        the window's own deques; the object keeps them for its intervals."""
         part = self.visit(node.operand)
         high, a, b = node.op == "eventually", node.bound.low_ns, node.bound.high_ns
-        if isinstance(part, Late):
-            return self._stream(FutureWindow(part.stream, high, a, b))
-        return self._stream(FutureWindow(None, high, a, b), self._held(part.source))
+        window = FutureWindow(part.stream if isinstance(part, Late) else None, high, a, b)
+        w = self.constant("fw", window)
+        outs, vals, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
+            ("fo", window.outs), ("fv", window.vals), ("fe", window.wedge), ("fx", window.out)))
+        self._code(f"{w}.newest = tn", f"{outs}.append((i, tn))")
+        times = None
+        if isinstance(part, Late):  # the operand's values come late, in record order
+            times, queue = self.constant("ft", window.times), self.constant("fq", part.stream.out)
+            k, t = self.fresh("k"), self.fresh("t")
+            self._code(f"{times}.append((i, tn))")
+            self._lines.append(Block(f"while {queue}:", (
+                Code(f"{k}, {t} = {times}.popleft()"),
+                Code(f"{vals}.append(({k}, {t}, {queue}.popleft()))"),
+            )))
+        else:
+            self._code(f"{vals}.append((i, tn, {self._held(part.source)}))")
+        j, tj, first, last, item, v = (self.fresh(x) for x in ("j", "tj", "f", "l", "it", "v"))
+        waits = f"tn <= {last}" + (f" or ({times} and {times}[0][1] <= {last})" if times else "")
+        worse = "<=" if high else ">="
+        empty = "-INF" if high else "INF"
+        self._lines.append(Block(f"while {outs}:", (
+            Code(f"{j}, {tj} = {outs}[0]"),
+            Code(f"{last} = {tj} + {b}"),
+            Code(f"if {waits}: break"),
+            Code(f"{first} = {tj} + {a}"),
+            Block(f"while {vals} and {vals}[0][1] <= {last}:", (
+                Code(f"{item} = {vals}.popleft()"),
+                Block(f"if {item}[1] >= {first} and {item}[0] >= {j}:", (
+                    Code(f"{v} = {item}[2]"),
+                    Code(f"while {wedge} and {wedge}[-1][2] {worse} {v}: {wedge}.pop()"),
+                    Code(f"{wedge}.append({item})"),
+                )),
+            )),
+            Code(f"while {wedge} and ({wedge}[0][1] < {first} or {wedge}[0][0] < {j}): "
+                 f"{wedge}.popleft()"),
+            Code(f"{out}.append({wedge}[0][2] if {wedge} else {empty})"),
+            Code(f"{outs}.popleft()"),
+        )))
+        return Late(window)
 
     def until(self, node: Until) -> RValue:
         parts = [self.visit(node.left), self.visit(node.right)]

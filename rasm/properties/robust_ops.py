@@ -200,6 +200,10 @@ class _Ordered:
         """An interval for each record whose value is not final yet, oldest first."""
         raise NotImplementedError
 
+    def waiting(self) -> int:
+        """How many records' values are not final yet (``len(self.intervals())``)."""
+        return len(self.intervals())
+
 
 def _pending(stream: _Ordered | None, value=None) -> list[Interval]:
     """The intervals of an input's records not final yet (an immediate input has none)."""
@@ -393,6 +397,9 @@ class FutureWindow(_Ordered):
             out.append(wedge[0][2] if wedge else self.empty)
             outs.popleft()
 
+    def waiting(self) -> int:
+        return len(self.outs)
+
     def intervals(self) -> list[Interval]:
         known = [(k, t, (v, v)) for k, t, v in (*self.wedge, *self.vals)]
         unknown = [(k, t, p) for (k, t), p in zip(self.times, _pending(self.source),
@@ -513,6 +520,9 @@ class UntilStream(_Ordered):
         head = self.front[-1][2] if self.front else _IDENTITY
         return _compose(head, self.back_all)
 
+    def waiting(self) -> int:
+        return len(self.outs)
+
     def intervals(self) -> list[Interval]:
         lefts = _pending(self.left) if self.left is not None else None
         rights = _pending(self.right) if self.right is not None else None
@@ -595,6 +605,9 @@ class Pointwise(_Ordered):
             immediate = iter(held.popleft())
             args = [next(immediate) if q is None else q.popleft() for q in queues]
             out.append(function(*args))
+
+    def waiting(self) -> int:
+        return len(self.held)
 
     def intervals(self) -> list[Interval]:
         pending = [_pending(s) for s in self.sources]
