@@ -24,6 +24,7 @@ __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties
 
 INF = math.inf
 NUMERIC = frozenset((int, float))
+VERDICT_NEW = tuple.__new__  # a Verdict from the tuple of all its fields
 SCALAR = frozenset((int, float, str, bool))
 
 
@@ -223,46 +224,65 @@ class Monitor:
         return self._step(time, values)
 
     def _step_robust(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
-        return self._with_robustness(self._step(time, values))
+        out = self._step(time, values)
+        return self._with_robustness(out) if out else out
 
     def _with_robustness(self, out: list[Verdict]) -> list[Verdict]:
-        """The verdicts ``out`` with their robustness (online)."""
-        self._take_robustness()
+        """The verdicts ``out`` with their robustness (online). A property's robustness values
+        are filed when one of its verdicts comes (:meth:`_take`); the usual case, a verdict
+        whose robustness is the one value given since, takes it at once."""
+        robust, rnext, number, rknown = self._robust, self._rnext, self._number, self._rknown
         for position, verdict in enumerate(out):
-            k = self._number[verdict.property]
-            known = self._rknown[k].pop(verdict.index, None)
-            if verdict.error is not None:
-                out[position] = verdict._replace(robustness=-INF, robustness_interval=(-INF, -INF))
+            name, j, time, value, error = verdict[:5]
+            k = number[name]
+            given = robust[k]
+            if error is None and len(given) == 1 and rnext[k] == j and not rknown[k]:
+                r = given.pop()
+                rnext[k] = j + 1
+                if r.__class__ is not float:
+                    r = as_float(r)
+                out[position] = VERDICT_NEW(Verdict, (name, j, time, value, None, r, (r, r)))
+                continue
+            if given or rnext[k] is None:
+                self._take(k)
+            known = rknown[k].pop(j, None)
+            if error is not None:
+                out[position] = VERDICT_NEW(Verdict, (name, j, time, value, error, -INF,
+                                                      (-INF, -INF)))
                 if known is None:
-                    self._early[k].add(verdict.index)
+                    self._early[k].add(j)
             elif known is not None:
                 r = as_float(known)
-                out[position] = verdict._replace(robustness=r, robustness_interval=(r, r))
+                out[position] = VERDICT_NEW(Verdict, (name, j, time, value, None, r, (r, r)))
             else:  # decided before its robustness is final
-                self._early[k].add(verdict.index)
+                self._early[k].add(j)
                 if self._intervals:
-                    out[position] = verdict._replace(
-                        robustness_interval=self._interval(k, verdict.index)
-                    )
+                    out[position] = verdict._replace(robustness_interval=self._interval(k, j))
         return out
 
     def _take_robustness(self) -> None:
         """File the final robustness values the generated code gave since the last call."""
-        for k, values in enumerate(self._robust):
-            if not values:
-                continue
-            j = self._rnext[k]
-            if j is None:
-                j = self.starts[k]
-            known, early = self._rknown[k], self._early[k]
-            for v in values:
-                if j in early:
-                    early.discard(j)  # its verdict has gone out already
-                else:
-                    known[j] = v
-                j += 1
-            values.clear()
-            self._rnext[k] = j
+        for k in range(len(self._robust)):
+            self._take(k)
+
+    def _take(self, k: int) -> None:
+        """File property ``k``'s final robustness values given since the last call (by record:
+        kept for a verdict to come, dropped where the verdict went out before)."""
+        j = self._rnext[k]
+        if j is None:
+            if self.starts[k] is None:
+                return
+            j = self.starts[k]
+        values = self._robust[k]
+        known, early = self._rknown[k], self._early[k]
+        for v in values:
+            if j in early:
+                early.discard(j)  # its verdict has gone out already
+            else:
+                known[j] = v
+            j += 1
+        values.clear()
+        self._rnext[k] = j
 
     def _interval(self, k: int, index: int) -> tuple[float, float]:
         """The interval property ``k``'s robustness at record ``index`` is known to lie in."""
