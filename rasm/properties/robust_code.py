@@ -285,14 +285,14 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
     def future(self, node: Future) -> RValue:
         """:class:`FutureWindow`'s step written out in the generated code (one per operator
         per record: a method call and its attribute lookups cost more than the work), over
-        the window's own deques; the object keeps them for its intervals."""
+        the window's own deques (the object reads them for its intervals), the records
+        numbered by ``i``."""
         part = self.visit(node.operand)
         high, a, b = node.op == "eventually", node.bound.low_ns, node.bound.high_ns
         window = FutureWindow(part.stream if isinstance(part, Late) else None, high, a, b)
-        w = self.constant("fw", window)
         outs, vals, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
             ("fo", window.outs), ("fv", window.vals), ("fe", window.wedge), ("fx", window.out)))
-        self._code(f"{w}.newest = tn", f"{outs}.append((i, tn))")
+        self._code(f"{outs}.append((i, tn))")
         times = None
         if isinstance(part, Late):  # the operand's values come late, in record order
             times, queue = self.constant("ft", window.times), self.constant("fq", part.stream.out)
@@ -307,23 +307,35 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         j, tj, first, last, item, v = (self.fresh(x) for x in ("j", "tj", "f", "l", "it", "v"))
         waits = f"tn <= {last}" + (f" or ({times} and {times}[0][1] <= {last})" if times else "")
         worse = "<=" if high else ">="
-        empty = "-INF" if high else "INF"
+        enter = (Code(f"{v} = {item}[2]"),
+                 Code(f"while {wedge} and {wedge}[-1][2] {worse} {v}: {wedge}.pop()"),
+                 Code(f"{wedge}.append({item})"))
+        if a == 0:
+            # the values not entered yet are those of records from j on (the windows close in
+            # record order), all in j's window up to its end: each enters; the wedge's newest
+            # is in j's window, so it is not empty
+            close: tuple[Line, ...] = (
+                Block(f"while {vals} and {vals}[0][1] <= {last}:",
+                      (Code(f"{item} = {vals}.popleft()"), *enter)),
+                Code(f"while {wedge}[0][0] < {j}: {wedge}.popleft()"),
+                Code(f"{out}.append({wedge}[0][2])"),
+            )
+        else:
+            close = (
+                Code(f"{first} = {tj} + {a}"),
+                Block(f"while {vals} and {vals}[0][1] <= {last}:", (
+                    Code(f"{item} = {vals}.popleft()"),
+                    Block(f"if {item}[1] >= {first} and {item}[0] >= {j}:", enter),
+                )),
+                Code(f"while {wedge} and ({wedge}[0][1] < {first} or {wedge}[0][0] < {j}): "
+                     f"{wedge}.popleft()"),
+                Code(f"{out}.append({wedge}[0][2] if {wedge} else {'-INF' if high else 'INF'})"),
+            )
         self._lines.append(Block(f"while {outs}:", (
             Code(f"{j}, {tj} = {outs}[0]"),
             Code(f"{last} = {tj} + {b}"),
             Code(f"if {waits}: break"),
-            Code(f"{first} = {tj} + {a}"),
-            Block(f"while {vals} and {vals}[0][1] <= {last}:", (
-                Code(f"{item} = {vals}.popleft()"),
-                Block(f"if {item}[1] >= {first} and {item}[0] >= {j}:", (
-                    Code(f"{v} = {item}[2]"),
-                    Code(f"while {wedge} and {wedge}[-1][2] {worse} {v}: {wedge}.pop()"),
-                    Code(f"{wedge}.append({item})"),
-                )),
-            )),
-            Code(f"while {wedge} and ({wedge}[0][1] < {first} or {wedge}[0][0] < {j}): "
-                 f"{wedge}.popleft()"),
-            Code(f"{out}.append({wedge}[0][2] if {wedge} else {empty})"),
+            *close,
             Code(f"{outs}.popleft()"),
         )))
         return Late(window)

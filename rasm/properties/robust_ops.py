@@ -407,12 +407,14 @@ class FutureWindow(_Ordered):
         records = known + unknown
         pick = max if self.high else min
         out = []
+        # the newest record is the last owed a value (the generated code sets no ``newest``)
+        newest = self.outs[-1][1] if self.outs else self.newest
         for i, ti in self.outs:
             lo = hi = self.empty
             for k, t, (low, high) in records:
                 if k >= i and ti + self.a <= t <= ti + self.b:
                     lo, hi = pick(lo, low), pick(hi, high)
-            if self.newest <= ti + self.b:  # records still to come may fall in the window
+            if newest <= ti + self.b:  # records still to come may fall in the window
                 lo, hi = (lo, INF) if self.high else (-INF, hi)
             out.append((lo, hi))
         return out
