@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from rasm.errors import Misfit
-from rasm.loop import EVENTS, LOOP_KEYS, LOOP_SIGNAL_TYPES, STAGES
+from rasm.loop import EVENTS, LOOP_KEYS, LOOP_SIGNAL_TYPES, STAGES, robustness_key
+from rasm.platform.signals import checked_properties
 from rasm.testing import run_app
 from rasm.testing.apps import app_manifest
 from rasm.values import fit
@@ -22,7 +23,9 @@ def hotbox():
 
 def test_every_key_of_a_trace_is_the_loops_or_the_apps(hotbox):
     manifest = app_manifest(EXAMPLES / "hotbox")
-    app_keys = {*manifest.signals, *manifest.produces["monitor"], "twin_residual"}
+    # with each checked property's robustness, which the Trustworthiness Checker writes
+    robustness = {robustness_key(name) for name in checked_properties(manifest)}
+    app_keys = {*manifest.signals, *manifest.produces["monitor"], "twin_residual", *robustness}
     plan_fields = set(manifest.produces["plan"])
     for record in hotbox:
         extra = set(record) - LOOP_KEYS - app_keys

@@ -29,6 +29,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import os
 import secrets
 import time as _time
@@ -269,8 +270,14 @@ class Distribution:
     # ------------------------------------------------------------------ managing side
 
     def _publish_record(self, time: float, record: dict[str, Any]) -> None:
+        # JSON on the wire has no infinities (a robustness decided by booleans alone is ±inf):
+        # such a value goes out undefined, as the trace file writes a NaN, never the record lost
+        payload = {
+            key: None if isinstance(value, float) and not math.isfinite(value) else value
+            for key, value in record.items()
+        }
         try:
-            self._transport.publish("rasm/trace", {"time": time, **record})
+            self._transport.publish("rasm/trace", {"time": time, **payload})
         except Exception:  # the trace on the bus is best effort; the loop never waits for it
             pass
 

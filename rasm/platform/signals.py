@@ -41,6 +41,7 @@ __all__ = [
     "Provided",
     "Provider",
     "app_problems",
+    "checked_properties",
     "check_app",
     "provided",
     "reads",
@@ -110,7 +111,7 @@ def provided(manifest: AppManifest) -> Provided:
     if manifest.twin:
         for key, kind in _TWIN_KNOWLEDGE.items():
             knowledge[key] = Provider(kind, "the digital twin")
-    for name in _checked_properties(manifest):
+    for name in checked_properties(manifest):
         knowledge.setdefault(robustness_key(name), Provider(
             "float", f"the Trustworthiness Checker (property {name}'s robustness)"))
     planned = {
@@ -132,7 +133,7 @@ def provided(manifest: AppManifest) -> Provided:
     return Provided(trace, knowledge, plan)
 
 
-def _checked_properties(manifest: AppManifest) -> list[str]:
+def checked_properties(manifest: AppManifest) -> list[str]:
     """The names of the properties a run checks: the platform's that are on, then the app's
     (a file that does not parse has none here: it is reported on its own)."""
     off = {name for name, limits in manifest.platform_properties.items() if limits is None}

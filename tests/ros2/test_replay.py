@@ -15,6 +15,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from rasm.cli import main
+from rasm.loop import MEASURED_KEYS
 from rasm.platform.manifest import load_manifest
 from rasm.platform.replay import recorded_trace
 from tests.ros2 import peer
@@ -229,7 +230,7 @@ def test_two_replays_of_one_recording_give_the_same_trace(tmp_path, monkeypatch)
         out = tmp_path / f"replay{n}.jsonl"
         assert main(["run", str(GUARD), "--replay", str(bag), "--trace", str(out)]) == 1
         lines = [json.loads(line) for line in out.read_text().splitlines()]
-        traces.append([{k: v for k, v in r.items() if k != "duration"} for r in lines])
+        traces.append([{k: v for k, v in r.items() if k not in MEASURED_KEYS} for r in lines])
     assert traces[0] == traces[1] and len(traces[0]) > 100
 
 

@@ -13,6 +13,7 @@ import pytest
 from ruamel.yaml import YAML
 
 from rasm import Platform, RunOptions
+from rasm.loop import MEASURED_KEYS
 from rasm.platform.manifest import load_manifest
 from rasm.ros2.zenoh import ZenohTransport
 
@@ -69,7 +70,7 @@ def seeded_traces(app: Path, url: str, tmp_path: Path) -> list[list[dict]]:
             trace=trace_file,
         )).run(20.0)
         records = [json.loads(line) for line in trace_file.read_text().splitlines()]
-        traces.append([{k: v for k, v in r.items() if k != "duration"} for r in records])
+        traces.append([{k: v for k, v in r.items() if k not in MEASURED_KEYS} for r in records])
     return traces
 
 
