@@ -60,19 +60,20 @@ def tree(draw, depth: int, future: bool):
     return (op, b, draw(sub))
 
 
-def to_rasm(node) -> str:
+def to_rasm(node, atom=str) -> str:
+    """The tree in rasm's language, each atom as ``atom`` writes its name."""
     kind = node[0]
     if kind == "atom":
-        return node[1]
+        return atom(node[1])
     if kind == "not":
-        return f"(not {to_rasm(node[1])})"
+        return f"(not {to_rasm(node[1], atom)})"
     if kind in ("and", "or", "implies"):
         op = "->" if kind == "implies" else kind
-        return f"({to_rasm(node[1])} {op} {to_rasm(node[2])})"
+        return f"({to_rasm(node[1], atom)} {op} {to_rasm(node[2], atom)})"
     b = "" if node[1] is None else f"[{node[1][0]}, {node[1][1]}]"
     if kind in ("since", "until"):
-        return f"({to_rasm(node[2])} {kind}{b} {to_rasm(node[3])})"
-    return f"({kind}{b} {to_rasm(node[2])})"
+        return f"({to_rasm(node[2], atom)} {kind}{b} {to_rasm(node[3], atom)})"
+    return f"({kind}{b} {to_rasm(node[2], atom)})"
 
 
 def to_reelay(node) -> str:

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from rasm.properties import compile_properties
 
 from .test_peers import PROPS, to_rtamt, tree
+from .test_peers import to_rasm as tree_in_rasm
 
 rtamt = pytest.importorskip("rtamt")
 HEADER = "".join(f"input {p}: float\n" for p in PROPS)
@@ -23,18 +24,7 @@ rows = st.lists(st.tuples(values, values, values), min_size=2, max_size=25)  # r
 
 def to_rasm(node) -> str:
     """The tree in rasm's language, each atom ``p >= 0.5`` as in :func:`to_rtamt`."""
-    kind = node[0]
-    if kind == "atom":
-        return f"({node[1]} >= 0.5)"
-    if kind == "not":
-        return f"(not {to_rasm(node[1])})"
-    if kind in ("and", "or", "implies"):
-        op = "->" if kind == "implies" else kind
-        return f"({to_rasm(node[1])} {op} {to_rasm(node[2])})"
-    b = "" if node[1] is None else f"[{node[1][0]}, {node[1][1]}]"
-    if kind in ("since", "until"):
-        return f"({to_rasm(node[2])} {kind}{b} {to_rasm(node[3])})"
-    return f"({kind}{b} {to_rasm(node[2])})"
+    return tree_in_rasm(node, atom=lambda name: f"({name} >= 0.5)")
 
 
 def rasm_robustness(formula: str, data) -> list:
