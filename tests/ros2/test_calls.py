@@ -75,9 +75,9 @@ def test_an_action_goal_reports_feedback_and_its_result(peers, transports, zenoh
     assert any(e["event"] == "goal" and e["order"] == 6 for e in server.events)
 
 
-def test_a_cancelled_goal_is_seen_cancelled_by_the_server(peers, transports, zenoh_router):
-    server = _server(peers, zenoh_router, action="/fibonacci", hang=True)
-    calls = _calls(transports, zenoh_router)
+def _cancel_a_running_goal(server, calls):
+    """Pursue a goal the server never ends, cancel it once its feedback comes: the pursuit's
+    failure, the feedback, the goal and the server's cancel events."""
     goal = ActionGoal(os.urandom(16))
     failure = []
     feedback = []
@@ -94,12 +94,19 @@ def test_a_cancelled_goal_is_seen_cancelled_by_the_server(peers, transports, zen
     server.wait_for(lambda p: any(e["event"] == "goal" for e in p.events), what="the goal")
     # feedback comes while the goal runs, not only with its result
     wait_until(lambda: feedback, what="feedback of the running goal")
-    assert feedback[0] == {"sequence": [0, 1]}
     goal.cancel("fallback engaged")
     worker.join(10)
-    assert failure and "goal cancelled (fallback engaged)" in failure[0]
     cancelled = server.wait_for(
         lambda p: [e for e in p.events if e["event"] == "cancelled"], what="the cancel")
+    return failure, feedback, goal, cancelled
+
+
+def test_a_cancelled_goal_is_seen_cancelled_by_the_server(peers, transports, zenoh_router):
+    server = _server(peers, zenoh_router, action="/fibonacci", hang=True)
+    failure, feedback, goal, cancelled = _cancel_a_running_goal(
+        server, _calls(transports, zenoh_router))
+    assert feedback[0] == {"sequence": [0, 1]}
+    assert failure and "goal cancelled (fallback engaged)" in failure[0]
     assert cancelled[0]["goal"] == goal.goal_id.hex()
     assert "test_msgs/action" not in cancelled[0]["key"]
     assert "/_action/cancel_goal/action_msgs::srv::dds_::CancelGoal_/RIHS01_" in (
@@ -189,25 +196,7 @@ def test_a_dds_action_goal_reports_feedback_and_its_result(peers, transports, dd
 
 def test_a_cancelled_dds_goal_is_seen_cancelled_by_the_server(peers, transports, dds_domain):
     server = _dds_server(peers, dds_domain, action="/fibonacci", hang=True)
-    calls = _dds_calls(transports, dds_domain)
-    goal = ActionGoal(os.urandom(16))
-    failure = []
-    feedback = []
-
-    def pursue():
-        try:
-            calls.pursue("/fibonacci", "test_msgs/action/Fibonacci", {"order": 3}, 30.0,
-                         feedback.append, goal)
-        except CallFailed as exc:
-            failure.append(str(exc))
-
-    worker = threading.Thread(target=pursue)
-    worker.start()
-    server.wait_for(lambda p: any(e["event"] == "goal" for e in p.events), what="the goal")
-    wait_until(lambda: feedback, what="feedback of the running goal")
-    goal.cancel("fallback engaged")
-    worker.join(10)
+    failure, _, goal, cancelled = _cancel_a_running_goal(
+        server, _dds_calls(transports, dds_domain))
     assert failure == ["action /fibonacci: goal cancelled (fallback engaged)"]
-    cancelled = server.wait_for(
-        lambda p: [e for e in p.events if e["event"] == "cancelled"], what="the cancel")
     assert cancelled[0]["goal"] == goal.goal_id.hex()
