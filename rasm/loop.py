@@ -8,7 +8,7 @@ from __future__ import annotations
 
 __all__ = [
     "EVENTS", "LOOP_KEYS", "LOOP_SIGNAL_TYPES", "MEASURED_KEYS", "ROBUSTNESS_PREFIX", "STAGES",
-    "robustness_key",
+    "reserved_key", "robustness_key",
 ]
 
 STAGES: tuple[str, ...] = ("monitor", "analyse", "plan", "legitimate", "execute")
@@ -53,6 +53,17 @@ ROBUSTNESS_PREFIX = "robustness_"
 def robustness_key(name: str) -> str:
     """The knowledge key and trace signal that hold property ``name``'s robustness."""
     return ROBUSTNESS_PREFIX + name
+
+
+def reserved_key(name: str) -> str | None:
+    """Why an app may not name a signal ``name`` (None: it may). The loop's own keys would
+    forge its events; a ``robustness_`` key would forge the margin a stage adapts on."""
+    if name in LOOP_KEYS:
+        return f"a key the loop writes itself in the trace ({', '.join(sorted(LOOP_KEYS))})"
+    if name.startswith(ROBUSTNESS_PREFIX):
+        return (f"the Trustworthiness Checker writes {ROBUSTNESS_PREFIX}<property> keys "
+                "(a property's robustness)")
+    return None
 
 
 MEASURED_KEYS: frozenset[str] = frozenset({"duration", robustness_key("stage_budget")})

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from rasm.errors import PlatformError
-from rasm.loop import LOOP_KEYS
+from rasm.loop import reserved_key
 
 if TYPE_CHECKING:
     from rasm.knowledge.base import KnowledgeBase
@@ -113,12 +113,9 @@ def as_signals(value: object) -> dict[str, Any]:
         raise StageError(
             f"monitor must return a dict of signals or None, not {type(value).__name__}"
         )
-    if not LOOP_KEYS.isdisjoint(value):
-        forged = min(LOOP_KEYS.intersection(value))
-        raise StageError(
-            f"monitor returned {forged!r}, a key the loop writes itself in the trace "
-            f"({', '.join(sorted(LOOP_KEYS))}): give the signal another name"
-        )
+    for key in sorted(value):
+        if (reason := reserved_key(key)) is not None:
+            raise StageError(f"monitor returned {key!r}, {reason}: give the signal another name")
     return value
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import jsonschema
 
 from rasm.errors import Location, RasmError, SourceError, SourceErrors, not_utf8
-from rasm.loop import LOOP_KEYS
+from rasm.loop import reserved_key
 from rasm.platform.manifest_messages import check_messages
 from rasm.yamltext import YamlSource, load_yaml, plain
 
@@ -335,11 +335,10 @@ def _probes(src: YamlSource, problems: list[SourceError]) -> list[Probe]:
                 spec.get("scale", 1),
                 spec.get("offset", 0),
             )
-            if str(key) in LOOP_KEYS:
+            if (reason := reserved_key(str(key))) is not None:
                 problems.append(
                     src.error(
-                        f"signal '{key}': a key the loop writes itself in the trace "
-                        f"({', '.join(sorted(LOOP_KEYS))}); give the signal another name",
+                        f"signal '{key}': {reason}; give the signal another name",
                         src.key(src.data["probes"][i]["signals"], key),
                     )
                 )
@@ -408,10 +407,9 @@ def _effector(
                     f"effector {name}: knowledge key '{key}' is filled twice",
                     src.at(["effectors", name, part, path]),
                 ))
-            elif str(key) in LOOP_KEYS:
+            elif (reason := reserved_key(str(key))) is not None:
                 problems.append(src.error(
-                    f"effector {name}: '{key}' is a key the loop writes itself in the trace; "
-                    "give it another name",
+                    f"effector {name}: '{key}': {reason}; give it another name",
                     src.at(["effectors", name, part, path]),
                 ))
             # the value type comes from the field's, once the type store is read
@@ -444,13 +442,9 @@ def _derived_signal_problems(
     problems = []
     for name, kind in derived.items():
         where = src.key(declared, name)
-        if name in LOOP_KEYS:
+        if (reason := reserved_key(name)) is not None:
             problems.append(
-                src.error(
-                    f"signal '{name}': a key the loop writes itself in the trace "
-                    f"({', '.join(sorted(LOOP_KEYS))}); give the signal another name",
-                    where,
-                )
+                src.error(f"signal '{name}': {reason}; give the signal another name", where)
             )
         elif name in by_probe and by_probe[name][1].type != kind:
             probe, signal = by_probe[name]

@@ -88,6 +88,13 @@ def test_a_good_manifest_loads(tmp_path):
             7,
             "signal 'executed': a key the loop writes itself in the trace (anomaly, broken_rules",
         ),
+        (  # ... and one named robustness_* the margin a stage adapts on
+            "x: {type: float, min: 0, max: 10}",
+            "robustness_band: {type: float}",
+            10,
+            7,
+            "signal 'robustness_band': the Trustworthiness Checker writes robustness_<property>",
+        ),
     ],
 )
 def test_each_mistake_is_reported_at_its_place(tmp_path, old, new, line, col, message):

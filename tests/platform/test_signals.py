@@ -299,6 +299,12 @@ def test_effector_fields_are_plan_fields(tmp_path):
         ),
         (
             "produces: {temperature_mean: float, temperature_trend: float}",
+            "produces: {temperature_mean: float, robustness_temperature_band: float}",
+            "robustness_temperature_band",
+            "signal 'robustness_temperature_band': the Trustworthiness Checker writes",
+        ),
+        (
+            "produces: {temperature_mean: float, temperature_trend: float}",
             "produces: {temperature_mean: float, lid_open: float}",
             "lid_open: float",
             "signal 'lid_open' is float here but probe hotbox/sensors gives it as bool",
