@@ -11,6 +11,9 @@ Every channel is a ROS 2 topic with a ROS 2 type (``ros2msg`` schema, ``cdr`` me
 - ``/rasm/verdict/<property>`` (``std_msgs/msg/Bool``): a property's verdict whenever it
   changes (``data`` false when violated or in error; an undecided verdict is not written), as
   the live verdict topics carry it (:meth:`McapTraceWriter.verdicts`);
+- ``/rasm/robustness/<property>`` (``std_msgs/msg/Float64``): a property's robustness
+  (``robustness_<property>``, ±inf included) with each trace record that carries it, so a plot
+  of it needs no JSON parsing;
 - each effector's topic (or service or action name) in the effector's own type: the message
   each action sent, or would have sent in a replay (:meth:`McapTraceWriter.message`).
 
@@ -31,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from rasm.errors import PlatformError, RasmError
+from rasm.loop import ROBUSTNESS_PREFIX
 from rasm.losses import Damage
 from rasm.mcapfile import McapError, McapReader, read_header
 from rasm.trace import TraceWriter, format_line
@@ -39,6 +43,7 @@ __all__ = [
     "CHANNEL",
     "McapTrace",
     "McapTraceWriter",
+    "ROBUSTNESS_CHANNEL_PREFIX",
     "VERDICT_PREFIX",
     "is_mcap_trace",
     "open_trace_writer",
@@ -47,11 +52,14 @@ __all__ = [
 
 CHANNEL = "/rasm/trace"
 VERDICT_PREFIX = "/rasm/verdict/"
+ROBUSTNESS_CHANNEL_PREFIX = "/rasm/robustness/"
 
 _CDR_HEADER = b"\x00\x01\x00\x00"  # little-endian plain CDR, as ROS 2 sends
 _STRING = ("std_msgs/msg/String", "string data\n")
 _BOOL = ("std_msgs/msg/Bool", "bool data\n")
+_FLOAT64 = ("std_msgs/msg/Float64", "float64 data\n")
 _U32 = struct.Struct("<I")
+_F64 = struct.Struct("<d")  # alignment counts from after the header: no padding
 
 
 def string_cdr(text: str) -> bytes:
@@ -137,6 +145,12 @@ class McapTraceWriter(TraceWriter):
 
     def _encode(self, time: float, record: dict[str, Any]) -> bytes:
         self._add(self._channels[CHANNEL], time, string_cdr(format_line(time, record)))
+        for key, value in record.items():
+            if (key.startswith(ROBUSTNESS_PREFIX) and isinstance(value, (int, float))
+                    and not isinstance(value, bool)):
+                channel = self._channel(
+                    ROBUSTNESS_CHANNEL_PREFIX + key.removeprefix(ROBUSTNESS_PREFIX), *_FLOAT64)
+                self._add(channel, time, _CDR_HEADER + _F64.pack(value))
         return self._sink.take()
 
     def _finish(self) -> None:

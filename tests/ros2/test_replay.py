@@ -199,9 +199,19 @@ def test_a_replay_drives_the_loop_and_records_the_actions_instead_of_sending(tmp
     apps = {"/rasm/trace", "/cmd_vel", "/guard_state", "/rasm/verdict/speed_limit",
             "/rasm/verdict/slow_near_obstacles", "/rasm/verdict/no_bump"}
     assert apps <= set(channels)
-    # the rest: the verdicts of the platform's own properties (timeliness, ...)
-    assert all(topic.startswith("/rasm/verdict/") for topic in set(channels) - apps)
+    # the rest: the verdicts of the platform's own properties (timeliness, ...) and every
+    # property's robustness as std_msgs/msg/Float64, each value with the record carrying it
+    rest = set(channels) - apps
+    assert all(topic.startswith(("/rasm/verdict/", "/rasm/robustness/")) for topic in rest)
     assert "/rasm/verdict/stage_order" in channels
+    carried = {
+        (f"/rasm/robustness/{key.removeprefix('robustness_')}", round(r["time"] * 1e9), value)
+        for r in records for key, value in r.items() if key.startswith("robustness_")
+    }
+    assert carried and carried == {
+        (topic, when, m.data) for topic in rest if topic.startswith("/rasm/robustness/")
+        for when, m in channels[topic]
+    }
     (when, twist), *_ = channels["/cmd_vel"]
     assert (twist.linear.x, twist.angular.z) == (0.1, 0.5)
     assert when == round(actions[0]["time"] * 1e9)
