@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import random
 import resource
 import statistics
 import subprocess
@@ -36,45 +35,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 RASM = [sys.executable, "-m", "rasm.cli"]
 
-PROPS = """\
-input velocity: float
-input mode: str = "idle"
-event anomaly
-event adapted
-property velocity_limit:
-    always (velocity <= 0.5 or mode == "emergency")
-property timely_adaptation:
-    always (anomaly -> eventually[0, 2s] adapted)
-property smooth:
-    always (abs(velocity - prev(velocity)) < 0.45)
-property calm:
-    always (avg[0, 1s](velocity) < 0.4)
-"""
-
-
-def write_trace(path: Path, records: int, seed: int = 0) -> Path:
-    rng = random.Random(seed)
-    with open(path, "w", encoding="utf-8") as out:
-        out.write(json.dumps({"time": 0, "mode": "navigate", "velocity": 0.1}) + "\n")
-        lines = []
-        for k in range(1, records):
-            record: dict = {"time": k / 100, "velocity": round(rng.uniform(0, 0.52), 3)}
-            if rng.random() < 0.001:
-                record["anomaly"] = True
-            if rng.random() < 0.001:
-                record["adapted"] = True
-            if rng.random() < 0.0002:
-                record["mode"] = rng.choice(["navigate", "dock", "emergency"])
-            lines.append(json.dumps(record))
-            if len(lines) == 100_000:
-                out.write("\n".join(lines) + "\n")
-                lines = []
-        if lines:
-            out.write("\n".join(lines) + "\n")
-    return path
-
+from tests.scale.traces import PROPS, write_trace  # noqa: E402  (the scale tests' robot trace)
 
 CPU: list[float] = []  # the processor seconds of each check, in order
 

@@ -3,9 +3,7 @@
 
 from __future__ import annotations
 
-import json
 import os
-import random
 import subprocess
 import sys
 import time
@@ -15,43 +13,16 @@ import pytest
 
 from rasm.testing.servers import free_port
 
+from .traces import PROPS as BASE_PROPS
+
 ROOT = Path(__file__).resolve().parents[2]
 RASM = [sys.executable, "-m", "rasm.cli"]
 
-PROPS = """\
-input velocity: float
-input mode: str = "idle"
-event anomaly
-event adapted
-property velocity_limit:
-    always (velocity <= 0.5 or mode == "emergency")
-property timely_adaptation:
-    always (anomaly -> eventually[0, 2s] adapted)
-property smooth:
-    always (abs(velocity - prev(velocity)) < 0.45)
-property calm:
-    always (avg[0, 1s](velocity) < 0.4)
+# the benchmark's properties, and one over the whole past (a cut must carry its memory)
+PROPS = BASE_PROPS + """\
 property docked_before:
     always (mode == "emergency" -> once (mode == "dock"))
 """
-
-
-def write_trace(path: Path, records: int, seed: int = 0) -> Path:
-    """A robot's trace at 100 Hz: velocity every record, rare anomalies, adaptations and mode
-    changes (a mode set once holds across any cut)."""
-    rng = random.Random(seed)
-    with open(path, "w", encoding="utf-8") as out:
-        out.write(json.dumps({"time": 0, "mode": "navigate", "velocity": 0.1}) + "\n")
-        for k in range(1, records):
-            record: dict = {"time": k / 100, "velocity": round(rng.uniform(0, 0.52), 3)}
-            if rng.random() < 0.001:
-                record["anomaly"] = True
-            if rng.random() < 0.001:
-                record["adapted"] = True
-            if rng.random() < 0.0002:
-                record["mode"] = rng.choice(["navigate", "dock", "emergency"])
-            out.write(json.dumps(record) + "\n")
-    return path
 
 
 @pytest.fixture

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import RASM, rasm, write_trace
+from .conftest import RASM, rasm
+from .traces import write_trace
 
 
 @pytest.fixture

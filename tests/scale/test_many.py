@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import RASM, children, cpu_seconds, rasm, write_trace
+from .conftest import RASM, children, cpu_seconds, rasm
+from .traces import write_trace
 
 
 @pytest.fixture
