@@ -55,6 +55,7 @@ from rasm.properties.lines import Block, Code, Emit, Online
 from rasm.properties.operators import WindowCore
 from rasm.properties.streams import (
     AggregateStream,
+    CountStream,
     InOrder,
     JoinStream,
     PrevStream,
@@ -138,6 +139,9 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         # later one), for the parent that may keep the records it decides out of them
         self._windows: dict[Source, _InlineWindow] = {}
         self._prevs: dict[str, str] = {}  # the source of prev's operand -> prev's value
+        # counts over late values (CountStream) by stream, with their constants' names, for
+        # the comparison that may be their parent
+        self._counts: dict[CountStream, str] = {}
 
     def compile(self, number: int, formula: Expr) -> PropertyCode:
         """Property ``number``'s lines: its formula's value at each record, and the verdicts
@@ -145,7 +149,7 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         self._begin(number)
         self._root = root = normalise(formula)
         self._owed = self._order = None
-        self._windows, self._prevs = {}, {}
+        self._windows, self._prevs, self._counts = {}, {}, {}
         value = self.visit(root)
         body, finish = self._lines, self._finish
         if isinstance(value, Now):
@@ -215,6 +219,16 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         )
         parts = self._in_units(children(node), [left, right], exact)
         late = late_positions(parts)
+        if len(late) == 1 and op in COMPARISONS:
+            # a count over values that come late, compared with a value known at its record:
+            # decided as soon as the count's possible range fixes the comparison
+            position = late[0]
+            stream = parts[position].stream  # type: ignore[union-attr]
+            count = self._counts.pop(stream, None)
+            if count is not None:
+                stream.compare(op, position)
+                self._code(f"{count}.against(i, {parts[1 - position].source})")
+                return parts[position]
         if len(late) == 2:
             return self._stream(JoinStream, parts, op, _ARITH.get(op) or _COMPARE.get(op))
         if late:
@@ -272,6 +286,13 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         (part,) = self._in_units(children(node), [operand], False)
         a, b = node.bound.low_ns, node.bound.high_ns
         if isinstance(part, Later):
+            if node.op == "count":  # a comparison above may decide it early (binary)
+                stream = CountStream([part.stream], a, b)
+                name = self.constant("s", stream)
+                self._counts[stream] = name
+                self._code(f"{name}.step(i, t, tn)")
+                self._finish.append(Code(f"{name}.finish()"))
+                return Later(stream)
             return self._stream(AggregateStream, [part], node.op, a, b)
         if node.op == "count" and a == 0:
             return Now(self._count_window(b, part.source))

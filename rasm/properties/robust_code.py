@@ -49,6 +49,7 @@ from rasm.properties.robust_ops import (
     UntilStream,
     compare_interval,
 )
+from rasm.properties.streams import CountStream
 from rasm.properties.types import TypeScope
 from rasm.properties.units import is_time, looks_ahead
 from rasm.properties.visitor import Visitor
@@ -134,7 +135,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         values._begin(number)
         values._lines, values._finish = self._lines, self._finish  # one list of lines
         values._root = values._owed = values._order = None
-        values._windows, values._prevs = {}, {}
+        values._windows, values._prevs, values._counts = {}, {}, {}
         value = self.visit(formula)
         if isinstance(value, Now):
             self._code(f"ROBUST_{number}({value.source})")
@@ -226,8 +227,11 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         exact = any(map(is_time, operands)) and not looks_ahead(node)
         parts = self._values._in_units(operands, [self._value(x) for x in operands], exact)
         if any(isinstance(part, Later) for part in parts):
-            late = [Late(self._ordered(part)) if isinstance(part, Later) else Now(part.source)
-                    for part in parts]
+            # a count compared with a value known at its record: an open value lies in the
+            # count's range, as the boolean comparison decides it (CountStream)
+            ranges = len([part for part in parts if isinstance(part, Later)]) == 1
+            late = [Late(self._ordered(part, ranges)) if isinstance(part, Later)
+                    else Now(part.source) for part in parts]
             return self._pointwise(late, RCMP[op], _compare_interval(op),
                                    f"RCMP[{op!r}]({{0}}, {{1}})")
         a, b = (self._held(part.source) for part in parts)
@@ -244,8 +248,8 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         """A value compared: its source, or the stream of its values where it comes late."""
         return self._values.visit(normalise(node))  # as the boolean compile sees it
 
-    def _ordered(self, part: Later) -> Ordered:
-        ordered = Ordered(part.stream)
+    def _ordered(self, part: Later, ranges: bool = False) -> Ordered:
+        ordered = Ordered(part.stream, ranges and isinstance(part.stream, CountStream))
         self._stream(ordered, index=True)
         return ordered
 

@@ -630,11 +630,14 @@ class Pointwise(_Ordered):
 class Ordered(_Ordered):
     """The values of a boolean-semantics stream (:mod:`rasm.properties.streams`: a value that
     comes late, such as a count over a future operand), decided in any order, in record
-    order. A value inconclusive at the end of the trace (None) is unknown."""
+    order. A value inconclusive at the end of the trace (None) is unknown. ``ranges``: the
+    stream is a count (:class:`~rasm.properties.streams.CountStream`) compared with a value
+    known at its record, and a value not known yet lies in the count's range."""
 
-    def __init__(self, source) -> None:
+    def __init__(self, source, ranges: bool = False) -> None:
         super().__init__()
         self.source = source.out
+        self.count = source if ranges else None
         self.next = None  # the record whose value goes out next
         self.newest = -1
         self.waiting: dict[int, object] = {}
@@ -661,7 +664,12 @@ class Ordered(_Ordered):
         for j, _, _, v in self.source:
             waiting[j] = v
         out = []
+        count = self.count
         for j in range(self.next if self.next is not None else 0, self.newest + 1):
             v = waiting.get(j)
+            if v is None and count is not None:
+                v = count.range(j)
+                out.append(EVERYTHING if v is None else v)
+                continue
             out.append(EVERYTHING if v is None else (v, v))
         return out

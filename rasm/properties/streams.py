@@ -16,12 +16,14 @@ import math
 from collections import deque
 
 from rasm.properties import operators
+from rasm.properties.expr import _COMPARE
 from rasm.properties.operators import UNKNOWN, SinceWindow, UntilWindow, WindowCore, WindowOr
 
 INF = math.inf
 
 __all__ = [
     "AggregateStream",
+    "CountStream",
     "InOrder",
     "JoinStream",
     "PrevStream",
@@ -291,6 +293,270 @@ class AggregateStream(Stream):
             self.entered = j
             records.popleft()
             self.out.append((i, t, ns, core.at(ns)))
+
+
+class _Open:
+    """A record of a :class:`CountStream` whose value is not given yet: its window, the value
+    compared with (UNKNOWN until given), what decides the comparison, its buckets."""
+
+    __slots__ = ("i", "t", "ns", "low", "high", "against", "rule", "keys", "final", "done")
+
+    def __init__(self, i: int, t, ns: int, low: int, high: int) -> None:
+        self.i, self.t, self.ns, self.low, self.high = i, t, ns, low, high
+        self.against = UNKNOWN
+        self.rule: tuple | None = None  # (kt needed, value then, kf needed, value then)
+        self.keys: tuple | None = None  # its buckets: (true total, false total), once active
+        self.final: tuple | None = None  # (kt, kf, kn) once its whole window has entered
+        self.done = False  # its value is given
+
+
+# ``count op v`` as ``count op' v`` with the count on the left
+_MIRROR = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
+_ZERO = (0, 0, 0)
+
+
+class CountStream(Stream):
+    """``count[a,b]`` of a stream, and a comparison of that count with a value known at its
+    record (``count[0, 5](eventually[0, 1] p) >= 3``), decided as soon as the count's possible
+    range fixes it.
+
+    A record's window (the records j <= i with ``a <= t_i - t_j <= b``) is known when the
+    record comes. The operand's values enter in record order (``entered``: the first record
+    whose value has not), each adding to running totals of true, false and inconclusive
+    values; ``totals[k]`` holds them before record ``base + k``, so what has entered of any
+    window is two subtractions. A window of n records of which kt have entered true and kf
+    false has a count in [kt, n - kf] (:meth:`range`); once the whole window has entered the
+    count is given, in record order (inconclusive where a value is).
+
+    After :meth:`compare`, the stream's values are those of the comparison, ``v`` given for
+    each record by :meth:`against` after its step. The range fixes it once kt reaches one
+    number or kf another (both only grow): an open record waits in one bucket per side, keyed
+    by the running total that side must reach, so each value entering looks in one bucket.
+    Values that come out of record order wait for those before them (as in
+    :class:`AggregateStream`). O(1) amortised work per record, memory bounded by the window
+    and the records still open.
+    """
+
+    def __init__(self, inputs, a: int, b: int | float) -> None:
+        super().__init__(inputs)
+        self.a, self.b = a, b
+        self.ns: list[int] = []  # ns[k]: the time of record base + k
+        self.totals: list[tuple[int, int, int]] = []  # (true, false, None) before base + k
+        self.base = self.origin = 0
+        self.low = self.high = self.entered = None  # the newest window's ends, next to enter
+        self.known: dict[int, object] = {}  # values of records from ``entered`` on
+        self.open: deque = deque()  # _Open records whose window has not entered yet
+        self.newest: _Open | None = None
+        # with a comparison
+        self.op: str | None = None
+        self.flip = False
+        self.inactive: deque = deque()  # open records none of whose window has entered
+        self.by_true: dict[int, dict[int, _Open]] = {}
+        self.by_false: dict[int, dict[int, _Open]] = {}
+
+    def compare(self, op: str, position: int) -> None:
+        """From now on, the values of ``count op v`` (``position`` 1: ``v op count``)."""
+        self.op = op if position == 0 else _MIRROR[op]
+
+    # ----------------------------------------------------------------- records
+    def step(self, i: int, t, ns: int) -> None:
+        times = self.ns
+        if self.low is None:
+            self.base = self.origin = self.low = self.entered = i
+            self.high = i - 1
+            self.totals.append(_ZERO)
+        times.append(ns)
+        base, low, high = self.base, self.low, self.high
+        if self.b != INF:
+            while ns - times[low - base] > self.b:  # stops at i at the latest
+                low += 1
+        while high < i and ns - times[high + 1 - base] >= self.a:
+            high += 1
+        self.low, self.high = low, high
+        record = self.newest = _Open(i, t, ns, low, high)
+        if low > high:  # an empty window: a count of 0
+            record.final = _ZERO
+            if self.op is None:
+                self.out.append((i, t, ns, 0))
+        else:
+            self.open.append(record)
+        self.step_inputs()
+        self._forget()
+
+    def against(self, i: int, v) -> None:
+        """Record ``i``'s value of the other side of the comparison (after its step)."""
+        record = self.newest
+        record.against = v
+        record.rule = _rule(self.op, v, record.high - record.low + 1)
+        if record.final is not None:
+            self._give(record, record.final)
+        elif record.low <= self.entered:
+            self._activate(record)
+        elif self._judge(record, 0, 0) is not None:  # decided by the window's size alone
+            self._decide(record, self._judge(record, 0, 0))
+        else:
+            self.inactive.append(record)
+
+    def range(self, i: int) -> tuple[int, int] | None:
+        """The range of the count at open record ``i`` (None: not open)."""
+        for record in self.open:
+            if record.i == i:
+                kt, kf, _ = self._entered(record)
+                return (kt, record.high - record.low + 1 - kf)
+        return None
+
+    # ----------------------------------------------------------------- values
+    def step_inputs(self) -> None:
+        queue, known = self.queues[0], self.known
+        while queue:
+            j, _, _, v = queue.popleft()
+            known[j] = v
+        totals, open_, inactive = self.totals, self.open, self.inactive
+        entered = self.entered
+        while True:
+            while open_ and open_[0].high < entered:  # its whole window has entered
+                record = open_.popleft()
+                record.final = self._entered(record)
+                if self.op is None:
+                    kt, _, kn = record.final
+                    self.out.append((record.i, record.t, record.ns, None if kn else kt))
+                elif record.rule is not None:
+                    self._give(record, record.final)
+            if entered not in known:
+                return
+            v = known.pop(entered)
+            tt, tf, tn = totals[-1]
+            if v is None:
+                tn += 1
+            elif v:
+                tt += 1
+            else:
+                tf += 1
+            totals.append((tt, tf, tn))
+            entered += 1
+            self.entered = entered
+            if self.op is None:
+                continue
+            if v is not None:
+                bucket = self.by_true.pop(tt, None) if v else self.by_false.pop(tf, None)
+                if bucket:  # each of these records has reached its total (its window holds
+                    # the value entered: those whose window ends before it have gone above)
+                    for record in list(bucket.values()):
+                        kt, kf, _ = self._entered(record)
+                        self._decide(record, self._judge(record, kt, kf))
+            while inactive and inactive[0].low <= entered:
+                self._activate(inactive.popleft())
+
+    def _entered(self, record: _Open) -> tuple[int, int, int]:
+        """(true, false, None) among the values of ``record``'s window entered so far."""
+        base = self.base
+        end = min(self.entered, record.high + 1)
+        if end <= record.low:
+            return _ZERO
+        high = self.totals[end - base]
+        low = _ZERO if record.low == self.origin else self.totals[record.low - base]
+        return (high[0] - low[0], high[1] - low[1], high[2] - low[2])
+
+    def _activate(self, record: _Open) -> None:
+        """Part of ``record``'s window has entered: decide it, or file it in its buckets."""
+        if record.done:
+            return
+        kt, kf, _ = self._entered(record)
+        value = self._judge(record, kt, kf)
+        if value is not None:
+            self._decide(record, value)
+            return
+        tt, tf, _ = self.totals[-1]
+        need_true, _, need_false, _ = record.rule
+        keys = (tt + need_true - kt, tf + need_false - kf)
+        record.keys = keys
+        if keys[0] != INF:
+            self.by_true.setdefault(keys[0], {})[record.i] = record
+        if keys[1] != INF:
+            self.by_false.setdefault(keys[1], {})[record.i] = record
+
+    def _judge(self, record: _Open, kt: int, kf: int):
+        """The comparison at ``record`` where the range fixes it, else None."""
+        need_true, if_true, need_false, if_false = record.rule
+        if kt >= need_true:
+            return if_true
+        if kf >= need_false:
+            return if_false
+        return None
+
+    def _decide(self, record: _Open, value) -> None:
+        """Give ``record``'s value (None: inconclusive), once."""
+        if record.done:
+            return
+        record.done = True
+        keys = record.keys
+        if keys is not None:  # out of its buckets
+            record.keys = None
+            for buckets, key in ((self.by_true, keys[0]), (self.by_false, keys[1])):
+                bucket = buckets.get(key)
+                if bucket is not None:
+                    bucket.pop(record.i, None)
+                    if not bucket:
+                        del buckets[key]
+        self.out.append((record.i, record.t, record.ns, value))
+
+    def _give(self, record: _Open, final: tuple[int, int, int]) -> None:
+        """``record``'s whole window has entered: its value, if not given yet."""
+        if record.done:
+            return
+        kt, kf, kn = final
+        if kn:  # an inconclusive value in it: what the range fixes, else inconclusive
+            self._decide(record, self._judge(record, kt, kf))
+        else:
+            self._decide(record, _COMPARE[self.op](kt, record.against))
+
+    def _forget(self) -> None:
+        """Drop the times and totals no window still open or to come needs."""
+        finite = self.b != INF
+        keep = min(self.entered, self.high + 1, self.low if finite else self.entered)
+        for record in (self.open[0] if self.open else None, self.newest):
+            if record is not None and record.final is None:
+                keep = min(keep, record.low if finite else record.high + 1)
+        keep -= self.base
+        if keep > operators.BATCH and keep * 2 > len(self.ns):
+            del self.ns[:keep]
+            del self.totals[:keep]
+            self.base += keep
+
+    def finish(self) -> None:
+        self.step_inputs()
+        for record in self.open:  # (every value has come: none is left)
+            if not record.done:
+                self.out.append((record.i, record.t, record.ns, None))
+        self.open.clear()
+
+
+def _rule(op: str | None, v, n: int) -> tuple:
+    """How ``count op v`` over a window of ``n`` records is decided from its values entered
+    so far, kt true and kf false: (kt needed, the value then, kf needed, the value then); INF:
+    never before the whole window has entered."""
+    if op is None:
+        return (INF, None, INF, None)
+    if v.__class__ not in (int, float):  # a number of another kind: compared at the end
+        return (INF, None, INF, None)
+    if v != v:  # undefined: every comparison is false
+        return (0, False, 0, False)
+    if op in ("==", "!="):
+        # count == m is false once kt > m or n - kf < m
+        if v in (INF, -INF) or v != int(v):
+            return (0, op == "!=", 0, op == "!=")
+        m = int(v)
+        return (m + 1, op == "!=", n - m + 1, op == "!=")
+    # count op v is (count >= m) or (count < m)
+    if v == INF or v == -INF:
+        m = v
+    elif op in (">=", "<"):
+        m = math.ceil(v)
+    else:
+        m = math.floor(v) + 1
+    up = op in (">=", ">")
+    # count >= m once kt >= m; count < m once n - kf < m
+    return (m if m != -INF else 0, up, n - m + 1 if m != INF else 0, not up)
 
 
 class InOrder:

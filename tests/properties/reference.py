@@ -4,6 +4,11 @@ quadratic, obviously correct.
 Values are three-valued: True, False, None (inconclusive: depends on records after the end).
 Numbers may be ``nan`` (undefined: prev at the first record, an empty window, x / 0).
 
+A ``count`` over inconclusive values is a :class:`CountRange` (the counts it may still take):
+a comparison of it with a value that does not look ahead is decided where every count in the
+range gives the same answer (docs/properties.md, "Verdicts come as soon as they are decided");
+anything else makes of a range an inconclusive value.
+
 Times are exact: a record's time and a window's bounds are the decimals they were written as
 (a float stands for its shortest decimal, ``repr``), held as :class:`fractions.Fraction`, so
 ``0.3 - 0.1`` is exactly ``0.2`` here. Arithmetic follows IEEE-754 binary64 without ever
@@ -191,6 +196,15 @@ def k_all(values):
     return result
 
 
+class CountRange(tuple):
+    """The counts ``(lo, hi)`` a count over inconclusive values may still take."""
+
+
+def settled(v):
+    """A value as anything but a comparison with a count reads it (a range: inconclusive)."""
+    return None if isinstance(v, CountRange) else v
+
+
 class Reference:
     def __init__(self, spec: Specification, records) -> None:
         self.spec = spec
@@ -233,10 +247,12 @@ class Reference:
         if isinstance(node, Not):
             return k_not(self.value(node.operand, i))
         if isinstance(node, Unary):
-            v = self.value(node.operand, i)
+            v = settled(self.value(node.operand, i))
             return None if v is None else Exact(-v) if isinstance(v, Exact) else -v
         if isinstance(node, Binary):
             a, b = self.value(node.left, i), self.value(node.right, i)
+            if isinstance(a, CountRange) or isinstance(b, CountRange):
+                return self._range_comparison(node, a, b)
             if node.op == "and":
                 return k_and(a, b)
             if node.op == "or":
@@ -260,7 +276,7 @@ class Reference:
                 "==": a == b, "!=": a != b, "<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b,
             }[node.op]
         if isinstance(node, Call):
-            args = [self.value(x, i) for x in node.args]
+            args = [settled(self.value(x, i)) for x in node.args]
             if None in args:
                 return None
             if any(x != x for x in args):
@@ -277,7 +293,7 @@ class Reference:
         if isinstance(node, Prev):
             if i == self.start:
                 return False if self.types.check(node.operand) == "bool" else NAN
-            return self.value(node.operand, i - 1)
+            return settled(self.value(node.operand, i - 1))
         a, b = exact_bound(node.bound.low), exact_bound(node.bound.high)
         past = range(self.start, i + 1)
         future = range(i, self.n)
@@ -315,11 +331,14 @@ class Reference:
                 terms.append(k_and(None, lefts))
             return k_any(terms)
         if isinstance(node, Aggregate):
-            window = [plain(self.value(node.operand, j)) for j in past if a <= t[i] - t[j] <= b]
+            window = [plain(settled(self.value(node.operand, j)))
+                      for j in past if a <= t[i] - t[j] <= b]
+            if node.op == "count":
+                if None in window:
+                    return CountRange((window.count(True), len(window) - window.count(False)))
+                return sum(1 for v in window if v)
             if None in window:
                 return None
-            if node.op == "count":
-                return sum(1 for v in window if v)
             if any(v != v for v in window):
                 return NAN
             if node.op == "sum":
@@ -330,6 +349,27 @@ class Reference:
                 return ieee_avg(window)
             return min(window) if node.op == "min" else max(window)
         raise TypeError(node)
+
+    def _range_comparison(self, node, a, b):
+        """A comparison with a count over inconclusive values: decided where the other side
+        does not look ahead and every count the range allows gives the same answer."""
+        if node.op not in ("==", "!=", "<", "<=", ">", ">="):
+            return None
+        other = node.right if isinstance(a, CountRange) else node.left
+        if looks_ahead(other) or (isinstance(a, CountRange) and isinstance(b, CountRange)):
+            return None
+        if isinstance(a, CountRange):
+            answers = {_compare(node.op, c, b) for c in range(a[0], a[1] + 1)}
+        else:
+            answers = {_compare(node.op, a, c) for c in range(b[0], b[1] + 1)}
+        return answers.pop() if len(answers) == 1 else None
+
+
+def _compare(op: str, a, b) -> bool:
+    if a != a or b != b:
+        return False
+    a, b = plain(a), plain(b)
+    return {"==": a == b, "!=": a != b, "<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b}[op]
 
 
 def reference_verdicts(spec: Specification, records) -> dict[str, dict[int, object]]:
@@ -388,7 +428,7 @@ class RobustReference(Reference):
         if isinstance(node, Prev):
             return i > self.start and self.open_(node.operand, i - 1)
         if isinstance(node, Aggregate):  # a value: final where its boolean operands are
-            return self.value(node, i) is None
+            return settled(self.value(node, i)) is None
         if isinstance(node, (Past, Since)):
             a, b = exact_bound(node.bound.low), exact_bound(node.bound.high)
             window = [j for j in range(self.start, i + 1) if a <= t[i] - t[j] <= b]

@@ -27,7 +27,7 @@ from rasm.properties.loader import load_specification
 from rasm.properties.operators import WindowOr
 
 from .reference import Reference
-from .strategies import HEADER, UNITS, bounds, decimal_traces, formulas, traces
+from .strategies import HEADER, UNITS, bounds, decimal_traces, formulas, numeric_formulas, traces
 from .test_semantics import horizon
 
 
@@ -388,3 +388,140 @@ def test_a_long_trace_forgets_as_it_goes_and_agrees_with_the_reference(formula):
     assert {i: value for i, (_, value) in got.items()} == expected
     run = compile_properties(text).run(records)[0]
     assert {run.start + k: v for k, v in enumerate(run.values)} == expected and not run.errors
+
+
+# ---------------------------------------------------------------- counts over late values
+
+
+ORDERED_LATE = ["eventually[0, 1] p", "always[0.5, 2] q", "not eventually[0, 0.5] q",
+                "eventually[1, 1] (p or q)"]
+UNORDERED_LATE = ["p and eventually[0, 2] q", "(eventually[0, 1] p) or (always[0, 1] r)",
+                  "prev(eventually[0, 1] q)"]
+OTHER_SIDES = ["0", "1", "2", "3", "-1", "2.5", "0.5", "y", "x", "x / y", "prev(y)",
+               "count[0, 1](p)"]
+
+
+@st.composite
+def count_comparisons(draw, late: list[str] = ORDERED_LATE) -> str:
+    """``count[a,b](φ) op v`` (or ``v op count…``) with φ's values coming late and v known at
+    its record: a number, a signal, undefined (``x / y`` at y = 0, ``prev(y)`` at the start)."""
+    count = f"count{draw(bounds(True))}({draw(st.sampled_from(late))})"
+    op = draw(st.sampled_from(["==", "!=", "<", "<=", ">", ">="]))
+    other = draw(st.sampled_from(OTHER_SIDES))
+    return f"{count} {op} {other}" if draw(st.booleans()) else f"{other} {op} {count}"
+
+
+@st.composite
+def with_count_comparisons(draw) -> str:
+    """Count comparisons alone, or under other operators (their values come early, in any
+    order, to the operators above)."""
+    atom = draw(count_comparisons())
+    shape = draw(st.integers(0, 4))
+    if shape == 0:
+        return atom
+    if shape == 1:
+        return f"not ({atom})"
+    if shape == 2:
+        return f"({atom}) {draw(st.sampled_from(['and', 'or', '->']))} ({draw(formulas(1))})"
+    if shape == 3:
+        return f"always{draw(bounds(False))} ({atom})"
+    return f"once{draw(bounds(True))} ({atom})"
+
+
+@pytest.mark.slow
+@settings(max_examples=300, deadline=None)
+@given(with_count_comparisons(), traces(max_size=14))
+def test_a_count_comparison_is_decided_as_soon_as_the_count_range_fixes_it(formula, records):
+    """``count[0, 5](eventually[0, 1] p) >= 3`` is true as soon as three of its window's
+    values are known true, false as soon as too few can still be: the reference decides a
+    comparison with a count from the range [known true, known true + not known yet]."""
+    assert_verdicts_come_when_decided(HEADER + f"property p0: {formula}\n", records)
+
+
+@pytest.mark.slow
+@settings(max_examples=200, deadline=None)
+@given(count_comparisons(ORDERED_LATE + UNORDERED_LATE), traces(max_size=25))
+def test_a_count_comparison_over_values_in_any_order_is_exact(formula, records):
+    """Values that come out of record order enter the count in record order (a record may
+    wait for an earlier one's value, see CountStream): its verdicts are still the
+    reference's, and each early one is the verdict of the full trace."""
+    text = HEADER + f"property p0: {formula}\n"
+    spec = load_specification(text)
+    expected = Reference(spec, records).verdicts(spec.properties[0])
+    with forgetting_at_once():
+        got = {i: value for i, (_, value) in emitted(text, records)["p0"].items()}
+        run = compile_properties(text).run(records)[0]
+    assert got == expected, formula
+    assert {run.start + k: v for k, v in enumerate(run.values)} == expected
+
+
+def test_count_ranges_decide_the_example():
+    text = "event p\nproperty enough: count[0, 5](eventually[0, 1] p) >= 3\n" \
+        "property few: count[0, 5](eventually[0, 1] p) < 3\n"
+    monitor = compile_properties(text)
+    given: dict[tuple[str, int], tuple[int, bool]] = {}
+    for k in range(8):
+        for v in monitor.step(k * 0.5, {"p": k in (2, 3, 5)}):
+            given[v.property, v.index] = (k, v.value)
+    # record 2 (1.0 s): its window (0 s to 1.0 s) holds three records, each of which sees
+    # p within 1 s: decided at 1.0 s, not when the last of them closes its window (2.0 s)
+    assert given["enough", 2] == (2, True) and given["few", 2] == (2, False)
+    # records 0 and 1 have windows of one and two records: never three, false at once
+    assert given["enough", 0] == (0, False) and given["enough", 1] == (1, False)
+    # record 4 (2.0 s): the three of its window known true at 2.0 s (p at 1.0, 1.5)
+    assert given["enough", 4] == (4, True)
+
+
+# ---------------------------------------------------------------- the robustness interval
+
+
+def intervals_and_verdicts(text: str, records):
+    """Online with robustness and intervals: each verdict (the step that gave it, the verdict),
+    and after each step the interval of every record whose robustness is not final."""
+    monitor = compile_properties(text, robustness=True, intervals=True)
+    given: dict[int, tuple[int, Verdict]] = {}
+    seen: list[tuple[int, int, tuple[float, float]]] = []
+    for k, (t, record) in enumerate(records):
+        for verdict in monitor.step(t, record):
+            given[verdict.index] = (k, verdict)
+        seen += [(k, j, iv) for j, iv in monitor.intervals("p0").items()]
+    for verdict in monitor.finish():
+        given[verdict.index] = (len(records), verdict)
+    return given, seen
+
+
+LATE_AND_NUMERIC = st.one_of(formulas(3), numeric_formulas(3), with_count_comparisons())
+
+
+@pytest.mark.slow
+@settings(max_examples=300, deadline=None)
+@given(LATE_AND_NUMERIC, traces(max_size=12))
+def test_a_verdict_is_out_once_its_robustness_interval_excludes_zero(formula, records):
+    """At every step, a record whose robustness interval lies above zero has its verdict out,
+    true, and one whose interval lies below zero has it out, false: the boolean verdict comes
+    no later than the interval excludes zero. The verdicts (and when they come) are the same
+    with robustness and without, and each is the verdict the full trace gives."""
+    text = HEADER + f"property p0: {formula}\n"
+    spec = load_specification(text)
+    full = Reference(spec, records).verdicts(spec.properties[0])
+    given, seen = intervals_and_verdicts(text, records)
+    for k, j, (lo, hi) in seen:
+        if lo > 0 or hi < 0:
+            assert j in given and given[j][0] <= k, (formula, j, k, (lo, hi))
+            assert given[j][1].value is (lo > 0), (formula, j, (lo, hi), given[j])
+    plain = emitted(text, records)["p0"]
+    assert {j: (k, v.value) for j, (k, v) in given.items()} == plain, formula
+    for j, (k, verdict) in given.items():
+        assert verdict.value == full[j], (formula, j, k, verdict)
+
+
+def test_the_interval_of_a_count_comparison_is_its_range():
+    text = "event p\nproperty p0: count[0, 5](eventually[0, 1] p) >= 3\n"
+    monitor = compile_properties(text, robustness=True, intervals=True)
+    steps = [monitor.step(k * 0.5, {"p": k in (2, 3, 5)}) for k in range(5)]
+    # record 4 (2.0 s): five records in its window, three known true (count - 3 in [0, 2]),
+    # one known false (0 s: no p within 1 s), one still open (2.0 s)
+    (v,) = steps[4]
+    assert (v.index, v.value, v.robustness) == (4, True, None)
+    assert v.robustness_interval == (1.0, 2.0)
+    assert monitor.intervals("p0") == {4: (1.0, 2.0)}
