@@ -232,6 +232,7 @@ class Monitor:
         are filed when one of its verdicts comes (:meth:`_take`); the usual case, a verdict
         whose robustness is the one value given since, takes it at once."""
         robust, rnext, number, rknown = self._robust, self._rnext, self._number, self._rknown
+        intervals: dict[int, dict[int, tuple[float, float]]] = {}  # by property, this step
         for position, verdict in enumerate(out):
             name, j, time, value, error = verdict[:5]
             k = number[name]
@@ -257,7 +258,10 @@ class Monitor:
             else:  # decided before its robustness is final
                 self._early[k].add(j)
                 if self._intervals:
-                    out[position] = verdict._replace(robustness_interval=self._interval(k, j))
+                    if k not in intervals:  # computed once per property and step
+                        intervals[k] = self.intervals(self.names[k])
+                    interval = intervals[k].get(j, (-INF, INF))
+                    out[position] = verdict._replace(robustness_interval=interval)
         return out
 
     def _take_robustness(self) -> None:
@@ -283,10 +287,6 @@ class Monitor:
             j += 1
         values.clear()
         self._rnext[k] = j
-
-    def _interval(self, k: int, index: int) -> tuple[float, float]:
-        """The interval property ``k``'s robustness at record ``index`` is known to lie in."""
-        return self.intervals(self.names[k]).get(index, (-INF, INF))
 
     def intervals(self, name: str) -> dict[int, tuple[float, float]]:
         """With robustness: for each record whose robustness is not final yet (its window

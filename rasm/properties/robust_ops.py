@@ -401,21 +401,36 @@ class FutureWindow(_Ordered):
         return len(self.outs)
 
     def intervals(self) -> list[Interval]:
-        known = [(k, t, (v, v)) for k, t, v in (*self.wedge, *self.vals)]
-        unknown = [(k, t, p) for (k, t), p in zip(self.times, _pending(self.source),
-                                                   strict=True)]
-        records = known + unknown
-        pick = max if self.high else min
+        """One pass: the records known (oldest first) in each open window are a run whose
+        ends only move forward from one open record to the next, so a monotonic wedge per
+        end of the interval gives each window's max (min)."""
+        records = [(k, t, v, v) for k, t, v in (*self.wedge, *self.vals)]
+        records += [(k, t, lo, hi) for (k, t), (lo, hi) in zip(self.times, _pending(self.source),
+                                                               strict=True)]
+        high, a, b, empty = self.high, self.a, self.b, self.empty
+        lows: deque = deque()  # (position, value): a wedge of the lower ends in the window
+        highs: deque = deque()
         out = []
+        start = end = 0  # the window of the open record: records[start:end]
         # the newest record is the last owed a value (the generated code sets no ``newest``)
         newest = self.outs[-1][1] if self.outs else self.newest
         for i, ti in self.outs:
-            lo = hi = self.empty
-            for k, t, (low, high) in records:
-                if k >= i and ti + self.a <= t <= ti + self.b:
-                    lo, hi = pick(lo, low), pick(hi, high)
-            if newest <= ti + self.b:  # records still to come may fall in the window
-                lo, hi = (lo, INF) if self.high else (-INF, hi)
+            while end < len(records) and records[end][1] <= ti + b:
+                _, _, low, up = records[end]
+                for wedge, v in ((lows, low), (highs, up)):
+                    while wedge and (wedge[-1][1] <= v if high else wedge[-1][1] >= v):
+                        wedge.pop()
+                    wedge.append((end, v))
+                end += 1
+            while start < end and (records[start][0] < i or records[start][1] < ti + a):
+                start += 1
+            for wedge in (lows, highs):
+                while wedge and wedge[0][0] < start:
+                    wedge.popleft()
+            lo = lows[0][1] if lows else empty
+            hi = highs[0][1] if highs else empty
+            if newest <= ti + b:  # records still to come may fall in the window
+                lo, hi = (lo, INF) if high else (-INF, hi)
             out.append((lo, hi))
         return out
 
@@ -664,12 +679,8 @@ class Ordered(_Ordered):
         for j, _, _, v in self.source:
             waiting[j] = v
         out = []
-        count = self.count
+        ranges = self.count.ranges() if self.count is not None else {}
         for j in range(self.next if self.next is not None else 0, self.newest + 1):
             v = waiting.get(j)
-            if v is None and count is not None:
-                v = count.range(j)
-                out.append(EVERYTHING if v is None else v)
-                continue
-            out.append(EVERYTHING if v is None else (v, v))
+            out.append(ranges.get(j, EVERYTHING) if v is None else (v, v))
         return out

@@ -325,7 +325,7 @@ class CountStream(Stream):
     whose value has not), each adding to running totals of true, false and inconclusive
     values; ``totals[k]`` holds them before record ``base + k``, so what has entered of any
     window is two subtractions. A window of n records of which kt have entered true and kf
-    false has a count in [kt, n - kf] (:meth:`range`); once the whole window has entered the
+    false has a count in [kt, n - kf] (:meth:`ranges`); once the whole window has entered the
     count is given, in record order (inconclusive where a value is).
 
     After :meth:`compare`, the stream's values are those of the comparison, ``v`` given for
@@ -397,13 +397,13 @@ class CountStream(Stream):
         else:
             self.inactive.append(record)
 
-    def range(self, i: int) -> tuple[int, int] | None:
-        """The range of the count at open record ``i`` (None: not open)."""
+    def ranges(self) -> dict[int, tuple[int, int]]:
+        """The range of the count at each record whose window has not entered yet."""
+        out = {}
         for record in self.open:
-            if record.i == i:
-                kt, kf, _ = self._entered(record)
-                return (kt, record.high - record.low + 1 - kf)
-        return None
+            kt, kf, _ = self._entered(record)
+            out[record.i] = (kt, record.high - record.low + 1 - kf)
+        return out
 
     # ----------------------------------------------------------------- values
     def step_inputs(self) -> None:

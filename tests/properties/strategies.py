@@ -183,6 +183,24 @@ def _operator(draw, op: str, sub, unit: Decimal | None) -> str:
     return f"({draw(sub)}) until{draw(bounds(False, unit))} ({draw(sub)})"
 
 
+ORDERED_LATE = ["eventually[0, 1] p", "always[0.5, 2] q", "not eventually[0, 0.5] q",
+                "eventually[1, 1] (p or q)"]
+UNORDERED_LATE = ["p and eventually[0, 2] q", "(eventually[0, 1] p) or (always[0, 1] r)",
+                  "prev(eventually[0, 1] q)"]
+OTHER_SIDES = ["0", "1", "2", "3", "-1", "2.5", "0.5", "y", "x", "x / y", "prev(y)",
+               "count[0, 1](p)"]
+
+
+@st.composite
+def count_comparisons(draw, late: list[str] = ORDERED_LATE) -> str:
+    """``count[a,b](φ) op v`` (or ``v op count…``) with φ's values coming late and v known at
+    its record: a number, a signal, undefined (``x / y`` at y = 0, ``prev(y)`` at the start)."""
+    count = f"count{draw(bounds(True))}({draw(st.sampled_from(late))})"
+    op = draw(st.sampled_from(["==", "!=", "<", "<=", ">", ">="]))
+    other = draw(st.sampled_from(OTHER_SIDES))
+    return f"{count} {op} {other}" if draw(st.booleans()) else f"{other} {op} {count}"
+
+
 @st.composite
 def traces(draw, max_size: int = 25):
     n = draw(st.integers(1, max_size))

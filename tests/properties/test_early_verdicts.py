@@ -27,7 +27,18 @@ from rasm.properties.loader import load_specification
 from rasm.properties.operators import WindowOr
 
 from .reference import Reference
-from .strategies import HEADER, UNITS, bounds, decimal_traces, formulas, numeric_formulas, traces
+from .strategies import (
+    HEADER,
+    ORDERED_LATE,
+    UNITS,
+    UNORDERED_LATE,
+    bounds,
+    count_comparisons,
+    decimal_traces,
+    formulas,
+    numeric_formulas,
+    traces,
+)
 from .test_semantics import horizon
 
 
@@ -391,24 +402,6 @@ def test_a_long_trace_forgets_as_it_goes_and_agrees_with_the_reference(formula):
 
 
 # ---------------------------------------------------------------- counts over late values
-
-
-ORDERED_LATE = ["eventually[0, 1] p", "always[0.5, 2] q", "not eventually[0, 0.5] q",
-                "eventually[1, 1] (p or q)"]
-UNORDERED_LATE = ["p and eventually[0, 2] q", "(eventually[0, 1] p) or (always[0, 1] r)",
-                  "prev(eventually[0, 1] q)"]
-OTHER_SIDES = ["0", "1", "2", "3", "-1", "2.5", "0.5", "y", "x", "x / y", "prev(y)",
-               "count[0, 1](p)"]
-
-
-@st.composite
-def count_comparisons(draw, late: list[str] = ORDERED_LATE) -> str:
-    """``count[a,b](φ) op v`` (or ``v op count…``) with φ's values coming late and v known at
-    its record: a number, a signal, undefined (``x / y`` at y = 0, ``prev(y)`` at the start)."""
-    count = f"count{draw(bounds(True))}({draw(st.sampled_from(late))})"
-    op = draw(st.sampled_from(["==", "!=", "<", "<=", ">", ">="]))
-    other = draw(st.sampled_from(OTHER_SIDES))
-    return f"{count} {op} {other}" if draw(st.booleans()) else f"{other} {op} {count}"
 
 
 @st.composite

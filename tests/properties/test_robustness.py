@@ -15,7 +15,16 @@ from rasm.properties import compile_properties
 from rasm.properties.loader import load_specification
 
 from .reference import reference_robustness, reference_verdicts
-from .strategies import HEADER, decimal_traces, formulas, numeric_formulas, traces
+from .strategies import (
+    HEADER,
+    ORDERED_LATE,
+    UNORDERED_LATE,
+    count_comparisons,
+    decimal_traces,
+    formulas,
+    numeric_formulas,
+    traces,
+)
 
 
 def close(a: float, b: float) -> bool:
@@ -92,6 +101,14 @@ def test_robustness_agrees_with_its_definition(formula, records):
 @settings(max_examples=300, deadline=None)
 @given(numeric_formulas(3), traces(max_size=15))
 def test_robustness_of_distances_agrees_with_its_definition(formula, records):
+    check(formula, records)
+
+
+@settings(max_examples=200, deadline=None)
+@given(count_comparisons(ORDERED_LATE + UNORDERED_LATE), traces(max_size=15))
+def test_robustness_of_count_comparisons_agrees_with_its_definition(formula, records):
+    """A count over late values compared with a value known at its record: its interval is
+    the count's range while its window is open, and contains the final value."""
     check(formula, records)
 
 
