@@ -353,6 +353,8 @@ class CountStream(Stream):
         self.inactive: deque = deque()  # open records none of whose window has entered
         self.by_true: dict[int, dict[int, _Open]] = {}
         self.by_false: dict[int, dict[int, _Open]] = {}
+        self.rule: tuple = (None, UNKNOWN, None)  # (window size, value, _rule of them)
+        self.steps = 0  # since the last _forget
 
     def compare(self, op: str, position: int) -> None:
         """From now on, the values of ``count op v`` (``position`` 1: ``v op count``)."""
@@ -381,13 +383,20 @@ class CountStream(Stream):
         else:
             self.open.append(record)
         self.step_inputs()
-        self._forget()
+        self.steps += 1
+        if self.steps > operators.BATCH:  # forgotten in batches: O(1) amortised
+            self.steps = 0
+            self._forget()
 
     def against(self, i: int, v) -> None:
         """Record ``i``'s value of the other side of the comparison (after its step)."""
         record = self.newest
         record.against = v
-        record.rule = _rule(self.op, v, record.high - record.low + 1)
+        n = record.high - record.low + 1
+        rule = self.rule  # the last one: mostly the same value and window size
+        if rule[0] != n or rule[1] is not v:
+            self.rule = rule = (n, v, _rule(self.op, v, n))
+        record.rule = rule[2]
         if record.final is not None:
             self._give(record, record.final)
         elif record.low <= self.entered:
@@ -416,12 +425,13 @@ class CountStream(Stream):
         while True:
             while open_ and open_[0].high < entered:  # its whole window has entered
                 record = open_.popleft()
-                record.final = self._entered(record)
                 if self.op is None:
-                    kt, _, kn = record.final
+                    kt, _, kn = self._entered(record)
                     self.out.append((record.i, record.t, record.ns, None if kn else kt))
-                elif record.rule is not None:
-                    self._give(record, record.final)
+                elif not record.done:
+                    record.final = self._entered(record)
+                    if record.rule is not None:  # (else: the comparison's value is to come)
+                        self._give(record, record.final)
             if entered not in known:
                 return
             v = known.pop(entered)
@@ -449,13 +459,17 @@ class CountStream(Stream):
 
     def _entered(self, record: _Open) -> tuple[int, int, int]:
         """(true, false, None) among the values of ``record``'s window entered so far."""
-        base = self.base
-        end = min(self.entered, record.high + 1)
-        if end <= record.low:
+        end, low = self.entered, record.low
+        if end > record.high:
+            end = record.high + 1
+        if end <= low:
             return _ZERO
-        high = self.totals[end - base]
-        low = _ZERO if record.low == self.origin else self.totals[record.low - base]
-        return (high[0] - low[0], high[1] - low[1], high[2] - low[2])
+        totals, base = self.totals, self.base
+        high = totals[end - base]
+        if low == self.origin:
+            return high
+        low_ = totals[low - base]
+        return (high[0] - low_[0], high[1] - low_[1], high[2] - low_[2])
 
     def _activate(self, record: _Open) -> None:
         """Part of ``record``'s window has entered: decide it, or file it in its buckets."""
