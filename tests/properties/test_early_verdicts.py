@@ -461,7 +461,7 @@ def test_count_ranges_decide_the_example():
     assert given["enough", 2] == (2, True) and given["few", 2] == (2, False)
     # records 0 and 1 have windows of one and two records: never three, false at once
     assert given["enough", 0] == (0, False) and given["enough", 1] == (1, False)
-    # record 4 (2.0 s): the three of its window known true at 2.0 s (p at 1.0, 1.5)
+    # record 4 (2.0 s): four of its window known true at 2.0 s (p at 1.0, 1.5)
     assert given["enough", 4] == (4, True)
 
 
@@ -512,8 +512,8 @@ def test_the_interval_of_a_count_comparison_is_its_range():
     text = "event p\nproperty p0: count[0, 5](eventually[0, 1] p) >= 3\n"
     monitor = compile_properties(text, robustness=True, intervals=True)
     steps = [monitor.step(k * 0.5, {"p": k in (2, 3, 5)}) for k in range(5)]
-    # record 4 (2.0 s): five records in its window, three known true (count - 3 in [0, 2]),
-    # one known false (0 s: no p within 1 s), one still open (2.0 s)
+    # record 4 (2.0 s): five records in its window, four known true (each sees p at 1.0 s
+    # or 1.5 s within 1 s), one still open (2.0 s): the count is 4 or 5, count - 3 in [1, 2]
     (v,) = steps[4]
     assert (v.index, v.value, v.robustness) == (4, True, None)
     assert v.robustness_interval == (1.0, 2.0)
