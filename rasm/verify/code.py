@@ -46,10 +46,10 @@ class _Code:
     reads: set[str] = field(default_factory=set)
     writes: set[str] = field(default_factory=set)
     data: set[str] = field(default_factory=set)  # event data keys
-    whole_data: bool = False  # reads event.data as a whole (iterates it, passes it on)
     introspects: bool = False
     reads_time: bool = False
     timers: list[tuple[str, str]] = field(default_factory=list)  # (after|idle, argument source)
+    sends: set[str] = field(default_factory=set)  # the events it sends (send('name'))
     # per statement: (what it may assign, what that may depend on: the names it reads and those
     # of the conditions it runs under), so that one line counting events does not make every
     # variable of its block state
@@ -87,6 +87,20 @@ def _parse(code: str | None, mode: str) -> ast.AST | None:
         return None  # load_statechart reported it; a chart with one does not get here
 
 
+def _walk(node: ast.AST) -> list[ast.AST]:
+    """Every node of the tree, each before its children: ``ast.walk``'s nodes in its order,
+    without its generators (the analysis runs on every piece of code of a chart)."""
+    out = [node]
+    for current in out:  # grows while it is read
+        for name in current._fields:
+            value = getattr(current, name, None)
+            if value.__class__ is list:
+                out.extend(item for item in value if isinstance(item, ast.AST))
+            elif isinstance(value, ast.AST):
+                out.append(value)
+    return out
+
+
 def _base_name(node: ast.AST) -> str | None:
     while isinstance(node, ast.Attribute | ast.Subscript):
         node = node.value
@@ -108,8 +122,7 @@ def _scan(tree: ast.AST | None) -> _Code:
     found = _Code()
     if tree is None:
         return found
-    used_data: set[int] = set()  # ids of event.data nodes accounted for by a key
-    for node in ast.walk(tree):
+    for node in _walk(tree):
         if isinstance(node, ast.Name):
             if isinstance(node.ctx, ast.Load):
                 if node.id in _INTROSPECTION:
@@ -135,35 +148,65 @@ def _scan(tree: ast.AST | None) -> _Code:
                     found.introspects = True
                 else:
                     found.writes.add(key)
+            elif isinstance(func, ast.Name) and func.id == "send" and node.args:
+                name = _literal_key(node.args[0])
+                if name is not None:
+                    found.sends.add(name)
             elif isinstance(func, ast.Attribute):
                 if _is_event_data(func.value) and func.attr == "get" and node.args:
                     key = _literal_key(node.args[0])
-                    if key is None:
-                        found.whole_data = True
-                    else:
+                    if key is not None:
                         found.data.add(key)
-                    used_data.add(id(func.value))
                 else:
                     base = _base_name(func.value)
                     if base is not None and base != "event":
                         found.writes.add(base)  # items.append(x) changes items
         elif isinstance(node, ast.Subscript) and _is_event_data(node.value):
             key = _literal_key(node.slice)
-            if key is None:
-                found.whole_data = True
-            else:
+            if key is not None:
                 found.data.add(key)
-            used_data.add(id(node.value))
         elif (
             isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
             and node.value.id == "event" and node.attr not in ("data", "name")
         ):
             found.data.add(node.attr)  # event.x is event.data['x']
-    for node in ast.walk(tree):
-        if _is_event_data(node) and id(node) not in used_data:
-            found.whole_data = True
     found.reads -= _EXPOSED
     found.writes -= _EXPOSED
+    return found
+
+
+def _merge(parts: list[_Code]) -> _Code:
+    """What one walk over the parts' common tree finds (each part walked on its own)."""
+    found = _Code()
+    for part in parts:
+        found.reads |= part.reads
+        found.writes |= part.writes
+        found.data |= part.data
+        found.sends |= part.sends
+        found.introspects |= part.introspects
+        found.reads_time |= part.reads_time
+        found.timers += part.timers
+    return found
+
+
+# the statements :func:`_effects` looks into (it takes any other one as a whole)
+_COMPOUND = (ast.If, ast.While, ast.For, ast.AsyncFor, ast.With, ast.AsyncWith, ast.Try)
+
+
+def _scan_code(tree: ast.AST | None) -> _Code:
+    """:func:`_scan` of a piece of code, with its :func:`_effects`."""
+    if not isinstance(tree, ast.Module):
+        found = _scan(tree)
+        found.effects = _effects(tree)
+        return found
+    if not any(isinstance(stmt, _COMPOUND) for stmt in tree.body):
+        # simple statements only: the tree is walked once, statement by statement
+        parts = [_scan(stmt) for stmt in tree.body]
+        found = _merge(parts)
+        found.effects = [(p.writes, p.reads, p.reads_time) for p in parts]
+        return found
+    found = _scan(tree)
+    found.effects = _effects(tree)
     return found
 
 
@@ -179,9 +222,8 @@ def _effects(tree: ast.AST | None) -> list[tuple[set[str], set[str], bool]]:
                 inner = control | test.reads
                 visit(stmt.body + stmt.orelse, inner, control_time or test.reads_time)
             elif isinstance(stmt, ast.For | ast.AsyncFor):
-                head = _scan(ast.Module(body=[ast.Expr(stmt.iter)], type_ignores=[]))
-                assign = ast.Assign(targets=[stmt.target], value=ast.Constant(0))
-                target = _scan(ast.Module(body=[assign], type_ignores=[]))
+                head = _scan(stmt.iter)
+                target = _scan(stmt.target)
                 inner = control | head.reads
                 out.append((target.writes, inner, control_time or head.reads_time))
                 visit(stmt.body + stmt.orelse, inner, control_time or head.reads_time)
@@ -192,7 +234,7 @@ def _effects(tree: ast.AST | None) -> list[tuple[set[str], set[str], bool]]:
                 body += list(getattr(stmt, "orelse", [])) + list(getattr(stmt, "finalbody", []))
                 visit(body, control, control_time)
             else:
-                found = _scan(ast.Module(body=[stmt], type_ignores=[]))
+                found = _scan(stmt)
                 out.append((found.writes, found.reads | control, found.reads_time or control_time))
 
     if isinstance(tree, ast.Module):
@@ -212,7 +254,6 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
     """The static facts of ``statechart``; ``roots`` are variables that are state whatever the
     chart does with them (those a property reads)."""
     guards_read: set[str] = set(roots)
-    actions: list[_Code] = []
     reads_time = False
     timers: dict[str, list[Timer]] = {}
     guard_data: dict[str, set[str]] = {}
@@ -220,27 +261,29 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
     guards: dict[str, list[str]] = {}
     events: list[str] = []
     sends: set[str] = set()
+    # each distinct piece of code is parsed and walked once (charts repeat their actions)
+    scanned: dict[tuple[str, str], _Code] = {}
 
-    def note_sends(tree: ast.AST | None) -> None:
-        for node in ast.walk(tree) if tree is not None else ():
-            if (
-                isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-                and node.func.id == "send" and node.args
-            ):
-                name = _literal_key(node.args[0])
-                if name is not None:
-                    sends.add(name)
+    def scan(code: str | None, mode: str) -> _Code:
+        if not code:
+            return _Code()
+        found = scanned.get((code, mode))
+        if found is None:
+            tree = _parse(code, mode)
+            found = scanned[code, mode] = _scan_code(tree) if mode == "exec" else _scan(tree)
+        return found
 
     # the preamble runs once, before the first step: what it reads is in the initial state
     # already, so it makes nothing state (its introspection still counts)
-    preamble = _scan(_parse(statechart.preamble, "exec"))
-    note_sends(_parse(statechart.preamble, "exec"))
+    preamble = scan(statechart.preamble, "exec")
+    sends |= preamble.sends
     introspects = preamble.introspects
+    actions: dict[str, _Code] = {}  # by code: the same code has the same effects
     for transition in statechart.transitions:
         event = transition.event
         if event is not None and event not in events:
             events.append(event)
-        guard = _scan(_parse(transition.guard, "eval"))
+        guard = scan(transition.guard, "eval")
         guards_read |= guard.reads
         introspects |= guard.introspects
         reads_time |= guard.reads_time
@@ -248,38 +291,32 @@ def analyse_chart(statechart: Statechart, roots: Iterable[str] = ()) -> ChartCod
             timers.setdefault(transition.source, []).append(
                 Timer(transition.source, kind, seconds)
             )
-        tree = _parse(transition.action, "exec")
-        action = _scan(tree)
-        action.effects = _effects(tree)
-        note_sends(tree)
-        actions.append(action)
+        action = actions[transition.action or ""] = scan(transition.action, "exec")
         if event is not None:
             if transition.guard:
                 guards.setdefault(event, []).append(transition.guard)
             guard_data.setdefault(event, set()).update(guard.data)
             data.setdefault(event, set()).update(guard.data | action.data)
         for condition in _conditions(transition):
-            contract = _scan(_parse(condition, "eval"))
+            contract = scan(condition, "eval")
             guards_read |= contract.reads
             introspects |= contract.introspects
     for name in statechart.states:
         state = statechart.state_for(name)
         for code in (getattr(state, "on_entry", None), getattr(state, "on_exit", None)):
-            tree = _parse(code, "exec")
-            scanned = _scan(tree)
-            scanned.effects = _effects(tree)
-            actions.append(scanned)
-            note_sends(tree)
+            actions[code or ""] = scan(code, "exec")
         for condition in _conditions(state):
-            contract = _scan(_parse(condition, "eval"))
+            contract = scan(condition, "eval")
             guards_read |= contract.reads
             introspects |= contract.introspects
-    introspects |= any(code.introspects for code in actions)
+    introspects |= any(code.introspects for code in actions.values())
+    for code in actions.values():
+        sends |= code.sends
     state = set(guards_read)
     for timer_list in timers.values():
         for timer in timer_list:
-            state |= _scan(_parse(timer.seconds, "eval")).reads
-    effects = [effect for code in actions for effect in code.effects]
+            state |= scan(timer.seconds, "eval").reads
+    effects = [effect for code in actions.values() for effect in code.effects]
     changed = True
     while changed:  # the closure: a statement that assigns a state variable makes what it reads
         changed = False

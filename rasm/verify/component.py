@@ -267,7 +267,10 @@ class ChartRun:
 
     # -- execution -------------------------------------------------------------------------
     def queue(self, name: str, data: Mapping[str, Any] | None = None) -> None:
-        self.interp.queue(Event(name, **dict(data or {})))
+        # what Interpreter.queue(event) does, with the delay read from the data: getattr(event,
+        # "delay") on an event without one formats an error message first
+        data = dict(data or {})
+        self.interp._enqueue(Event(name, **data), data.get("delay", 0))
 
     def execute(self) -> tuple[list[Step], list[tuple[str, str]], bool]:
         """Execute until stable, as ``rasm simulate`` does: the steps taken, the failures
@@ -277,6 +280,7 @@ class ChartRun:
         interp = self.interp
         context = interp._evaluator._context
         watched = self._watched
+        entered = self.entered
         for _ in range(self.max_steps):
             try:
                 macro: MacroStep | None = interp.execute_once()
@@ -288,12 +292,25 @@ class ChartRun:
                 continue
             if macro is None:
                 return steps, failures, True
-            self.entered.update(macro.entered_states)
+            # what MacroStep's event, entered_states, sent_events and transitions say, in one
+            # pass over its micro steps
+            event = None
+            sent: list[tuple[str, dict[str, Any]]] = []
+            transitions = False
+            for micro in macro.steps:
+                if event is None and micro.event is not None:
+                    event = micro.event.name
+                if micro.entered_states:
+                    entered.update(micro.entered_states)
+                if micro.sent_events:
+                    sent.extend((e.name, dict(e.data)) for e in micro.sent_events)
+                if micro.transition is not None:
+                    transitions = True
             steps.append(Step(
                 configuration=frozenset(interp._configuration),
-                event=macro.event.name if macro.event is not None else None,
-                sent=tuple((e.name, dict(e.data)) for e in macro.sent_events),
-                transitions=bool(macro.transitions),
+                event=event,
+                sent=tuple(sent),
+                transitions=transitions,
                 context={n: context[n] for n in watched if n in context} if watched else _EMPTY,
             ))
             if self._settled(interp):

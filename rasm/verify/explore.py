@@ -132,7 +132,6 @@ class ChartExplorer:
         max_steps: int = MAX_STEPS,
     ) -> None:
         self.statechart = statechart
-        self.environment = environment
         self.properties = list(properties)
         watched = sorted(set().union(*(p.variables for p in self.properties))) if properties else []
         self.clock = SettableClock()
@@ -144,6 +143,32 @@ class ChartExplorer:
         self.reads_time = any(_reads_time(p) for p in self.properties)
         self._regions: dict[tuple, list[tuple[tuple[str, Any], ...]]] = {}
         self.skipped = 0
+        self._moves_now: int | None = None  # the time of the moves kept in _fixed_moves
+        self._fixed_moves: dict[str, list[Move]] = {}  # the moves of events with fixed data
+        self.environment = environment
+
+    @property
+    def environment(self) -> Environment:
+        return self._environment
+
+    @environment.setter
+    def environment(self, environment: Environment) -> None:
+        self._environment = environment
+        # per event: its name, how many moves it stands for, per combination of the data the
+        # environment fixes the keys left to split by the guards (and when there are none the
+        # data of its moves, which then depends on no state), and whether there are none at all
+        self._offers: list[tuple[str, int, list[tuple], bool]] = []
+        for event in environment.events:
+            wanted = self.code.guard_data.get(event.name, set())
+            read = self.code.data.get(event.name, set())
+            combos = []
+            for fixed in event.combinations():
+                free = wanted - set(fixed)
+                datas = None if free else self._split(event.name, free, read, fixed, {})
+                combos.append((fixed, free, read, datas))
+            static = all(datas is not None for *_, datas in combos)
+            self._offers.append((event.name, len(combos), combos, static))
+        self._moves_now = None
 
     @property
     def interp(self) -> Any:
@@ -178,20 +203,25 @@ class ChartExplorer:
 
     def moves(self, *, skip_ignored: bool) -> list[Move]:
         now = self.clock.now_ns
-        context = self.run.context
-        out = []
-        for event in self.environment.events:
-            if skip_ignored and self.run.ignores(event.name):
-                self.skipped += len(event.combinations())
+        if now != self._moves_now:
+            self._moves_now = now
+            self._fixed_moves = {}
+        fixed_moves = self._fixed_moves
+        out: list[Move] = []
+        for name, count, combos, static in self._offers:
+            if skip_ignored and self.run.ignores(name):
+                self.skipped += count
                 continue
-            wanted = self.code.guard_data.get(event.name, set())
-            read = self.code.data.get(event.name, set())
-            for fixed in event.combinations():
-                free = wanted - set(fixed)
-                out.extend(
-                    Move(now, event.name, data)
-                    for data in self._split(event.name, free, read, fixed, context)
-                )
+            found = fixed_moves.get(name)
+            if found is None:
+                found = []
+                for fixed, free, read, datas in combos:
+                    if datas is None:  # split by the guards in the current state
+                        datas = self._split(name, free, read, fixed, self.run.context)
+                    found.extend(Move(now, name, data) for data in datas)
+                if static:
+                    fixed_moves[name] = found
+            out.extend(found)
         if self.environment.clock_ns:
             out.extend(Move(now + amount) for amount in self.environment.clock_ns)
         else:
@@ -389,23 +419,23 @@ def explore(
             reached.append(goal())
         return True
 
+    configurations = result.configurations
     while frontier:
         current, snap, own_chart, prop_states, last_ns = frontier.popleft()
         system.restore(snap)
         configuration = system.configuration()
         final = system.final()
+        # without properties, events nobody waits for are not even made moves (their step
+        # changes nothing); with them, their records are decided before any move changes the
+        # charts: such an event is only consumed, so it is not executed
         moves = system.moves(skip_ignored=not props)
-        # decided before any move changes the charts: events nobody waits for are only
-        # consumed, so they are not executed
-        ignored = [system.ignored_record(move) for move in moves]
+        ignored = [system.ignored_record(move) for move in moves] if props else None
         way_out = False
         dirty = False
-        for move, record in zip(moves, ignored, strict=True):
+        for i, move in enumerate(moves):
             result.transitions += 1
-            if record is not None:
-                if not props:
-                    continue  # the same state again
-                new_props, new_last = judge(prop_states, last_ns, [record], current, move)
+            if ignored is not None and ignored[i] is not None:
+                new_props, new_last = judge(prop_states, last_ns, [ignored[i]], current, move)
                 key = full_key(own_chart, new_props, new_last)
                 if not add(key, current, move, (snap, own_chart, new_props, new_last)):
                     return finished(False)
@@ -414,14 +444,19 @@ def explore(
                 system.restore(snap)
             dirty = True
             records, failures, stable = system.apply(move)
-            note([*failures, *system.checks(records, move)], stable, current, move)
+            found = system.checks(records, move)
+            if failures or found or not stable:
+                note([*failures, *found], stable, current, move)
             if not stable:  # reported: a state that never settles is no state to go on from
                 way_out = True
                 continue
             new_props, new_last = judge(prop_states, last_ns, records, current, move)
-            result.configurations.update(record.configuration for record in records)
+            moved = False
+            for record in records:
+                configurations.add(record.configuration)
+                moved = moved or record.transitions
             chart = system.key()
-            if chart != own_chart or any(record.transitions for record in records):
+            if moved or chart != own_chart:
                 way_out = True
             key = full_key(chart, new_props, new_last)
             if key in index:
