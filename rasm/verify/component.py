@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import ast
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from sismic.clock import Clock
 from sismic.exceptions import (
@@ -25,7 +24,7 @@ from sismic.exceptions import (
 from sismic.model import Event, MacroStep, Statechart
 
 from rasm.errors import ExecutionError
-from rasm.statechart.interpreter import Interpreter, _copy_value
+from rasm.statechart.interpreter import Interpreter, _copy_value, _names_used
 from rasm.statechart.simulate import MAX_STEPS
 from rasm.times import from_nanoseconds, nanoseconds
 from rasm.verify.code import ChartCode, analyse_chart
@@ -51,9 +50,9 @@ class SettableClock(Clock):
         self._time = from_nanoseconds(ns)
 
 
-@dataclass(frozen=True)
-class Step:
-    """One macro step a chart took: what the properties and the reports need of it."""
+class Step(NamedTuple):
+    """One macro step a chart took: what the properties and the reports need of it (a named
+    tuple: the exploration makes one per macro step)."""
 
     configuration: frozenset[str]
     event: str | None
@@ -200,7 +199,7 @@ class ChartRun:
             names = sorted(n for n in context if n not in self.inputs)
         else:
             names = self.state_names
-        values = tuple((n, freeze(context[n])) for n in names if n in context)
+        values = tuple([(n, freeze(context[n])) for n in names if n in context])
         configuration = it._configuration
         timers = []
         for source, kinds in self._timed:
@@ -214,13 +213,14 @@ class ChartRun:
                 if age is not None and cap is not None:
                     age = min(age, cap)
                 timers.append((source, kind, age))
-        queued = tuple(
+        # (most stable states have no queued event and no history memory)
+        queued = tuple([
             (
                 (nanoseconds(t) or 0) - now, e.name, type(e).__name__,
                 freeze(dict(getattr(e, "data", {}) or {})),
             )
             for queue in (it._internal_queue, it._external_queue) for t, e in queue
-        )
+        ]) if it._internal_queue or it._external_queue else ()
         memory = tuple(sorted(
             (k, tuple(v) if v is not None else None) for k, v in it._memory.items()
         )) if it._memory else ()
@@ -237,13 +237,19 @@ class ChartRun:
         for timer in self.code.timers[source]:
             compiled = self._timer_args.get(timer.seconds)
             if compiled is None:
-                compiled = self._timer_args[timer.seconds] = compile(
-                    ast.parse(timer.seconds, mode="eval"), "<timer>", "eval"
-                )
-            try:
-                ns = nanoseconds(eval(compiled, {}, dict(context)))  # noqa: S307 - chart code
-            except Exception:
-                return None
+                code = compile(ast.parse(timer.seconds, mode="eval"), "<timer>", "eval")
+                compiled = self._timer_args[timer.seconds] = (code, sorted(_names_used(code)), {})
+            code, names, known = compiled
+            # a threshold is a function of the values of the names it reads: evaluated once
+            # for each of them
+            values = tuple(freeze(context.get(n, _ABSENT)) for n in names)
+            ns = known.get(values, _ABSENT)
+            if ns is _ABSENT:
+                try:
+                    ns = nanoseconds(eval(code, {}, dict(context)))  # noqa: S307 - chart code
+                except Exception:
+                    ns = None
+                known[values] = ns
             if ns is None:
                 return None
             best = max(best, ns)
@@ -332,3 +338,4 @@ class ChartRun:
 
 
 _EMPTY: dict[str, Any] = {}
+_ABSENT = object()  # a name the context does not have

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from rasm.errors import Location, SourceError
 from rasm.properties import ast as A
@@ -32,9 +32,9 @@ STEP_FUNCTIONS = ("in_state", "received", "sent")
 UNDEFINED = None  # prev() at the first step, a variable the context does not have, x / 0
 
 
-@dataclass(frozen=True)
-class Record:
-    """One macro step as the properties see it."""
+class Record(NamedTuple):
+    """One macro step as the properties see it (a named tuple: the exploration makes one per
+    macro step)."""
 
     time_ns: int
     configuration: frozenset[str]
