@@ -240,6 +240,7 @@ class AppSystem:
         self.rule_sets = rule_sets
         self.clock = SettableClock()
         self.skipped = 0
+        self._parts: dict[tuple, tuple] = {}  # distinct parts of the states' keys and snapshots
         self.effectors = manifest.effectors
         chart = manifest.statecharts.get("adaptation_orchestrator") or platform_chart(
             "adaptation_orchestrator"
@@ -357,26 +358,44 @@ class AppSystem:
         return records, failures, True
 
     def key(self) -> tuple:
+        # the parts of a state's key repeat from state to state (a chart that did not move):
+        # each distinct part is kept once, and the keys of the states share it
+        share = self._parts.setdefault
+        charts = tuple(share(key, key) for key in (run.key() for run in self.charts.values()))
+        monitors = tuple(share(key, key) for key in map(_monitor_key, self.monitors))
+        knowledge = tuple((k, freeze(self.knowledge.get(k, _ABSENT))) for k in self.kept)
         return (
-            tuple(run.key() for run in self.charts.values()),
-            tuple(_monitor_key(m) for m in self.monitors),
-            tuple((k, freeze(self.knowledge.get(k, _ABSENT))) for k in self.kept),
+            share(charts, charts), share(monitors, monitors), share(knowledge, knowledge),
             self.vouched, self.online, freeze(self.iteration), self.failures,
         )
 
     def save(self) -> Any:
+        # the snapshots of the charts and monitors repeat from state to state too: each
+        # distinct one is kept once (those holding a mutable value are kept as they are)
+        share = self._share
         return (
-            self.clock.now_ns, {n: r.save() for n, r in self.charts.items()},
-            [_save_monitor(m) for m in self.monitors],
+            self.clock.now_ns, tuple(share(run.save()) for run in self.charts.values()),
+            tuple(share(_save_monitor(m)) for m in self.monitors),
             dict(self.knowledge), self.vouched, self.online, dict(self.iteration), self.failures,
         )
+
+    def _share(self, snapshot: tuple, depth: int = 1) -> Any:
+        try:
+            return self._parts.setdefault(snapshot, snapshot)
+        except TypeError:  # a mutable value in it: its other parts are kept once
+            if depth and type(snapshot) is tuple:
+                return tuple(
+                    self._share(part, 0) if type(part) in (tuple, frozenset) else part
+                    for part in snapshot
+                )
+            return snapshot
 
     def restore(self, snapshot: Any) -> None:
         (now, charts, monitors, knowledge, self.vouched, self.online, iteration,
          self.failures) = snapshot
         self.clock.set(now)
-        for name, snap in charts.items():
-            self.charts[name].restore(snap)
+        for run, snap in zip(self.charts.values(), charts, strict=True):
+            run.restore(snap)
         for interp, snap in zip(self.monitors, monitors, strict=True):
             _restore_monitor(interp, snap)
         self.knowledge = dict(knowledge)
@@ -683,10 +702,12 @@ def _monitor_key(interp: Any) -> tuple:
 
 
 def _save_monitor(interp: Any) -> tuple:
-    return (interp._initialized, interp._time, set(interp._configuration),
-            dict(interp._entry_time), dict(interp._idle_time),
-            dict(interp._evaluator._context), list(interp._internal_queue),
-            list(interp._external_queue))
+    # immutable parts, as ChartRun.save's (the context's values are not copied: restored as
+    # they were saved)
+    return (interp._initialized, interp._time, frozenset(interp._configuration),
+            tuple(interp._entry_time.items()), tuple(interp._idle_time.items()),
+            tuple(interp._evaluator._context.items()), tuple(interp._internal_queue),
+            tuple(interp._external_queue))
 
 
 def _restore_monitor(interp: Any, snap: tuple) -> None:

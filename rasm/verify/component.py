@@ -90,11 +90,11 @@ def problem_kind(exc: BaseException) -> str:
     return "raising code"
 
 
-def _context_snapshot(context: Mapping[str, Any]) -> tuple[dict[str, Any], bool]:
-    """A copy of the context, and whether all its values are immutable (then restoring it
-    needs no copy of each value)."""
+def _context_snapshot(context: Mapping[str, Any]) -> tuple[Any, bool]:
+    """The context's items when all its values are immutable (restoring them needs no copy of
+    each value, and the snapshot is hashable); else a copy of it. With whether they are."""
     if all(type(v) in _IMMUTABLE for v in context.values()):
-        return dict(context), True
+        return tuple(context.items()), True
     return {k: _copy_value(v) for k, v in context.items()}, False
 
 
@@ -162,21 +162,26 @@ class ChartRun:
 
     # -- snapshots -------------------------------------------------------------------------
     def save(self) -> tuple:
+        """Everything a step can change. A snapshot is never changed (:meth:`restore` copies
+        out of it), and it is made of immutable parts where the values allow: equal ones can
+        then be kept once (:class:`~rasm.verify.app.AppSystem` does)."""
         it = self.interp
+        memory = it._memory
         return (
             it._initialized, it._time,
-            {k: (list(v) if v is not None else None) for k, v in it._memory.items()},
-            set(it._configuration), dict(it._entry_time), dict(it._idle_time),
-            _context_snapshot(it._evaluator._context),
-            list(it._internal_queue), list(it._external_queue),
-            list(getattr(it._evaluator, "deadlines", None) or ()),
+            tuple([(k, tuple(v) if v is not None else None) for k, v in memory.items()])
+            if memory else (),
+            frozenset(it._configuration), tuple(it._entry_time.items()),
+            tuple(it._idle_time.items()), _context_snapshot(it._evaluator._context),
+            tuple(it._internal_queue), tuple(it._external_queue),
+            tuple(getattr(it._evaluator, "deadlines", None) or ()),
         )
 
     def restore(self, snap: tuple) -> None:
         it = self.interp
         (it._initialized, it._time, memory, configuration, entry, idle, context,
          internal, external, deadlines) = snap
-        it._memory = {k: (list(v) if v is not None else None) for k, v in memory.items()}
+        it._memory = {k: (list(v) if v is not None else None) for k, v in memory}
         it._configuration = set(configuration)
         it._entry_time = dict(entry)
         it._idle_time = dict(idle)
@@ -272,11 +277,14 @@ class ChartRun:
         return nanoseconds(due)
 
     # -- execution -------------------------------------------------------------------------
-    def queue(self, name: str, data: Mapping[str, Any] | None = None) -> None:
+    def queue(
+        self, name: str, data: Mapping[str, Any] | tuple[tuple[str, Any], ...] = ()
+    ) -> None:
+        """Queue event ``name`` with ``data`` (a mapping, or its items)."""
+        event = Event(name, **dict(data)) if data else Event(name)
         # what Interpreter.queue(event) does, with the delay read from the data: getattr(event,
         # "delay") on an event without one formats an error message first
-        data = dict(data or {})
-        self.interp._enqueue(Event(name, **data), data.get("delay", 0))
+        self.interp._enqueue(event, event.data.get("delay", 0))
 
     def execute(self) -> tuple[list[Step], list[tuple[str, str]], bool]:
         """Execute until stable, as ``rasm simulate`` does: the steps taken, the failures

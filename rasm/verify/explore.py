@@ -18,6 +18,7 @@ first path found to a problem is a shortest one.
 from __future__ import annotations
 
 import math
+from array import array
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -268,7 +269,7 @@ class ChartExplorer:
         if move.time_ns != self.clock.now_ns:
             self.clock.set(move.time_ns)
         if move.event is not None:
-            self.run.queue(move.event, dict(move.data))
+            self.run.queue(move.event, move.data)
         return self._records(*self.run.execute())
 
     def _records(
@@ -281,13 +282,13 @@ class ChartExplorer:
 def record_of(step: Step, now: int) -> Record:
     """A chart's step as the properties see it."""
     return Record(
-        time_ns=now,
-        configuration=step.configuration,
-        received=step.event,
-        sent=frozenset(name for name, _ in step.sent),
-        context=step.context,
-        transitions=step.transitions,
+        now, step.configuration, step.event,
+        frozenset([name for name, _ in step.sent]) if step.sent else _NOTHING_SENT,
+        step.context, step.transitions,
     )
+
+
+_NOTHING_SENT: frozenset[str] = frozenset()
 
 
 def _reads_time(prop: PastProperty) -> bool:
@@ -327,15 +328,19 @@ def explore(
     # the largest window bound a property compares the time since its last record with
     horizon = max((b for p in props for b in _bounds(p)), default=0)
     result = Exploration(complete=False, states=0, transitions=0)
-    nodes: list[tuple[int | None, Move | None]] = []  # (parent, move) of each state found
+    # of each state found, the state it was found from (-1: none) and the move that led to it:
+    # what a path is rebuilt from (arrays of machine integers: the exploration keeps one entry
+    # per state, and one per transition when it checks a goal)
+    parents = array("q")
+    found_by: list[Move | None] = []
     index: dict[tuple, int] = {}
     seen_problem: set[tuple[str, str]] = set()
 
     def path_to(i: int | None, last: Move | None) -> list[Move]:
         moves = [] if last is None else [last]
-        while i is not None and nodes[i][1] is not None:
-            moves.append(nodes[i][1])
-            i = nodes[i][0]
+        while i is not None and i >= 0 and found_by[i] is not None:
+            moves.append(found_by[i])
+            i = parents[i]
         moves.reverse()
         return moves
 
@@ -379,7 +384,7 @@ def explore(
                 result.problems.append(Problem(kind, message, path_to(parent, move)))
 
     def finished(complete: bool) -> Exploration:
-        result.states = len(nodes)
+        result.states = len(found_by)
         result.entered = set(system.entered())
         result.transitions += system.skipped
         result.complete = complete
@@ -388,34 +393,39 @@ def explore(
     records, failures, stable = system.start()
     note([*failures, *system.checks(records, None)], stable, None, None)
     if not stable:  # the initial step never settles: there is nothing to explore from
-        nodes.append((None, None))
+        parents.append(-1)
+        found_by.append(None)
         return finished(True)
     prop_states, last_ns = judge(tuple(p.initial() for p in props), None, records, None, None)
     result.configurations.update(record.configuration for record in records)
     chart = system.key()
     index[full_key(chart, prop_states, last_ns)] = 0
-    nodes.append((None, None))
+    parents.append(-1)
+    found_by.append(None)
     frontier: deque[tuple[int, Any, tuple, tuple, int | None]] = deque(
         [(0, system.save(), chart, prop_states, last_ns)]
     )
     stuck_seen: set[frozenset[str]] = set()
 
-    edges: list[tuple[int, int]] = []  # (from, to), kept only to check the goal
+    edges = (array("q"), array("q"))  # (from, to) of each transition, only to check the goal
     reached: list[bool] = [goal()] if goal is not None else []
 
     def add(key: tuple, parent: int, move: Move, entry: tuple) -> bool:
         """Queue a state not seen before; False when --max-states is reached."""
         if key in index:
             if goal is not None:
-                edges.append((parent, index[key]))
+                edges[0].append(parent)
+                edges[1].append(index[key])
             return True
-        if len(nodes) >= max_states:
+        if len(found_by) >= max_states:
             return False
-        index[key] = len(nodes)
-        nodes.append((parent, move))
-        frontier.append((index[key], *entry))
+        found = index[key] = len(found_by)
+        parents.append(parent)
+        found_by.append(move)
+        frontier.append((found, *entry))
         if goal is not None:
-            edges.append((parent, index[key]))
+            edges[0].append(parent)
+            edges[1].append(found)
             reached.append(goal())
         return True
 
@@ -461,7 +471,8 @@ def explore(
             key = full_key(chart, new_props, new_last)
             if key in index:
                 if goal is not None:
-                    edges.append((current, index[key]))
+                    edges[0].append(current)
+                    edges[1].append(index[key])
             elif not add(key, current, move, (system.save(), chart, new_props, new_last)):
                 return finished(False)
         if not way_out and not final and configuration not in stuck_seen:
@@ -473,17 +484,17 @@ def explore(
                 path_to(current, None),
             ))
     if goal is not None and goal_problem is not None:
-        stranded = _cannot_reach(len(nodes), edges, reached)
+        stranded = _cannot_reach(len(found_by), edges, reached)
         if stranded:
             kind, message = goal_problem
             result.problems.append(Problem(kind, message, path_to(min(stranded), None)))
     return finished(True)
 
 
-def _cannot_reach(count: int, edges: list[tuple[int, int]], goal: list[bool]) -> set[int]:
+def _cannot_reach(count: int, edges: tuple[array, array], goal: list[bool]) -> set[int]:
     """The states from which no path leads to one where the goal holds."""
     back: dict[int, list[int]] = {}
-    for a, b in edges:
+    for a, b in zip(*edges, strict=True):
         back.setdefault(b, []).append(a)
     can = {i for i in range(count) if goal[i]}
     stack = list(can)
