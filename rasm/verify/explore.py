@@ -460,7 +460,6 @@ def explore(
             if not stable:  # reported: a state that never settles is no state to go on from
                 way_out = True
                 continue
-            new_props, new_last = judge(prop_states, last_ns, records, current, move)
             moved = False
             for record in records:
                 configurations.add(record.configuration)
@@ -468,7 +467,11 @@ def explore(
             chart = system.key()
             if moved or chart != own_chart:
                 way_out = True
-            key = full_key(chart, new_props, new_last)
+            if props:
+                new_props, new_last = judge(prop_states, last_ns, records, current, move)
+                key = full_key(chart, new_props, new_last)
+            else:  # the state is the charts'
+                new_props, new_last, key = prop_states, last_ns, chart
             if key in index:
                 if goal is not None:
                     edges[0].append(current)
