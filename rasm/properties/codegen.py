@@ -20,16 +20,17 @@ verdicts and resets its state (``rasm.properties.monitor``), and the other prope
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 from rasm.properties.ast import Specification
-from rasm.properties.emitter import Names, signal_variable
+from rasm.properties.emitter import Names, PropertyCode, signal_variable
 from rasm.properties.formula_code import FormulaGenerator
-from rasm.properties.lines import Block, Code, Fault, Line, Reject, render
+from rasm.properties.lines import Block, Code, Fault, Line, Offline, Online, Reject, render
 from rasm.properties.loader import signals_of
-from rasm.properties.robust_code import RobustnessGenerator
+from rasm.properties.robust_code import RobustCode, RobustnessGenerator
 from rasm.properties.times import FAST
 
 __all__ = ["RUNTIME", "UNSET", "Program", "Runtime", "checked_signals", "generate"]
@@ -83,8 +84,10 @@ class Program:
     owed: list[str | None] = field(default_factory=list)
     orders: list[str | None] = field(default_factory=list)
     # with robustness: per property, the constant naming the stream its robustness comes off
-    # (None: known at each record)
+    # (None: known at each record), and online the deque of the records whose robustness is
+    # not final yet, oldest first
     robust_tops: list[str | None] = field(default_factory=list)
+    robust_records: list[str | None] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- whole programs
@@ -124,18 +127,34 @@ def generate(
     finishes: list[list[Line]] = []
     program = Program("", names.constants, {}, owned=names.owned)
     for number, prop in enumerate(spec.properties):
-        code = gen.compile(number, prop.formula)
+        rcode = robust.compile(number, prop.formula) if robust is not None else None
+        # online, each verdict goes out with its robustness: the variable holding it, or
+        # where it comes late, a dict of the final values whose verdict is still to come
+        known = None
+        if rcode is not None:
+            known = rcode.value or names.constant(number, "rk", {})
+        code = gen.compile(number, prop.formula, robustness=known)
         needed = signals_of(prop.formula) if reads is None else reads[number]
         warm = tuple(name for name in needed if name not in events and name not in defaults)
         program.reads.append(warm)
         program.owed.append(code.owed)
         program.orders.append(code.order)
         body, finish = list(code.body), list(code.finish)
-        if robust is not None:
-            rcode = robust.compile(number, prop.formula)
+        if rcode is not None:
             body += rcode.body
             finish += rcode.finish
             program.robust_tops.append(rcode.top)
+            if rcode.value is not None:
+                body += _robust_now(number, rcode.value)
+                program.robust_records.append(None)
+            else:
+                records = names.constant(number, "rj", deque())
+                body += _robust_late(number, rcode, code, records, known)
+                program.robust_records.append(records)
+        # the verdicts go out after the robustness lines: with the robustness final by then
+        body += code.verdicts
+        if code.late:
+            finish += code.verdicts
         if hook:
             body.insert(0, Code(f"FAULT_HOOK(NAME_{number}, i)"))
         guarded = _guarded(body, number, finishing=False)
@@ -169,6 +188,37 @@ def generate(
             program.state[signal_variable(name)] = defaults.get(name, UNSET)
     program.source = _assemble(spec, program, used, blocks, finishes, events)
     return program
+
+
+def _robust_now(number: int, value: str) -> list[Line]:
+    """A robustness known at each record: offline appended to the property's list, online
+    made a float for its verdict."""
+    return [
+        Offline((Code(f"ROBUST_{number}({value})"),)),
+        Online(f"if {value}.__class__ is not float: {value} = AS_FLOAT({value})"),
+    ]
+
+
+def _robust_late(number: int, rcode: RobustCode, code: PropertyCode, records: str,
+                 known: str) -> list[Line]:
+    """Robustness values that come late, final and in record order (``rcode.out``): offline
+    appended to the property's list; online each kept in ``known`` by record (``records``:
+    the records whose value is not final yet, oldest first) for its verdict to take, unless
+    that verdict went out before (decided early: it has no robustness, and the value is not
+    kept)."""
+    out, owed = rcode.out, code.owed
+    if code.order is None:  # verdicts in record order, owed in a queue: the newest ones
+        to_come = f"{owed} and {owed}[0][0] <= _k"
+    else:
+        to_come = f"_k in {owed}"
+    return [
+        Online(f"{records}.append(i)"),
+        Online(f"while {out}:"),
+        Online(f"    _r = {out}.popleft()"),
+        Online(f"    _k = {records}.popleft()"),
+        Online(f"    if {to_come}: {known}[_k] = _r if _r.__class__ is float else AS_FLOAT(_r)"),
+        Offline((Code(f"if {out}: ROBUSTS_{number}({out}); {out}.clear()"),)),
+    ]
 
 
 def _guarded(body: Sequence[Line], number: int, finishing: bool) -> list[Line]:

@@ -49,7 +49,9 @@ Value = Now | Later
 
 @dataclass(frozen=True)
 class PropertyCode:
-    """One property compiled: its lines at each record and at the end of the trace.
+    """One property compiled: its lines at each record and at the end of the trace, then the
+    lines that hand on its verdicts (``verdicts``: after ``body`` at each record, and after
+    ``finish`` at the end where it is ``late``; a program may put its own lines between).
 
     ``late``: its verdicts come off a stream (``finish`` settles what is open at the end);
     ``owed`` names what holds, online, the records owed a verdict (a dict index -> time, or a
@@ -62,6 +64,7 @@ class PropertyCode:
     late: bool
     owed: str | None = None
     order: str | None = None
+    verdicts: tuple[Line, ...] = ()
 
 
 def signal_variable(name: str) -> str:

@@ -143,9 +143,15 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         # the comparison that may be their parent
         self._counts: dict[CountStream, str] = {}
 
-    def compile(self, number: int, formula: Expr) -> PropertyCode:
+    def compile(self, number: int, formula: Expr, robustness: str | None = None) -> PropertyCode:
         """Property ``number``'s lines: its formula's value at each record, and the verdicts
-        taken off it."""
+        taken off it.
+
+        ``robustness``: online, each verdict carries its robustness, from the variable of
+        that name (a float) where the property's value is known at each record, else from
+        the dict of that name (record -> final robustness; the verdicts whose robustness is
+        not final yet carry None).
+        """
         self._begin(number)
         self._root = root = normalise(formula)
         self._owed = self._order = None
@@ -155,8 +161,8 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         if isinstance(value, Now):
             # a property's value is in seconds where it is a time (an explanation's probe of
             # ``time - prev(time)`` shows 0.2)
-            body.append(Emit(number, "i", "t", in_seconds(root, value.source)))
-            return PropertyCode(tuple(body), tuple(finish), late=False)
+            emit = Emit(number, "i", "t", in_seconds(root, value.source), robustness=robustness)
+            return PropertyCode(tuple(body), tuple(finish), late=False, verdicts=(emit,))
         stream = value.stream
         top = self.constant("r", stream.out)
         # verdicts that may come out of record order go back in order offline
@@ -173,14 +179,16 @@ class FormulaGenerator(Emitter, Transformer[Value]):
             forget = Online(f"del {self._owed}[_j]")
         # a verdict given, the record is no longer owed (in this order: a verdict that
         # fails to be made leaves its record owed)
+        take: tuple = (Code(f"_j, _tj, _tn, _v = {top}.popleft()"),)
+        if robustness is not None:
+            take += (Online(f"_r = {robustness}.pop(_j, None)"),)
         drain = Block(f"while {top}:", (
-            Code(f"_j, _tj, _tn, _v = {top}.popleft()"),
-            Emit(number, "_j", "_tj", "_v", order),
+            *take,
+            Emit(number, "_j", "_tj", "_v", order, robustness and "_r", final=False),
             forget,
         ))
-        body.append(drain)
-        finish.append(drain)
-        return PropertyCode(tuple(body), tuple(finish), late=True, owed=self._owed, order=order)
+        return PropertyCode(tuple(body), tuple(finish), late=True, owed=self._owed, order=order,
+                            verdicts=(drain,))
 
     def _code(self, *texts: str) -> None:
         self._lines += map(Code, texts)

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
-__all__ = ["Block", "Code", "Emit", "Fault", "Line", "Online", "Reject", "render"]
+__all__ = ["Block", "Code", "Emit", "Fault", "Line", "Offline", "Online", "Reject", "render"]
 
 INDENT = "    "
 
@@ -48,6 +48,19 @@ class Online:
 
 
 @dataclass(frozen=True)
+class Offline:
+    """Lines only ``run`` has (such as handing on robustness values in record order: online
+    each goes out with its verdict)."""
+
+    lines: tuple[Line, ...]
+
+    def write(self, out: list[str], online: bool, pad: str) -> None:
+        if not online:
+            for line in self.lines:
+                line.write(out, online, pad)
+
+
+@dataclass(frozen=True)
 class Block:
     """``head`` (``try:``, ``if …:``, ``while …:``) and the lines under it."""
 
@@ -65,21 +78,33 @@ class Block:
 class Emit:
     """Property ``number``'s verdict ``value`` for the record ``index`` at ``time`` (each the
     source of an expression): a Verdict online; offline a plain value, through ``order`` (the
-    property's :class:`~rasm.properties.streams.InOrder`) where verdicts come in any order."""
+    property's :class:`~rasm.properties.streams.InOrder`) where verdicts come in any order.
+
+    ``robustness`` (online only): the name of the variable holding the verdict's robustness, a
+    float, ``final`` (else it may be None: not final yet)."""
 
     number: int
     index: str
     time: str
     value: str
     order: str | None = None
+    robustness: str | None = None
+    final: bool = True
 
     def write(self, out: list[str], online: bool, pad: str) -> None:
         number, index, value, order = self.number, self.index, self.value, self.order
         if online:
+            r = self.robustness
+            if r is None:
+                robust = "None, None"
+            elif self.final:
+                robust = f"{r}, ({r}, {r})"
+            else:
+                robust = f"{r}, {r} if {r} is None else ({r}, {r})"
             # built as its tuple of fields (VERDICT_NEW is tuple.__new__): the NamedTuple's own
             # __new__ is a Python function, a third of step's time on a cheap property
             out.append(f"{pad}out.append(VERDICT_NEW(Verdict, "
-                       f"(NAME_{number}, {index}, {self.time}, {value}, None, None, None)))")
+                       f"(NAME_{number}, {index}, {self.time}, {value}, None, {robust})))")
         elif order is None:
             out.append(f"{pad}values_{number}({value})")
         elif index == "i":

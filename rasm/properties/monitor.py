@@ -24,7 +24,6 @@ __all__ = ["Monitor", "PropertyRun", "Rejection", "Verdict", "compile_properties
 
 INF = math.inf
 NUMERIC = frozenset((int, float))
-VERDICT_NEW = tuple.__new__  # a Verdict from the tuple of all its fields
 SCALAR = frozenset((int, float, str, bool))
 
 
@@ -189,12 +188,8 @@ class Monitor:
             FAULT_HOOK=fault_hook,
             ROBUST=[[] for _ in self.names],
         )
-        self._robust: list[list] = runtime.ROBUST
+        self._robust: list[list] = runtime.ROBUST  # offline: the values in record order
         self._number = {name: k for k, name in enumerate(self.names)}
-        self._rnext: list[int | None] = [None] * len(self.names)  # the next robustness's record
-        self._rknown: list[dict[int, float]] = [{} for _ in self.names]  # final, verdict to come
-        self._early: list[set[int]] = [set() for _ in self.names]  # verdicts given before it
-        self._rtaken = [0] * len(self.names)  # offline: robustness values handed out
         namespace = {**self.program.constants, **runtime._asdict()}
         self._namespace = namespace
         code = compile_source(self.program.source, spec.source)
@@ -208,7 +203,8 @@ class Monitor:
             self._resets,
         ) = namespace["factory"]()
         # the generated function itself, not a method around it: one call less per record
-        self.step = self._step if not robustness else self._step_robust
+        # (online, each verdict comes out of it with its robustness where that is final)
+        self.step = self._step if not (robustness and intervals) else self._step_intervals
 
     # ----------------------------------------------------------------- online
     @property
@@ -223,70 +219,22 @@ class Monitor:
         """
         return self._step(time, values)
 
-    def _step_robust(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
+    def _step_intervals(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
         out = self._step(time, values)
-        return self._with_robustness(out) if out else out
+        return self._with_intervals(out) if out else out
 
-    def _with_robustness(self, out: list[Verdict]) -> list[Verdict]:
-        """The verdicts ``out`` with their robustness (online). A property's robustness values
-        are filed when one of its verdicts comes (:meth:`_take`); the usual case, a verdict
-        whose robustness is the one value given since, takes it at once."""
-        robust, rnext, number, rknown = self._robust, self._rnext, self._number, self._rknown
+    def _with_intervals(self, out: list[Verdict]) -> list[Verdict]:
+        """The verdicts ``out``, each decided before its robustness is final with the interval
+        known now (``Monitor(intervals=True)``)."""
         intervals: dict[int, dict[int, tuple[float, float]]] = {}  # by property, this step
         for position, verdict in enumerate(out):
-            name, j, time, value, error = verdict[:5]
-            k = number[name]
-            given = robust[k]
-            if error is None and len(given) == 1 and rnext[k] == j and not rknown[k]:
-                r = given.pop()
-                rnext[k] = j + 1
-                if r.__class__ is not float:
-                    r = as_float(r)
-                out[position] = VERDICT_NEW(Verdict, (name, j, time, value, None, r, (r, r)))
-                continue
-            if given or rnext[k] is None:
-                self._take(k)
-            known = rknown[k].pop(j, None)
-            if error is not None:
-                out[position] = VERDICT_NEW(Verdict, (name, j, time, value, error, -INF,
-                                                      (-INF, -INF)))
-                if known is None:
-                    self._early[k].add(j)
-            elif known is not None:
-                r = as_float(known)
-                out[position] = VERDICT_NEW(Verdict, (name, j, time, value, None, r, (r, r)))
-            else:  # decided before its robustness is final
-                self._early[k].add(j)
-                if self._intervals:
-                    if k not in intervals:  # computed once per property and step
-                        intervals[k] = self.intervals(self.names[k])
-                    interval = intervals[k].get(j, (-INF, INF))
-                    out[position] = verdict._replace(robustness_interval=interval)
+            if verdict.robustness is None and verdict.error is None:
+                k = self._number[verdict.property]
+                if k not in intervals:  # computed once per property and step
+                    intervals[k] = self.intervals(self.names[k])
+                interval = intervals[k].get(verdict.index, (-INF, INF))
+                out[position] = verdict._replace(robustness_interval=interval)
         return out
-
-    def _take_robustness(self) -> None:
-        """File the final robustness values the generated code gave since the last call."""
-        for k in range(len(self._robust)):
-            self._take(k)
-
-    def _take(self, k: int) -> None:
-        """File property ``k``'s final robustness values given since the last call (by record:
-        kept for a verdict to come, dropped where the verdict went out before)."""
-        j = self._rnext[k]
-        if j is None:
-            if self.starts[k] is None:
-                return
-            j = self.starts[k]
-        values = self._robust[k]
-        known, early = self._rknown[k], self._early[k]
-        for v in values:
-            if j in early:
-                early.discard(j)  # its verdict has gone out already
-            else:
-                known[j] = v
-            j += 1
-        values.clear()
-        self._rnext[k] = j
 
     def intervals(self, name: str) -> dict[int, tuple[float, float]]:
         """With robustness: for each record whose robustness is not final yet (its window
@@ -296,10 +244,10 @@ class Monitor:
         top = self.program.robust_tops[k] if self.robustness else None
         if top is None or self.starts[k] is None:
             return {}
-        self._take_robustness()
-        first = self._rnext[k] if self._rnext[k] is not None else self.starts[k]
+        records = self._namespace[self.program.robust_records[k]]
         pending = self._namespace[top].intervals()
-        return {first + n: (as_float(lo), as_float(hi)) for n, (lo, hi) in enumerate(pending)}
+        return {j: (as_float(lo), as_float(hi))
+                for j, (lo, hi) in zip(records, pending, strict=True)}
 
     def reads(self, name: str) -> tuple[str, ...]:
         """The signals property ``name`` reads (those of the lets it uses too)."""
@@ -333,7 +281,7 @@ class Monitor:
         out = self._finish()
         for k, recovery in self._recovering.items():
             self._taint(k, recovery, out)
-        return self._with_robustness(out) if self.robustness else out
+        return self._with_intervals(out) if self._intervals and self.robustness else out
 
     # ----------------------------------------------------------------- faults
     def _fault(self, k: int, index: int | None, time, ns: int | None, exc: Exception,
@@ -354,15 +302,12 @@ class Monitor:
             v.property == name and v.index == index for v in out
         ):
             owed.append((index, time))
-        out.extend(Verdict(name, j, tj, False, why) for j, tj in owed)
+        # an error's robustness is -inf (the fresh state's values start at the next record)
+        robust = (-INF, (-INF, -INF)) if self.robustness else ()
+        out.extend(Verdict(name, j, tj, False, why, *robust) for j, tj in owed)
         if index is not None:
             self._reset(k)
             self._recovering[k] = Recovery(self.spec.properties[k].formula, index, ns, why)
-            if self.robustness:  # the fresh state's robustness values start at the next record
-                self._take_robustness()
-                self._rnext[k] = index + 1
-                self._rknown[k].clear()
-                self._early[k] = {j for j in self._early[k] if j > index}
 
     def _recover(self, index: int, ns: int, out: list[Verdict]) -> list[Verdict]:
         """After each record while a property recovers (online): its verdicts that depend on
@@ -381,6 +326,9 @@ class Monitor:
                 verdict.index
             ):
                 out[position] = verdict._replace(value=False, error=recovery.why)
+                if self.robustness:  # an error's robustness is -inf
+                    out[position] = out[position]._replace(robustness=-INF,
+                                                           robustness_interval=(-INF, -INF))
                 recovery.given += 1
 
     def _fault_run(self, k: int, index: int, ns: int | None, exc: Exception) -> None:

@@ -47,6 +47,7 @@ from rasm.properties.robust_ops import (
     SinceCore,
     SinceStream,
     UntilStream,
+    as_float,
     compare_interval,
 )
 from rasm.properties.streams import CountStream
@@ -76,12 +77,15 @@ RValue = Now | Late
 
 @dataclass(frozen=True)
 class RobustCode:
-    """One property's robustness lines, at each record and at the end; ``top``: the constant
-    naming the stream its values come off when they come late (None: known at each record)."""
+    """One property's robustness lines, at each record and at the end, and where its values
+    are: known at each record, in the variable ``value``; else they come late, final and in
+    record order, in the deque ``out`` of the stream the constant ``top`` names."""
 
     body: tuple[Line, ...]
     finish: tuple[Line, ...]
-    top: str | None
+    top: str | None = None
+    out: str | None = None
+    value: str | None = None
 
 
 def _neg(v):
@@ -127,7 +131,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         self._types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
         # the values compared, computed as the boolean semantics computes them
         self._values = FormulaGenerator(spec, names)
-        self._names.constants.update(RCMP=RCMP)
+        self._names.constants.update(RCMP=RCMP, AS_FLOAT=as_float)
 
     def compile(self, number: int, formula: Expr) -> RobustCode:
         self._begin(number)
@@ -138,13 +142,12 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         values._windows, values._prevs, values._counts = {}, {}, {}
         value = self.visit(formula)
         if isinstance(value, Now):
-            self._code(f"ROBUST_{number}({value.source})")
-            top = None
-        else:
-            top = self.constant("top", value.stream)
-            out = self.constant("ro", value.stream.out)
-            self._code(f"if {out}: ROBUSTS_{number}({out}); {out}.clear()")
-        return RobustCode(tuple(self._lines), tuple(self._finish), top)
+            held = self.fresh("r")
+            self._code(f"{held} = {value.source}")
+            return RobustCode(tuple(self._lines), tuple(self._finish), value=held)
+        top = self.constant("top", value.stream)
+        out = self.constant("ro", value.stream.out)
+        return RobustCode(tuple(self._lines), tuple(self._finish), top=top, out=out)
 
     def _code(self, *texts: str) -> None:
         self._lines += map(Code, texts)
