@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from rasm.properties.ast import INF, Expr
 from rasm.properties.expr import HELPERS
 from rasm.properties.lines import Line
+from rasm.properties.operators import FutureOr
 from rasm.properties.streams import Source, Stream
 from rasm.properties.units import HELPERS as TIME_HELPERS
 from rasm.properties.units import in_nanoseconds, in_seconds
@@ -41,7 +42,7 @@ class Later:
     decided, in any order (in record order where ``stream.ordered``), as ``(index, time,
     nanoseconds, value)`` in ``stream.out``."""
 
-    stream: Source | Stream
+    stream: Source | Stream | FutureOr
 
 
 Value = Now | Later

@@ -52,7 +52,7 @@ from rasm.properties.emitter import (
 )
 from rasm.properties.expr import _ARITH, _ARITH_NAMES, _COMPARE, _max2, _min2
 from rasm.properties.lines import Block, Code, Emit, Online
-from rasm.properties.operators import WindowCore
+from rasm.properties.operators import FutureOr, WindowCore
 from rasm.properties.streams import (
     AggregateStream,
     CountStream,
@@ -206,6 +206,9 @@ class FormulaGenerator(Emitter, Transformer[Value]):
     # ----------------------------------------------------------------- pointwise
     def not_(self, node: Not, operand: Value) -> Value:
         (part,) = self._in_units(children(node), [operand], False)
+        if isinstance(part, Later) and isinstance(part.stream, FutureOr):
+            part.stream.negate()  # (its values go to this node only)
+            return part
         if isinstance(part, Later):
             return self._inline_pointwise(
                 node, [part], 0, None, lambda v: f"(None if {v[0]} is None else not {v[0]})"
@@ -314,7 +317,26 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         a, b = node.bound.low_ns, node.bound.high_ns
         if isinstance(operand, Now):
             return self._inline_future(a, b, None, operand.source)
-        return self._stream(WindowStream, [operand], False, a, b)
+        return self._future_late(a, b, operand, True)
+
+    def visit(self, node: Expr) -> Value:
+        # ``eventually not φ`` (``always φ`` is ``not eventually not φ``) over values of φ that
+        # come late: the window takes φ's values as they are (no pass negating each)
+        if node.__class__ is Future and node.operand.__class__ is Not:
+            operand = super().visit(node.operand.operand)
+            if isinstance(operand, Later):
+                return self._future_late(node.bound.low_ns, node.bound.high_ns, operand, False)
+            return self.future(node, self.not_(node.operand, operand))
+        return super().visit(node)
+
+    def _future_late(self, a: int, b: int, operand: Later, hit: bool) -> Later:
+        """``eventually[a,b]`` of values that come late (of their negation: ``hit`` False):
+        one call per record, taking the operand's values (:class:`FutureOr`)."""
+        window = FutureOr(a, b, hit)
+        name, queue = self.constant("fw", window), self.constant("c", operand.stream.out)
+        self._code(f"{name}.step(i, t, tn, {queue})")
+        self._finish.append(Code(f"{name}.finish({queue})"))
+        return Later(window)
 
     def until(self, node: Until, left: Value, right: Value) -> Value:
         a, b = node.bound.low_ns, node.bound.high_ns

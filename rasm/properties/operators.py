@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-__all__ = ["UNKNOWN", "SinceWindow", "UntilWindow", "WindowCore", "WindowOr"]
+__all__ = ["UNKNOWN", "FutureOr", "SinceWindow", "UntilWindow", "WindowCore", "WindowOr"]
 
 NAN = math.nan
 INF = math.inf
@@ -410,6 +410,240 @@ class WindowOr:
         # looked at again once the records held have doubled: amortised O(1) per record,
         # and never more than twice the records still needed
         self._tidy_at = max(self.TIDY, 2 * len(self.recs))
+
+
+# the slots of a record in FutureOr.recs
+_FT, _FNS, _FVAL, _FLO, _FHI, _FFIRST, _FLAST, _FDONE = range(8)
+
+
+class FutureOr:
+    """``eventually[a,b] v`` of a value decided in any order, as :class:`WindowOr` decides
+    it (the same outputs, at the same records), with less work per record; or of ``not v``
+    (``hit`` False), its output negated once :meth:`negate` is called: ``always[a,b] v`` is
+    ``not eventually[a,b] not v`` without a pass over each value to negate it.
+
+    :meth:`step` each record, in order, with the operand's values decided at it;
+    :meth:`finish` at the end. A :class:`~rasm.properties.streams.Source`: decided values
+    go to ``out`` as ``(index, time, ns, value)``, in any order.
+
+    * A value ``hit`` (true) at u decides the outputs whose window holds u: a range of
+      outputs known when u arrived. Where such values come in record order (the common
+      case) the outputs of the range not decided yet are those after the last one's range;
+      otherwise they are found by a walk that skips decided outputs through links
+      (union–find).
+    * A complete window is decided the other way once its values are all known to miss.
+      Windows complete in record order and their starts only move on, so one pointer
+      (``scan``) walks the values once, stopping at the first one not known to miss: the
+      window is decided if that lies beyond it; if not, the window waits on that value (its
+      *blocker*), in a group of outputs that moves on as a whole when the blocker turns out
+      to miss.
+    """
+
+    TIDY = 256  # records held before the first look for ones to forget
+    ordered = False  # (Source.ordered) its values come in any order
+
+    def __init__(self, a: int, b: int, hit: bool = True) -> None:
+        self.a, self.b = a, b
+        self.hit, self.miss = hit, not hit  # the operand values that decide, and the others
+        self.value = True  # the output where a value in the window hits
+        self.recs: list[list] = []  # recs[k] is record base + k
+        self.base = 0
+        self.newest = -1
+        self.out: deque = deque()
+        # outputs before `reach` have a complete window (it ends before the newest record),
+        # those before `opening` know where it starts
+        self.opening = self.reach = 0
+        self.scan = 0  # values from the last closed window's start up to it miss
+        self.last_true = -1  # the newest record whose hit decided its range
+        self.covered = -1  # the last output of that range
+        self._groups: dict[int, list[int]] = {}  # blocker -> [first, last] waiting output
+        self._done: dict[int, int] = {}  # decided output -> a later candidate (links)
+        self._false: dict[int, int] = {}  # a blocker that turned out to miss -> a later value
+        self._tidy_at = self.TIDY
+
+    def negate(self) -> None:
+        """Give ``not`` of each output (``not eventually``: a hit decides false)."""
+        self.value = not self.value
+
+    def step(self, i: int, t, ns: int, queue: deque) -> None:
+        """Record ``i`` at ``ns`` (its time ``t`` as given) arrives; ``queue`` holds the
+        operand's values decided at it, ``(index, time, ns, value)``. Its values go in
+        before the windows it completes are looked at (fewer of them wait).
+
+        (The first record sets the window up; the next ones go straight to
+        :meth:`_step`, which replaces this one.)"""
+        self.base = self.opening = self.reach = self.scan = i
+        self.step = self._step
+        self._step(i, t, ns, queue)
+
+    def _step(self, i: int, t, ns: int, queue: deque) -> None:
+        recs, base, groups = self.recs, self.base, self._groups
+        if self.a == 0:  # the record's own window starts at it, and is the last it lies in
+            rec = [t, ns, UNKNOWN, i, None, 0, i, False]
+            recs.append(rec)
+        else:
+            rec = [t, ns, UNKNOWN, None, None, 0, 0, False]
+            recs.append(rec)
+            j, a = self.opening, self.a
+            while j <= i and ns - recs[j - base][_FNS] >= a:
+                recs[j - base][_FLO] = i  # output j's window starts here
+                j += 1
+            self.opening = j
+            rec[_FLAST] = j - 1
+        self.newest = i
+        # this record lies in the windows of outputs reach .. its last
+        reach = end = self.reach
+        b = self.b
+        while ns - recs[reach - base][_FNS] > b:  # stops at i at the latest
+            reach += 1
+        self.reach = rec[_FFIRST] = reach
+        miss = self.miss
+        while queue:
+            u, _, _, v = queue.popleft()
+            if v is miss and not groups:  # (no output waits on it)
+                if u >= base:
+                    recs[u - base][_FVAL] = v
+            else:
+                self.put(u, v)
+        if end < reach:  # the windows this record completes: decided, or waiting
+            high, out = i - 1, self.out
+            scan, missed = self.scan, not self.value
+            for j in range(end, reach):
+                rec = recs[j - base]
+                if rec[_FDONE]:
+                    continue
+                low = rec[_FLO]
+                if low is not None:
+                    if scan < low:
+                        scan = low
+                    while scan <= high and recs[scan - base][_FVAL] is miss:
+                        scan += 1
+                    if scan <= high:  # a value in the window not known yet: it waits
+                        rec[_FHI] = high
+                        group = groups.get(scan)
+                        if group is None:
+                            groups[scan] = [j, j]
+                        else:
+                            group[1] = j
+                        continue
+                rec[_FDONE] = True
+                out.append((j, rec[_FT], rec[_FNS], missed))
+            self.scan = scan
+        if len(recs) > self._tidy_at:
+            self._tidy()
+
+    def put(self, u: int, v) -> None:
+        """The operand's value at record ``u`` is ``v`` (True, False, or None at the end)."""
+        if u < self.base:
+            return  # every output whose window holds it is decided
+        rec = self.recs[u - self.base]
+        rec[_FVAL] = v
+        if v is self.hit:
+            if self._groups:
+                self._groups.pop(u, None)  # its waiting outputs are decided now
+            self._true(u, rec[_FFIRST], rec[_FLAST])
+        elif v is (not self.hit) and self._groups:
+            group = self._groups.pop(u, None)
+            if group is not None:
+                self._move(group, u)
+
+    def finish(self, queue: deque) -> None:
+        """The end of the trace: the operand's last values (``queue``) are in; what is still
+        open is inconclusive."""
+        while queue:
+            u, _, _, v = queue.popleft()
+            self.put(u, v)
+        recs, base, out = self.recs, self.base, self.out
+        for j in range(base, self.newest + 1):
+            rec = recs[j - base]
+            if not rec[_FDONE]:
+                rec[_FDONE] = True
+                out.append((j, rec[_FT], rec[_FNS], None))
+
+    # ------------------------------------------------------------------ deciding
+    def _true(self, u: int, first: int, last: int) -> None:
+        """A hit at ``u``: the outputs ``first`` .. ``last`` not decided yet are decided."""
+        recs, base, out, value = self.recs, self.base, self.out, self.value
+        if u > self.last_true:
+            # the outputs up to `covered` from `first` on are in the last true value's range
+            self.last_true = u
+            j = max(first, self.covered + 1, base)
+            if last > self.covered:
+                self.covered = last
+            while j <= last:
+                rec = recs[j - base]
+                rec[_FDONE] = True
+                out.append((j, rec[_FT], rec[_FNS], value))
+                j += 1
+            return
+        j = self._undecided_from(max(first, base))
+        while j <= last:
+            rec = recs[j - base]
+            rec[_FDONE] = True
+            out.append((j, rec[_FT], rec[_FNS], value))
+            j = self._undecided_from(j + 1)
+
+    def _move(self, group: list[int], u: int) -> None:
+        """Blocker ``u`` turned out to miss: the group's outputs whose windows end before the
+        next value not known to miss are decided; the others wait on that one."""
+        first, last = group
+        recs, base, out, miss, missed = self.recs, self.base, self.out, self.miss, not self.value
+        j = self._undecided_from(max(first, base))
+        if j > last:
+            return  # decided meanwhile (a true value in their windows)
+        limit = recs[last - base][_FHI]
+        links = self._false
+        p = u + 1
+        while p <= limit and recs[p - base][_FVAL] is miss:
+            p = links.get(p, p + 1)
+        links[u] = p  # the values from u to before p miss
+        while j <= last and recs[j - base][_FHI] < p:
+            rec = recs[j - base]
+            rec[_FDONE] = True
+            out.append((j, rec[_FT], rec[_FNS], missed))
+            j = self._undecided_from(j + 1)
+        if j <= last:
+            later = self._groups.get(p)  # its outputs all come after ours
+            if later is None:
+                self._groups[p] = [j, last]
+            else:
+                later[0] = j
+
+    def _undecided_from(self, j: int) -> int:
+        """The first output at or after ``j`` not decided yet (``newest + 1`` if none); the
+        decided ones on the way link to it."""
+        recs, base, links, newest = self.recs, self.base, self._done, self.newest
+        path = []
+        while j <= newest and recs[j - base][_FDONE]:
+            path.append(j)
+            j = links.get(j, j + 1)
+        for k in path:
+            links[k] = j
+        return j
+
+    def _tidy(self) -> None:
+        """Forget the records no undecided output can need any more: those before the
+        oldest undecided output (its window, and every later one's, starts at it or after)."""
+        recs, base, links = self.recs, self.base, self._done
+        # (the windows still to close read their records: an output decided early keeps
+        # them until its window closes)
+        target, reach = base, self.reach
+        while target < reach and recs[target - base][_FDONE]:
+            target = links.get(target, target + 1)
+        target = min(target, reach)
+        drop = target - base
+        if drop > 0:
+            if self._done:
+                self._done = {k: v for k, v in self._done.items() if k >= target}
+            if self._false:
+                self._false = {k: v for k, v in self._false.items() if k >= target}
+            del recs[:drop]
+            self.base = target
+            if self.scan < target:
+                self.scan = target
+        # looked at again once the records held have doubled: amortised O(1) per record,
+        # and never more than twice the records still needed
+        self._tidy_at = max(self.TIDY, 2 * len(recs))
 
 
 def _find(links: dict[int, int], j: int) -> int:

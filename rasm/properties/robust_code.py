@@ -169,17 +169,20 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
 
     def _pointwise(self, parts: list[RValue], function, interval, template: str) -> Late:
         """:class:`Pointwise`'s step written out: ``template`` is the function's source over
-        its arguments ``{0}``, ``{1}``, … (each a plain name, read as often as need be)."""
+        its arguments ``{0}``, ``{1}``, … (each a plain name, read as often as need be). At
+        least one of ``parts`` comes late, so at most one is immediate: each record's waits
+        in ``held`` (None where there is none) for the late ones."""
         sources = [part.stream if isinstance(part, Late) else None for part in parts]
         now = [self._held(part.source) for part in parts if isinstance(part, Now)]
+        assert len(now) < len(parts) <= 2
         stream = Pointwise(sources, function, interval)
         queues = [self.constant("pq", part.stream.out) for part in parts
                   if isinstance(part, Late)]
         held, out = self.constant("ph", stream.held), self.constant("px", stream.out)
-        self._code(f"{held}.append(({''.join(v + ', ' for v in now)}))")  # () for none
+        self._code(f"{held}.append({now[0] if now else None})")
         args = [self.fresh("a") for _ in parts]
         immediate = [x for x, part in zip(args, parts, strict=True) if isinstance(part, Now)]
-        take: list[Line] = [Code(f"({''.join(x + ', ' for x in immediate)}) = {held}.popleft()"
+        take: list[Line] = [Code(f"{immediate[0]} = {held}.popleft()"
                                  if immediate else f"{held}.popleft()")]
         late = iter(queues)
         take += [Code(f"{x} = {next(late)}.popleft()")
@@ -297,6 +300,8 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         part = self.visit(node.operand)
         high, a, b = node.op == "eventually", node.bound.low_ns, node.bound.high_ns
         window = FutureWindow(part.stream if isinstance(part, Late) else None, high, a, b)
+        if a == 0:
+            return self._future_from_now(window, part)
         outs, vals, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
             ("fo", window.outs), ("fv", window.vals), ("fe", window.wedge), ("fx", window.out)))
         self._code(f"{outs}.append((i, tn))")
@@ -345,6 +350,49 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
             *close,
             Code(f"{outs}.popleft()"),
         )))
+        return Late(window)
+
+    def _future_from_now(self, window: FutureWindow, part: RValue) -> Late:
+        """A window from the record itself (``a`` = 0): each value enters the wedge as it
+        comes, once the windows that end before its record have taken theirs (those windows
+        hold every value entered so far, and the wedge's newest is in each), so no value
+        waits outside it."""
+        outs, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
+            ("fo", window.outs), ("fe", window.wedge), ("fx", window.out)))
+        b, worse = window.b, "<=" if window.high else ">="
+        j, v, k, t = (self.fresh(x) for x in ("j", "v", "k", "t"))
+        close = (  # the oldest open window: the values from its record on are in the wedge
+            Code(f"{j} = {outs}.popleft()[0]"),
+            Code(f"while {wedge}[0][0] < {j}: {wedge}.popleft()"),
+            Code(f"{out}.append({wedge}[0][2])"),
+        )
+
+        def enter(k: str, t: str, v: str) -> tuple[Line, ...]:
+            return (Code(f"while {wedge} and {wedge}[-1][2] {worse} {v}: {wedge}.pop()"),
+                    Code(f"{wedge}.append(({k}, {t}, {v}))"))
+
+        if isinstance(part, Now):
+            value = self._held(part.source)
+            self._lines += [Block(f"while {outs} and tn - {outs}[0][1] > {b}:", close),
+                            *enter("i", "tn", value), Code(f"{outs}.append((i, tn))")]
+            return Late(window)
+        # the operand's values come late, in record order: ``times`` holds the records whose
+        # value is still to come (the same (i, tn) as ``outs``)
+        times = self.constant("ft", window.times)
+        queue = self.constant("fq", part.stream.out)
+        record = self.fresh("it")
+        self._code(f"{record} = (i, tn)", f"{outs}.append({record})", f"{times}.append({record})")
+        self._lines += [
+            Block(f"while {queue}:", (
+                Code(f"{k}, {t} = {times}.popleft()"),
+                Block(f"while {t} - {outs}[0][1] > {b}:", close),
+                Code(f"{v} = {queue}.popleft()"),
+                *enter(k, t, v),
+            )),
+            # the windows that ended before this record and hold no value still to come
+            Block(f"while {outs} and tn - {outs}[0][1] > {b} and not "
+                  f"({times} and {times}[0][1] - {outs}[0][1] <= {b}):", close),
+        ]
         return Late(window)
 
     def until(self, node: Until) -> RValue:

@@ -604,8 +604,9 @@ class PrevStream(_Ordered):
 
 
 class Pointwise(_Ordered):
-    """A function of several values, some of them streams (``None`` in ``sources``: an
-    immediate value, given to ``step``); ``interval`` is the same function of intervals."""
+    """A function of one or two values, at least one of them a stream (``None`` in
+    ``sources``: an immediate value, given to ``step``); ``interval`` is the same function
+    of intervals."""
 
     def __init__(self, sources: Sequence[_Ordered | None], function: Callable,
                  interval: Callable) -> None:
@@ -613,14 +614,15 @@ class Pointwise(_Ordered):
         self.sources = list(sources)
         self.queues = [s.out if s is not None else None for s in sources]
         self.function, self.interval = function, interval
-        self.held: deque = deque()  # the immediate values of the records not given yet
+        # per record not given yet, its immediate value (None where there is none)
+        self.held: deque = deque()
 
-    def step(self, ns: int, *now) -> None:
+    def step(self, ns: int, now=None) -> None:
         held, queues, out, function = self.held, self.queues, self.out, self.function
         held.append(now)
         while held and all(q for q in queues if q is not None):
-            immediate = iter(held.popleft())
-            args = [next(immediate) if q is None else q.popleft() for q in queues]
+            immediate = held.popleft()
+            args = [immediate if q is None else q.popleft() for q in queues]
             out.append(function(*args))
 
     def waiting(self) -> int:
@@ -630,14 +632,8 @@ class Pointwise(_Ordered):
         pending = [_pending(s) for s in self.sources]
         out = []
         for k, now in enumerate(self.held):
-            immediate = iter(now)
-            args = []
-            for s, p in zip(self.sources, pending, strict=True):
-                if s is None:
-                    v = next(immediate)
-                    args.append((v, v))
-                else:
-                    args.append(p[k])
+            args = [(now, now) if s is None else p[k]
+                    for s, p in zip(self.sources, pending, strict=True)]
             out.append(self.interval(*args))
         return out
 

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from rasm.properties import Verdict, compile_properties, operators
 from rasm.properties.loader import load_specification
-from rasm.properties.operators import WindowOr
+from rasm.properties.operators import FutureOr, WindowOr
 
 from .reference import Reference
 from .strategies import (
@@ -315,12 +315,12 @@ def test_offline_each_verdict_is_handed_out_once_it_and_those_before_are_decided
 def forgetting_at_once():
     """The windows and chains forget what they no longer need at every chance (they wait for a
     few hundred records, or batches of 64, otherwise): short traces then go through it too."""
-    saved = WindowOr.TIDY, operators.BATCH
-    WindowOr.TIDY, operators.BATCH = 1, 0
+    saved = WindowOr.TIDY, FutureOr.TIDY, operators.BATCH
+    WindowOr.TIDY, FutureOr.TIDY, operators.BATCH = 1, 1, 0
     try:
         yield
     finally:
-        WindowOr.TIDY, operators.BATCH = saved
+        WindowOr.TIDY, FutureOr.TIDY, operators.BATCH = saved
 
 
 @pytest.mark.slow
