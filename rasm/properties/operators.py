@@ -448,7 +448,6 @@ class FutureOr:
         self.value = True  # the output where a value in the window hits
         self.recs: list[list] = []  # recs[k] is record base + k
         self.base = 0
-        self.newest = -1
         self.out: deque = deque()
         # outputs before `reach` have a complete window (it ends before the newest record),
         # those before `opening` know where it starts
@@ -490,7 +489,6 @@ class FutureOr:
                 j += 1
             self.opening = j
             rec[_FLAST] = j - 1
-        self.newest = i
         # this record lies in the windows of outputs reach .. its last
         reach = end = self.reach
         b = self.b
@@ -508,26 +506,27 @@ class FutureOr:
         if end < reach:  # the windows this record completes: decided, or waiting
             high, out = i - 1, self.out
             scan, missed = self.scan, not self.value
-            for j in range(end, reach):
+            j = end
+            while j < reach:  # (usually one window: no range to build)
                 rec = recs[j - base]
-                if rec[_FDONE]:
-                    continue
-                low = rec[_FLO]
-                if low is not None:
-                    if scan < low:
-                        scan = low
-                    while scan <= high and recs[scan - base][_FVAL] is miss:
-                        scan += 1
-                    if scan <= high:  # a value in the window not known yet: it waits
+                if not rec[_FDONE]:
+                    low = rec[_FLO]
+                    if low is not None:
+                        if scan < low:
+                            scan = low
+                        while scan <= high and recs[scan - base][_FVAL] is miss:
+                            scan += 1
+                    if low is None or scan > high:  # every value in the window misses
+                        rec[_FDONE] = True
+                        out.append((j, rec[_FT], rec[_FNS], missed))
+                    else:  # a value in the window not known yet: it waits on it
                         rec[_FHI] = high
                         group = groups.get(scan)
                         if group is None:
                             groups[scan] = [j, j]
                         else:
                             group[1] = j
-                        continue
-                rec[_FDONE] = True
-                out.append((j, rec[_FT], rec[_FNS], missed))
+                j += 1
             self.scan = scan
         if len(recs) > self._tidy_at:
             self._tidy()
@@ -554,7 +553,7 @@ class FutureOr:
             u, _, _, v = queue.popleft()
             self.put(u, v)
         recs, base, out = self.recs, self.base, self.out
-        for j in range(base, self.newest + 1):
+        for j in range(base, base + len(recs)):
             rec = recs[j - base]
             if not rec[_FDONE]:
                 rec[_FDONE] = True
@@ -610,9 +609,10 @@ class FutureOr:
                 later[0] = j
 
     def _undecided_from(self, j: int) -> int:
-        """The first output at or after ``j`` not decided yet (``newest + 1`` if none); the
+        """The first output at or after ``j`` not decided yet (the next record's if none); the
         decided ones on the way link to it."""
-        recs, base, links, newest = self.recs, self.base, self._done, self.newest
+        recs, base, links = self.recs, self.base, self._done
+        newest = base + len(recs) - 1
         path = []
         while j <= newest and recs[j - base][_FDONE]:
             path.append(j)

@@ -117,6 +117,15 @@ def _compare_interval(op: str):
     return lambda x, y: compare_interval(op, x, y)
 
 
+def _is_number(source: str) -> bool:
+    """``source`` is a number's literal (as the boolean compile writes one: ``repr``)."""
+    try:
+        float(source)
+    except ValueError:
+        return False
+    return True
+
+
 _NUMBERS = ("int", "float")
 # robustness of `a op b` for two numbers, neither nan: (source over a and b)
 _DISTANCE = {"<": "{b} - {a}", "<=": "{b} - {a}", ">": "{a} - {b}", ">=": "{a} - {b}",
@@ -154,7 +163,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
 
     def _held(self, source: str) -> str:
         """``source`` in a variable, so that it is computed once."""
-        if source.isidentifier() or source in ("INF", "-INF"):
+        if source.isidentifier() or source in ("INF", "-INF") or _is_number(source):
             return source
         name = self.fresh("v")
         self._code(f"{name} = {source}")
@@ -389,9 +398,10 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
                 Code(f"{v} = {queue}.popleft()"),
                 *enter(k, t, v),
             )),
-            # the windows that ended before this record and hold no value still to come
-            Block(f"while {outs} and tn - {outs}[0][1] > {b} and not "
-                  f"({times} and {times}[0][1] - {outs}[0][1] <= {b}):", close),
+            # the windows that end before the first record whose value is still to come (or
+            # before this record): complete, with all their values in
+            Block(f"while {outs} and ({times}[0][1] if {times} else tn) - {outs}[0][1] > {b}:",
+                  close),
         ]
         return Late(window)
 
