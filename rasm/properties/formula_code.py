@@ -247,6 +247,7 @@ class FormulaGenerator(Emitter, Transformer[Value]):
             return self._inline_pointwise(
                 node, parts, position, _decider(op, position),
                 lambda names: _kleene_binary(op, names, position),
+                passes=op in ("and", "or") or (op == "->" and position == 1),
             )
         return Now(_binary(op, parts[0].source, parts[1].source, self._integers(node)))
 
@@ -470,6 +471,7 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         position: int,
         decides: Decider | None,
         kleene: Callable[[list[str]], str],
+        passes: bool = False,
     ) -> Later:
         """A non-temporal operator over one stream (``parts[position]``) and at most one
         immediate value, in Kleene logic: ``kleene(names)`` is its source over the names of
@@ -479,7 +481,10 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         side of ``or``, a false trigger of ``->``) the value is given at once; the stream's
         value for that record is then skipped when it comes (or never made,
         :meth:`_skip_window`). Other records wait for the stream's value. At the property's
-        root the early value is a verdict.
+        root the early value is a verdict. ``passes``: where the immediate value does not
+        decide, the node's value is the stream's (``true and v``, ``true -> v``); if the
+        window never makes the others, its values are then the node's as they come (one
+        queue for both, nothing to pass on).
         """
         child = parts[position]
         assert isinstance(child, Later)
@@ -488,8 +493,12 @@ class FormulaGenerator(Emitter, Transformer[Value]):
             decides = None
         # in record order if its operand's values are and none is given early
         source = Source(ordered=child.stream.ordered and decides is None)
-        out = self.constant("o", source.out)
         stream = self.constant("c", child.stream.out)
+        skipped = decides is not None and self._skip_window(
+            child.stream, position, decides[0].format(w=immediate[0]))
+        if skipped and passes:
+            source.out = child.stream.out
+        out = self.constant("o", source.out)
         names = ["_v" if isinstance(part, Later) else "_w" for part in parts]
         drain = [f"while {stream}:", f"    _j, _tj, _tn, _v = {stream}.popleft()"]
         if decides is None:
@@ -504,7 +513,7 @@ class FormulaGenerator(Emitter, Transformer[Value]):
             # decide: nothing to hold but which records wait (none when the window skips the
             # others: it never gives them)
             names = ["_v" if isinstance(part, Later) else other for part in parts]
-            if not self._skip_window(child.stream, position, early):
+            if not skipped:
                 waiting = self.constant("b", set())
                 self._code(f"if not ({early}): {waiting}.add(i)")
                 drain += [f"    if _j not in {waiting}: continue  # given at once",
@@ -519,6 +528,8 @@ class FormulaGenerator(Emitter, Transformer[Value]):
                 ]
             else:
                 self._code(f"if {early}: {out}.append((i, t, tn, {value}))")
+        if source.out is child.stream.out:
+            return Later(source)
         drain.append(f"    {out}.append((_j, _tj, _tn, {kleene(names)}))")
         self._code(*drain)
         self._finish += map(Code, drain)

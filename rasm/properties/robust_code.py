@@ -140,10 +140,12 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         self._types = TypeScope({k: v for k, v in spec.signals.items() if v != "any"})
         # the values compared, computed as the boolean semantics computes them
         self._values = FormulaGenerator(spec, names)
+        self._tuple: str | None = None
         self._names.constants.update(RCMP=RCMP, AS_FLOAT=as_float)
 
     def compile(self, number: int, formula: Expr) -> RobustCode:
         self._begin(number)
+        self._tuple = None  # the record's (i, tn) (_record)
         values = self._values
         values._begin(number)
         values._lines, values._finish = self._lines, self._finish  # one list of lines
@@ -160,6 +162,15 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
 
     def _code(self, *texts: str) -> None:
         self._lines += map(Code, texts)
+
+    def _record(self) -> str:
+        """The variable holding the record's ``(i, tn)``, which the windows keep: one tuple
+        per record for them all (made where the first window needs it: window lines run at
+        every record, so every later one reads it)."""
+        if self._tuple is None:
+            self._tuple = self.fresh("it")
+            self._code(f"{self._tuple} = (i, tn)")
+        return self._tuple
 
     def _held(self, source: str) -> str:
         """``source`` in a variable, so that it is computed once."""
@@ -313,12 +324,12 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
             return self._future_from_now(window, part)
         outs, vals, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
             ("fo", window.outs), ("fv", window.vals), ("fe", window.wedge), ("fx", window.out)))
-        self._code(f"{outs}.append((i, tn))")
+        self._code(f"{outs}.append({self._record()})")
         times = None
         if isinstance(part, Late):  # the operand's values come late, in record order
             times, queue = self.constant("ft", window.times), self.constant("fq", part.stream.out)
             k, t = self.fresh("k"), self.fresh("t")
-            self._code(f"{times}.append((i, tn))")
+            self._code(f"{times}.append({self._record()})")
             self._lines.append(Block(f"while {queue}:", (
                 Code(f"{k}, {t} = {times}.popleft()"),
                 Code(f"{vals}.append(({k}, {t}, {queue}.popleft()))"),
@@ -383,14 +394,14 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         if isinstance(part, Now):
             value = self._held(part.source)
             self._lines += [Block(f"while {outs} and tn - {outs}[0][1] > {b}:", close),
-                            *enter("i", "tn", value), Code(f"{outs}.append((i, tn))")]
+                            *enter("i", "tn", value), Code(f"{outs}.append({self._record()})")]
             return Late(window)
         # the operand's values come late, in record order: ``times`` holds the records whose
         # value is still to come (the same (i, tn) as ``outs``)
         times = self.constant("ft", window.times)
         queue = self.constant("fq", part.stream.out)
-        record = self.fresh("it")
-        self._code(f"{record} = (i, tn)", f"{outs}.append({record})", f"{times}.append({record})")
+        record = self._record()
+        self._code(f"{outs}.append({record})", f"{times}.append({record})")
         self._lines += [
             Block(f"while {queue}:", (
                 Code(f"{k}, {t} = {times}.popleft()"),
