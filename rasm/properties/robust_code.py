@@ -15,6 +15,7 @@ monitor is asked for robustness: the boolean code is the same either way.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 from rasm.properties.ast import (
@@ -41,7 +42,6 @@ from rasm.properties.robust_ops import (
     FutureWindow,
     Ordered,
     PastStream,
-    PastWindow,
     Pointwise,
     PrevStream,
     SinceCore,
@@ -294,8 +294,36 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         high, a, b = node.op == "once", node.bound.low_ns, node.bound.high_ns
         if isinstance(part, Late):
             return self._stream(PastStream(part.stream, high, a, b))
-        window = self.constant("rw", PastWindow(high, a, b))
-        return Now(self._held(f"{window}.push(tn, {part.source})"))
+        return Now(self._past_from_now(high, a, b, self._held(part.source)))
+
+    def _past_from_now(self, high: bool, a: int, b: int | float, value: str) -> str:
+        """:class:`PastWindow`'s ``push`` written out (a call per record costs more than its
+        work): the max (``high``) or min of ``value`` over the window, in a variable."""
+        empty = "-INF" if high else "INF"
+        if a == 0 and b == math.inf:  # the best so far
+            best = self.variable("rb", -math.inf if high else math.inf)
+            self._code(f"if {value} {'>' if high else '<'} {best}: {best} = {value}")
+            return best
+        # a monotonic wedge of (ns, value), each dominated value dropped as a better one comes
+        worse, out = "<=" if high else ">=", self.fresh("v")
+        wedge = self.constant("rq", deque())
+        if a == 0:  # the record enters its own window at once, and is its last
+            self._code(f"while {wedge} and {wedge}[-1][1] {worse} {value}: {wedge}.pop()",
+                        f"{wedge}.append((tn, {value}))",
+                        f"while tn - {wedge}[0][0] > {b}: {wedge}.popleft()",
+                        f"{out} = {wedge}[0][1]")
+            return out
+        young, item = self.constant("ry", deque()), self.fresh("it")
+        self._code(f"{young}.append((tn, {value}))")
+        self._lines.append(Block(f"while tn - {young}[0][0] >= {a}:", (  # old enough
+            Code(f"{item} = {young}.popleft()"),
+            Code(f"while {wedge} and {wedge}[-1][1] {worse} {item}[1]: {wedge}.pop()"),
+            Code(f"{wedge}.append({item})"),
+        )))
+        if b != math.inf:
+            self._code(f"while {wedge} and tn - {wedge}[0][0] > {b}: {wedge}.popleft()")
+        self._code(f"{out} = {wedge}[0][1] if {wedge} else {empty}")
+        return out
 
     def since(self, node: Since) -> RValue:
         parts = [self.visit(node.left), self.visit(node.right)]
@@ -322,7 +350,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         window = FutureWindow(part.stream if isinstance(part, Late) else None, high, a, b)
         if a == 0:
             return self._future_from_now(window, part)
-        outs, vals, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
+        outs, vals, wedge, out = (self.constant(prefix, queue) for prefix, queue in (
             ("fo", window.outs), ("fv", window.vals), ("fe", window.wedge), ("fx", window.out)))
         self._code(f"{outs}.append({self._record()})")
         times = None
@@ -377,7 +405,7 @@ class RobustnessGenerator(Emitter, Visitor[RValue]):
         comes, once the windows that end before its record have taken theirs (those windows
         hold every value entered so far, and the wedge's newest is in each), so no value
         waits outside it."""
-        outs, wedge, out = (self.constant(prefix, deque) for prefix, deque in (
+        outs, wedge, out = (self.constant(prefix, queue) for prefix, queue in (
             ("fo", window.outs), ("fe", window.wedge), ("fx", window.out)))
         b, worse = window.b, "<=" if window.high else ">="
         j, v, k, t = (self.fresh(x) for x in ("j", "v", "k", "t"))
