@@ -478,10 +478,10 @@ class FutureOr:
     def _step(self, i: int, t, ns: int, queue: deque) -> None:
         recs, base, groups = self.recs, self.base, self._groups
         if self.a == 0:  # the record's own window starts at it, and is the last it lies in
-            rec = [t, ns, UNKNOWN, i, None, 0, i, False]
+            rec = [t, ns, UNKNOWN, i, None, None, i, False]
             recs.append(rec)
         else:
-            rec = [t, ns, UNKNOWN, None, None, 0, 0, False]
+            rec = [t, ns, UNKNOWN, None, None, None, 0, False]
             recs.append(rec)
             j, a = self.opening, self.a
             while j <= i and ns - recs[j - base][_FNS] >= a:
@@ -489,12 +489,6 @@ class FutureOr:
                 j += 1
             self.opening = j
             rec[_FLAST] = j - 1
-        # this record lies in the windows of outputs reach .. its last
-        reach = end = self.reach
-        b = self.b
-        while ns - recs[reach - base][_FNS] > b:  # stops at i at the latest
-            reach += 1
-        self.reach = rec[_FFIRST] = reach
         miss = self.miss
         while queue:
             u, _, _, v = queue.popleft()
@@ -503,31 +497,32 @@ class FutureOr:
                     recs[u - base][_FVAL] = v
             else:
                 self.put(u, v)
-        if end < reach:  # the windows this record completes: decided, or waiting
-            high, out = i - 1, self.out
-            scan, missed = self.scan, not self.value
-            j = end
-            while j < reach:  # (usually one window: no range to build)
-                rec = recs[j - base]
-                if not rec[_FDONE]:
-                    low = rec[_FLO]
-                    if low is not None:
-                        if scan < low:
-                            scan = low
-                        while scan <= high and recs[scan - base][_FVAL] is miss:
-                            scan += 1
-                    if low is None or scan > high:  # every value in the window misses
-                        rec[_FDONE] = True
-                        out.append((j, rec[_FT], rec[_FNS], missed))
-                    else:  # a value in the window not known yet: it waits on it
-                        rec[_FHI] = high
-                        group = groups.get(scan)
-                        if group is None:
-                            groups[scan] = [j, j]
-                        else:
-                            group[1] = j
-                j += 1
-            self.scan = scan
+        # the windows this record completes (they end before it): decided, or waiting
+        j, b, high = self.reach, self.b, i - 1
+        scan = self.scan
+        while ns - recs[j - base][_FNS] > b:  # stops at i at the latest
+            done = recs[j - base]
+            if not done[_FDONE]:
+                low = done[_FLO]
+                if low is not None:
+                    if scan < low:
+                        scan = low
+                    while scan <= high and recs[scan - base][_FVAL] is miss:
+                        scan += 1
+                if low is None or scan > high:  # every value in the window misses
+                    done[_FDONE] = True
+                    self.out.append((j, done[_FT], done[_FNS], not self.value))
+                else:  # a value in the window not known yet: it waits on it
+                    done[_FHI] = high
+                    group = groups.get(scan)
+                    if group is None:
+                        groups[scan] = [j, j]
+                    else:
+                        group[1] = j
+            j += 1
+        self.scan = scan
+        # this record lies in the windows of outputs reach .. its last
+        self.reach = rec[_FFIRST] = j
         if len(recs) > self._tidy_at:
             self._tidy()
 
@@ -540,7 +535,12 @@ class FutureOr:
         if v is self.hit:
             if self._groups:
                 self._groups.pop(u, None)  # its waiting outputs are decided now
-            self._true(u, rec[_FFIRST], rec[_FLAST])
+            first = rec[_FFIRST]
+            if first is None:  # the newest record: the windows it completes do not hold it
+                first, ns, b = self.reach, rec[_FNS], self.b
+                while ns - self.recs[first - self.base][_FNS] > b:
+                    first += 1
+            self._true(u, first, rec[_FLAST])
         elif v is (not self.hit) and self._groups:
             group = self._groups.pop(u, None)
             if group is not None:
