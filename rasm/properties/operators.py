@@ -412,10 +412,6 @@ class WindowOr:
         self._tidy_at = max(self.TIDY, 2 * len(self.recs))
 
 
-# the slots of a record in FutureOr.recs
-_FT, _FNS, _FVAL, _FLO, _FHI, _FFIRST, _FLAST, _FDONE = range(8)
-
-
 class FutureOr:
     """``eventually[a,b] v`` of a value decided in any order, as :class:`WindowOr` decides
     it (the same outputs, at the same records), with less work per record; or of ``not v``
@@ -437,6 +433,9 @@ class FutureOr:
       window is decided if that lies beyond it; if not, the window waits on that value (its
       *blocker*), in a group of outputs that moves on as a whole when the blocker turns out
       to miss.
+
+    What it knows of each record is kept in lists side by side, indexed by the record's
+    index less ``base``: no object per record for the garbage collector to walk.
     """
 
     TIDY = 256  # records held before the first look for ones to forget
@@ -446,7 +445,18 @@ class FutureOr:
         self.a, self.b = a, b
         self.hit, self.miss = hit, not hit  # the operand values that decide, and the others
         self.value = True  # the output where a value in the window hits
-        self.recs: list[list] = []  # recs[k] is record base + k
+        # record base + k: its time as given and in ns, the operand's value there (UNKNOWN
+        # until it comes), the first output whose window holds it (None for the newest
+        # until its step ends), whether its output is decided; with a > 0, the first record
+        # of its window (None: none yet) and the last output whose window holds it (a = 0:
+        # the record itself, both)
+        self.times: list = []
+        self.nss: list[int] = []
+        self.vals: list = []
+        self.firsts: list[int | None] = []
+        self.done: list[bool] = []
+        self.lows: list[int | None] = []
+        self.lasts: list[int] = []
         self.base = 0
         self.out: deque = deque()
         # outputs before `reach` have a complete window (it ends before the newest record),
@@ -455,6 +465,7 @@ class FutureOr:
         self.scan = 0  # values from the last closed window's start up to it miss
         self.last_true = -1  # the newest record whose hit decided its range
         self.covered = -1  # the last output of that range
+        self._highs: dict[int, int] = {}  # a waiting output -> the last record in its window
         self._groups: dict[int, list[int]] = {}  # blocker -> [first, last] waiting output
         self._done: dict[int, int] = {}  # decided output -> a later candidate (links)
         self._false: dict[int, int] = {}  # a blocker that turned out to miss -> a later value
@@ -476,44 +487,45 @@ class FutureOr:
         self._step(i, t, ns, queue)
 
     def _step(self, i: int, t, ns: int, queue: deque) -> None:
-        recs, base, groups = self.recs, self.base, self._groups
-        if self.a == 0:  # the record's own window starts at it, and is the last it lies in
-            rec = [t, ns, UNKNOWN, i, None, None, i, False]
-            recs.append(rec)
-        else:
-            rec = [t, ns, UNKNOWN, None, None, None, 0, False]
-            recs.append(rec)
-            j, a = self.opening, self.a
-            while j <= i and ns - recs[j - base][_FNS] >= a:
-                recs[j - base][_FLO] = i  # output j's window starts here
+        base, nss, vals, groups, a = self.base, self.nss, self.vals, self._groups, self.a
+        self.times.append(t)
+        nss.append(ns)
+        vals.append(UNKNOWN)
+        self.firsts.append(None)
+        self.done.append(False)
+        if a:
+            lows = self.lows
+            lows.append(None)
+            j = self.opening
+            while j <= i and ns - nss[j - base] >= a:
+                lows[j - base] = i  # output j's window starts here
                 j += 1
             self.opening = j
-            rec[_FLAST] = j - 1
+            self.lasts.append(j - 1)
         miss = self.miss
         while queue:
             u, _, _, v = queue.popleft()
             if v is miss and not groups:  # (no output waits on it)
                 if u >= base:
-                    recs[u - base][_FVAL] = v
+                    vals[u - base] = v
             else:
                 self.put(u, v)
         # the windows this record completes (they end before it): decided, or waiting
         j, b, high = self.reach, self.b, i - 1
-        scan = self.scan
-        while ns - recs[j - base][_FNS] > b:  # stops at i at the latest
-            done = recs[j - base]
-            if not done[_FDONE]:
-                low = done[_FLO]
+        scan, done = self.scan, self.done
+        while ns - nss[j - base] > b:  # stops at i at the latest
+            if not done[j - base]:
+                low = self.lows[j - base] if a else j
                 if low is not None:
                     if scan < low:
                         scan = low
-                    while scan <= high and recs[scan - base][_FVAL] is miss:
+                    while scan <= high and vals[scan - base] is miss:
                         scan += 1
                 if low is None or scan > high:  # every value in the window misses
-                    done[_FDONE] = True
-                    self.out.append((j, done[_FT], done[_FNS], not self.value))
+                    done[j - base] = True
+                    self.out.append((j, self.times[j - base], nss[j - base], not self.value))
                 else:  # a value in the window not known yet: it waits on it
-                    done[_FHI] = high
+                    self._highs[j] = high
                     group = groups.get(scan)
                     if group is None:
                         groups[scan] = [j, j]
@@ -522,26 +534,26 @@ class FutureOr:
             j += 1
         self.scan = scan
         # this record lies in the windows of outputs reach .. its last
-        self.reach = rec[_FFIRST] = j
-        if len(recs) > self._tidy_at:
+        self.reach = self.firsts[i - base] = j
+        if len(nss) > self._tidy_at:
             self._tidy()
 
     def put(self, u: int, v) -> None:
         """The operand's value at record ``u`` is ``v`` (True, False, or None at the end)."""
-        if u < self.base:
+        base = self.base
+        if u < base:
             return  # every output whose window holds it is decided
-        rec = self.recs[u - self.base]
-        rec[_FVAL] = v
+        self.vals[u - base] = v
         if v is self.hit:
             if self._groups:
                 self._groups.pop(u, None)  # its waiting outputs are decided now
-            first = rec[_FFIRST]
+            first = self.firsts[u - base]
             if first is None:  # the newest record: the windows it completes do not hold it
-                first, ns, b = self.reach, rec[_FNS], self.b
-                while ns - self.recs[first - self.base][_FNS] > b:
+                first, ns, b, nss = self.reach, self.nss[u - base], self.b, self.nss
+                while ns - nss[first - base] > b:
                     first += 1
-            self._true(u, first, rec[_FLAST])
-        elif v is (not self.hit) and self._groups:
+            self._true(u, first, self.lasts[u - base] if self.a else u)
+        elif v is self.miss and self._groups:
             group = self._groups.pop(u, None)
             if group is not None:
                 self._move(group, u)
@@ -552,17 +564,21 @@ class FutureOr:
         while queue:
             u, _, _, v = queue.popleft()
             self.put(u, v)
-        recs, base, out = self.recs, self.base, self.out
-        for j in range(base, base + len(recs)):
-            rec = recs[j - base]
-            if not rec[_FDONE]:
-                rec[_FDONE] = True
-                out.append((j, rec[_FT], rec[_FNS], None))
+        base, done = self.base, self.done
+        for j in range(base, base + len(done)):
+            self._decide(j, None)
 
     # ------------------------------------------------------------------ deciding
+    def _decide(self, j: int, value) -> None:
+        """Output ``j`` is ``value``, unless it is decided already."""
+        k = j - self.base
+        if not self.done[k]:
+            self.done[k] = True
+            self.out.append((j, self.times[k], self.nss[k], value))
+
     def _true(self, u: int, first: int, last: int) -> None:
         """A hit at ``u``: the outputs ``first`` .. ``last`` not decided yet are decided."""
-        recs, base, out, value = self.recs, self.base, self.out, self.value
+        base, value = self.base, self.value
         if u > self.last_true:
             # the outputs up to `covered` from `first` on are in the last true value's range
             self.last_true = u
@@ -570,36 +586,30 @@ class FutureOr:
             if last > self.covered:
                 self.covered = last
             while j <= last:
-                rec = recs[j - base]
-                rec[_FDONE] = True
-                out.append((j, rec[_FT], rec[_FNS], value))
+                self._decide(j, value)
                 j += 1
             return
         j = self._undecided_from(max(first, base))
         while j <= last:
-            rec = recs[j - base]
-            rec[_FDONE] = True
-            out.append((j, rec[_FT], rec[_FNS], value))
+            self._decide(j, value)
             j = self._undecided_from(j + 1)
 
     def _move(self, group: list[int], u: int) -> None:
         """Blocker ``u`` turned out to miss: the group's outputs whose windows end before the
         next value not known to miss are decided; the others wait on that one."""
         first, last = group
-        recs, base, out, miss, missed = self.recs, self.base, self.out, self.miss, not self.value
+        base, vals, miss, highs = self.base, self.vals, self.miss, self._highs
         j = self._undecided_from(max(first, base))
         if j > last:
             return  # decided meanwhile (a true value in their windows)
-        limit = recs[last - base][_FHI]
+        limit = highs[last]
         links = self._false
         p = u + 1
-        while p <= limit and recs[p - base][_FVAL] is miss:
+        while p <= limit and vals[p - base] is miss:
             p = links.get(p, p + 1)
         links[u] = p  # the values from u to before p miss
-        while j <= last and recs[j - base][_FHI] < p:
-            rec = recs[j - base]
-            rec[_FDONE] = True
-            out.append((j, rec[_FT], rec[_FNS], missed))
+        while j <= last and highs[j] < p:
+            self._decide(j, not self.value)
             j = self._undecided_from(j + 1)
         if j <= last:
             later = self._groups.get(p)  # its outputs all come after ours
@@ -611,10 +621,10 @@ class FutureOr:
     def _undecided_from(self, j: int) -> int:
         """The first output at or after ``j`` not decided yet (the next record's if none); the
         decided ones on the way link to it."""
-        recs, base, links = self.recs, self.base, self._done
-        newest = base + len(recs) - 1
+        base, done, links = self.base, self.done, self._done
+        newest = base + len(done) - 1
         path = []
-        while j <= newest and recs[j - base][_FDONE]:
+        while j <= newest and done[j - base]:
             path.append(j)
             j = links.get(j, j + 1)
         for k in path:
@@ -624,11 +634,11 @@ class FutureOr:
     def _tidy(self) -> None:
         """Forget the records no undecided output can need any more: those before the
         oldest undecided output (its window, and every later one's, starts at it or after)."""
-        recs, base, links = self.recs, self.base, self._done
+        base, done, links = self.base, self.done, self._done
         # (the windows still to close read their records: an output decided early keeps
         # them until its window closes)
         target, reach = base, self.reach
-        while target < reach and recs[target - base][_FDONE]:
+        while target < reach and done[target - base]:
             target = links.get(target, target + 1)
         target = min(target, reach)
         drop = target - base
@@ -637,13 +647,19 @@ class FutureOr:
                 self._done = {k: v for k, v in self._done.items() if k >= target}
             if self._false:
                 self._false = {k: v for k, v in self._false.items() if k >= target}
-            del recs[:drop]
+            if self._highs:
+                self._highs = {k: v for k, v in self._highs.items() if k >= target}
+            for column in (self.times, self.nss, self.vals, self.firsts, self.done):
+                del column[:drop]
+            if self.a:
+                del self.lows[:drop]
+                del self.lasts[:drop]
             self.base = target
             if self.scan < target:
                 self.scan = target
         # looked at again once the records held have doubled: amortised O(1) per record,
         # and never more than twice the records still needed
-        self._tidy_at = max(self.TIDY, 2 * len(recs))
+        self._tidy_at = max(self.TIDY, 2 * len(self.nss))
 
 
 def _find(links: dict[int, int], j: int) -> int:
