@@ -17,6 +17,7 @@ really open: two continuations give different verdicts
 from __future__ import annotations
 
 import contextlib
+from collections import deque
 
 import pytest
 from hypothesis import given, settings
@@ -321,6 +322,77 @@ def forgetting_at_once():
         yield
     finally:
         WindowOr.TIDY, FutureOr.TIDY, operators.BATCH = saved
+
+
+@st.composite
+def late_values(draw):
+    """Records at non-decreasing times and, per record, the step at which its operand value
+    comes (at once, a few records later, or only at the end: then maybe inconclusive)."""
+    gaps = draw(st.lists(st.sampled_from([0, 1, 1, 2, 3]), min_size=1, max_size=40))
+    times = [sum(gaps[: k + 1]) for k in range(len(gaps))]
+    n = len(times)
+    arrivals: dict[int, list[tuple[int, object]]] = {}
+    for u in range(n):
+        value = draw(st.booleans())
+        at = min(n, u + draw(st.sampled_from([0, 0, 0, 1, 2, 5, 40])))
+        if at == n and draw(st.booleans()):
+            value = None
+        arrivals.setdefault(at, []).append((u, value))
+    for values in arrivals.values():
+        values[:] = draw(st.permutations(values))
+    return times, arrivals
+
+
+def _decisions(window, times, arrivals, flip=lambda v: v) -> dict[int, tuple[object, int]]:
+    """Each output of ``window`` (a WindowOr or a FutureOr): (its value, the record at which
+    it came, len(times) for the end)."""
+    got: dict[int, tuple[object, int]] = {}
+    queue: deque = deque()
+    for k in range(len(times) + 1):
+        values = arrivals.get(k, [])
+        if isinstance(window, FutureOr):
+            queue.extend((u, None, None, v) for u, v in values)
+            if k < len(times):
+                window.step(k, times[k], times[k], queue)
+            else:
+                window.finish(queue)
+        else:
+            if k < len(times):
+                window.record(k, times[k], times[k])
+            for u, v in values:
+                window.put(u, v)
+            if k == len(times):
+                window.finish()
+        while window.out:
+            j, _, _, v = window.out.popleft()
+            assert j not in got, "an output decided twice"
+            got[j] = (flip(v), k)
+    return got
+
+
+@settings(max_examples=300, deadline=None)
+@given(late_values(), st.sampled_from([0, 1, 2]), st.sampled_from([0, 1, 2, 5, 10]),
+       st.booleans(), st.booleans(), st.sampled_from([1, 256]))
+def test_future_or_decides_as_the_window_does(values, a, width, hit, negate, tidy):
+    """FutureOr (eventually/always over late values) gives every output the value WindowOr's
+    future window gives it, at the same record, whatever order the values come in, taking
+    them negated (``hit`` False) and negating its outputs as asked, forgetting at once or not."""
+    times, arrivals = values
+    saved = FutureOr.TIDY, WindowOr.TIDY
+    FutureOr.TIDY = WindowOr.TIDY = tidy
+    try:
+        expected = _decisions(WindowOr(False, a, a + width), times, arrivals)
+        def k_not(v):
+            return None if v is None else not v
+        window = FutureOr(a, a + width, hit)
+        if negate:
+            window.negate()
+        given_values = arrivals if hit else {k: [(u, k_not(v)) for u, v in values]
+                                             for k, values in arrivals.items()}
+        got = _decisions(window, times, given_values, k_not if negate else (lambda v: v))
+    finally:
+        FutureOr.TIDY, WindowOr.TIDY = saved
+    assert got == expected
 
 
 @pytest.mark.slow
