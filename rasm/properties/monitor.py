@@ -454,7 +454,9 @@ class Monitor:
         robust: list = []
         if self.robustness:
             given = self._robust[k]
-            robust = [as_float(v) if v is not None else None for v in given[:count]]
+            # (most are floats already: the call only for the others)
+            robust = [v if v.__class__ is float or v is None else as_float(v)
+                      for v in given[:count]]
             del given[:count]
             for j in taken:
                 robust[j - first] = -INF
