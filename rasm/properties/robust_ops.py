@@ -94,6 +94,8 @@ RCMP: dict[str, Callable] = {op: (lambda a, b, op=op: compare(op, a, b)) for op 
 
 def compare_interval(op: str, a: Interval, b: Interval) -> Interval:
     """``compare`` of values known to lie in intervals ``a`` and ``b``."""
+    if a[0] != a[0] or b[0] != b[0]:  # an undefined value (nan): −inf, as compare gives
+        return (-INF, -INF)
     if a[0] == a[1] and b[0] == b[1]:
         v = compare(op, a[0], b[0])
         return (v, v)
