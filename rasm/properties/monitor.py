@@ -16,7 +16,7 @@ from rasm.properties.ast import Specification
 from rasm.properties.codegen import UNSET, Runtime, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
-from rasm.properties.robust_ops import as_float
+from rasm.properties.robust_ops import pending_at, as_float
 from rasm.properties.times import format_seconds, nanoseconds, seconds_value
 from rasm.values import fit, wanted
 
@@ -42,7 +42,8 @@ class Verdict(NamedTuple):
     # with Monitor(robustness=True) (SPEC §12): the final robustness, or None where it is not
     # final yet (a verdict decided early, or inconclusive at the end); an interval that
     # contains the final value (lo == hi once final; for a verdict decided early only with
-    # Monitor(intervals=True), else None). An error's is -inf.
+    # Monitor(intervals=True), or with intervals="newest" for the newest verdict of its
+    # property in the step; else None). An error's is -inf.
     robustness: float | None = None
     robustness_interval: tuple[float, float] | None = None
 
@@ -143,11 +144,14 @@ class Monitor:
         reads: list[tuple[str, ...]] | None = None,
         fault_hook: Callable[[str, int], object] | None = None,
         robustness: bool = False,
-        intervals: bool = False,
+        intervals: bool | str = False,
     ) -> None:
+        if intervals not in (False, True, "newest"):
+            raise ValueError(f"intervals must be False, True or 'newest', not {intervals!r}")
         self.spec = spec
-        # an early verdict's robustness interval costs in proportion to the records in the
-        # property's windows: given only when asked for
+        # an early verdict's robustness interval: True, each one's (in proportion to the
+        # records in the property's windows); "newest", that of the newest verdict of each
+        # property in a step (Monitor.interval: at a cost independent of the bounds)
         self._intervals = intervals
         self.names = [p.name for p in spec.properties]
         self._reads = reads
@@ -204,7 +208,12 @@ class Monitor:
         ) = namespace["factory"]()
         # the generated function itself, not a method around it: one call less per record
         # (online, each verdict comes out of it with its robustness where that is final)
-        self.step = self._step if not (robustness and intervals) else self._step_intervals
+        if not (robustness and intervals):
+            self.step = self._step
+        elif intervals == "newest":
+            self.step = self._step_newest
+        else:
+            self.step = self._step_intervals
 
     # ----------------------------------------------------------------- online
     @property
@@ -235,6 +244,41 @@ class Monitor:
                 interval = intervals[k].get(verdict.index, (-INF, INF))
                 out[position] = verdict._replace(robustness_interval=interval)
         return out
+
+    def _step_newest(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
+        out = self._step(time, values)
+        return self._with_newest_interval(out) if out else out
+
+    def _with_newest_interval(self, out: list[Verdict]) -> list[Verdict]:
+        """The verdicts ``out``, the newest of each property with the interval known now if it
+        was decided before its robustness is final (``Monitor(intervals="newest")``)."""
+        newest: dict[str, int] = {}  # property -> the position of its newest verdict
+        for position, verdict in enumerate(out):
+            known = newest.get(verdict.property)
+            if known is None or verdict.index >= out[known].index:
+                newest[verdict.property] = position
+        for position in newest.values():
+            verdict = out[position]
+            if verdict.robustness is None and verdict.error is None:
+                interval = self.interval(verdict.property, verdict.index)
+                out[position] = verdict._replace(robustness_interval=interval)
+        return out
+
+    def interval(self, name: str, index: int) -> tuple[float, float]:
+        """With robustness: an interval known to contain the robustness of property ``name``
+        at record ``index`` while it is not final, at a cost independent of the bounds:
+        the one :meth:`intervals` gives where the operators can answer for one record as
+        cheaply (docs/properties.md §10), else wider, down to (-inf, inf): nothing known.
+        (-inf, inf) too for a record whose robustness is final or was never open."""
+        k = self._number[name]
+        top = self.program.robust_tops[k] if self.robustness else None
+        if top is None or self.starts[k] is None:
+            return (-INF, INF)
+        records = self._namespace[self.program.robust_records[k]]
+        if not records or not records[0] <= index <= records[-1]:
+            return (-INF, INF)
+        lo, hi = pending_at(self._namespace[top], index - records[0])
+        return (as_float(lo), as_float(hi))
 
     def intervals(self, name: str) -> dict[int, tuple[float, float]]:
         """With robustness: for each record whose robustness is not final yet (its window
@@ -281,7 +325,11 @@ class Monitor:
         out = self._finish()
         for k, recovery in self._recovering.items():
             self._taint(k, recovery, out)
-        return self._with_intervals(out) if self._intervals and self.robustness else out
+        if not (self._intervals and self.robustness):
+            return out
+        if self._intervals == "newest":
+            return self._with_newest_interval(out)
+        return self._with_intervals(out)
 
     # ----------------------------------------------------------------- faults
     def _fault(self, k: int, index: int | None, time, ns: int | None, exc: Exception,
@@ -483,10 +531,11 @@ def _specification(text: str, source: str) -> Specification:
 
 
 def compile_properties(text: str, *, source: str = "<text>", robustness: bool = False,
-                       intervals: bool = False) -> Monitor:
+                       intervals: bool | str = False) -> Monitor:
     """Parse, check and compile a property file into a fresh :class:`Monitor`; ``robustness``:
     its verdicts carry their robustness too (SPEC §12); ``intervals``: a verdict decided
-    before its robustness is final carries the interval known then."""
+    before its robustness is final carries the interval known then (``"newest"``: only the
+    newest verdict of each property in a step, at a cost independent of the bounds)."""
     if type(text) is str and type(source) is str:
         return Monitor(_specification(text, source), robustness=robustness, intervals=intervals)
     # says what is wrong with them

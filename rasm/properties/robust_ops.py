@@ -12,6 +12,11 @@ order, with no index: the k-th value of every stream of a property is the k-th r
 Between two records a stream also knows, for each record whose value is not final yet, an
 interval that contains the final value (``intervals()``): the robust satisfaction intervals
 of Deshmukh et al., narrowing as records arrive. An unknown future value lies in [−inf, inf].
+``intervals()`` costs in proportion to the records open (or worse); ``at(p)`` gives the
+interval of one of them (the p-th not final, oldest first) in O(log w) for a future window
+and O(1) for the pointwise operators, ``prev`` and a count's comparison, and (−inf, inf),
+"nothing known", where an operator cannot answer as cheaply (past windows, ``since`` and
+``until`` over values that come late).
 
 * :class:`PastWindow` — ``once``/``historically[a,b]`` (sliding max/min: a monotonic wedge);
 * :class:`SinceCore` — ``since[a,b]`` by the identity ``l S[a,b] r = H[0,a) l ∧ Y(hi) ∧
@@ -45,6 +50,7 @@ __all__ = [
     "UntilStream",
     "as_float",
     "compare",
+    "pending_at",
 ]
 
 INF = math.inf
@@ -206,6 +212,44 @@ class _Ordered:
         """How many records' values are not final yet (``len(self.intervals())``)."""
         return len(self.intervals())
 
+    def at(self, p: int) -> Interval:
+        """``self.intervals()[p]``, or wider, at a cost independent of the bounds: here
+        (−inf, inf), nothing known (the operators that answer better say how)."""
+        return EVERYTHING
+
+
+def pending_at(stream: _Ordered, p: int) -> Interval:
+    """``_pending(stream)[p]``: the p-th of the input's records not taken yet."""
+    out = stream.out
+    if p < len(out):
+        v = out[p]
+        return (v, v)
+    return stream.at(p - len(out))
+
+
+def _first_in(items, i: int, first) -> int:
+    """The position of the first of ``items`` (``(seq, ns, …)`` in record order) with
+    ``seq >= i`` and ``ns >= first``, ``len(items)`` if none: a search galloping from the
+    newest end, O(log d) probes for an answer d items from that end."""
+    n = len(items)
+    good, bad, step = n, -1, 1
+    while good > 0:
+        probe = n - step if step < n else 0
+        item = items[probe]
+        if item[0] < i or item[1] < first:
+            bad = probe
+            break
+        good = probe
+        step += step
+    while good - bad > 1:
+        middle = (good + bad) // 2
+        item = items[middle]
+        if item[0] < i or item[1] < first:
+            bad = middle
+        else:
+            good = middle
+    return good
+
 
 def _pending(stream: _Ordered | None, value=None) -> list[Interval]:
     """The intervals of an input's records not final yet (an immediate input has none)."""
@@ -357,6 +401,10 @@ class FutureWindow(_Ordered):
         self.vals: deque = deque()  # (seq, ns, v) known, beyond the oldest open window
         self.wedge: deque = deque()  # (seq, ns, v)
         self.newest = None
+        # for at(): a wedge of the values in ``vals`` up to record ``caught``, brought up to
+        # date when asked (each value enters and leaves it once)
+        self.tail: deque = deque()
+        self.caught = -1
 
     def step(self, ns: int, now=None) -> None:
         self.newest = ns
@@ -401,6 +449,57 @@ class FutureWindow(_Ordered):
 
     def waiting(self) -> int:
         return len(self.outs)
+
+    def at(self, p: int) -> Interval:
+        """The interval of the p-th open record, in O(log w). Its window's known values are
+        the newest known from its start on (a window waits for the values in it, and the
+        windows close in record order): the first of them in the wedge (the oldest open
+        window's) and in a wedge of ``vals`` bounds them. Values in it still to come from a
+        late operand only make the other end infinite (their intervals are not looked at)."""
+        i, ti = self.outs[p]
+        first, last = ti + self.a, ti + self.b
+        best = self.empty
+        for wedge in (self.wedge, self._tail()):
+            k = _first_in(wedge, i, first)
+            if k < len(wedge):
+                v = wedge[k][2]
+                if (v > best) if self.high else (v < best):
+                    best = v
+        # the window is open while records still to come may fall in it
+        open_ = self.outs[-1][1] <= last
+        times = self.times
+        if times and not open_:
+            k = _first_in(times, i, first)
+            open_ = k < len(times) and times[k][1] <= last
+        if not open_:
+            return (best, best)
+        return (best, INF) if self.high else (-INF, best)
+
+    def _tail(self) -> deque:
+        """``tail``, up to date: a monotonic wedge of the values in ``vals``."""
+        vals, tail, high = self.vals, self.tail, self.high
+        if not vals:
+            tail.clear()
+            return tail
+        oldest, caught = vals[0][0], self.caught
+        while tail and tail[0][0] < oldest:  # entered the wedge since
+            tail.popleft()
+        new = []
+        for item in reversed(vals):
+            if item[0] <= caught:
+                break
+            new.append(item)
+        for item in reversed(new):
+            v = item[2]
+            if high:
+                while tail and tail[-1][2] <= v:
+                    tail.pop()
+            else:
+                while tail and tail[-1][2] >= v:
+                    tail.pop()
+            tail.append(item)
+        self.caught = vals[-1][0]
+        return tail
 
     def intervals(self) -> list[Interval]:
         """One pass: the records known (oldest first) in each open window are a run whose
@@ -604,6 +703,9 @@ class PrevStream(_Ordered):
         known = [(v, v) for v in self.source.out]
         return (known + self.source.intervals())[: self.records - self.given]
 
+    def at(self, p: int) -> Interval:
+        return pending_at(self.source, p)
+
 
 class Pointwise(_Ordered):
     """A function of one or two values, at least one of them a stream (``None`` in
@@ -638,6 +740,11 @@ class Pointwise(_Ordered):
                     for s, p in zip(self.sources, pending, strict=True)]
             out.append(self.interval(*args))
         return out
+
+    def at(self, p: int) -> Interval:
+        now = self.held[p]
+        return self.interval(*[(now, now) if s is None else pending_at(s, p)
+                               for s in self.sources])
 
 
 class Ordered(_Ordered):
@@ -682,3 +789,13 @@ class Ordered(_Ordered):
             v = waiting.get(j)
             out.append(ranges.get(j, EVERYTHING) if v is None else (v, v))
         return out
+
+    def at(self, p: int) -> Interval:
+        j = (self.next if self.next is not None else 0) + p
+        v = self.waiting.get(j)
+        for k, _, _, value in self.source:  # (decided since the step: none as a rule)
+            if k == j:
+                v = value
+        if v is not None:
+            return (v, v)
+        return self.count.range_at(j) if self.count is not None else EVERYTHING

@@ -414,6 +414,22 @@ class CountStream(Stream):
             out[record.i] = (kt, record.high - record.low + 1 - kf)
         return out
 
+    def range_at(self, j: int) -> tuple[float, float]:
+        """``ranges()[j]``, (−inf, inf) where it has none: a binary search of ``open``."""
+        open_ = self.open
+        low, high = 0, len(open_)
+        while low < high:
+            middle = (low + high) // 2
+            if open_[middle].i < j:
+                low = middle + 1
+            else:
+                high = middle
+        if low == len(open_) or open_[low].i != j:
+            return (-INF, INF)
+        record = open_[low]
+        kt, kf, _ = self._entered(record)
+        return (kt, record.high - record.low + 1 - kf)
+
     # ----------------------------------------------------------------- values
     def step_inputs(self) -> None:
         queue, known = self.queues[0], self.known
