@@ -2,6 +2,7 @@
 
 Run:  .venv/bin/python benchmarks/monitors.py            (1e5-record traces)
       .venv/bin/python benchmarks/monitors.py --quick    (2e4 records, one repetition)
+      .venv/bin/python benchmarks/monitors.py --intervals (only: step with robustness intervals)
 
 Every tool gets the same records (discrete time: record k at time k, every signal set on every
 record) and produces one verdict per record. Reported, in events (records) per second:
@@ -263,6 +264,42 @@ def robustness_section(n: int, n_rtamt: int, repeat: int, no_rtamt: bool) -> lis
     return rows
 
 
+# (name, formula over x and y with the bound b in seconds): early verdicts with intervals
+INTERVALS = [
+    ("x > 0.5 -> eventually[0,b] y > 0.55", "x > 0.5 -> eventually[0, {b}s] (y > 0.55)"),
+    ("eventually[1,b] x > 0.9", "eventually[1s, {b}s] (x > 0.9)"),
+]
+INTERVAL_MODES = (("no intervals", False), ('intervals="newest"', "newest"),
+                  ("intervals=True", True))
+
+
+def intervals_section(n: int, repeat: int, bounds: tuple[int, ...] = (1, 10, 100),
+                      budget: float = 2.0) -> list[tuple]:
+    """``Monitor.step`` with robustness at 10 Hz, in µs per record, without intervals, with the
+    loop's ``intervals="newest"`` (flat in the bound) and with every interval (``True``: in
+    proportion to the records open; at most ``budget`` CPU seconds a run)."""
+    rng = random.Random(1)
+    records = [(k / 10, {"x": rng.random(), "y": rng.random()}) for k in range(n)]
+    print()
+    print(f"robustness intervals: step at 10 Hz, {n} records, µs per record, median of {repeat}")
+    print(" | ".join(("case", "b (s)", *(label for label, _ in INTERVAL_MODES))))
+    rows = []
+    for name, formula in INTERVALS:
+        for b in bounds:
+            text = ROBUST_HEADER + f"property p: {formula.format(b=b)}\n"
+            costs = {}
+            for label, mode in INTERVAL_MODES:
+                rates = []
+                for _ in range(repeat):
+                    monitor = compile_properties(text, robustness=True, intervals=mode)
+                    rates.append(_budgeted(lambda k, r, s=monitor.step: s(*r), records, budget))
+                costs[label] = 1e6 / statistics.median(rates)
+            print(" | ".join((name, str(b), *(f"{costs[label]:.1f}" for label, _ in
+                                              INTERVAL_MODES))), flush=True)
+            rows.append((name, b, costs))
+    return rows
+
+
 def basic_trace(n: int, seed: int = 1) -> list[dict]:
     rng = random.Random(seed)
     return [
@@ -398,6 +435,8 @@ def main(argv=None) -> int:
     parser.add_argument("--no-rtamt", action="store_true")
     parser.add_argument("--robustness", action="store_true",
                         help="only the robustness table (rasm against mstlo-python and rtamt)")
+    parser.add_argument("--intervals", action="store_true",
+                        help="only the table of step with robustness intervals (b = 1, 10, 100)")
     args = parser.parse_args(argv)
     n = args.records or (20_000 if args.quick else 100_000)
     n_rtamt = args.rtamt_records or (2_000 if args.quick else 10_000)
@@ -405,6 +444,9 @@ def main(argv=None) -> int:
     bounds = [int(b) for b in args.bounds.split(",")]
     if args.robustness:
         robustness_section(n, n_rtamt, repeat, args.no_rtamt)
+        return 0
+    if args.intervals:
+        intervals_section(n, repeat)
         return 0
 
     print(f"records: {n} (rtamt: {n_rtamt}); median of {repeat}; Python {sys.version.split()[0]}")
@@ -464,6 +506,7 @@ def main(argv=None) -> int:
             who = "reelay" if peer == 3 else "rtamt"
             print(f"lowest rasm-{label}/{who}: {worst[0]:.2f}x ({worst[1]})")
     robustness_section(n, n_rtamt, repeat, args.no_rtamt)
+    intervals_section(n, repeat)
     return 0
 
 

@@ -90,8 +90,9 @@ def compile_app_properties(m: AppManifest) -> list[Monitor]:
     specs = platform_specifications(m.platform_properties, stage_budget=m.stage_budget)
     specs += [load_specification(read_utf8(p), source=str(p)) for p in m.properties]
     # with robustness: the checker writes each property's into knowledge (SPEC §12); with the
-    # intervals of early verdicts, whose lower bound it writes until the value is final
-    monitors = [Monitor(spec, robustness=True, intervals=True) for spec in specs]
+    # interval of the newest early verdict of each property in a step, whose lower bound it
+    # writes until the value is final ("newest": at a cost independent of the time bounds)
+    monitors = [Monitor(spec, robustness=True, intervals="newest") for spec in specs]
     defined: dict[str, str] = {}
     for spec in specs:
         for prop in spec.properties:

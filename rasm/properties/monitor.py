@@ -16,7 +16,7 @@ from rasm.properties.ast import Specification
 from rasm.properties.codegen import UNSET, Runtime, generate
 from rasm.properties.loader import load_specification
 from rasm.properties.recovery import Recovery
-from rasm.properties.robust_ops import pending_at, as_float
+from rasm.properties.robust_ops import as_float, pending_at
 from rasm.properties.times import format_seconds, nanoseconds, seconds_value
 from rasm.values import fit, wanted
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -47,10 +48,12 @@ def test_the_checker_writes_a_pointwise_robustness_once_per_record_where_it_chan
     assert written == expected
 
 
-def test_an_early_verdict_writes_the_lower_bound_of_its_interval_then_the_final_values():
+@pytest.mark.parametrize("intervals", [True, "newest"])  # "newest": as the loop's monitors
+def test_an_early_verdict_writes_the_lower_bound_of_its_interval_then_the_final_values(
+        intervals):
     tc, written = checker(compile_properties(
         "input x: float\nproperty soon:\n    eventually[0, 2s] (x > 1)\n", robustness=True,
-        intervals=True))
+        intervals=intervals))
     tc.observe(0.0, {"x": 2.0})  # true at once; more records may raise the maximum: [1, inf]
     tc.observe(1.5, {"x": 0.0})  # record 1 is undecided: nothing new to write
     tc.observe(4.0, {"x": 0.5})  # record 1's window [1.5, 3.5] is over: only itself, 0 - 1
