@@ -398,6 +398,9 @@ class FastInterpreter(Interpreter):
         """Stock order and conflict checks, with the pairwise verdicts kept per chart."""
         if len(transitions) > 1:
             tables = self._tables
+            ordered = tables.order(transitions)  # (the same transitions are enabled together often)
+            if ordered is not None:
+                return list(ordered)
             for t1, t2 in combinations(transitions, 2):
                 verdict = tables.pair_verdict(t1, t2)
                 if verdict == ft.PAIR_OK:
@@ -437,14 +440,12 @@ class FastInterpreter(Interpreter):
         """Stock stabilisation: act on the deepest (then first by name) actionable leaf."""
         tables = self._tables
         active = names if isinstance(names, (set, frozenset)) else set(names)
+        if not tables.names.issuperset(active):
+            return super()._create_stabilization_step(names)  # stock raises
         best = None
-        for name in active:
-            kind = tables.stabilization.get(name)
-            if kind is None:
-                if name not in tables.state:
-                    return super()._create_stabilization_step(names)  # stock raises
-                continue
-            if kind == ft.COMPOUND and not tables.state[name].initial:
+        # (only the states stabilisation can act on: set operations, most states are not)
+        for name in tables.stabilizable.intersection(active):
+            if tables.stabilization[name] == ft.COMPOUND and not tables.state[name].initial:
                 continue
             if not active.isdisjoint(tables.descendant_set[name]):
                 continue  # not a leaf

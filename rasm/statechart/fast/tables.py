@@ -27,6 +27,7 @@ from __future__ import annotations
 import operator
 import weakref
 from collections import defaultdict
+from itertools import combinations
 from typing import Any
 
 from sismic.exceptions import StatechartError as SismicStatechartError
@@ -119,6 +120,7 @@ class ChartTables:
         self._build_selection()
         self._steps: dict[int, tuple[tuple[str, ...], tuple[str, ...]]] = {}
         self._pairs: dict[tuple[int, int], str] = {}
+        self._orders: dict[tuple[int, ...], tuple[Transition, ...] | None] = {}
 
     def check(self, statechart: Statechart) -> None:
         """Raise :class:`ChartEditedError` if ``statechart`` was edited since the tables were
@@ -169,6 +171,8 @@ class ChartTables:
         self.parallel_children = {
             n: sorted(self.children[n]) for n, k in self.stabilization.items() if k == PARALLEL
         }
+        self.names = frozenset(self.state)
+        self.stabilizable = frozenset(self.stabilization)
 
     def _build_history(self) -> None:
         """For each compound state, its history children in document order (deep or not)."""
@@ -263,6 +267,19 @@ class ChartTables:
         if verdict is None:
             verdict = self._pairs[key] = self._pair_verdict(t1, t2)
         return verdict
+
+    def order(self, transitions: list[Transition]) -> tuple[Transition, ...] | None:
+        """Stock order of simultaneously enabled transitions (by source, deepest first), kept
+        per set of transitions; None when some pair of them is not ``PAIR_OK``."""
+        key = tuple([id(t) for t in transitions])
+        found = self._orders.get(key, False)
+        if found is False:
+            if all(self.pair_verdict(t1, t2) == PAIR_OK for t1, t2 in combinations(transitions, 2)):
+                found = tuple(sorted(transitions, key=lambda t: self.source_key[t.source]))
+            else:
+                found = None
+            self._orders[key] = found
+        return found
 
     def _pair_verdict(self, t1: Transition, t2: Transition) -> str:
         lca = self.lca(t1.source, t2.source)
