@@ -181,7 +181,8 @@ class ChartRun:
         it = self.interp
         (it._initialized, it._time, memory, configuration, entry, idle, context,
          internal, external, deadlines) = snap
-        it._memory = {k: (list(v) if v is not None else None) for k, v in memory}
+        # (most charts have no history memory)
+        it._memory = {k: (list(v) if v is not None else None) for k, v in memory} if memory else {}
         it._configuration = set(configuration)
         it._entry_time = dict(entry)
         it._idle_time = dict(idle)
