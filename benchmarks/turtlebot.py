@@ -5,11 +5,16 @@ Run:  .venv/bin/python benchmarks/turtlebot.py               (50 scenarios, the 
 
 Each seed generates a scenario (``tb4.world.generate_scenario``: two or three obstacles on the
 route, wide debris ahead from 0.5-1.5 s, in 40 % of them more debris next to it later) and runs
-it on the simulated clock for 90 s twice: with the MAPLE-K loop, and with the same loop whose
-Plan stage plans nothing (occlusions are found, nothing is done). Reported per condition:
-collisions (total, and runs with any), goals reached, time to goal (median, over runs that
-reach it), and for the loop the latencies: debris onset -> anomaly (detection, simulated s),
-anomaly -> executed (simulated s) and the loop's compute time for that iteration (wall ms, the
+it on the simulated clock for 90 s in four conditions: the same loop whose Plan stage plans
+nothing (occlusions are found, nothing is done); the MAPLE-K loop without looks for clearance;
+the loop that looks once ``keeps_clearance`` is violated (boolean); the loop as shipped, which
+looks when its robustness, now or 0.5 s ahead, falls below 0.3 m (predictive). Reported per
+condition: collisions (total, and runs with any), goals reached, time to goal (median, over runs
+that reach it), the runs where ``keeps_clearance`` (or any other property) is not satisfied, the
+looks for clearance and when the first one comes (boolean against predictive, on the scenarios
+where both look), the least robustness of ``keeps_clearance`` while the robot drives, and for
+the shipped loop the latencies: debris onset -> anomaly (detection, simulated s), anomaly ->
+executed (simulated s) and the loop's compute time for that iteration (wall ms, the
 sum of its stage durations). On the simulated clock the stages take no simulated time, so
 anomaly -> executed is 0 there; ``--live N`` adds N short wall-clock runs for the live figure.
 ``--plot`` (default ``docs/images/turtlebot.png``) draws the
@@ -36,9 +41,19 @@ from rasm.platform.manifest import load_manifest  # noqa: E402
 DEFAULT_SCENARIO = load_manifest(APP).scenario
 
 
-def _one(args: tuple[int, bool]) -> tuple[int, bool, Outcome]:
-    seed, loop = args
-    return seed, loop, run(seed, loop=loop, duration=90.0)
+# condition: (name in the tables, with the loop's plans, when it looks for clearance)
+CONDITIONS = {
+    "none": ("without the loop", False, "predictive"),
+    "off": ("the loop, no looks for clearance", True, "off"),
+    "boolean": ("the loop, looks once keeps_clearance is violated", True, "boolean"),
+    "predictive": ("the loop as shipped (predictive looks)", True, "predictive"),
+}
+
+
+def _one(args: tuple[int, str]) -> tuple[int, str, Outcome]:
+    seed, condition = args
+    _, loop, look = CONDITIONS[condition]
+    return seed, condition, run(seed, loop=loop, look=look, duration=90.0)
 
 
 def _median(values: list[float]) -> float:
@@ -52,22 +67,44 @@ def _pct(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-def summarise(outcomes: dict[bool, list[Outcome]]) -> list[str]:
-    """The markdown table of docs/turtlebot.md."""
+def summarise(outcomes: dict[str, list[Outcome]]) -> list[str]:
+    """The markdown tables of docs/turtlebot.md."""
     lines = [
         "| condition | runs | collisions | runs with a collision | goals reached "
-        "| time to goal, median (s) |",
-        "|---|---|---|---|---|---|",
+        "| time to goal, median (s) | `keeps_clearance` violated (runs) | other properties "
+        "not satisfied (runs) | looks for clearance |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
-    for loop, name in ((False, "without the loop"), (True, "with the loop")):
-        out = outcomes[loop]
+    for condition, (name, _, _) in CONDITIONS.items():
+        out = outcomes[condition]
         reached = [o.time_to_goal for o in out if o.reached]
         lines.append(
             f"| {name} | {len(out)} | {sum(o.collisions for o in out)} "
             f"| {sum(1 for o in out if o.collisions)} | {len(reached)} "
-            f"| {_median(reached):.1f} |"
+            f"| {_median(reached):.1f} | {sum(1 for o in out if 'keeps_clearance' in o.failed)} "
+            f"| {sum(1 for o in out if set(o.failed) - {'keeps_clearance'})} "
+            f"| {sum(len(o.looks) for o in out)} |"
         )
-    out = outcomes[True]
+    late, early = outcomes["boolean"], outcomes["predictive"]
+    pairs = [(b.looks[0], p.looks[0]) for b, p in zip(late, early, strict=True)
+             if b.looks and p.looks]
+    ahead = [b - p for b, p in pairs]
+    least = {c: [o.least_robustness for o in outcomes[c] if o.least_robustness is not None]
+             for c in ("boolean", "predictive")}
+    lines += [
+        "",
+        "| first look for clearance | runs | predictive earlier | by, median (s) | min | max |",
+        "|---|---|---|---|---|---|",
+        f"| boolean against predictive, where both look | {len(pairs)} "
+        f"| {sum(1 for a in ahead if a > 0)} | {_median(ahead):.1f} "
+        f"| {min(ahead, default=float('nan')):.1f} | {max(ahead, default=float('nan')):.1f} |",
+        "",
+        "| least robustness of keeps_clearance while driving (m) | runs | min | median |",
+        "|---|---|---|---|",
+        *(f"| {c} | {len(v)} | {min(v, default=float('nan')):.3f} | {_median(v):.3f} |"
+          for c, v in least.items()),
+    ]
+    out = outcomes["predictive"]
     detection = [d for o in out for d in o.detection]
     act = [d for o in out for d in o.detect_to_act]
     compute = [c * 1000 for o in out for c in o.loop_compute]
@@ -85,17 +122,18 @@ def summarise(outcomes: dict[bool, list[Outcome]]) -> list[str]:
     return lines
 
 
-def plot(outcomes: dict[bool, list[Outcome]], seeds: list[int], path: Path) -> None:
+def plot(outcomes: dict[str, list[Outcome]], seeds: list[int], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
-    styles = ((False, "tab:red", "o", "without the loop"), (True, "tab:blue", "s", "with the loop"))
-    for loop, colour, marker, label in styles:
-        out = outcomes[loop]
-        offset = 0.15 if loop else -0.15
+    styles = (("none", "tab:red", "o", "without the loop"),
+              ("predictive", "tab:blue", "s", "with the loop"))
+    for condition, colour, marker, label in styles:
+        out = outcomes[condition]
+        offset = 0.15 if condition == "predictive" else -0.15
         left.scatter(
             [s + offset for s in seeds],
             [o.collisions for o in out],
@@ -128,20 +166,21 @@ def plot(outcomes: dict[bool, list[Outcome]], seeds: list[int], path: Path) -> N
     fig.savefig(path, dpi=110)
 
 
-def simulate(seeds: list[int], jobs: int) -> dict[bool, list[Outcome]]:
-    """Every seed with and without the loop, on the simulated clock, ``jobs`` at a time."""
-    results: dict[tuple[int, bool], Outcome] = {}
+def simulate(seeds: list[int], jobs: int) -> dict[str, list[Outcome]]:
+    """Every seed in every condition, on the simulated clock, ``jobs`` at a time."""
+    results: dict[tuple[int, str], Outcome] = {}
     with ProcessPoolExecutor(jobs) as pool:
-        for seed, loop, outcome in pool.map(_one, [(s, lp) for s in seeds for lp in (False, True)]):
-            results[(seed, loop)] = outcome
+        for seed, condition, outcome in pool.map(_one, [(s, c) for s in seeds for c in CONDITIONS]):
+            results[(seed, condition)] = outcome
             print(
-                f"seed {seed:3d} {'loop   ' if loop else 'no loop'}: "
-                f"{outcome.collisions} collisions, "
-                + (f"goal at {outcome.time_to_goal:.1f} s" if outcome.reached else "no goal"),
+                f"seed {seed:3d} {condition:10s}: {outcome.collisions} collisions, "
+                + (f"goal at {outcome.time_to_goal:.1f} s" if outcome.reached else "no goal")
+                + (f", not satisfied: {', '.join(outcome.failed)}" if outcome.failed else "")
+                + (f", first look {outcome.looks[0]:.1f} s" if outcome.looks else ""),
                 file=sys.stderr,
                 flush=True,
             )
-    return {loop: [results[(s, loop)] for s in seeds] for loop in (False, True)}
+    return {c: [results[(s, c)] for s in seeds] for c in CONDITIONS}
 
 
 def live(runs: int, seconds: float = 5.0) -> str:
@@ -171,14 +210,14 @@ def main() -> None:
     if args.load:
         saved = json.loads(args.load.read_text())
         seeds = saved["seeds"]
-        outcomes = {loop: [Outcome(**o) for o in saved[str(loop)]] for loop in (False, True)}
+        outcomes = {c: [Outcome(**o) for o in saved[c]] for c in CONDITIONS}
     else:
         seeds = list(range(args.seeds))
         outcomes = simulate(seeds, args.jobs)
     if args.save:
         args.save.write_text(
             json.dumps(
-                {"seeds": seeds} | {str(k): [asdict(o) for o in v] for k, v in outcomes.items()}
+                {"seeds": seeds} | {k: [asdict(o) for o in v] for k, v in outcomes.items()}
             )
         )
     print("\n".join(summarise(outcomes)))

@@ -22,6 +22,7 @@ _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:  # the app folder holds the tb4 package
     sys.path.insert(0, _HERE)
 
+from tb4.clearance import UNSEEN, clearance  # noqa: E402
 from tb4.legitimacy import map_points, simulate_spin  # noqa: E402
 from tb4.navigation import LIMITS  # noqa: E402
 from tb4.occlusion import Window, detect  # noqa: E402
@@ -29,6 +30,7 @@ from tb4.simulator import TurtleBotSimulator  # noqa: E402
 from tb4.spin import mask_of, required_rotation, spin_plan  # noqa: E402
 
 __all__ = [
+    "RosScanMonitor",
     "RosSpinExecute",
     "RosSpinLegitimate",
     "ScanMonitor",
@@ -51,11 +53,16 @@ class ScanMonitor:
     windows (``tb4.occlusion``). ``occlusion`` is ``unknown`` until ``WINDOW`` scans are in,
     then ``clear`` (no window), ``covered`` (the spin plan in force, echoed by the robot as
     ``spin_rotation``, already looks into every window) or ``uncovered``.
+
+    The clearance: how far the robot can drive straight ahead through space that the last
+    ``MEMORY`` scans saw free (``tb4.clearance``). The ``keeps_clearance`` property compares
+    it with the robot's speed, and the Analyse chart adapts on its robustness.
     """
 
     WINDOW = 10  # scans (2 s at 5 Hz)
     THRESHOLD = 0.7
     MIN_RAYS = 3
+    MEMORY = 100  # scans (20 s) the clearance remembers: the history of ``ranges``
 
     def monitor(self, ctx):
         k = ctx.knowledge
@@ -67,6 +74,7 @@ class ScanMonitor:
             "invalid_rays": len(ranges) - len(valid),
             "nearest": min(valid) if valid else -1.0,
             "rays": len(ranges),
+            **self._clearance(k),
         }
         scans = [s.value for s in k.history("ranges", last=self.WINDOW)]
         if len(scans) < self.WINDOW:
@@ -79,6 +87,51 @@ class ScanMonitor:
         )
         signals["occlusion"] = _occlusion(windows, len(ranges), k.read_knowledge("spin_rotation"))
         return signals
+
+    def _clearance(self, k) -> dict:
+        """``clearance`` (m seen free straight ahead), ``clearance_ahead`` (the same from where
+        the robot will be in ``AHEAD`` seconds at its present speed and turn rate) and
+        ``clearance_unseen`` (what ends the shorter of the two is space no scan has seen, not
+        an echo). 0 before the robot's pose is known (fail closed: what is not known to be
+        free is not)."""
+        scans = k.history("ranges", last=self.MEMORY)[::-1]
+        poses = k.history("scan_pose", last=self.MEMORY)[::-1]
+        if k.read_knowledge("x") is None or not poses:
+            return {"clearance": 0.0, "clearance_ahead": 0.0, "clearance_unseen": True}
+        n = min(len(scans), len(poses))
+        pose = (k.read_knowledge("x"), k.read_knowledge("y"), math.radians(k.read_knowledge("yaw")))
+        return self._measure(k, pose, [s.value for s in scans[:n]], [p.value for p in poses[:n]])
+
+    AHEAD = 0.5  # s
+
+    def _measure(self, k, pose, scans, poses) -> dict:
+        v = k.read_knowledge("velocity", 0.0) or 0.0
+        w = k.read_knowledge("yaw_rate", 0.0) or 0.0
+        x, y, yaw = pose
+        turn = w * self.AHEAD
+        later = (x + v * self.AHEAD * math.cos(yaw + turn / 2),
+                 y + v * self.AHEAD * math.sin(yaw + turn / 2), yaw + turn)
+        now, limit_now = clearance(pose, scans, poses)
+        ahead, limit_ahead = clearance(later, scans, poses)
+        return {"clearance": now, "clearance_ahead": ahead,
+                "clearance_unseen": (limit_ahead if ahead < now else limit_now) == UNSEEN}
+
+
+class RosScanMonitor(ScanMonitor):
+    """:class:`ScanMonitor` for the robot on ROS 2 (``ros2.yaml``): a LaserScan carries no pose,
+    so the clearance places each scan at the odometry pose of its time stamp, as
+    :class:`RosSpinLegitimate` does."""
+
+    def _clearance(self, k) -> dict:
+        odometry = _odometry(k)
+        if not odometry:
+            return {"clearance": 0.0, "clearance_ahead": 0.0, "clearance_unseen": True}
+        # only scans the odometry covers: one placed at a wrong pose would show free space
+        # that was never seen
+        scans = [s for s in k.history("ranges", last=self.MEMORY)[::-1]
+                 if s.time >= odometry[0][0] - 1e-9]
+        poses = [_pose_at(odometry, s.time) for s in scans]
+        return self._measure(k, _pose_at(odometry, math.inf), [s.value for s in scans], poses)
 
 
 def _occlusion(windows, rays, spin_rotation):

@@ -112,3 +112,57 @@ def test_after_a_rejection_the_plan_turns_more_gently():
     second = component("SpinPlan").plan(ctx)
     assert second["angular_velocity"] == pytest.approx(0.75 * first["angular_velocity"])
     assert second["spin_duration"] > first["spin_duration"]
+
+
+def test_the_monitor_measures_the_clearance_seen_free_ahead():
+    """A 3 m room ahead seen by clear scans: the clearance runs to the horizon; with the debris
+    on every scan, nothing ahead was ever seen, so it is 0 and ends in unseen space."""
+    clear = monitored(knowledge(CLEAR), 2.0).knowledge
+    assert clear.read_knowledge("clearance") == 2.0
+    assert clear.read_knowledge("clearance_unseen") is False
+    blind = monitored(knowledge(FRONT), 2.0).knowledge
+    assert blind.read_knowledge("clearance") == 0.0
+    assert blind.read_knowledge("clearance_unseen") is True
+
+
+def looking(chart, time, robustness, ahead, unseen=True, velocity=0.3):
+    """Analyse with a covered occlusion while the robot drives, the clearance as given:
+    ``robustness`` of keeps_clearance now, ``ahead`` m seen free from where the robot will be
+    in 0.5 s."""
+    kb = knowledge(FRONT, 66.0)
+    ctx = monitored(kb, time)
+    for key, value in {"robustness_keeps_clearance": robustness, "clearance_ahead": ahead,
+                       "clearance_unseen": unseen, "velocity": velocity}.items():
+        kb.register_knowledge(key, value, time)
+    return chart.analyse(ctx)
+
+
+def occluded_chart(**variables):
+    """The Analyse chart after its first anomaly (the plan covering the debris is in force)."""
+    chart = analyse_chart()
+    chart.interpreter.context.update(variables)
+    assert chart.analyse(monitored(knowledge(FRONT), 2.0)) is not None
+    return chart
+
+
+def test_the_robot_looks_when_the_clearance_robustness_now_or_ahead_falls_below_the_margin():
+    assert looking(occluded_chart(), 3.2, robustness=0.5, ahead=1.0) is None
+    look = looking(occluded_chart(), 3.2, robustness=0.25, ahead=1.0)
+    assert look is not None and "seen free ahead" in look.reason
+    assert look.data["windows"] == [[300, 121]]  # the plan in force, sent again
+    # 0.5 s ahead the robot will see 0.5 m free, 0.2 m beyond its second of driving
+    assert looking(occluded_chart(), 3.2, robustness=1.0, ahead=0.5) is not None
+    assert looking(occluded_chart(), 3.2, robustness=1.0, ahead=0.7) is None
+
+
+def test_no_look_for_an_echo_ahead_a_standing_robot_or_within_the_settle_time():
+    # an obstacle the scans have seen ends the clearance: the planner steers round it
+    assert looking(occluded_chart(), 3.2, robustness=0.1, ahead=0.2, unseen=False) is None
+    assert looking(occluded_chart(), 3.2, robustness=0.1, ahead=0.2, velocity=0.0) is None
+    assert looking(occluded_chart(), 2.8, robustness=0.1, ahead=0.2) is None
+
+
+def test_the_boolean_look_waits_for_the_violation():
+    boolean = {"margin": 0.0, "lookahead": False}
+    assert looking(occluded_chart(**boolean), 3.2, robustness=0.05, ahead=0.0) is None
+    assert looking(occluded_chart(**boolean), 3.2, robustness=-0.05, ahead=0.0) is not None

@@ -20,6 +20,7 @@ APP_PROPERTIES = {
     "occlusion_compensated",
     "nothing_after_arrival",
     "maple_stage_order",
+    "keeps_clearance",
 }
 
 
@@ -66,7 +67,8 @@ def test_the_default_run_reaches_the_goal_without_collision_and_every_property_h
                                                       knowledge="memory")).run()
     assert summary.ok, summary.verdicts
     assert {summary.verdicts[p] for p in APP_PROPERTIES} == {"satisfied"}
-    assert summary.stats.executed == 2 and summary.stats.rejected == 0
+    # the two debris, and one look for clearance
+    assert summary.stats.executed == 3 and summary.stats.rejected == 0
 
 
 def test_the_rules_are_consistent(capsys):
@@ -84,6 +86,21 @@ def test_the_loop_prevents_the_collisions_that_happen_without_it(seed):
     assert with_loop.collisions == 0 and with_loop.reached
     assert with_loop.executed >= 1
     assert all(0.0 < d <= 4.0 for d in with_loop.detection)
+
+
+def test_the_predictive_look_comes_before_keeps_clearance_is_violated():
+    """Scenario 1: without looks for clearance, or looking only once keeps_clearance is violated,
+    the robot drives on into space no scan has seen free (the robustness falls below 0); as
+    shipped, the Analyse chart has it look earlier, while the robustness, now or 0.5 s ahead,
+    is still above 0 but below the margin, and every property holds."""
+    blind = run(1, look="off", duration=25)
+    late = run(1, look="boolean", duration=25)
+    early = run(1, duration=25)
+    assert blind.failed == late.failed == ["keeps_clearance"] and not blind.looks
+    assert late.least_robustness < 0 and late.looks
+    assert early.looks and early.looks[0] < late.looks[0]
+    assert early.failed == [] and early.least_robustness >= 0
+    assert blind.collisions == late.collisions == early.collisions == 0
 
 
 def test_two_simulated_runs_with_a_seed_give_identical_traces(tmp_path):

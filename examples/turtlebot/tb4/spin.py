@@ -81,7 +81,7 @@ def spin_plan(
     """The plan for ``/spin_config``: sweep half-angle ``rotation`` (deg) at ``angular_velocity``
     (deg/s), taking ``spin_duration`` s, once every ``stop_every`` s of driving (the robot must see
     what lies ahead while it is within ``mark_range`` and still ``lookahead`` m away), and the
-    ``velocity`` it cruises at in between. None when no sweep can cover the windows."""
+    ``cruise`` speed in between. None when no sweep can cover the windows."""
     step = 360.0 / total
     rays = required_rotation(mask_of(windows, total), margin)
     if rays is None:
@@ -93,7 +93,7 @@ def spin_plan(
             "angular_velocity": 0.0,
             "spin_duration": 0.0,
             "stop_every": 0.0,
-            "velocity": cruise,
+            "cruise": cruise,
         }
     return {
         "rotation": rotation,
@@ -102,5 +102,5 @@ def spin_plan(
         # sweep at exact boundaries): the duration always fits the sweep
         "spin_duration": math.ceil(4000.0 * rotation / angular_velocity + 1e-6) / 1000.0,
         "stop_every": round((mark_range - lookahead) / cruise, 3),
-        "velocity": cruise,
+        "cruise": cruise,
     }
