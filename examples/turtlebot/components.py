@@ -22,7 +22,7 @@ _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:  # the app folder holds the tb4 package
     sys.path.insert(0, _HERE)
 
-from tb4.clearance import UNSEEN, clearance  # noqa: E402
+from tb4.clearance import UNSEEN, SeenSpace, clearance  # noqa: E402
 from tb4.legitimacy import map_points, simulate_spin  # noqa: E402
 from tb4.navigation import LIMITS  # noqa: E402
 from tb4.occlusion import Window, detect  # noqa: E402
@@ -62,7 +62,7 @@ class ScanMonitor:
     WINDOW = 10  # scans (2 s at 5 Hz)
     THRESHOLD = 0.7
     MIN_RAYS = 3
-    MEMORY = 100  # scans (20 s) the clearance remembers: the history of ``ranges``
+    MEMORY = 50  # scans (10 s) the clearance remembers: the history of ``ranges``
 
     def monitor(self, ctx):
         k = ctx.knowledge
@@ -111,8 +111,9 @@ class ScanMonitor:
         turn = w * self.AHEAD
         later = (x + v * self.AHEAD * math.cos(yaw + turn / 2),
                  y + v * self.AHEAD * math.sin(yaw + turn / 2), yaw + turn)
-        now, limit_now = clearance(pose, scans, poses)
-        ahead, limit_ahead = clearance(later, scans, poses)
+        space = SeenSpace(scans, poses)
+        now, limit_now = clearance(pose, space)
+        ahead, limit_ahead = clearance(later, space)
         return {"clearance": now, "clearance_ahead": ahead,
                 "clearance_unseen": (limit_ahead if ahead < now else limit_now) == UNSEEN}
 

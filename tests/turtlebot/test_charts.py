@@ -63,9 +63,15 @@ def test_arrived_is_for_good():
     test().runTest()
 
 
+# driving into space no scan has seen free (its robustness below the margin: a look is due)
+BLIND = {"velocity": 0.3, "robustness_keeps_clearance": 0.1, "clearance": 0.4,
+         "clearance_ahead": 0.3, "clearance_unseen": True}
+
+
 @pytest.mark.parametrize("occlusion", ["unknown", "clear", "covered", "uncovered"])
 @pytest.mark.parametrize("nav_mode", ["navigate", "arrived"])
-def test_the_analyse_chart_answers_every_iteration_exactly_once(occlusion, nav_mode):
+@pytest.mark.parametrize("driving", [{}, BLIND], ids=["standing", "blind"])
+def test_the_analyse_chart_answers_every_iteration_exactly_once(occlusion, nav_mode, driving):
     knowledge = {
         "occlusion": occlusion,
         "nav_mode": nav_mode,
@@ -73,6 +79,7 @@ def test_the_analyse_chart_answers_every_iteration_exactly_once(occlusion, nav_m
         "occluded_windows": [[300, 121]],
         "rays": 360,
         "spin_rotation": 66.0,
+        **driving,
     }
     machine = statechart_machine(
         ANALYSE,

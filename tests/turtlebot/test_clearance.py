@@ -8,7 +8,7 @@ import random
 
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from tb4.clearance import ECHO, FREE, UNSEEN, clearance, seen
+from tb4.clearance import ECHO, FREE, UNSEEN, SeenSpace, clearance, seen
 from tb4.geometry import Circle, distance_to
 from tb4.lidar import Lidar, occluded_rays
 from tb4.world import World
@@ -48,8 +48,8 @@ def test_the_robot_can_drive_its_clearance_without_touching_anything(obstacles, 
     assume(all(free(shapes, x, y) for (x, y, _), _ in taken) and free(shapes, *robot[:2]))
     lidar, rng = Lidar(), random.Random(seed)
     scans = [lidar.scan(x, y, yaw, shapes, occluded_rays(d, 360), rng) for (x, y, yaw), d in taken]
-    distance, limit = clearance(robot, scans, [p for p, _ in taken])
-    assert 0.0 <= distance <= 2.0 and limit in (FREE, ECHO, UNSEEN)
+    distance, limit = clearance(robot, SeenSpace(scans, [p for p, _ in taken]))
+    assert 0.0 <= distance <= 1.0 and limit in (FREE, ECHO, UNSEEN)
     x, y, yaw = robot
     for k in range(int(distance / 0.01) + 1):
         s = min(k * 0.01, distance)
@@ -81,20 +81,21 @@ def test_a_blocked_ray_tells_nothing():
 
 
 def test_the_clearance_runs_to_an_echo_or_to_unseen_space_and_older_scans_count():
-    assert clearance(HERE, [scan_from(*HERE)], [HERE]) == (2.0, FREE)  # the horizon
-    near = (2.5, 2.0, 0.0)
-    distance, limit = clearance(near, [scan_from(*near)], [near])
-    assert limit == ECHO and 1.5 - RADIUS - 0.1 <= distance <= 1.5 - RADIUS
+    assert clearance(HERE, SeenSpace([scan_from(*HERE)], [HERE])) == (1.0, FREE)  # the horizon
+    near = (3.2, 2.0, 0.0)
+    distance, limit = clearance(near, SeenSpace([scan_from(*near)], [near]))
+    assert limit == ECHO and 0.8 - RADIUS - 0.1 <= distance <= 0.8 - RADIUS
     blocked = scan_from(*near, blocked=[(0.0, 120.0)])
-    assert clearance(near, [blocked], [near]) == (0.0, UNSEEN)
-    # an older scan, taken 1.5 m back with nothing on the LiDAR, saw the space ahead free
-    assert clearance(near, [blocked, scan_from(*HERE)], [near, HERE]) == (distance, ECHO)
+    assert clearance(near, SeenSpace([blocked], [near])) == (0.0, UNSEEN)
+    # an older scan, taken 2.2 m back with nothing on the LiDAR, saw the space ahead free
+    older = SeenSpace([blocked, scan_from(*HERE)], [near, HERE])
+    assert clearance(near, older) == (distance, ECHO)
 
 
 def test_the_space_an_obstacle_hides_is_unseen():
-    pillar = ROOM4 + [Circle(2.5, 2.0, 0.25)]
-    scans, at = [scan_from(*HERE, shapes=pillar)], [HERE]
-    assert clearance(HERE, scans, at)[1] == ECHO  # ends at the pillar
-    beside = (2.5, 2.6, math.radians(-30.0))  # past it, heading into its shadow
-    distance, limit = clearance(beside, scans, at)
-    assert limit == UNSEEN and distance < 0.4
+    pillar = ROOM4 + [Circle(2.0, 2.0, 0.25)]
+    space = SeenSpace([scan_from(*HERE, shapes=pillar)], [HERE])
+    assert clearance(HERE, space)[1] == ECHO  # ends at the pillar
+    beside = (2.0, 2.6, math.radians(-30.0))  # past it, heading into its shadow
+    distance, limit = clearance(beside, space)
+    assert limit == UNSEEN and distance < 0.5

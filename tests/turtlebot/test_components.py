@@ -115,10 +115,10 @@ def test_after_a_rejection_the_plan_turns_more_gently():
 
 
 def test_the_monitor_measures_the_clearance_seen_free_ahead():
-    """A 3 m room ahead seen by clear scans: the clearance runs to the horizon; with the debris
+    """Walls 3 m around, seen by clear scans: the clearance runs to its 1 m horizon; with the debris
     on every scan, nothing ahead was ever seen, so it is 0 and ends in unseen space."""
     clear = monitored(knowledge(CLEAR), 2.0).knowledge
-    assert clear.read_knowledge("clearance") == 2.0
+    assert clear.read_knowledge("clearance") == 1.0
     assert clear.read_knowledge("clearance_unseen") is False
     blind = monitored(knowledge(FRONT), 2.0).knowledge
     assert blind.read_knowledge("clearance") == 0.0

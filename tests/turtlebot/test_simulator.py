@@ -62,20 +62,27 @@ def test_a_spin_plan_stops_the_robot_and_sweeps_both_ways_back_to_its_heading():
         {"rotation": 45.0, "angular_velocity": 90.0, "stop_every": 4.0, "plan": "p1"},
         2.0,
     )
-    yaws, modes, speeds = [], [], []
+    yaws, modes, speeds, scanned = [], [], [], []
     for k in range(20, 60):
-        out = sim.step(k * 0.1, 0.1)["/odom"]
+        messages = sim.step(k * 0.1, 0.1)
+        out = messages["/odom"]
         yaws.append(out["yaw"])
         modes.append(out["nav_mode"])
         speeds.append(out["velocity"])
+        if "/safe-scan" in messages:
+            scanned.append(math.degrees(messages["/safe-scan"]["scan_pose"][2]))
     spin = [i for i, m in enumerate(modes) if m == "spin"]
     assert spin and spin[0] == 0  # a new plan spins at once
     assert all(speeds[i] == 0.0 or yaws[i] == yaws[i - 1] for i in spin[1:])  # turns standing
-    # 45 left, 90 right, 45 back at 90 deg/s: 2 s turning (plus braking), then driving again
+    # 45 left, 90 right, 45 back at 90 deg/s: 2 s turning (plus braking, and 0.2 s at each
+    # end), then driving again
     assert max(yaws[: len(spin)]) == pytest.approx(math.degrees(heading) + 45, abs=0.01)
     assert min(yaws[: len(spin)]) == pytest.approx(math.degrees(heading) - 45, abs=0.01)
     end = spin[-1] + 1
-    assert modes[end] == "navigate" and 20 <= len(spin) <= 25
+    assert modes[end] == "navigate" and 24 <= len(spin) <= 29
+    # a scan is taken at each end of the sweep
+    for side in (45, -45):
+        assert any(abs(y - math.degrees(heading) - side) < 0.01 for y in scanned), side
     assert yaws[end] == pytest.approx(math.degrees(heading), abs=0.5)
     assert sim.spin.spins == 1
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-__all__ = ["ECHO", "FREE", "UNSEEN", "clearance", "seen"]
+__all__ = ["ECHO", "FREE", "UNSEEN", "SeenSpace", "clearance", "seen"]
 
 RANGE_MIN = 0.05  # m, the scanner's minimum range (tb4.occlusion)
 TOLERANCE = 0.05  # m a ray must reach beyond a point for the point to count as seen free
@@ -23,36 +23,60 @@ REACH = 3.0  # m from a scan within which it shows space free (a costmap's raytr
 FREE, ECHO, UNSEEN = "free", "echo", "unseen"
 
 
+class SeenSpace:
+    """The scans (each with the ``(x, y, yaw_rad)`` it was taken from; newest first), asked
+    point by point what they saw there. Neighbouring points are mostly shown free by the same
+    scan, so the scan that answered last is asked first."""
+
+    def __init__(
+        self, scans: Sequence[Sequence[float | None]], poses: Sequence[Sequence[float]]
+    ) -> None:
+        self.scans = [
+            (ranges, float(x), float(y), float(yaw), len(ranges) / (2 * math.pi))
+            for ranges, (x, y, yaw) in zip(scans, poses, strict=True)
+        ]
+        self.last = 0
+
+    def seen(self, px: float, py: float) -> str:
+        """:data:`FREE` if some scan's ray towards ``(px, py)`` passed it (or, where that ray
+        came back empty, a dropout, both rays next to that one did), else :data:`ECHO` if that
+        ray came back from within :data:`NEAR` of it, else :data:`UNSEEN`. Only points within
+        :data:`REACH` of a scan count: between rays 1 deg apart a point may lie up to 2.6 cm off
+        the ray that passed it there."""
+        scans, echo = self.scans, False
+        order = range(len(scans))
+        if 0 < self.last < len(scans):
+            order = [self.last, *range(self.last), *range(self.last + 1, len(scans))]
+        for index in order:
+            ranges, sx, sy, syaw, per_radian = scans[index]
+            dx, dy = px - sx, py - sy
+            distance = math.hypot(dx, dy)
+            if distance > REACH:
+                continue
+            n = len(ranges)
+            ray = round((math.atan2(dy, dx) - syaw) * per_radian)
+            r = _valid(ranges[ray % n])
+            if r is None:  # a dropout between two echoes tells what its neighbours tell
+                below, above = _valid(ranges[(ray - 1) % n]), _valid(ranges[(ray + 1) % n])
+                if below is None or above is None:
+                    continue
+                r = min(below, above)
+            if r >= distance + TOLERANCE:
+                self.last = index
+                return FREE
+            echo = echo or abs(r - distance) <= NEAR
+        return ECHO if echo else UNSEEN
+
+
 def seen(
     px: float,
     py: float,
     scans: Sequence[Sequence[float | None]],
     poses: Sequence[Sequence[float]],
 ) -> str:
-    """What the scans (each with the ``(x, y, yaw_rad)`` it was taken from; newest first is
-    fastest) saw at ``(px, py)``: :data:`FREE` if some scan's ray towards it passed it (or, where
-    that ray came back empty, a dropout, both rays either side of it did), else :data:`ECHO` if
-    that ray came back from within :data:`NEAR` of it, else :data:`UNSEEN`. Only points within
-    :data:`REACH` of a scan count: between rays 1 deg apart a point may lie up to 2.6 cm off the
-    ray that passed it there."""
-    echo = False
-    for ranges, (sx, sy, syaw) in zip(scans, poses, strict=True):
-        dx, dy = px - sx, py - sy
-        distance = math.hypot(dx, dy)
-        if distance > REACH:
-            continue
-        n = len(ranges)
-        at = (math.atan2(dy, dx) - syaw) * n / (2 * math.pi)
-        r = _valid(ranges[round(at) % n])
-        if r is None:  # a dropout between two echoes tells what its neighbours tell
-            below, above = (_valid(ranges[(math.floor(at) + k) % n]) for k in (0, 1))
-            if below is None or above is None:
-                continue
-            r = min(below, above)
-        if r >= distance + TOLERANCE:
-            return FREE
-        echo = echo or abs(r - distance) <= NEAR
-    return ECHO if echo else UNSEEN
+    """What ``scans`` (each with the ``(x, y, yaw_rad)`` it was taken from) saw at ``(px, py)``:
+    see :meth:`SeenSpace.seen`."""
+    return SeenSpace(scans, poses).seen(px, py)
 
 
 def _valid(r: float | None) -> float | None:
@@ -61,17 +85,16 @@ def _valid(r: float | None) -> float | None:
 
 def clearance(
     pose: Sequence[float],
-    scans: Sequence[Sequence[float | None]],
-    poses: Sequence[Sequence[float]],
+    space: SeenSpace,
     *,
     radius: float = 0.17,
-    horizon: float = 2.0,
+    horizon: float = 1.0,
     step: float = 0.05,
     lanes: int = 13,
 ) -> tuple[float, str]:
     """``(distance, limit)``: how far (m, at most ``horizon``) the robot at ``pose``
     ``(x, y, yaw_rad)``, a disc of ``radius``, can drive straight ahead with every point it
-    sweeps seen free by ``scans``, and what ends it there (:data:`ECHO` or :data:`UNSEEN`;
+    sweeps seen free in ``space``, and what ends it there (:data:`ECHO` or :data:`UNSEEN`;
     :data:`FREE` at the horizon). The disc's front half is sampled at ``lanes`` points evenly
     spaced in angle (every 15 deg), every ``step`` m along: between the samples and the rays an
     obstacle of the scenarios' sizes can reach at most 3 cm into the disc
@@ -81,13 +104,11 @@ def clearance(
     angles = [math.pi * (k / (lanes - 1) - 0.5) for k in range(lanes)]
     front = [(radius * math.sin(a), radius * math.cos(a)) for a in angles]  # (across, ahead)
     driven = 0.0
-    while driven < horizon:  # the disc moved ``driven`` ahead: its front arc, lane by lane
-        found = {
-            seen(x + (driven + bulge) * ch - o * sh, y + (driven + bulge) * sh + o * ch,
-                 scans, poses)
-            for o, bulge in front
-        }
-        if found != {FREE}:
+    while driven < horizon - 1e-9:  # the disc moved ``driven`` ahead: its front, lane by lane
+        points = [(x + (driven + ahead) * ch - across * sh, y + (driven + ahead) * sh + across * ch)
+                  for across, ahead in front]
+        if any(space.seen(px, py) != FREE for px, py in points):
+            found = {space.seen(px, py) for px, py in points}
             return round(max(driven - step, 0.0), 3), UNSEEN if UNSEEN in found else ECHO
         driven += step
     return horizon, FREE

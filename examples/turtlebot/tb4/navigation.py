@@ -141,7 +141,10 @@ def sweep_targets(rotation_deg: float) -> list[float]:
 @dataclass
 class SpinController:
     """Inserts a spin plan into the motion: after every ``stop_every`` seconds of driving, stop,
-    sweep ``+rotation``, ``-rotation``, back to the heading, at ``angular_velocity`` deg/s.
+    sweep ``+rotation``, ``-rotation``, back to the heading, at ``angular_velocity`` deg/s,
+    holding each end of the sweep for ``dwell`` seconds: one scan period, so that a scan is
+    taken there (at 90 deg/s the scans taken while turning are 18 deg apart, and the ends of the
+    sweep, which show what lies straight ahead, would often go unscanned).
 
     A new plan starts with a spin at once (the occlusion was just found); ``rotation == 0``
     cancels spinning.
@@ -155,6 +158,8 @@ class SpinController:
     targets: list[float] = field(default_factory=list)
     base_yaw: float = 0.0
     spins: int = 0
+    dwell: float = 0.2
+    holding: float = 0.0
 
     def configure(self, payload: dict, yaw: float) -> None:
         self.rotation = float(payload.get("rotation", 0.0))
@@ -162,6 +167,7 @@ class SpinController:
         self.stop_every = float(payload.get("stop_every", 0.0))
         self.plan = str(payload.get("plan", ""))
         self.targets = []
+        self.holding = 0.0
         if self.active:
             self.driven = self.stop_every  # spin at the next step
 
@@ -188,8 +194,12 @@ class SpinController:
         """Angular velocity (rad/s) for this step of a spin; pops reached targets."""
         rate = math.radians(self.angular_velocity)
         while self.targets:
+            if self.holding > 1e-9:
+                self.holding -= dt
+                return 0.0
             error = wrap(self.base_yaw + math.radians(self.targets[0]) - yaw)
             if abs(error) > 1e-6:
                 return max(-rate, min(rate, error / dt))
-            self.targets.pop(0)
+            if self.targets.pop(0) != 0.0:  # an end of the sweep
+                self.holding = self.dwell
         return 0.0
