@@ -155,9 +155,14 @@ def test_the_robot_looks_when_the_clearance_robustness_now_or_ahead_falls_below_
     assert looking(occluded_chart(), 3.2, robustness=1.0, ahead=0.7) is None
 
 
-def test_no_look_for_an_echo_ahead_a_standing_robot_or_within_the_settle_time():
-    # an obstacle the scans have seen ends the clearance: the planner steers round it
-    assert looking(occluded_chart(), 3.2, robustness=0.1, ahead=0.2, unseen=False) is None
+def test_an_echo_ahead_is_looked_at_only_once_the_robot_would_not_stop_short_of_it():
+    # an obstacle the scans have seen ends the clearance: the planner slows down for it...
+    assert looking(occluded_chart(), 3.2, robustness=0.1, ahead=0.35, unseen=False) is None
+    # ...unless it does not know it (seen from afar, then hidden by the debris): look
+    assert looking(occluded_chart(), 3.2, robustness=0.1, ahead=0.25, unseen=False) is not None
+
+
+def test_no_look_for_a_standing_robot_or_within_the_settle_time():
     assert looking(occluded_chart(), 3.2, robustness=0.1, ahead=0.2, velocity=0.0) is None
     assert looking(occluded_chart(), 2.8, robustness=0.1, ahead=0.2) is None
 

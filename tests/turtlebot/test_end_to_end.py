@@ -12,6 +12,7 @@ from rasm import Platform, RunOptions
 from rasm.cli import main
 from rasm.loop import MEASURED_KEYS
 from rasm.platform.manifest import load_manifest
+from rasm.testing import run_app
 
 APP_PROPERTIES = {
     "velocity_limit",
@@ -48,8 +49,9 @@ def test_rasm_run_adapts_and_rasm_check_agrees_on_its_trace(tmp_path, capsys, mo
     assert code == 0, capsys.readouterr().out
     records = read(trace)
     executed = [r for r in records if r.get("executed")]
-    # the front debris (t = 1 s) and the extra debris (t = 14 s) are each answered
-    assert [round(r["time"], 1) for r in executed] == [2.4, 15.4]
+    # the front debris (t = 1 s) and the extra debris (t = 14 s) are each answered, and the
+    # robot looks for clearance once
+    assert [round(r["time"], 1) for r in executed] == [2.4, 15.4, 22.6]
     assert not any(r.get("collision") for r in records)
     capsys.readouterr()
     props = APP / "properties" / "turtlebot.rv"
@@ -63,12 +65,13 @@ def test_rasm_run_adapts_and_rasm_check_agrees_on_its_trace(tmp_path, capsys, mo
 
 @pytest.mark.slow
 def test_the_default_run_reaches_the_goal_without_collision_and_every_property_holds():
-    summary = Platform(load_manifest(APP), RunOptions(clock="simulated", seed=1,
-                                                      knowledge="memory")).run()
+    trace = run_app(APP, seed=1, duration=load_manifest(APP).duration)
+    summary = trace.summary
     assert summary.ok, summary.verdicts
     assert {summary.verdicts[p] for p in APP_PROPERTIES} == {"satisfied"}
-    # the two debris, and one look for clearance
-    assert summary.stats.executed == 3 and summary.stats.rejected == 0
+    assert any(r.get("nav_mode") == "arrived" for r in trace)
+    # the two debris, and two looks for clearance
+    assert summary.stats.executed == 4 and summary.stats.rejected == 0
 
 
 def test_the_rules_are_consistent(capsys):

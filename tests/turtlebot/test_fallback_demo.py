@@ -39,13 +39,13 @@ REPAIR = APP.with_name("app.repair.yaml")
 def test_repaired_spin_plans_are_executed_where_cancelled_ones_end_in_a_collision():
     trace = run_app(REPAIR, seed=1, duration=60)
     repaired = [r for r in trace if "repaired_from" in r]
-    # the two debris, then two looks for clearance (statecharts/analyse.yaml)
+    # the two debris, then three looks for clearance (statecharts/analyse.yaml)
     assert [(r["time"], r["plan"], r["repaired_from"], r["angular_velocity"]) for r in repaired] \
-        == [(2.4, "p2", "p1", 45.0), (15.4, "p4", "p3", 45.0), (26.0, "p6", "p5", 45.0),
-            (50.0, "p8", "p7", 45.0)]
+        == [(2.4, "p2", "p1", 45.0), (15.4, "p4", "p3", 45.0), (26.4, "p6", "p5", 45.0),
+            (37.8, "p8", "p7", 45.0), (49.2, "p10", "p9", 45.0)]
     for r in repaired:  # the stop is lengthened just enough for the slower sweep to fit
         assert abs(r["angular_velocity"] * r["spin_duration"] - 4 * r["rotation"]) < 1e-6
-    assert {"p2", "p4", "p6", "p8"} <= {r["plan"] for r in trace if r.get("executed")}
+    assert {"p2", "p4", "p6", "p8", "p10"} <= {r["plan"] for r in trace if r.get("executed")}
     assert trace.summary.ok
     without = run_app(REPAIR, seed=1, duration=60, repair=False)
     stats = without.summary.stats

@@ -169,7 +169,7 @@ class SpinController:
         self.targets = []
         self.holding = 0.0
         if self.active:
-            self.driven = self.stop_every  # spin at the next step
+            self.driven = self.stop_every  # spin at once: the next step brakes for it
 
     @property
     def active(self) -> bool:
@@ -179,16 +179,20 @@ class SpinController:
     def spinning(self) -> bool:
         return bool(self.targets)
 
-    def drove(self, dt: float, yaw: float) -> None:
-        """Account ``dt`` seconds of driving; start a spin when a stop is due."""
-        if not self.active:
-            return
-        self.driven += dt
-        if self.driven >= self.stop_every:
+    def drove(self, dt: float) -> None:
+        """Account ``dt`` seconds of driving."""
+        if self.active:
+            self.driven += dt
+
+    def spins_now(self, yaw: float) -> bool:
+        """Whether this step belongs to a spin: one under way, or one due now, which starts from
+        heading ``yaw`` (radians)."""
+        if self.active and not self.targets and self.driven >= self.stop_every:
             self.targets = sweep_targets(self.rotation)
             self.base_yaw = yaw
             self.driven = 0.0
             self.spins += 1
+        return self.spinning
 
     def turn(self, yaw: float, dt: float) -> float:
         """Angular velocity (rad/s) for this step of a spin; pops reached targets."""

@@ -99,7 +99,7 @@ class TurtleBotSimulator:
         elif self.command is not None and time < self.command[2]:
             v_cmd = min(max(self.command[0], 0.0), lim.cruise)
             w_cmd = min(max(self.command[1], -lim.turn_rate), lim.turn_rate)
-        elif self.spin.spinning:
+        elif self.spin.spins_now(self.yaw):
             v_cmd = 0.0
             w_cmd = self.spin.turn(self.yaw, dt) if self.v == 0.0 else 0.0
         else:
@@ -113,7 +113,7 @@ class TurtleBotSimulator:
                 goal = self.world.waypoints[self.waypoint]
             points = self.costmap.points_near(self.x, self.y, self.planner.horizon + 0.3, time)
             v_cmd, w_cmd = self.planner.command((self.x, self.y, self.yaw), goal, points)
-            self.spin.drove(dt, self.yaw)
+            self.spin.drove(dt)
         dv = max(-lim.accel * dt, min(lim.accel * dt, v_cmd - self.v))
         self.v = max(0.0, self.v + dv)
         if abs(self.v) < 1e-9:
