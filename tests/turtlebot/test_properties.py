@@ -101,3 +101,18 @@ def test_a_spin_plan_executed_after_arrival_breaks_nothing_after_arrival():
     arrived = [(1.0, {"mode": "arrived", "mode_arrived": True})]
     assert violated([*arrived, *iteration(1.2, *FULL, anomaly=True)]) == {"nothing_after_arrival"}
     assert violated([*iteration(0.8, *FULL, anomaly=True), *arrived]) == set()
+
+
+def test_driving_on_beyond_what_was_seen_free_breaks_keeps_clearance_once_the_robot_has_looked():
+    navigate = {"mode_navigate": True, "mode_spin": False}
+    spin = {"mode_navigate": False, "mode_spin": True}
+    start = [*iteration(0.2, "monitor"), (0.3, {**navigate, "clearance": 0.0, "velocity": 0.3})]
+    # before the first look the robot drives on its own knowledge: not the loop's doing
+    assert violated(start) == set()
+    looked = [*start, (0.5, spin), (3.5, {**navigate, "clearance": 0.8, "velocity": 0.3})]
+    assert violated(looked) == set()
+    # braking for a look with little seen free ahead is not driving on
+    braking = [*looked, (4.0, {**spin, "clearance": 0.1, "velocity": 0.2})]
+    assert violated(braking) == set()
+    blind = [*looked, (4.0, {"clearance": 0.25})]  # 0.3 m/s: 0.3 m in the next second
+    assert violated(blind) == {"keeps_clearance"}
