@@ -276,7 +276,10 @@ def test_effector_fields_are_plan_fields(tmp_path):
     start = text.index("  plan:\n    component: components:SpinPlan")
     end = text.index("  legitimate:")
     (app / "app.yaml").write_text(text[:start] + "  plan: components:SpinPlan\n" + text[end:])
-    assert problems(app) == []  # /spin_config's fields and /odom's velocity cover the rules
+    # /spin_config's fields cover the rules' variables, all but the plan's cruise speed, which
+    # only the Plan's produces declares
+    assert problems(app) == [("turtlebot.yaml", 8, 3, "rule variable 'cruise' is neither a plan "
+                              "field nor a signal the app provides")]
 
 
 # --------------------------------------------------------------------------- the manifest
