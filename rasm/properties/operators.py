@@ -446,8 +446,8 @@ class FutureOr:
         self.hit, self.miss = hit, not hit  # the operand values that decide, and the others
         self.value = True  # the output where a value in the window hits
         # record base + k: its time as given and in ns, the operand's value there (UNKNOWN
-        # until it comes), the first output whose window holds it (None for the newest
-        # until its step ends), whether its output is decided; with a > 0, the first record
+        # until it comes), the first output whose window holds it (known, and appended,
+        # when its step ends), whether its output is decided; with a > 0, the first record
         # of its window (None: none yet) and the last output whose window holds it (a = 0:
         # the record itself, both)
         self.times: list = []
@@ -491,7 +491,6 @@ class FutureOr:
         self.times.append(t)
         nss.append(ns)
         vals.append(UNKNOWN)
-        self.firsts.append(None)
         self.done.append(False)
         if a:
             lows = self.lows
@@ -505,7 +504,7 @@ class FutureOr:
         miss = self.miss
         while queue:
             u, _, _, v = queue.popleft()
-            if v is miss and not groups:  # (no output waits on it)
+            if v is miss and (not groups or u not in groups):  # (no output waits on it)
                 if u >= base:
                     vals[u - base] = v
             else:
@@ -534,7 +533,8 @@ class FutureOr:
             j += 1
         self.scan = scan
         # this record lies in the windows of outputs reach .. its last
-        self.reach = self.firsts[i - base] = j
+        self.reach = j
+        self.firsts.append(j)
         if len(nss) > self._tidy_at:
             self._tidy()
 
@@ -547,8 +547,10 @@ class FutureOr:
         if v is self.hit:
             if self._groups:
                 self._groups.pop(u, None)  # its waiting outputs are decided now
-            first = self.firsts[u - base]
-            if first is None:  # the newest record: the windows it completes do not hold it
+            k = u - base
+            if k < len(self.firsts):
+                first = self.firsts[k]
+            else:  # the newest record: the windows it completes do not hold it
                 first, ns, b, nss = self.reach, self.nss[u - base], self.b, self.nss
                 while ns - nss[first - base] > b:
                     first += 1
@@ -608,9 +610,15 @@ class FutureOr:
         while p <= limit and vals[p - base] is miss:
             p = links.get(p, p + 1)
         links[u] = p  # the values from u to before p miss
+        # j is not decided: decide it, then go on to the next output not decided yet
+        # (the one after it, unless that was decided early)
+        done, out, times, nss, value = self.done, self.out, self.times, self.nss, not self.value
         while j <= last and highs[j] < p:
-            self._decide(j, not self.value)
-            j = self._undecided_from(j + 1)
+            done[j - base] = True
+            out.append((j, times[j - base], nss[j - base], value))
+            j += 1
+            if j - base < len(done) and done[j - base]:
+                j = self._undecided_from(j)
         if j <= last:
             later = self._groups.get(p)  # its outputs all come after ours
             if later is None:
