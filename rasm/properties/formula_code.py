@@ -181,7 +181,8 @@ class FormulaGenerator(Emitter, Transformer[Value]):
         # fails to be made leaves its record owed)
         take: tuple = (Code(f"_j, _tj, _tn, _v = {top}.popleft()"),)
         if robustness is not None:
-            take += (Online(f"_r = {robustness}.pop(_j, None)"),)
+            # (mostly empty: where verdicts come early, their robustness is final later)
+            take += (Online(f"_r = {robustness}.pop(_j, None) if {robustness} else None"),)
         drain = Block(f"while {top}:", (
             *take,
             Emit(number, "_j", "_tj", "_v", order, robustness and "_r", final=False),
