@@ -223,6 +223,18 @@ class PrevStream(Stream):
                 self.known[j] = v
 
 
+def window_ends(times: list[int], base: int, low: int, high: int, i: int, ns: int, a: int,
+                b: int | float) -> tuple[int, int]:
+    """The first and last record of record ``i``'s window (the records j <= i with
+    ``a <= ns - times[j - base] <= b``), moved on from the previous record's ``low, high``."""
+    if b != INF:
+        while ns - times[low - base] > b:  # stops at i at the latest
+            low += 1
+    while high < i and ns - times[high + 1 - base] >= a:
+        high += 1
+    return low, high
+
+
 class AggregateStream(Stream):
     """An aggregate over a stream.
 
@@ -253,12 +265,8 @@ class AggregateStream(Stream):
             self.base = self.low = self.entered = i
             self.high = i - 1
         times.append(ns)
-        base, low, high = self.base, self.low, self.high
-        if self.b != INF:
-            while ns - times[low - base] > self.b:  # stops at i at the latest
-                low += 1
-        while high < i and ns - times[high + 1 - base] >= self.a:
-            high += 1
+        base = self.base
+        low, high = window_ends(times, base, self.low, self.high, i, ns, self.a, self.b)
         self.low, self.high = low, high
         if low > high:
             self.out.append((i, t, ns, self.empty))
@@ -368,12 +376,8 @@ class CountStream(Stream):
             self.high = i - 1
             self.totals.append(_ZERO)
         times.append(ns)
-        base, low, high = self.base, self.low, self.high
-        if self.b != INF:
-            while ns - times[low - base] > self.b:  # stops at i at the latest
-                low += 1
-        while high < i and ns - times[high + 1 - base] >= self.a:
-            high += 1
+        base = self.base
+        low, high = window_ends(times, base, self.low, self.high, i, ns, self.a, self.b)
         self.low, self.high = low, high
         record = self.newest = _Open(i, t, ns, low, high)
         if low > high:  # an empty window: a count of 0
