@@ -382,18 +382,7 @@ def measure_rtamt(formula: str, variables: list[str], trace: list[dict], future:
 
     # rtamt's bounded since costs O(bound) per record: give it a time budget per run and
     # report the rate over the records it got through
-    rates = []
-    for _ in range(repeat):
-        update = build().update
-        start = time.process_time()
-        done = 0
-        for k, row in enumerate(rows):
-            update(k, row)
-            done = k + 1
-            if done % 100 == 0 and time.process_time() - start > budget:
-                break
-        rates.append(done / (time.process_time() - start))
-    return statistics.median(rates)
+    return statistics.median(_budgeted(build().update, rows, budget) for _ in range(repeat))
 
 
 def flatness(name: str, bounds: list[int], trace: list[dict], repeat: int) -> list[float]:

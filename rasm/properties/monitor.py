@@ -208,12 +208,11 @@ class Monitor:
         ) = namespace["factory"]()
         # the generated function itself, not a method around it: one call less per record
         # (online, each verdict comes out of it with its robustness where that is final)
-        if not (robustness and intervals):
-            self.step = self._step
-        elif intervals == "newest":
-            self.step = self._step_newest
-        else:
-            self.step = self._step_intervals
+        self._add_intervals: Callable[[list[Verdict]], list[Verdict]] | None = None
+        if robustness and intervals:
+            self._add_intervals = (self._with_newest_interval if intervals == "newest"
+                                   else self._with_intervals)
+        self.step = self._step if self._add_intervals is None else self._step_with_intervals
 
     # ----------------------------------------------------------------- online
     @property
@@ -228,9 +227,9 @@ class Monitor:
         """
         return self._step(time, values)
 
-    def _step_intervals(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
+    def _step_with_intervals(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
         out = self._step(time, values)
-        return self._with_intervals(out) if out else out
+        return self._add_intervals(out) if out else out
 
     def _with_intervals(self, out: list[Verdict]) -> list[Verdict]:
         """The verdicts ``out``, each decided before its robustness is final with the interval
@@ -244,10 +243,6 @@ class Monitor:
                 interval = intervals[k].get(verdict.index, (-INF, INF))
                 out[position] = verdict._replace(robustness_interval=interval)
         return out
-
-    def _step_newest(self, time: float, values: Mapping[str, object]) -> list[Verdict]:
-        out = self._step(time, values)
-        return self._with_newest_interval(out) if out else out
 
     def _with_newest_interval(self, out: list[Verdict]) -> list[Verdict]:
         """The verdicts ``out``, the newest of each property with the interval known now if it
@@ -325,11 +320,7 @@ class Monitor:
         out = self._finish()
         for k, recovery in self._recovering.items():
             self._taint(k, recovery, out)
-        if not (self._intervals and self.robustness):
-            return out
-        if self._intervals == "newest":
-            return self._with_newest_interval(out)
-        return self._with_intervals(out)
+        return out if self._add_intervals is None else self._add_intervals(out)
 
     # ----------------------------------------------------------------- faults
     def _fault(self, k: int, index: int | None, time, ns: int | None, exc: Exception,
@@ -373,10 +364,10 @@ class Monitor:
             if verdict.property == name and verdict.error is None and recovery.tainted(
                 verdict.index
             ):
-                out[position] = verdict._replace(value=False, error=recovery.why)
-                if self.robustness:  # an error's robustness is -inf
-                    out[position] = out[position]._replace(robustness=-INF,
-                                                           robustness_interval=(-INF, -INF))
+                # an error's robustness is -inf
+                robust = {"robustness": -INF, "robustness_interval": (-INF, -INF)}
+                out[position] = verdict._replace(value=False, error=recovery.why,
+                                                 **(robust if self.robustness else {}))
                 recovery.given += 1
 
     def _fault_run(self, k: int, index: int, ns: int | None, exc: Exception) -> None:

@@ -193,6 +193,16 @@ def _rounded(numerator: int, denominator: int) -> float:
 _T, _NS, _VAL, _LO, _HI, _FIRST, _LAST, _DONE = range(8)
 
 
+def _wait_on(groups: dict[int, list[int]], blocker: int, first: int, last: int) -> None:
+    """Outputs ``first`` to ``last`` wait on record ``blocker``'s value, joining the group
+    already waiting there (whose outputs all come after ours)."""
+    later = groups.get(blocker)
+    if later is None:
+        groups[blocker] = [first, last]
+    else:
+        later[0] = first
+
+
 class WindowOr:
     """``once[a,b] v`` (``past``) or ``eventually[a,b] v`` of a value decided in any order.
 
@@ -356,11 +366,7 @@ class WindowOr:
             self._decide(j, recs[j - base], False)
             j = self._undecided_from(j + 1)
         if j <= last:
-            later = self._groups.get(blocker)  # its outputs all come after ours
-            if later is None:
-                self._groups[blocker] = [j, last]
-            else:
-                later[0] = j
+            _wait_on(self._groups, blocker, j, last)
 
     def _decide_range(self, first: int, last: int, value) -> None:
         recs, base = self.recs, self.base
@@ -620,11 +626,7 @@ class FutureOr:
             if j - base < len(done) and done[j - base]:
                 j = self._undecided_from(j)
         if j <= last:
-            later = self._groups.get(p)  # its outputs all come after ours
-            if later is None:
-                self._groups[p] = [j, last]
-            else:
-                later[0] = j
+            _wait_on(self._groups, p, j, last)
 
     def _undecided_from(self, j: int) -> int:
         """The first output at or after ``j`` not decided yet (the next record's if none); the
